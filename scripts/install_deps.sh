@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Installs the Debian packages rodfit builds against, only those that are missing.
+# Idempotent: a machine that has them all is left untouched (no apt-get update either).
+set -euo pipefail
+packages=(
+  build-essential cmake pkg-config
+  libeigen3-dev libceres-dev libnlopt-cxx-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  # OpenCV: only the modules rodfit uses (core, imgproc, imgcodecs, calib3d), not the metapackage.
+  libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-calib3d-dev
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+echo "install_deps: installing ${missing[*]}" >&2
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null

@@ -1,0 +1,69 @@
+// Frame operations shared by the energy terms, templated on the scalar so doubles and
+// ceres::Jet go through one code path: parallel transport between unit tangents (the minimal
+// rotation, Rodrigues form) and the signed angle between two directors about an axis.
+#pragma once
+
+#include <cmath>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <ceres/jet_fwd.h>
+
+namespace rodfit {
+
+template <typename T>
+using Vec3T = Eigen::Matrix<T, 3, 1>;
+
+/// A double constant as the scalar T, also for nested Jets (whose constructor from double is
+/// two conversions away): Cst<T>(0.5) where T(0.5) would do for double and a plain Jet.
+template <typename T>
+struct ConstantOf {
+  static T Make(double v) { return T(v); }
+};
+template <typename T, int N>
+struct ConstantOf<ceres::Jet<T, N>> {
+  static ceres::Jet<T, N> Make(double v) { return ceres::Jet<T, N>(ConstantOf<T>::Make(v)); }
+};
+template <typename T>
+T Cst(double v) {
+  return ConstantOf<T>::Make(v);
+}
+template <typename T>
+Vec3T<T> CastVec(const Eigen::Vector3d& v) {
+  return Vec3T<T>(Cst<T>(v[0]), Cst<T>(v[1]), Cst<T>(v[2]));
+}
+template <typename T>
+const Vec3T<T>& CastVec(const Vec3T<T>& v) {
+  return v;
+}
+
+/// Parallel transport of u from unit tangent a to unit tangent b: the rotation about a x b taking
+/// a to b. R = I + [w]x + [w]x^2 / (1 + c), w = a x b, c = a.b; smooth at a = b (the common
+/// case of a straight or slowly moving rod), singular only for b = -a, which callers prevent by
+/// limiting how far a tangent turns in one step.
+template <typename T, typename U>
+Vec3T<T> ParallelTransport(const Vec3T<T>& a, const Vec3T<T>& b, const Vec3T<U>& u) {
+  const Vec3T<T> w = a.cross(b);
+  const T c = a.dot(b);
+  const Vec3T<T> ut = CastVec<T>(u);
+  const Vec3T<T> wu = w.cross(ut);
+  return ut + wu + w.cross(wu) / (Cst<T>(1.0) + c);
+}
+
+/// Signed angle from p to q about the unit axis n (p, q perpendicular to n).
+template <typename T>
+T SignedAngle(const Vec3T<T>& p, const Vec3T<T>& q, const Vec3T<T>& n) {
+  using std::atan2;
+  return atan2(p.cross(q).dot(n), p.dot(q));
+}
+
+/// Shifts angle by a whole number of turns so that it is the closest to `reference` (keeps the
+/// reference twist continuous in time instead of wrapping at +-pi).
+template <typename T>
+T UnwrapNear(const T& angle, double angle_value, double reference) {
+  constexpr double kTwoPi = 6.283185307179586;
+  const double turns = std::round((reference - angle_value) / kTwoPi);
+  return angle + Cst<T>(turns * kTwoPi);
+}
+
+}  // namespace rodfit

@@ -1,0 +1,103 @@
+// The discrete Cosserat rod (DESIGN.md §1; Bergou et al. 2008/2010; tissue paper eqs. 6–8):
+// n edges, vertices x_0..x_n, one twist angle per edge, reference frames transported in time.
+//
+// The clamp at s = 0 is a fixed ghost edge along the clamp tangent carrying the clamp frame.
+// Vertex 0 is treated as a bending vertex between the ghost edge and edge 0 with half a Voronoi
+// cell (l_0 / 2): the turning from the clamp tangent (at s = 0) to edge 0 (at s = l_0 / 2) is
+// the odd reflection of the angle about the clamp, which keeps the scheme second order and
+// makes an end moment close a circle. Free degrees of freedom: x_1..x_n and theta_0..theta_{n-1}.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rodfit/model/scene.h"
+
+namespace rodfit {
+
+using Mat3X = Eigen::Matrix3Xd;
+using VecX = Eigen::VectorXd;
+
+/// The configuration of a rod: vertices, twist angles and the time-transported reference frame.
+struct RodState {
+  Mat3X x;          ///< vertices x_0..x_n [m], column i
+  VecX theta;       ///< twist angle of edge j against its reference frame [rad], size n
+  Mat3X ref_u;      ///< reference director u_j of edge j (unit, perpendicular to ref_t_j)
+  Mat3X ref_t;      ///< tangent at which ref_u_j was last transported
+  VecX ref_twist;   ///< reference twist at vertex i = 0..n-1 [rad], kept continuous in time
+
+  int num_edges() const { return static_cast<int>(theta.size()); }
+  Vec3 vertex(int i) const { return x.col(i); }
+};
+
+/// Material frame of one edge: d3 the tangent, d1 and d2 the material directors.
+struct EdgeFrame {
+  Vec3 d1, d2, d3;
+};
+
+/// Constants of one load case on one rod: geometry, stiffness, loads (the Pinocchio "Model").
+/// Built once per case; the solver's scratch lives elsewhere.
+class RodModel {
+ public:
+  /// Throws std::invalid_argument with the reason when the inputs are not a valid rod
+  /// (fewer than 2 segments, non-positive length or stiffness, clamp normal parallel to tangent).
+  RodModel(const RodSpec& rod, const Material& material, const Vec3& gravity,
+           const LoadCase& load_case);
+
+  int num_edges() const { return n_; }
+  int num_vertices() const { return n_ + 1; }
+  int num_free_dofs() const { return 4 * n_; }
+
+  double length() const { return length_; }
+  double rest_edge_length(int j) const { return rest_edge_[j]; }
+  /// Rest Voronoi length of the bending vertex i (0..n-1) [m]; vertex 0 has half a cell.
+  double voronoi_length(int i) const { return voronoi_[i]; }
+  /// Arc length of vertex i in the rest state [m].
+  double arc_length(int i) const { return arc_[i]; }
+
+  const RodSpec& rod() const { return rod_; }
+  const Material& material() const { return material_; }
+  const LoadCase& load_case() const { return case_; }
+  const Vec3& gravity() const { return gravity_; }
+
+  const Vec3& clamp_position() const { return clamp_p_; }
+  const Vec3& clamp_tangent() const { return clamp_d3_; }   ///< unit d3 at s = 0
+  const Vec3& clamp_d1() const { return clamp_d1_; }        ///< unit d1 at s = 0
+
+  /// Lumped weight of vertex i: mass times gravity [N] (zero for a massless rod).
+  Vec3 vertex_weight(int i) const { return vertex_mass_[i] * gravity_; }
+  double vertex_mass(int i) const { return vertex_mass_[i]; }
+
+  /// Dead external forces lumped on vertices (tip force, point forces, weights) [N].
+  const Mat3X& vertex_forces() const { return vertex_forces_; }
+
+  /// A characteristic force [N] of this case: the largest of the loads and the bending scale
+  /// B / L^2. Solver tolerances are relative to it.
+  double force_scale() const { return force_scale_; }
+
+  /// The straight rod along the clamp tangent with the clamp frame, untwisted.
+  RodState StraightState() const;
+
+  /// Material frame of edge j in a state (reference frame rotated by theta_j).
+  EdgeFrame MaterialFrame(const RodState& state, int j) const;
+
+  /// Index of a free dof in the banded ordering: block j = [x_{j+1} (3), theta_j (1)].
+  static int VertexDof(int i) { return 4 * (i - 1); }   ///< first of x_i's three dofs, i >= 1
+  static int TwistDof(int j) { return 4 * j + 3; }
+
+ private:
+  RodSpec rod_;
+  Material material_;
+  LoadCase case_;
+  Vec3 gravity_;
+  int n_ = 0;
+  double length_ = 0.0;
+  std::vector<double> rest_edge_, voronoi_, arc_, vertex_mass_;
+  Vec3 clamp_p_, clamp_d3_, clamp_d1_;
+  Mat3X vertex_forces_;
+  double force_scale_ = 1.0;
+};
+
+}  // namespace rodfit

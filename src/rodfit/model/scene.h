@@ -1,0 +1,69 @@
+// What a scene declares: the rod, its material, gravity and the load cases (DESIGN.md §1, §6).
+// Plain data with SI units; io/ fills it from YAML, model/ and solve/ build only what it needs.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace rodfit {
+
+using Vec3 = Eigen::Vector3d;
+
+/// Geometry and mass of the rod, the `rod:` block of the scene YAML.
+struct RodSpec {
+  double length = 0.0;          ///< [m]
+  int segments = 0;             ///< number of edges n (>= 2)
+  double radius = 0.0;          ///< [m]
+  double linear_density = 0.0;  ///< [kg/m]
+  /// Intrinsic curvature at rest (k1°, k2°, tau°) [1/m]; [0, k, 0] with k > 0 bends the unloaded
+  /// rod towards the clamp's normal.
+  Vec3 rest_curvature = Vec3::Zero();
+};
+
+/// Material parameters of DESIGN.md §1 (the `parameters:` values).
+struct Material {
+  double bend_stiffness = 0.0;                 ///< B1 [N m^2], resists k1 (rotation about d1)
+  std::optional<double> bend_stiffness_2;      ///< B2 [N m^2], resists k2; absent = B1
+  double twist_stiffness = 0.0;                ///< GJ [N m^2]
+  double stretch_stiffness = 0.0;              ///< EA [N]
+  double spring_stiffness = 0.0;               ///< K [N/m^2] of the tissue springs
+
+  double B1() const { return bend_stiffness; }
+  double B2() const { return bend_stiffness_2 ? *bend_stiffness_2 : bend_stiffness; }
+};
+
+/// Clamp at s = 0: d3 = tangent, d1 = normal (Gram–Schmidt against the tangent), d2 = d3 x d1.
+/// Neither vector needs unit length.
+struct Clamp {
+  Vec3 position = Vec3::Zero();     ///< [m]
+  Vec3 tangent = Vec3::UnitX();
+  Vec3 normal = Vec3::UnitZ();
+};
+
+/// A dead force applied at arc length s (linearly shared by the two vertices around s).
+struct PointForce {
+  double s = 0.0;              ///< [m], in [0, L]
+  Vec3 force = Vec3::Zero();   ///< [N]
+};
+
+/// One quasi-static load case: the rod clamped and loaded, solved to equilibrium.
+struct LoadCase {
+  std::string name;
+  Clamp clamp;
+  Vec3 tip_force = Vec3::Zero();    ///< [N] at s = L
+  Vec3 tip_moment = Vec3::Zero();   ///< [N m] at s = L (dead moment, see model/energy.h)
+  std::vector<PointForce> point_forces;
+};
+
+/// A whole scene: one rod and material shared by every case.
+struct Scene {
+  RodSpec rod;
+  Material material;
+  Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s^2]
+  std::vector<LoadCase> cases;
+};
+
+}  // namespace rodfit

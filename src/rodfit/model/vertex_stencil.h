@@ -1,0 +1,162 @@
+// Bend–twist energy of one vertex of the discrete elastic rod (DESIGN.md §1; Bergou et al. 2008,
+// tissue paper eqs. 6–7), with the work of a dead end moment, on the stencil
+// q = [x_prev (3), x_mid (3), x_next (3), theta_e, theta_f] of edges e = x_mid - x_prev and
+// f = x_next - x_mid.
+//
+//   kb  = 2 te x tf / (1 + te.tf)                        curvature binormal, |kb| = 2 tan(phi/2)
+//   k1  = kb.(d1e + d1f) / (2 l),  k2 = kb.(d2e + d2f) / (2 l),  tau = (theta_f - theta_e + m) / l
+//   E   = l/2 [B1 (k1 - k1°)^2 + B2 (k2 - k2°)^2 + GJ (tau - tau°)^2]  -  M . Omega
+//   Omega = kb + (theta_f - theta_e + m) (te + tf) / 2   (the vertex's rotation, tan form)
+//
+// Reference directors are transported in time from (t_old, u_old) of each edge, and m is the
+// reference twist (angle from the spatial transport of u_e to u_f about tf), kept continuous.
+// With the tan-form Omega an end moment M bends every vertex by kb = M l / B, so a moment of
+// 2 pi B / L closes a circle up to (pi/N)^2/3 (DESIGN.md §7).
+//
+// VertexEnergy is the energy itself. VertexGradient is its gradient in closed form, valid where
+// the reference frames are fresh (t = t_old), which is where the solver evaluates it; its Jet
+// Jacobian differs from the true Hessian only by an antisymmetric holonomy term, so the Hessian
+// is the symmetric part of that Jacobian. Tests check both against the energy.
+#pragma once
+
+#include <cmath>
+
+#include <Eigen/Core>
+
+#include "rodfit/model/frames.h"
+
+namespace rodfit {
+
+/// Constants of one vertex stencil: stiffness, rest curvature and the last transported frames.
+struct VertexStencilConstants {
+  double voronoi_length = 1.0;        ///< rest Voronoi length l [m]
+  double B1 = 0, B2 = 0, GJ = 0;      ///< [N m^2]
+  Eigen::Vector3d rest_curvature = Eigen::Vector3d::Zero();  ///< k1°, k2°, tau° [1/m]
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();          ///< dead end moment [N m]
+  Eigen::Vector3d t_old_e, u_old_e, t_old_f, u_old_f;        ///< transport anchors of e, f
+  double ref_twist_old = 0.0;         ///< reference twist at the anchors [rad]
+};
+
+/// Geometry of the stencil at q: tangents, material frames, curvature binormal, reference twist.
+template <typename T>
+struct VertexGeometry {
+  Vec3T<T> te, tf, d1e, d2e, d1f, d2f, kb;
+  T len_e, len_f, chi, ref_twist;
+
+  VertexGeometry(const VertexStencilConstants& c, const T* q) {
+    using std::cos;
+    using std::sin;
+    using std::sqrt;
+    const Vec3T<T> xp(q[0], q[1], q[2]), xm(q[3], q[4], q[5]), xn(q[6], q[7], q[8]);
+    const Vec3T<T> e = xm - xp, f = xn - xm;
+    len_e = sqrt(e.squaredNorm());  // edges never shrink to zero: stretch energy prevents it
+    len_f = sqrt(f.squaredNorm());
+    te = e / len_e;
+    tf = f / len_f;
+    const Vec3T<T> ue = ParallelTransport<T, double>(CastVec<T>(c.t_old_e), te, c.u_old_e);
+    const Vec3T<T> uf = ParallelTransport<T, double>(CastVec<T>(c.t_old_f), tf, c.u_old_f);
+    const Vec3T<T> ve = te.cross(ue), vf = tf.cross(uf);
+    const T ce = cos(q[9]), se = sin(q[9]), cf = cos(q[10]), sf = sin(q[10]);
+    d1e = ce * ue + se * ve;
+    d2e = -se * ue + ce * ve;
+    d1f = cf * uf + sf * vf;
+    d2f = -sf * uf + cf * vf;
+    chi = Cst<T>(1.0) + te.dot(tf);
+    kb = Cst<T>(2.0) * te.cross(tf) / chi;
+    // Reference twist: the spatial transport of u_e onto tf, then the angle to u_f about tf.
+    const Vec3T<T> ue_on_f = ParallelTransport<T, T>(te, tf, ue);
+    const T raw = SignedAngle<T>(ue_on_f, uf, tf);
+    ref_twist = UnwrapNear(raw, ScalarPart(raw), c.ref_twist_old);
+  }
+
+  static double ScalarPart(double v) { return v; }
+  template <typename J>
+  static double ScalarPart(const J& v) { return ScalarPartOf(v.a); }
+  static double ScalarPartOf(double v) { return v; }
+  template <typename J>
+  static double ScalarPartOf(const J& v) { return ScalarPartOf(v.a); }
+};
+
+/// Material curvatures and torsion (k1, k2, tau) [1/m] of the stencil at q.
+template <typename T>
+Vec3T<T> VertexCurvatures(const VertexStencilConstants& c, const T* q) {
+  const VertexGeometry<T> g(c, q);
+  const T inv2l = Cst<T>(0.5 / c.voronoi_length);
+  return Vec3T<T>(g.kb.dot(g.d1e + g.d1f) * inv2l, g.kb.dot(g.d2e + g.d2f) * inv2l,
+                  (q[10] - q[9] + g.ref_twist) * Cst<T>(1.0 / c.voronoi_length));
+}
+
+/// Energy of the stencil [J] (bend, twist, minus the end moment's work).
+template <typename T>
+T VertexEnergy(const VertexStencilConstants& c, const T* q) {
+  const VertexGeometry<T> g(c, q);
+  const double l = c.voronoi_length;
+  const T dtheta = q[10] - q[9] + g.ref_twist;
+  const T k1 = g.kb.dot(g.d1e + g.d1f) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[0]);
+  const T k2 = g.kb.dot(g.d2e + g.d2f) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[1]);
+  const T tw = dtheta / Cst<T>(l) - Cst<T>(c.rest_curvature[2]);
+  T energy = Cst<T>(0.5 * l) * (Cst<T>(c.B1) * k1 * k1 + Cst<T>(c.B2) * k2 * k2 + Cst<T>(c.GJ) * tw * tw);
+  if (c.moment.squaredNorm() > 0.0) {
+    const Vec3T<T> M = CastVec<T>(c.moment);
+    energy -= M.dot(g.kb) + dtheta * M.dot(g.te + g.tf) * Cst<T>(0.5);
+  }
+  return energy;
+}
+
+/// Closed-form gradient of VertexEnergy with respect to q, exact where the frames are fresh.
+template <typename T>
+void VertexGradient(const VertexStencilConstants& c, const T* q, T* grad) {
+  const VertexGeometry<T> g(c, q);
+  const double l = c.voronoi_length;
+  const Vec3T<T> D1 = g.d1e + g.d1f, D2 = g.d2e + g.d2f;
+  const T kbD1 = g.kb.dot(D1), kbD2 = g.kb.dot(D2);
+  const T dtheta = q[10] - q[9] + g.ref_twist;
+  // Moments conjugate to l*k1, l*k2 and l*tau.
+  const T a1 = Cst<T>(c.B1) * (kbD1 / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[0]));
+  const T a2 = Cst<T>(c.B2) * (kbD2 / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[1]));
+  const T a3 = Cst<T>(c.GJ) * (dtheta / Cst<T>(l) - Cst<T>(c.rest_curvature[2]));
+  const T inv_chi = Cst<T>(1.0) / g.chi;
+  // d(kb.V)/dte = (2/chi) tf x V - (kb.V/chi) tf for a fixed V; the frame terms of D1, D2 vanish
+  // because kb is perpendicular to both tangents. d m / dte = kb / 2 (likewise for tf).
+  Vec3T<T> g_te = (a1 * (g.tf.cross(D1) * Cst<T>(2.0) - kbD1 * g.tf) +
+                   a2 * (g.tf.cross(D2) * Cst<T>(2.0) - kbD2 * g.tf)) * (Cst<T>(0.5) * inv_chi) +
+                  a3 * Cst<T>(0.5) * g.kb;
+  Vec3T<T> g_tf = (a1 * (D1.cross(g.te) * Cst<T>(2.0) - kbD1 * g.te) +
+                   a2 * (D2.cross(g.te) * Cst<T>(2.0) - kbD2 * g.te)) * (Cst<T>(0.5) * inv_chi) +
+                  a3 * Cst<T>(0.5) * g.kb;
+  T g_th_e = Cst<T>(0.5) * (a1 * g.kb.dot(g.d2e) - a2 * g.kb.dot(g.d1e)) - a3;
+  T g_th_f = Cst<T>(0.5) * (a1 * g.kb.dot(g.d2f) - a2 * g.kb.dot(g.d1f)) + a3;
+  if (c.moment.squaredNorm() > 0.0) {
+    const Vec3T<T> M = CastVec<T>(c.moment);
+    const T kbM = g.kb.dot(M);
+    const T Mt = M.dot(g.te + g.tf) * Cst<T>(0.5);
+    g_te -= (g.tf.cross(M) * Cst<T>(2.0) - kbM * g.tf) * inv_chi + Mt * Cst<T>(0.5) * g.kb +
+            dtheta * Cst<T>(0.5) * M;
+    g_tf -= (M.cross(g.te) * Cst<T>(2.0) - kbM * g.te) * inv_chi + Mt * Cst<T>(0.5) * g.kb +
+            dtheta * Cst<T>(0.5) * M;
+    g_th_e += Mt;
+    g_th_f -= Mt;
+  }
+  // Tangent gradients to edge gradients: d te = (I - te te^T) de / |e|.
+  const Vec3T<T> g_e = (g_te - g.te * g.te.dot(g_te)) / g.len_e;
+  const Vec3T<T> g_f = (g_tf - g.tf * g.tf.dot(g_tf)) / g.len_f;
+  for (int k = 0; k < 3; ++k) {
+    grad[k] = -g_e[k];
+    grad[3 + k] = g_e[k] - g_f[k];
+    grad[6 + k] = g_f[k];
+  }
+  grad[9] = g_th_e;
+  grad[10] = g_th_f;
+}
+
+/// Stretch energy of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2 (per-edge stretch, DESIGN.md §1),
+/// with its gradient and Hessian with respect to q = [x_a (3), x_b (3)].
+template <typename T>
+T StretchEnergy(double EA, double rest_length, const T* q) {
+  using std::sqrt;
+  const Vec3T<T> e(q[3] - q[0], q[4] - q[1], q[5] - q[2]);
+  const T strain = sqrt(e.squaredNorm()) / Cst<T>(rest_length) - Cst<T>(1.0);
+  return Cst<T>(0.5 * EA * rest_length) * strain * strain;
+}
+
+}  // namespace rodfit

@@ -1,0 +1,236 @@
+// Energy, gradient and banded Hessian assembly of the rod (rod_energy.h). The vertex Hessian is
+// the symmetric part of the Jet Jacobian of the closed-form stencil gradient (see
+// model/vertex_stencil.h for why that is exact); stretch is differentiated by hand.
+#include "rodfit/solve/rod_energy.h"
+
+#include <cmath>
+
+#include <ceres/jet.h>
+
+#include "rodfit/model/frames.h"
+
+namespace rodfit {
+namespace {
+
+using Jet11 = ceres::Jet<double, 11>;
+
+void StretchGradientHessian(double EA, double L0, const Vec3& xa, const Vec3& xb, Vec3* g,
+                            Eigen::Matrix3d* H) {
+  const Vec3 e = xb - xa;
+  const double len = e.norm();
+  const Vec3 t = e / len;
+  const double strain = len / L0 - 1.0;
+  *g = EA * strain * t;  // dE/dxb; dE/dxa = -g
+  if (H)
+    *H = (EA / L0) * t * t.transpose() +
+         (EA * strain / len) * (Eigen::Matrix3d::Identity() - t * t.transpose());
+}
+
+void AddBlock(BandedSymmetric* H, int r, int c, double v) {
+  if (r < 0 || c < 0) return;
+  if (r >= c) H->At(r, c) += v;  // lower band only; the symmetric entry is implied
+}
+
+}  // namespace
+
+void GatherVertexStencil(const RodModel& model, const RodState& state, int i, double load_scale,
+                         double q[11], VertexStencilConstants* c, std::array<int, 11>* dof) {
+  const Material& m = model.material();
+  c->voronoi_length = model.voronoi_length(i);
+  c->B1 = m.B1();
+  c->B2 = m.B2();
+  c->GJ = m.twist_stiffness;
+  c->rest_curvature = model.rod().rest_curvature;
+  c->moment = load_scale * model.load_case().tip_moment;
+  c->ref_twist_old = state.ref_twist[i];
+  Vec3 x_prev;
+  if (i == 0) {  // ghost edge behind the clamp carrying the clamp frame
+    x_prev = state.x.col(0) - model.rest_edge_length(0) * model.clamp_tangent();
+    c->t_old_e = model.clamp_tangent();
+    c->u_old_e = model.clamp_d1();
+    q[9] = 0.0;
+  } else {
+    x_prev = state.x.col(i - 1);
+    c->t_old_e = state.ref_t.col(i - 1);
+    c->u_old_e = state.ref_u.col(i - 1);
+    q[9] = state.theta[i - 1];
+  }
+  c->t_old_f = state.ref_t.col(i);
+  c->u_old_f = state.ref_u.col(i);
+  q[10] = state.theta[i];
+  for (int k = 0; k < 3; ++k) {
+    q[k] = x_prev[k];
+    q[3 + k] = state.x(k, i);
+    q[6 + k] = state.x(k, i + 1);
+  }
+  if (dof) {
+    for (int k = 0; k < 3; ++k) {
+      (*dof)[k] = (i - 1 >= 1) ? RodModel::VertexDof(i - 1) + k : -1;
+      (*dof)[3 + k] = (i >= 1) ? RodModel::VertexDof(i) + k : -1;
+      (*dof)[6 + k] = RodModel::VertexDof(i + 1) + k;
+    }
+    (*dof)[9] = (i >= 1) ? RodModel::TwistDof(i - 1) : -1;
+    (*dof)[10] = RodModel::TwistDof(i);
+  }
+}
+
+double PotentialEnergy(const RodModel& model, const RodState& state, const EnergyTerms& terms) {
+  const int n = model.num_edges();
+  double energy = 0.0;
+  double q[11];
+  VertexStencilConstants c;
+  for (int i = 0; i < n; ++i) {
+    GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, nullptr);
+    if (!terms.elastic) c.B1 = c.B2 = c.GJ = 0.0;
+    energy += VertexEnergy<double>(c, q);
+  }
+  if (terms.elastic) {
+    const double EA = model.material().stretch_stiffness;
+    for (int j = 0; j < n; ++j) {
+      double qs[6];
+      for (int k = 0; k < 3; ++k) {
+        qs[k] = state.x(k, j);
+        qs[3 + k] = state.x(k, j + 1);
+      }
+      energy += StretchEnergy<double>(EA, model.rest_edge_length(j), qs);
+    }
+  }
+  if (terms.loads) {
+    for (int i = 1; i <= n; ++i)
+      energy -= terms.load_scale * model.vertex_forces().col(i).dot(state.x.col(i));
+  }
+  return energy;
+}
+
+namespace {
+
+template <bool kHessian>
+void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& terms,
+              VecX* gradient, BandedSymmetric* H) {
+  const int n = model.num_edges();
+  gradient->setZero(model.num_free_dofs());
+  if (kHessian) {
+    H->Resize(model.num_free_dofs(), kRodBandwidth);
+    H->SetZero();
+  }
+  double q[11];
+  std::array<int, 11> dof;
+  VertexStencilConstants c;
+  for (int i = 0; i < n; ++i) {
+    GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, &dof);
+    if (!terms.elastic) c.B1 = c.B2 = c.GJ = 0.0;
+    if (!terms.elastic && c.moment.squaredNorm() == 0.0) continue;
+    if (kHessian) {
+      Jet11 qj[11], gj[11];
+      for (int a = 0; a < 11; ++a) qj[a] = Jet11(q[a], a);
+      VertexGradient<Jet11>(c, qj, gj);
+      for (int a = 0; a < 11; ++a) {
+        if (dof[a] < 0) continue;
+        (*gradient)[dof[a]] += gj[a].a;
+        for (int b = 0; b < 11; ++b) {
+          if (dof[b] < 0) continue;
+          AddBlock(H, dof[a], dof[b], 0.5 * (gj[a].v[b] + gj[b].v[a]));
+        }
+      }
+    } else {
+      double g[11];
+      VertexGradient<double>(c, q, g);
+      for (int a = 0; a < 11; ++a)
+        if (dof[a] >= 0) (*gradient)[dof[a]] += g[a];
+    }
+  }
+  if (terms.elastic) {
+    const double EA = model.material().stretch_stiffness;
+    Vec3 g;
+    Eigen::Matrix3d Hs;
+    for (int j = 0; j < n; ++j) {
+      StretchGradientHessian(EA, model.rest_edge_length(j), state.x.col(j), state.x.col(j + 1),
+                             &g, kHessian ? &Hs : nullptr);
+      const int da = (j >= 1) ? RodModel::VertexDof(j) : -1;
+      const int db = RodModel::VertexDof(j + 1);
+      for (int r = 0; r < 3; ++r) {
+        if (da >= 0) (*gradient)[da + r] -= g[r];
+        (*gradient)[db + r] += g[r];
+        if (!kHessian) continue;
+        for (int s = 0; s < 3; ++s) {
+          AddBlock(H, db + r, db + s, Hs(r, s));
+          if (da >= 0) {
+            AddBlock(H, da + r, da + s, Hs(r, s));
+            AddBlock(H, db + r, da + s, -Hs(r, s));
+          }
+        }
+      }
+    }
+  }
+  if (terms.loads) {
+    for (int i = 1; i <= n; ++i)
+      gradient->segment<3>(RodModel::VertexDof(i)) -=
+          terms.load_scale * model.vertex_forces().col(i);
+  }
+}
+
+}  // namespace
+
+void AssembleGradient(const RodModel& model, const RodState& state, const EnergyTerms& terms,
+                      VecX* gradient) {
+  Assemble<false>(model, state, terms, gradient, nullptr);
+}
+
+void AssembleHessian(const RodModel& model, const RodState& state, const EnergyTerms& terms,
+                     VecX* gradient, BandedSymmetric* hessian) {
+  Assemble<true>(model, state, terms, gradient, hessian);
+}
+
+bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, double alpha,
+               RodState* out) {
+  const int n = model.num_edges();
+  *out = state;
+  for (int i = 1; i <= n; ++i) out->x.col(i) += alpha * step.segment<3>(RodModel::VertexDof(i));
+  for (int j = 0; j < n; ++j) out->theta[j] += alpha * step[RodModel::TwistDof(j)];
+  for (int j = 0; j < n; ++j) {
+    const Vec3 e = out->x.col(j + 1) - out->x.col(j);
+    const double len = e.norm();
+    if (!(len > 1e-9 * model.rest_edge_length(j))) return false;
+    const Vec3 t = e / len;
+    const Vec3 t_old = state.ref_t.col(j);
+    if (t.dot(t_old) < -0.99) return false;  // transport is singular at a full reversal
+    Vec3 u = ParallelTransport<double, double>(t_old, t, Vec3(state.ref_u.col(j)));
+    u = (u - u.dot(t) * t).normalized();  // remove round-off drift
+    out->ref_u.col(j) = u;
+    out->ref_t.col(j) = t;
+  }
+  for (int i = 0; i < n; ++i) {
+    const Vec3 te = (i == 0) ? model.clamp_tangent() : Vec3(out->ref_t.col(i - 1));
+    const Vec3 ue = (i == 0) ? model.clamp_d1() : Vec3(out->ref_u.col(i - 1));
+    const Vec3 tf = out->ref_t.col(i), uf = out->ref_u.col(i);
+    if (te.dot(tf) < -0.99) return false;  // a fold back on itself: kb blows up
+    const Vec3 p = ParallelTransport<double, double>(te, tf, ue);
+    const double raw = SignedAngle<double>(p, uf, tf);
+    out->ref_twist[i] = UnwrapNear(raw, raw, state.ref_twist[i]);
+  }
+  return true;
+}
+
+double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& step) {
+  const int n = model.num_edges();
+  double worst = 0.0;
+  for (int j = 0; j < n; ++j) {
+    Vec3 e0 = state.x.col(j + 1) - state.x.col(j);
+    Vec3 e1 = e0 + step.segment<3>(RodModel::VertexDof(j + 1));
+    if (j >= 1) e1 -= step.segment<3>(RodModel::VertexDof(j));
+    const double c = e0.normalized().dot(e1.normalized());
+    worst = std::max(worst, std::acos(std::max(-1.0, std::min(1.0, c))));
+  }
+  return worst;
+}
+
+double ScaledGradientNorm(const RodModel& model, const VecX& g) {
+  double worst = 0.0;
+  for (int k = 0; k < g.size(); ++k) {
+    const bool twist = (k % 4) == 3;
+    worst = std::max(worst, std::abs(g[k]) / (twist ? model.length() : 1.0));
+  }
+  return worst;
+}
+
+}  // namespace rodfit

@@ -1,0 +1,191 @@
+// Newton solver for the rod's equilibrium (statics.h): banded Cholesky, diagonal shift for
+// indefinite Hessians, Armijo backtracking on Pi, tangent-turn step limit, load continuation.
+#include "rodfit/solve/statics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "rodfit/solve/rod_energy.h"
+
+namespace rodfit {
+
+bool StaticsOptions::Check(std::string* why) const {
+  auto fail = [&](const char* m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (max_iterations < 1) return fail("max_iterations must be >= 1");
+  if (!(gradient_tolerance > 0)) return fail("gradient_tolerance must be > 0");
+  if (!(step_tolerance > 0)) return fail("step_tolerance must be > 0");
+  if (max_line_search_steps < 1) return fail("max_line_search_steps must be >= 1");
+  if (!(armijo > 0 && armijo < 0.5)) return fail("armijo must lie in (0, 0.5)");
+  if (max_load_steps < 1) return fail("max_load_steps must be >= 1");
+  if (!(max_rotation_per_step > 0 && max_rotation_per_step < 3)) {
+    return fail("max_rotation_per_step must lie in (0, 3) rad");
+  }
+  return true;
+}
+
+std::string StaticsSummary::BriefReport() const {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf),
+                "%s%s after %d Newton iterations, %d load step(s), |g| = %.3e N, Pi = %.6e J: %s",
+                converged ? "converged" : "NOT converged", (converged && !stable) ? " (unstable equilibrium)" : "", iterations, load_steps, gradient_norm,
+                energy, reason.c_str());
+  return buf;
+}
+
+namespace {
+
+enum class StepResult { kConverged, kFailed, kIterationCap };
+
+/// Newton iterations at one load factor. Returns kConverged with *state at equilibrium.
+StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double load_scale,
+                        int max_iterations, RodState* state, StaticsWorkspace* ws,
+                        StaticsSummary* summary, std::string* why) {
+  EnergyTerms terms;
+  terms.load_scale = load_scale;
+  VecX g, step;
+  BandedSymmetric H;
+  RodState trial;
+  const double force_tol = opt.gradient_tolerance * model.force_scale();
+  double energy = PotentialEnergy(model, *state, terms);
+  for (int it = 0; it < max_iterations; ++it) {
+    AssembleHessian(model, *state, terms, &g, &H);
+    const double gnorm = ScaledGradientNorm(model, g);
+    summary->gradient_norm = gnorm;
+    summary->energy = energy;
+    if (!std::isfinite(gnorm)) {
+      *why = "non-finite gradient";
+      return StepResult::kFailed;
+    }
+    // Factor; on failure (indefinite or singular) shift the diagonal, growing the shift tenfold.
+    double shift = 0.0;
+    const double diag_scale = std::max(H.band().row(0).cwiseAbs().maxCoeff(), 1e-300);
+    bool shifted = false;
+    while (!ws->hessian.Factor(H, shift)) {
+      shift = (shift == 0.0) ? 1e-10 * diag_scale : shift * 10.0;
+      shifted = true;
+      if (shift > 1e6 * diag_scale) {
+        *why = "Hessian could not be made positive definite";
+        return StepResult::kFailed;
+      }
+    }
+    if (gnorm <= force_tol) {
+      ws->factor_valid = !shifted;
+      summary->stable = !shifted;
+      return StepResult::kConverged;
+    }
+    step = -ws->hessian.Solve(g);
+    if (gnorm <= 1e-5 * model.force_scale()) {
+      double dx = 0.0, dtheta = 0.0;
+      for (int k = 0; k < step.size(); ++k)
+        ((k % 4 == 3) ? dtheta : dx) = std::max((k % 4 == 3) ? dtheta : dx, std::abs(step[k]));
+      if (dx <= opt.step_tolerance * model.rest_edge_length(0) && dtheta <= opt.step_tolerance) {
+        ws->factor_valid = !shifted;
+        summary->stable = !shifted;
+        return StepResult::kConverged;
+      }
+    }
+    const double slope = g.dot(step);
+    double alpha = 1.0;
+    const double turn = MaxTangentTurn(model, *state, step);
+    if (turn > opt.max_rotation_per_step) alpha = opt.max_rotation_per_step / turn;
+    // Near convergence Pi changes by round-off only; allow that much so that Newton's final
+    // quadratically convergent steps are not rejected by noise.
+    const double noise = 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
+    bool accepted = false;
+    for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
+      if (!ApplyStep(model, *state, step, alpha, &trial)) continue;
+      const double e_trial = PotentialEnergy(model, trial, terms);
+      if (std::isfinite(e_trial) && e_trial <= energy + opt.armijo * alpha * slope + noise) {
+        accepted = true;
+        energy = e_trial;
+        break;
+      }
+    }
+    ++summary->iterations;
+    if (!accepted) {
+      // A converged-looking state whose step cannot lower Pi further is at round-off level.
+      if (gnorm <= 1e3 * force_tol) {
+        ws->factor_valid = !shifted;
+        summary->stable = !shifted;
+        return StepResult::kConverged;
+      }
+      *why = "line search failed";
+      return StepResult::kFailed;
+    }
+    std::swap(*state, trial);
+  }
+  *why = "iteration limit reached";
+  return StepResult::kIterationCap;
+}
+
+}  // namespace
+
+StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options, RodState* state,
+                            StaticsWorkspace* workspace) {
+  StaticsSummary summary;
+  std::string why;
+  if (!options.Check(&why)) {
+    summary.reason = "invalid options: " + why;
+    return summary;
+  }
+  if (state->num_edges() != model.num_edges() || state->x.cols() != model.num_vertices()) {
+    summary.reason = "state does not match the model's segment count";
+    return summary;
+  }
+  StaticsWorkspace local;
+  StaticsWorkspace* ws = workspace ? workspace : &local;
+  ws->factor_valid = false;
+
+  // Full load first; on failure, continuation from the unloaded equilibrium.
+  const RodState start = *state;
+  int budget = options.max_iterations;
+  StepResult r = NewtonAtLoad(model, options, 1.0, budget, state, ws, &summary, &why);
+  if (r == StepResult::kConverged) {
+    summary.converged = true;
+    summary.reason = "gradient below tolerance";
+    return summary;
+  }
+  *state = start;
+  summary.load_steps = 0;
+  double done = 0.0, increment = 0.25;
+  bool have_base = false;
+  while (summary.load_steps < options.max_load_steps) {
+    budget = options.max_iterations - summary.iterations;
+    if (budget <= 0) break;
+    const double target = have_base ? std::min(1.0, done + increment) : 0.0;
+    RodState saved = *state;
+    const int per_step = std::min(budget, 50);
+    r = NewtonAtLoad(model, options, target, per_step, state, ws, &summary, &why);
+    ++summary.load_steps;
+    if (r == StepResult::kConverged) {
+      if (!have_base) {
+        have_base = true;
+        continue;
+      }
+      done = target;
+      if (done >= 1.0) {
+        summary.converged = true;
+        summary.reason = "gradient below tolerance (load continuation)";
+        return summary;
+      }
+      increment = std::min(0.5, increment * 1.5);
+    } else {
+      *state = saved;
+      if (!have_base) break;  // cannot even find the unloaded equilibrium
+      increment *= 0.25;
+      if (increment < 1e-6) break;
+    }
+  }
+  summary.converged = false;
+  summary.reason = "no equilibrium found: " + why +
+                   (summary.iterations >= options.max_iterations ? " (iteration cap)" : "");
+  ws->factor_valid = false;
+  return summary;
+}
+
+}  // namespace rodfit
