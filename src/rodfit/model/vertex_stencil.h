@@ -37,44 +37,64 @@ struct VertexStencilConstants {
   double ref_twist_old = 0.0;         ///< reference twist at the anchors [rad]
 };
 
-/// Geometry of the stencil at q: tangents, material frames, curvature binormal, reference twist.
-template <typename T>
+/// Geometry of the stencil: tangents, material frames, curvature binormal, reference twist.
+/// Built from the edges e, f and the twist angles. With `Linearized`, the transports and the
+/// reference twist are replaced by their first-order expansions about the anchors
+/// (u = u_old - t_old (u_old . (t - t_old)), m = m_old + kb_old . (dte + dtf) / 2): exact in
+/// value and first derivative where the frames are fresh (t = t_old), which is all a Jet
+/// carries, at a fraction of the cost. The solver's Hessian uses that; everything else uses the
+/// full transport.
+template <typename T, bool Linearized = false>
 struct VertexGeometry {
   Vec3T<T> te, tf, d1e, d2e, d1f, d2f, kb;
   T len_e, len_f, chi, ref_twist;
 
-  VertexGeometry(const VertexStencilConstants& c, const T* q) {
+  VertexGeometry(const VertexStencilConstants& c, const Vec3T<T>& e, const Vec3T<T>& f,
+                 const T& theta_e, const T& theta_f) {
     using std::cos;
     using std::sin;
     using std::sqrt;
-    const Vec3T<T> xp(q[0], q[1], q[2]), xm(q[3], q[4], q[5]), xn(q[6], q[7], q[8]);
-    const Vec3T<T> e = xm - xp, f = xn - xm;
     len_e = sqrt(e.squaredNorm());  // edges never shrink to zero: stretch energy prevents it
     len_f = sqrt(f.squaredNorm());
     te = e / len_e;
     tf = f / len_f;
-    const Vec3T<T> ue = ParallelTransport<T, double>(CastVec<T>(c.t_old_e), te, c.u_old_e);
-    const Vec3T<T> uf = ParallelTransport<T, double>(CastVec<T>(c.t_old_f), tf, c.u_old_f);
+    Vec3T<T> ue, uf;
+    if (Linearized) {
+      ue = CastVec<T>(c.u_old_e) - CastVec<T>(c.t_old_e) * (te - CastVec<T>(c.t_old_e)).dot(CastVec<T>(c.u_old_e));
+      uf = CastVec<T>(c.u_old_f) - CastVec<T>(c.t_old_f) * (tf - CastVec<T>(c.t_old_f)).dot(CastVec<T>(c.u_old_f));
+    } else {
+      ue = ParallelTransport<T, double>(CastVec<T>(c.t_old_e), te, c.u_old_e);
+      uf = ParallelTransport<T, double>(CastVec<T>(c.t_old_f), tf, c.u_old_f);
+    }
     const Vec3T<T> ve = te.cross(ue), vf = tf.cross(uf);
-    const T ce = cos(q[9]), se = sin(q[9]), cf = cos(q[10]), sf = sin(q[10]);
+    const T ce = cos(theta_e), se = sin(theta_e), cf = cos(theta_f), sf = sin(theta_f);
     d1e = ce * ue + se * ve;
     d2e = -se * ue + ce * ve;
     d1f = cf * uf + sf * vf;
     d2f = -sf * uf + cf * vf;
     chi = Cst<T>(1.0) + te.dot(tf);
     kb = Cst<T>(2.0) * te.cross(tf) / chi;
-    // Reference twist: the spatial transport of u_e onto tf, then the angle to u_f about tf.
-    const Vec3T<T> ue_on_f = ParallelTransport<T, T>(te, tf, ue);
-    const T raw = SignedAngle<T>(ue_on_f, uf, tf);
-    ref_twist = UnwrapNear(raw, ScalarPart(raw), c.ref_twist_old);
+    if (Linearized) {
+      const Eigen::Vector3d kb_old =
+          2.0 * c.t_old_e.cross(c.t_old_f) / (1.0 + c.t_old_e.dot(c.t_old_f));
+      ref_twist = Cst<T>(c.ref_twist_old) +
+                  Cst<T>(0.5) * (te - CastVec<T>(c.t_old_e) + tf - CastVec<T>(c.t_old_f))
+                                    .dot(CastVec<T>(kb_old));
+    } else {
+      // Reference twist: the spatial transport of u_e onto tf, then the angle to u_f about tf.
+      const Vec3T<T> ue_on_f = ParallelTransport<T, T>(te, tf, ue);
+      const T raw = SignedAngle<T>(ue_on_f, uf, tf);
+      ref_twist = UnwrapNear(raw, ScalarPart(raw), c.ref_twist_old);
+    }
   }
+
+  VertexGeometry(const VertexStencilConstants& c, const T* q)
+      : VertexGeometry(c, Vec3T<T>(q[3] - q[0], q[4] - q[1], q[5] - q[2]),
+                       Vec3T<T>(q[6] - q[3], q[7] - q[4], q[8] - q[5]), q[9], q[10]) {}
 
   static double ScalarPart(double v) { return v; }
   template <typename J>
-  static double ScalarPart(const J& v) { return ScalarPartOf(v.a); }
-  static double ScalarPartOf(double v) { return v; }
-  template <typename J>
-  static double ScalarPartOf(const J& v) { return ScalarPartOf(v.a); }
+  static double ScalarPart(const J& v) { return ScalarPart(v.a); }
 };
 
 /// Material curvatures and torsion (k1, k2, tau) [1/m] of the stencil at q.
@@ -103,14 +123,16 @@ T VertexEnergy(const VertexStencilConstants& c, const T* q) {
   return energy;
 }
 
-/// Closed-form gradient of VertexEnergy with respect to q, exact where the frames are fresh.
-template <typename T>
-void VertexGradient(const VertexStencilConstants& c, const T* q, T* grad) {
-  const VertexGeometry<T> g(c, q);
+/// Closed-form gradient of VertexEnergy with respect to (e, f, theta_e, theta_f), exact where
+/// the frames are fresh: out = [dE/de (3), dE/df (3), dE/dtheta_e, dE/dtheta_f].
+template <typename T, bool Linearized = false>
+void VertexGradientEdges(const VertexStencilConstants& c, const Vec3T<T>& e, const Vec3T<T>& f,
+                         const T& theta_e, const T& theta_f, T* out) {
+  const VertexGeometry<T, Linearized> g(c, e, f, theta_e, theta_f);
   const double l = c.voronoi_length;
   const Vec3T<T> D1 = g.d1e + g.d1f, D2 = g.d2e + g.d2f;
   const T kbD1 = g.kb.dot(D1), kbD2 = g.kb.dot(D2);
-  const T dtheta = q[10] - q[9] + g.ref_twist;
+  const T dtheta = theta_f - theta_e + g.ref_twist;
   // Moments conjugate to l*k1, l*k2 and l*tau.
   const T a1 = Cst<T>(c.B1) * (kbD1 / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[0]));
   const T a2 = Cst<T>(c.B2) * (kbD2 / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[1]));
@@ -141,14 +163,34 @@ void VertexGradient(const VertexStencilConstants& c, const T* q, T* grad) {
   const Vec3T<T> g_e = (g_te - g.te * g.te.dot(g_te)) / g.len_e;
   const Vec3T<T> g_f = (g_tf - g.tf * g.tf.dot(g_tf)) / g.len_f;
   for (int k = 0; k < 3; ++k) {
-    grad[k] = -g_e[k];
-    grad[3 + k] = g_e[k] - g_f[k];
-    grad[6 + k] = g_f[k];
+    out[k] = g_e[k];
+    out[3 + k] = g_f[k];
   }
-  grad[9] = g_th_e;
-  grad[10] = g_th_f;
+  out[6] = g_th_e;
+  out[7] = g_th_f;
 }
 
+/// The same gradient with respect to the stencil q (11 entries).
+template <typename T>
+void VertexGradient(const VertexStencilConstants& c, const T* q, T* grad) {
+  const Vec3T<T> e(q[3] - q[0], q[4] - q[1], q[5] - q[2]);
+  const Vec3T<T> f(q[6] - q[3], q[7] - q[4], q[8] - q[5]);
+  T ge[8];
+  VertexGradientEdges<T>(c, e, f, q[9], q[10], ge);
+  for (int k = 0; k < 3; ++k) {
+    grad[k] = -ge[k];
+    grad[3 + k] = ge[k] - ge[3 + k];
+    grad[6 + k] = ge[3 + k];
+  }
+  grad[9] = ge[6];
+  grad[10] = ge[7];
+}
+
+/// Gradient g8 and Hessian H8 (row major 8x8) of VertexEnergy in the edge variables
+/// (e, f, theta_e, theta_f) at fresh frames: H8 is the symmetric part of the Jet Jacobian of the
+/// linearised closed-form gradient. q is the stencil (11 entries). Defined in vertex_stencil.cc.
+void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double* g8,
+                        double* H8);
 /// Stretch energy of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2 (per-edge stretch, DESIGN.md §1),
 /// with its gradient and Hessian with respect to q = [x_a (3), x_b (3)].
 template <typename T>

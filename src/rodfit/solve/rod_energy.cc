@@ -5,14 +5,12 @@
 
 #include <cmath>
 
-#include <ceres/jet.h>
 
 #include "rodfit/model/frames.h"
 
 namespace rodfit {
 namespace {
 
-using Jet11 = ceres::Jet<double, 11>;
 
 void StretchGradientHessian(double EA, double L0, const Vec3& xa, const Vec3& xb, Vec3* g,
                             Eigen::Matrix3d* H) {
@@ -121,15 +119,33 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
     if (!terms.elastic) c.B1 = c.B2 = c.GJ = 0.0;
     if (!terms.elastic && c.moment.squaredNorm() == 0.0) continue;
     if (kHessian) {
-      Jet11 qj[11], gj[11];
-      for (int a = 0; a < 11; ++a) qj[a] = Jet11(q[a], a);
-      VertexGradient<Jet11>(c, qj, gj);
+      // Edge variables (e, f, theta_e, theta_f) -> stencil dofs: e = x_mid - x_prev and
+      // f = x_next - x_mid, so each stencil dof touches at most two edge variables
+      // (H11 = A^T H8 A with a sparse A, written out).
+      double g8[8], H8[64];
+      VertexHessianEdges(c, q, g8, H8);
+      int var[11][2], nvar[11];
+      double sign[11][2];
+      for (int k = 0; k < 3; ++k) {
+        nvar[k] = 1, var[k][0] = k, sign[k][0] = -1.0;                    // x_prev: -e
+        nvar[3 + k] = 2, var[3 + k][0] = k, sign[3 + k][0] = 1.0;        // x_mid: +e - f
+        var[3 + k][1] = 3 + k, sign[3 + k][1] = -1.0;
+        nvar[6 + k] = 1, var[6 + k][0] = 3 + k, sign[6 + k][0] = 1.0;    // x_next: +f
+      }
+      nvar[9] = nvar[10] = 1;
+      var[9][0] = 6, var[10][0] = 7, sign[9][0] = sign[10][0] = 1.0;
       for (int a = 0; a < 11; ++a) {
         if (dof[a] < 0) continue;
-        (*gradient)[dof[a]] += gj[a].a;
+        double ga = 0.0;
+        for (int r = 0; r < nvar[a]; ++r) ga += sign[a][r] * g8[var[a][r]];
+        (*gradient)[dof[a]] += ga;
         for (int b = 0; b < 11; ++b) {
-          if (dof[b] < 0) continue;
-          AddBlock(H, dof[a], dof[b], 0.5 * (gj[a].v[b] + gj[b].v[a]));
+          if (dof[b] < 0 || dof[b] > dof[a]) continue;
+          double h = 0.0;
+          for (int r = 0; r < nvar[a]; ++r)
+            for (int t = 0; t < nvar[b]; ++t)
+              h += sign[a][r] * sign[b][t] * H8[8 * var[a][r] + var[b][t]];
+          H->At(dof[a], dof[b]) += h;
         }
       }
     } else {
@@ -185,7 +201,23 @@ bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, d
                RodState* out) {
   const int n = model.num_edges();
   *out = state;
-  for (int i = 1; i <= n; ++i) out->x.col(i) += alpha * step.segment<3>(RodModel::VertexDof(i));
+  // Edge-wise retraction: each edge turns to the direction of e + de and changes its length only
+  // by the linear part t.de, then the vertices are summed from the clamp. It agrees with
+  // x + alpha step to first order (so Newton keeps its quadratic convergence), but a large
+  // rotation no longer stretches the edges by O(|de|^2), which against a stiff EA
+  // (EA L^2 / EI ~ 1e6 for a suture) would force tiny steps.
+  Vec3 prev_step = Vec3::Zero();
+  for (int j = 0; j < n; ++j) {
+    const Vec3 next_step = alpha * step.segment<3>(RodModel::VertexDof(j + 1));
+    const Vec3 e = state.x.col(j + 1) - state.x.col(j);
+    const Vec3 de = next_step - prev_step;
+    const double len = e.norm();
+    const double new_len = len + e.dot(de) / len;
+    const Vec3 dir = e + de;
+    if (!(new_len > 1e-6 * model.rest_edge_length(j)) || !(dir.norm() > 0)) return false;
+    out->x.col(j + 1) = out->x.col(j) + new_len * dir.normalized();
+    prev_step = next_step;
+  }
   for (int j = 0; j < n; ++j) out->theta[j] += alpha * step[RodModel::TwistDof(j)];
   for (int j = 0; j < n; ++j) {
     const Vec3 e = out->x.col(j + 1) - out->x.col(j);

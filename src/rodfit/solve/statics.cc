@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 
 #include "rodfit/solve/rod_energy.h"
@@ -50,8 +51,18 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
   VecX g, step;
   BandedSymmetric H;
   RodState trial;
-  const double force_tol = opt.gradient_tolerance * model.force_scale();
+  // The gradient cannot be resolved below round-off in the stretch forces, ~ eps EA |x| / l
+  // (|x| the coordinates' size): accept that floor when it is above the requested tolerance.
+  double coord = model.length();
+  for (int i = 0; i < state->x.cols(); ++i) coord = std::max(coord, state->x.col(i).cwiseAbs().maxCoeff());
+  const double roundoff_floor = 16.0 * std::numeric_limits<double>::epsilon() *
+                                model.material().stretch_stiffness * coord /
+                                model.rest_edge_length(0);
+  const double force_tol =
+      std::max(opt.gradient_tolerance * model.force_scale(), roundoff_floor);
   double energy = PotentialEnergy(model, *state, terms);
+  constexpr int kMaxSaddleEscapes = 5;
+  int escapes = 0;
   for (int it = 0; it < max_iterations; ++it) {
     AssembleHessian(model, *state, terms, &g, &H);
     const double gnorm = ScaledGradientNorm(model, g);
@@ -71,6 +82,37 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       if (shift > 1e6 * diag_scale) {
         *why = "Hessian could not be made positive definite";
         return StepResult::kFailed;
+      }
+    }
+    if (gnorm <= force_tol && shifted && escapes < kMaxSaddleEscapes) {
+      // A stationary point with negative curvature is a saddle (a column past its buckling
+      // load, kept straight by symmetry): step along the most negative curvature direction,
+      // found by inverse iteration on the shifted factor, if that lowers Pi.
+      ++escapes;
+      VecX d = VecX::Ones(g.size());
+      for (int k = 0; k < d.size(); k += 3) d[k] = -0.5;  // fixed, non-symmetric start
+      for (int k = 0; k < 4; ++k) {
+        d = ws->hessian.Solve(d);
+        d /= d.cwiseAbs().maxCoeff();
+      }
+      const double scale = 0.1 * model.rest_edge_length(0);
+      bool escaped = false;
+      for (double sgn : {1.0, -1.0}) {
+        for (double a = scale; a > 1e-6 * scale && !escaped; a *= 0.5) {
+          if (!ApplyStep(model, *state, d, sgn * a, &trial)) continue;
+          const double e_trial = PotentialEnergy(model, trial, terms);
+          const double noise = 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
+          if (e_trial < energy - 10.0 * noise) {
+            escaped = true;
+            energy = e_trial;
+          }
+        }
+        if (escaped) break;
+      }
+      if (escaped) {
+        std::swap(*state, trial);
+        ++summary->iterations;
+        continue;
       }
     }
     if (gnorm <= force_tol) {
@@ -107,6 +149,9 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       }
     }
     ++summary->iterations;
+    if (std::getenv("RODFIT_DEBUG"))
+      std::fprintf(stderr, "it %d load %.3g |g| %.3e shift %.3e turn %.3e alpha %.3e E %.9e\n",
+                   summary->iterations, load_scale, gnorm, shift, turn, alpha, energy);
     if (!accepted) {
       // A converged-looking state whose step cannot lower Pi further is at round-off level.
       if (gnorm <= 1e3 * force_tol) {

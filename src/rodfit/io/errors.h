@@ -1,0 +1,43 @@
+// The one exception type of the io layer: a user's mistake in an input file (or an output path),
+// carrying where it is. what() is a single line `FILE:LINE: KEY: message` (STYLE.md "Errors"),
+// with `:LINE` left out when the line is unknown and `KEY: ` when no key applies, so the CLI can
+// print it as is.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace rodfit {
+
+struct InputError : std::runtime_error {
+  /// line is 1-based; line <= 0 means unknown. key is a dotted path such as `rod.length` or
+  /// `cases[1].clamp.normal` (YAML) or a column name (CSV); empty when none applies.
+  InputError(const std::string& file, int line, const std::string& key, const std::string& message)
+      : std::runtime_error(Format(file, line, key, message)),
+        file(file),
+        line(line),
+        key(key),
+        message(message) {}
+
+  std::string file;
+  int line;
+  std::string key;
+  std::string message;
+
+ private:
+  static std::string Format(const std::string& file, int line, const std::string& key,
+                            const std::string& message) {
+    std::string out = file;
+    if (line > 0) out += ":" + std::to_string(line);
+    out += ": ";
+    if (!key.empty()) out += key + ": ";
+    out += message;
+    // One line, whatever a library message or a file name contains.
+    for (char& c : out) {
+      if (c == '\n' || c == '\r') c = ' ';
+    }
+    return out;
+  }
+};
+
+}  // namespace rodfit

@@ -1,0 +1,455 @@
+// Reading and validating the experiment / scene YAML (see experiment.h, DESIGN.md §6).
+// yaml-cpp gives the tree and the marks; every check and message is here. A Field carries a
+// value with its dotted key path and 1-based line, so each error names where it is.
+#include "rodfit/io/experiment.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <Eigen/Geometry>  // cross product
+#include <yaml-cpp/yaml.h>
+
+#include "rodfit/io/errors.h"
+
+namespace rodfit {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Below this sine of the angle between clamp tangent and normal the Gram–Schmidt normal keeps
+// fewer than three significant digits; such an input is taken to be a mistake.
+constexpr double kMinClampSine = 1e-3;
+constexpr int kMaxSegments = 1000000;  // far beyond any thread; guards against typos like 5e7
+
+const std::vector<std::string> kParameterNames = {"bend_stiffness", "bend_stiffness_2",
+                                                  "twist_stiffness", "stretch_stiffness",
+                                                  "spring_stiffness"};
+const std::vector<std::string> kObservationTypes = {"markers3d", "points3d", "image_points",
+                                                    "images"};
+
+std::string Join(const std::vector<std::string>& words) {
+  std::string out;
+  for (const auto& w : words) out += (out.empty() ? "" : ", ") + w;
+  return out;
+}
+
+// Numbers in messages: as a person would type them, not the round-trip digits of FormatDouble.
+std::string Show(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.10g", v);
+  return buffer;
+}
+
+bool Contains(const std::vector<std::string>& words, const std::string& w) {
+  return std::find(words.begin(), words.end(), w) != words.end();
+}
+
+int LineOf(const YAML::Node& node, int fallback) {
+  const YAML::Mark mark = node.Mark();
+  return mark.line >= 0 ? mark.line + 1 : fallback;
+}
+
+struct Field {
+  YAML::Node node;
+  std::string key;   // dotted path, e.g. "cases[0].clamp.normal"; empty for the document
+  int line = 0;      // line of the value (of the key when the value has no mark)
+  int key_line = 0;  // line of the key; 0 for the document
+};
+
+using Entries = std::map<std::string, Field>;
+
+// The checks shared by every block; all failures are InputErrors in `file`.
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void Fail(int line, const std::string& key, const std::string& message) const {
+    throw InputError(file_, line, key, message);
+  }
+  [[noreturn]] void Fail(const Field& f, const std::string& message) const {
+    Fail(f.line, f.key, message);
+  }
+
+  // The entries of a mapping, each key checked against `allowed` and for duplicates.
+  Entries Map(const Field& f, const std::vector<std::string>& allowed) const {
+    if (!f.node.IsMap()) Fail(f, "expected a mapping with keys " + Join(allowed));
+    Entries entries;
+    for (auto it = f.node.begin(); it != f.node.end(); ++it) {
+      const int key_line = LineOf(it->first, f.line);
+      if (!it->first.IsScalar()) Fail(key_line, f.key, "expected a plain key");
+      const std::string name = it->first.Scalar();
+      const std::string key = f.key.empty() ? name : f.key + "." + name;
+      if (!Contains(allowed, name)) {
+        Fail(key_line, key, "unknown key (allowed: " + Join(allowed) + ")");
+      }
+      if (entries.count(name)) Fail(key_line, key, "duplicate key");
+      // A null value's mark points at the next token, often on a later line.
+      const int line = it->second.IsNull() ? key_line : LineOf(it->second, key_line);
+      entries[name] = Field{it->second, key, line, key_line};
+    }
+    return entries;
+  }
+
+  const Field& Require(const Entries& entries, const Field& parent, const std::string& name) const {
+    const auto it = entries.find(name);
+    if (it == entries.end()) {
+      Fail(parent.key_line, parent.key.empty() ? name : parent.key + "." + name,
+           "missing required key");
+    }
+    return it->second;
+  }
+
+  static const Field* Find(const Entries& entries, const std::string& name) {
+    const auto it = entries.find(name);
+    return it == entries.end() ? nullptr : &it->second;
+  }
+
+  std::vector<Field> Sequence(const Field& f) const {
+    if (!f.node.IsSequence()) Fail(f, "expected a list");
+    std::vector<Field> items;
+    for (size_t i = 0; i < f.node.size(); ++i) {
+      const int line = LineOf(f.node[i], f.line);
+      items.push_back(Field{f.node[i], f.key + "[" + std::to_string(i) + "]", line, line});
+    }
+    return items;
+  }
+
+  double Number(const Field& f) const {
+    double value = 0.0;
+    if (f.node.IsNull()) Fail(f, "expected a number, got nothing");
+    if (!f.node.IsScalar()) Fail(f, "expected a number");
+    try {
+      value = f.node.as<double>();
+    } catch (const YAML::Exception&) {
+      Fail(f, "expected a number, got '" + f.node.Scalar() + "'");
+    }
+    if (!std::isfinite(value)) Fail(f, "must be finite, got '" + f.node.Scalar() + "'");
+    return value;
+  }
+
+  int Integer(const Field& f) const {
+    if (!f.node.IsScalar()) Fail(f, "expected an integer");
+    try {
+      return f.node.as<int>();
+    } catch (const YAML::Exception&) {
+      Fail(f, "expected an integer, got '" + f.node.Scalar() + "'");
+    }
+  }
+
+  bool Bool(const Field& f) const {
+    if (!f.node.IsScalar()) Fail(f, "expected true or false");
+    try {
+      return f.node.as<bool>();
+    } catch (const YAML::Exception&) {
+      Fail(f, "expected true or false, got '" + f.node.Scalar() + "'");
+    }
+  }
+
+  std::string Text(const Field& f) const {
+    if (!f.node.IsScalar() || f.node.Scalar().empty()) Fail(f, "expected a non-empty text");
+    return f.node.Scalar();
+  }
+
+  Vec3 Vector3(const Field& f) const {
+    if (!f.node.IsSequence() || f.node.size() != 3) {
+      Fail(f, "expected a list of 3 numbers" +
+                  (f.node.IsSequence() ? ", got " + std::to_string(f.node.size()) : ""));
+    }
+    const std::vector<Field> items = Sequence(f);
+    return Vec3(Number(items[0]), Number(items[1]), Number(items[2]));
+  }
+
+  double Positive(const Field& f) const {
+    const double v = Number(f);
+    if (!(v > 0.0)) Fail(f, "must be > 0, got " + Show(v));
+    return v;
+  }
+
+  double NonNegative(const Field& f) const {
+    const double v = Number(f);
+    if (v < 0.0) Fail(f, "must be >= 0, got " + Show(v));
+    return v;
+  }
+
+  double InRange(const Field& f, double lo, double hi) const {
+    const double v = Number(f);
+    if (v < lo || v > hi) {
+      Fail(f, "must be in [" + Show(lo) + ", " + Show(hi) + "], got " + Show(v));
+    }
+    return v;
+  }
+
+  // A path inside the YAML file, relative to the file's folder (DESIGN.md §6).
+  std::string Path(const Field& f, const std::string& directory) const {
+    fs::path p(Text(f));
+    if (p.is_relative() && !directory.empty()) p = fs::path(directory) / p;
+    return p.lexically_normal().string();
+  }
+
+ private:
+  std::string file_;
+};
+
+RodSpec ReadRod(const Reader& r, const Field& f) {
+  const Entries m = r.Map(f, {"length", "segments", "radius", "linear_density", "rest_curvature"});
+  RodSpec rod;
+  rod.length = r.Positive(r.Require(m, f, "length"));
+  const Field& segments = r.Require(m, f, "segments");
+  rod.segments = r.Integer(segments);
+  if (rod.segments < 2 || rod.segments > kMaxSegments) {
+    r.Fail(segments, "must be in [2, " + std::to_string(kMaxSegments) + "], got " +
+                         std::to_string(rod.segments));
+  }
+  rod.radius = r.Positive(r.Require(m, f, "radius"));
+  rod.linear_density = r.NonNegative(r.Require(m, f, "linear_density"));
+  if (const Field* k = Reader::Find(m, "rest_curvature")) rod.rest_curvature = r.Vector3(*k);
+  return rod;
+}
+
+ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& name) {
+  if (!f.node.IsMap()) r.Fail(f, "expected a mapping {value: ..., fit: ..., min: ..., max: ...}");
+  const Entries m = r.Map(f, {"value", "fit", "min", "max"});
+  ParameterSpec p;
+  p.line = f.key_line;
+  const Field& value = r.Require(m, f, "value");
+  // spring_stiffness = 0 means no springs (DESIGN.md §4); every stiffness of the rod is > 0.
+  p.value = name == "spring_stiffness" ? r.NonNegative(value) : r.Positive(value);
+  if (const Field* fit = Reader::Find(m, "fit")) p.fit = r.Bool(*fit);
+  if (p.fit && !(p.value > 0.0)) {
+    r.Fail(value, "a fitted parameter must be > 0 (fitted in log space)");
+  }
+  const Field* min = Reader::Find(m, "min");
+  const Field* max = Reader::Find(m, "max");
+  if (min) p.min = r.Positive(*min);
+  if (max) p.max = r.Positive(*max);
+  if (p.min && p.max && !(*p.min < *p.max)) {
+    r.Fail(*max, "must be greater than min (" + Show(*p.min) + ")");
+  }
+  if (p.min && p.value < *p.min) r.Fail(value, "is below min (" + Show(*p.min) + ")");
+  if (p.max && p.value > *p.max) r.Fail(value, "is above max (" + Show(*p.max) + ")");
+  return p;
+}
+
+void ReadParameters(const Reader& r, const Field& f, Experiment* ex) {
+  const Entries m = r.Map(f, kParameterNames);
+  for (const auto& [name, field] : m) ex->parameters[name] = ReadParameter(r, field, name);
+  for (const char* name : {"bend_stiffness", "twist_stiffness", "stretch_stiffness"}) {
+    r.Require(m, f, name);
+  }
+  Material& mat = ex->scene.material;
+  mat.bend_stiffness = ex->parameters.at("bend_stiffness").value;
+  mat.twist_stiffness = ex->parameters.at("twist_stiffness").value;
+  mat.stretch_stiffness = ex->parameters.at("stretch_stiffness").value;
+  if (ex->parameters.count("bend_stiffness_2")) {
+    mat.bend_stiffness_2 = ex->parameters.at("bend_stiffness_2").value;
+  }
+  if (ex->parameters.count("spring_stiffness")) {
+    mat.spring_stiffness = ex->parameters.at("spring_stiffness").value;
+  }
+}
+
+Clamp ReadClamp(const Reader& r, const Field& f) {
+  const Entries m = r.Map(f, {"position", "tangent", "normal"});
+  Clamp clamp;
+  clamp.position = r.Vector3(r.Require(m, f, "position"));
+  const Field& tangent = r.Require(m, f, "tangent");
+  const Field& normal = r.Require(m, f, "normal");
+  clamp.tangent = r.Vector3(tangent);
+  clamp.normal = r.Vector3(normal);
+  const double t = clamp.tangent.norm();
+  const double n = clamp.normal.norm();
+  if (!(t > 0.0)) r.Fail(tangent, "must not be zero");
+  if (!(n > 0.0)) r.Fail(normal, "must not be zero");
+  if (clamp.tangent.cross(clamp.normal).norm() < kMinClampSine * t * n) {
+    r.Fail(normal, "is (nearly) parallel to the tangent");
+  }
+  return clamp;
+}
+
+ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex) {
+  const std::vector<std::string> all = {"type", "file",  "camera",  "sigma",
+                                        "s",    "count", "outliers"};
+  const Entries m = r.Map(f, all);
+  ObservationSpec o;
+  o.line = f.line;
+  const Field& type = r.Require(m, f, "type");
+  o.type = r.Text(type);
+  if (!Contains(kObservationTypes, o.type)) {
+    r.Fail(type,
+           "unknown observation type '" + o.type + "' (allowed: " + Join(kObservationTypes) + ")");
+  }
+  const bool image = o.type == "image_points" || o.type == "images";
+  std::vector<std::string> allowed = {"type", "file", "sigma"};
+  if (image) allowed.push_back("camera");
+  if (o.type != "points3d" && o.type != "images") allowed.push_back("s");
+  if (o.type != "images") allowed.insert(allowed.end(), {"count", "outliers"});
+  for (const auto& [name, field] : m) {
+    if (!Contains(allowed, name)) {
+      r.Fail(field.key_line, field.key,
+             "not allowed for type " + o.type + " (allowed: " + Join(allowed) + ")");
+    }
+  }
+
+  o.file = r.Path(r.Require(m, f, "file"), ex.directory);
+  if (image) o.camera = r.Path(r.Require(m, f, "camera"), ex.directory);
+  o.sigma = r.Positive(r.Require(m, f, "sigma"));
+  const Field* s = Reader::Find(m, "s");
+  const Field* count = Reader::Find(m, "count");
+  if (s && count) r.Fail(count->key_line, count->key, "give either s or count, not both");
+  if (s) {
+    const std::vector<Field> items = r.Sequence(*s);
+    if (items.empty()) r.Fail(*s, "must not be empty");
+    for (const Field& item : items) o.s.push_back(r.InRange(item, 0.0, ex.scene.rod.length));
+  }
+  if (count) {
+    o.count = r.Integer(*count);
+    if (o.count < 1) r.Fail(*count, "must be >= 1, got " + std::to_string(o.count));
+  }
+  if (const Field* outliers = Reader::Find(m, "outliers")) {
+    o.outliers = r.Number(*outliers);
+    if (o.outliers < 0.0 || o.outliers >= 1.0) {
+      r.Fail(*outliers, "must be in [0, 1), got " + Show(o.outliers));
+    }
+  }
+  return o;
+}
+
+void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
+              std::map<std::string, int>* name_lines) {
+  const Entries m =
+      r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "point_forces", "observations"});
+  LoadCase c;
+  c.name = "case" + std::to_string(index);
+  if (const Field* name = Reader::Find(m, "name")) {
+    c.name = r.Text(*name);
+    // Names go unquoted into shapes.csv and error messages.
+    if (c.name.find_first_of(",\"\n\r") != std::string::npos) {
+      r.Fail(*name, "must not contain commas, quotes or line breaks");
+    }
+    const auto seen = name_lines->find(c.name);
+    if (seen != name_lines->end()) {
+      r.Fail(*name, "duplicate case name '" + c.name + "' (first at line " +
+                        std::to_string(seen->second) + ")");
+    }
+    (*name_lines)[c.name] = name->line;
+  } else if (name_lines->count(c.name)) {
+    r.Fail(f, "duplicate case name '" + c.name + "' (give this case a name)");
+  } else {
+    (*name_lines)[c.name] = f.line;
+  }
+  c.clamp = ReadClamp(r, r.Require(m, f, "clamp"));
+  if (const Field* tf = Reader::Find(m, "tip_force")) c.tip_force = r.Vector3(*tf);
+  if (const Field* tm = Reader::Find(m, "tip_moment")) c.tip_moment = r.Vector3(*tm);
+  if (const Field* pf = Reader::Find(m, "point_forces")) {
+    for (const Field& item : r.Sequence(*pf)) {
+      const Entries pm = r.Map(item, {"s", "force"});
+      PointForce p;
+      p.s = r.InRange(r.Require(pm, item, "s"), 0.0, ex->scene.rod.length);
+      p.force = r.Vector3(r.Require(pm, item, "force"));
+      c.point_forces.push_back(p);
+    }
+  }
+  CaseSpec spec;
+  spec.line = f.line;
+  if (const Field* obs = Reader::Find(m, "observations")) {
+    for (const Field& item : r.Sequence(*obs)) {
+      spec.observations.push_back(ReadObservation(r, item, *ex));
+    }
+  }
+  ex->scene.cases.push_back(c);
+  ex->cases.push_back(spec);
+}
+
+FitSpec ReadFit(const Reader& r, const Field& f) {
+  const Entries m = r.Map(f, {"loss", "loss_scale", "global", "max_iterations", "trusted_sigmas"});
+  FitSpec fit;
+  fit.line = f.key_line;
+  if (const Field* loss = Reader::Find(m, "loss")) {
+    const std::string name = r.Text(*loss);
+    bool known = false;
+    for (LossType t : {LossType::kNone, LossType::kHuber, LossType::kCauchy, LossType::kSoftL1}) {
+      if (name == LossTypeName(t)) {
+        fit.loss = t;
+        known = true;
+      }
+    }
+    if (!known) {
+      r.Fail(*loss, "unknown loss '" + name + "' (allowed: none, huber, cauchy, soft_l1)");
+    }
+  }
+  if (const Field* scale = Reader::Find(m, "loss_scale")) fit.loss_scale = r.Positive(*scale);
+  if (const Field* global = Reader::Find(m, "global")) fit.global = r.Bool(*global);
+  if (const Field* iterations = Reader::Find(m, "max_iterations")) {
+    fit.max_iterations = r.Integer(*iterations);
+    if (fit.max_iterations < 1) r.Fail(*iterations, "must be >= 1");
+  }
+  if (const Field* trusted = Reader::Find(m, "trusted_sigmas")) {
+    fit.trusted_sigmas = r.Bool(*trusted);
+  }
+  return fit;
+}
+
+}  // namespace
+
+const char* LossTypeName(LossType loss) {
+  switch (loss) {
+    case LossType::kNone:
+      return "none";
+    case LossType::kHuber:
+      return "huber";
+    case LossType::kCauchy:
+      return "cauchy";
+    case LossType::kSoftL1:
+      return "soft_l1";
+  }
+  return "none";
+}
+
+Experiment ParseExperiment(const std::string& text, const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw InputError(path, e.mark.line >= 0 ? e.mark.line + 1 : 0, "", e.msg);
+  }
+  if (root.IsNull()) throw InputError(path, 0, "", "empty file");
+
+  const Reader r(path);
+  Experiment ex;
+  ex.path = path;
+  ex.directory = fs::path(path).parent_path().string();
+  const Field top{root, "", 1, 0};
+  const Entries m = r.Map(top, {"rod", "parameters", "gravity", "cases", "fit"});
+  ex.scene.rod = ReadRod(r, r.Require(m, top, "rod"));
+  ReadParameters(r, r.Require(m, top, "parameters"), &ex);
+  if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
+  if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
+
+  const Field& cases = r.Require(m, top, "cases");
+  const std::vector<Field> items = r.Sequence(cases);
+  if (items.empty()) r.Fail(cases, "no cases");
+  std::map<std::string, int> name_lines;
+  for (size_t k = 0; k < items.size(); ++k) {
+    ReadCase(r, items[k], static_cast<int>(k), &ex, &name_lines);
+  }
+  return ex;
+}
+
+Experiment LoadExperiment(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw InputError(path, 0, "", "is a directory, not a YAML file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    throw InputError(path, 0, "", "cannot open file: " + std::generic_category().message(errno));
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseExperiment(text.str(), path);
+}
+
+}  // namespace rodfit

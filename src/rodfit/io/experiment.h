@@ -1,0 +1,83 @@
+// The experiment / scene YAML of DESIGN.md §6, read into a Scene (what model/ and solve/ need)
+// plus what identification needs on top: per-parameter fit settings, per-case observation specs
+// and the optional `fit:` block. Everything is validated here, so a mistake in the file is an
+// InputError naming the file, the 1-based line and the key (e.g. `cases[1].clamp.normal`),
+// never a failure deep inside a solve.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "rodfit/model/scene.h"
+
+namespace rodfit {
+
+/// One entry of `parameters:`. Parameters are fitted in log space (DESIGN.md §3), so a fitted
+/// value and any bound are > 0.
+struct ParameterSpec {
+  double value = 0.0;         ///< in the parameter's SI unit (see Material)
+  bool fit = false;           ///< fitted, or held at value
+  std::optional<double> min;  ///< lower bound for the fit, < max, <= value
+  std::optional<double> max;  ///< upper bound for the fit, >= value
+  int line = 0;               ///< 1-based line of the parameter's key
+};
+
+/// One entry of a case's `observations:` (DESIGN.md §3). Which keys a type allows:
+///   markers3d:    file, sigma [m],  s | count, outliers
+///   points3d:     file, sigma [m],  count, outliers
+///   image_points: file, sigma [px], camera, s | count, outliers
+///   images:       file, sigma [px], camera
+struct ObservationSpec {
+  std::string type;       ///< markers3d | points3d | image_points | images
+  std::string file;       ///< data file (CSV or image), resolved against the YAML's folder
+  std::string camera;     ///< camera file, resolved likewise; empty for 3-D types
+  double sigma = 0.0;     ///< measurement standard deviation, > 0
+  std::vector<double> s;  ///< [m] arc lengths of the markers to synthesize, in [0, L]
+  int count = 0;          ///< number of markers / points to synthesize (0 = not given)
+  double outliers = 0.0;  ///< fraction of synthesized samples made outliers, in [0, 1)
+  int line = 0;           ///< 1-based line of the entry
+};
+
+/// A case beyond its physics (which is Scene::cases at the same index).
+struct CaseSpec {
+  std::vector<ObservationSpec> observations;
+  int line = 0;  ///< 1-based line of the case's entry
+};
+
+enum class LossType { kNone, kHuber, kCauchy, kSoftL1 };
+
+/// The optional top-level `fit:` block; defaults apply when it or a key is absent.
+struct FitSpec {
+  LossType loss = LossType::kNone;  ///< robust loss: none | huber | cauchy | soft_l1
+  double loss_scale = 1.0;          ///< residual (in sigmas) where the loss turns robust, > 0
+  bool global = false;              ///< NLopt global search before Ceres
+  int max_iterations = 100;         ///< Ceres iterations, >= 1
+  bool trusted_sigmas = false;      ///< covariance unscaled by the residual variance
+  int line = 0;                     ///< 1-based line of `fit:`, 0 when absent
+};
+
+struct Experiment {
+  std::string path;       ///< the YAML file as given
+  std::string directory;  ///< its folder; relative paths inside the file are resolved here
+  Scene scene;            ///< rod, material (the parameters' values), gravity, cases
+  /// Keyed by parameter name; only names present in the file (bend_stiffness,
+  /// bend_stiffness_2, twist_stiffness, stretch_stiffness, spring_stiffness).
+  std::map<std::string, ParameterSpec> parameters;
+  std::vector<CaseSpec> cases;  ///< parallel to scene.cases
+  FitSpec fit;
+};
+
+/// Reads and validates an experiment / scene YAML. Throws InputError (rodfit/io/errors.h).
+/// Absent optional keys: rest_curvature, tip_force, tip_moment = 0; gravity = (0, 0, -9.81);
+/// spring_stiffness = 0; bend_stiffness_2 = bend_stiffness; case name = "case<index>".
+/// Data files are not opened here (synth writes them), only their paths resolved.
+Experiment LoadExperiment(const std::string& path);
+
+/// The file text variant; `path` names the file in messages and anchors relative paths.
+Experiment ParseExperiment(const std::string& text, const std::string& path);
+
+const char* LossTypeName(LossType loss);
+
+}  // namespace rodfit

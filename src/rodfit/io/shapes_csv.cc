@@ -1,0 +1,66 @@
+// shapes.csv writing and reading (see shapes_csv.h).
+#include "rodfit/io/shapes_csv.h"
+
+#include <set>
+#include <stdexcept>
+
+#include "rodfit/io/csv.h"
+#include "rodfit/io/errors.h"
+
+namespace rodfit {
+
+std::string FormatShapesCsv(const std::vector<CaseShape>& shapes) {
+  std::string out = "case,vertex,s,x,y,z\n";
+  for (const CaseShape& shape : shapes) {
+    if (shape.x.cols() != static_cast<Eigen::Index>(shape.s.size())) {
+      throw std::invalid_argument("FormatShapesCsv: shape.x.cols() == shape.s.size()");
+    }
+    for (size_t i = 0; i < shape.s.size(); ++i) {
+      const auto col = static_cast<Eigen::Index>(i);
+      out += shape.name + "," + std::to_string(i) + "," + FormatDouble(shape.s[i]) + "," +
+             FormatDouble(shape.x(0, col)) + "," + FormatDouble(shape.x(1, col)) + "," +
+             FormatDouble(shape.x(2, col)) + "\n";
+    }
+  }
+  return out;
+}
+
+void WriteShapesCsv(const std::string& path, const std::vector<CaseShape>& shapes) {
+  WriteFileAtomically(path, FormatShapesCsv(shapes));
+}
+
+std::vector<CaseShape> ReadShapesCsv(const std::string& path) {
+  const CsvTable table = CsvTable::Read(path);
+  const std::vector<std::string> names = table.TextColumn("case");
+  const std::vector<double> vertex = table.Column("vertex");
+  const std::vector<double> s = table.Column("s");
+  const std::vector<double> x = table.Column("x");
+  const std::vector<double> y = table.Column("y");
+  const std::vector<double> z = table.Column("z");
+
+  std::vector<CaseShape> shapes;
+  std::set<std::string> seen;
+  for (int r = 0; r < table.num_rows();) {
+    int end = r;
+    while (end < table.num_rows() && names[end] == names[r]) ++end;
+    if (!seen.insert(names[r]).second) {
+      throw InputError(path, table.line(r), "case", "rows of case " + names[r] + " are split");
+    }
+    CaseShape shape;
+    shape.name = names[r];
+    shape.x.resize(3, end - r);
+    for (int i = r; i < end; ++i) {
+      if (vertex[i] != i - r) {
+        throw InputError(path, table.line(i), "vertex",
+                         "expected vertex " + std::to_string(i - r) + " of case " + shape.name);
+      }
+      shape.s.push_back(s[i]);
+      shape.x.col(i - r) << x[i], y[i], z[i];
+    }
+    shapes.push_back(shape);
+    r = end;
+  }
+  return shapes;
+}
+
+}  // namespace rodfit

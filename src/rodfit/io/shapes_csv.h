@@ -1,0 +1,30 @@
+// shapes.csv, the output of `rodfit simulate` (DESIGN.md §6): one row per vertex of every case,
+// columns `case,vertex,s,x,y,z`, numbers at full precision so the file round-trips exactly.
+// Plain data in, so io/ needs no solver; the CLI fills CaseShape from a RodModel and RodState.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace rodfit {
+
+/// The equilibrium centre-line of one case.
+struct CaseShape {
+  std::string name;       ///< case name (no commas, quotes or line breaks)
+  std::vector<double> s;  ///< [m] rest arc length of each vertex
+  Eigen::Matrix3Xd x;     ///< [m] vertex positions, column i; as many columns as s has entries
+};
+
+/// The whole file's text, header included.
+std::string FormatShapesCsv(const std::vector<CaseShape>& shapes);
+
+/// Writes FormatShapesCsv(shapes) to path atomically (see WriteFileAtomically).
+void WriteShapesCsv(const std::string& path, const std::vector<CaseShape>& shapes);
+
+/// Reads a shapes.csv back, cases in file order. Throws InputError on missing columns, bad
+/// numbers, or vertex indices that do not run 0, 1, 2, ... within a case.
+std::vector<CaseShape> ReadShapesCsv(const std::string& path);
+
+}  // namespace rodfit

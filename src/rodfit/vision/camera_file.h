@@ -1,0 +1,42 @@
+// Reading calibrated cameras from OpenCV FileStorage files (DESIGN.md §6 "Cameras"): YAML with or
+// without the %YAML:1.0 header, JSON and XML, in the key spellings labs have:
+//  - rodfit / OpenCV calibration sample: camera_matrix, distortion_coefficients, image_width,
+//    image_height (also cameraMatrix, distCoeffs / dist_coeffs, image_size: [w, h]);
+//  - OpenCV tutorial: Camera_Matrix, Distortion_Coefficients, image_Width, image_Height;
+//  - ROS camera_info YAML: camera_matrix / distortion_coefficients as {rows, cols, data},
+//    distortion_model plumb_bob (or rational_polynomial with zero extra coefficients);
+//  - OpenCV stereo sample (LoadStereoCameras): M1 D1 M2 D2, R T with x_cam2 = R x_cam1 + T.
+// Matrices are !!opencv-matrix nodes, {rows, cols, data} maps, flat lists (row-major) or lists of
+// rows. The world-to-camera pose is rvec/tvec (x_cam = R(rvec) x_world + tvec, Rodrigues) or R/T;
+// no pose means the camera frame is the world frame. Distortion is OpenCV's (k1, k2, p1, p2[, k3])
+// as in observe/camera.h; 8-, 12- and 14-vectors are accepted when the rational, thin-prism and
+// tilt terms are zero. Translations are taken in metres (SI, DESIGN.md §1) without conversion.
+// Unknown keys are ignored: calibration tools write many (reprojection errors, per-view poses).
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "rodfit/observe/camera.h"
+
+namespace rodfit {
+
+/// A camera file that cannot be used. what() is one line, "FILE: KEY: message" (or
+/// "FILE: message" when the problem is not tied to a key, e.g. a missing or malformed file).
+struct CameraFileError : std::runtime_error {
+  CameraFileError(const std::string& file, const std::string& key, const std::string& message);
+  std::string file;
+  std::string key;  ///< the key as spelled in the file (or its canonical name when missing)
+};
+
+/// Loads one camera. Camera::name is the file's `camera_name` if present, else the file stem.
+/// Throws CameraFileError.
+Camera LoadCamera(const std::string& path);
+
+/// Loads a stereo pair (M1 D1 M2 D2 R T and the shared image size). Camera 1 is posed by
+/// rvec/tvec if present (else it is the world frame); camera 2 is [R | T] composed with camera 1.
+/// Names are "STEM[1]" and "STEM[2]". Throws CameraFileError.
+std::pair<Camera, Camera> LoadStereoCameras(const std::string& path);
+
+}  // namespace rodfit

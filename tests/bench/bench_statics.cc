@@ -1,0 +1,75 @@
+// Statics benchmark (issue 2): solve time against segment count for a 3-D heavy suture with a
+// tip load, solved from straight, and a warm-started re-solve after a small load change.
+// Run: build/bench_statics [--benchmark_filter=...]; one core, Release build.
+#include <benchmark/benchmark.h>
+
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+namespace {
+
+// A nylon-like suture clamped at 30 degrees from horizontal, sagging under gravity with a
+// sideways tip force: a fully 3-D, bent and twisted equilibrium.
+Scene HeavySuture(int segments) {
+  Scene s;
+  s.rod.length = 0.2;
+  s.rod.segments = segments;
+  s.rod.radius = 1.25e-4;
+  s.rod.linear_density = 5.6e-5;
+  s.material.bend_stiffness = 1.0e-6;
+  s.material.bend_stiffness_2 = 1.5e-6;
+  s.material.twist_stiffness = 8.0e-7;
+  s.material.stretch_stiffness = 245.0;
+  s.gravity = Vec3(0, 0, -9.81);
+  LoadCase c;
+  c.name = "heavy";
+  c.clamp.tangent = Vec3(std::cos(0.5), 0, std::sin(0.5));
+  c.clamp.normal = Vec3(0, 1, 0);
+  c.tip_force = Vec3(0, 3e-5, 0);
+  s.cases.push_back(c);
+  return s;
+}
+
+void BM_SolveFromStraight(benchmark::State& st) {
+  const Scene s = HeavySuture(static_cast<int>(st.range(0)));
+  const RodModel model(s.rod, s.material, s.gravity, s.cases[0]);
+  StaticsWorkspace ws;
+  StaticsSummary summary;
+  for (auto _ : st) {
+    RodState state = model.StraightState();
+    summary = SolveStatics(model, StaticsOptions(), &state, &ws);
+    benchmark::DoNotOptimize(state.x.data());
+  }
+  if (!summary.converged) st.SkipWithError(summary.BriefReport().c_str());
+  st.counters["newton_iterations"] = summary.iterations;
+  st.SetComplexityN(st.range(0));
+}
+BENCHMARK(BM_SolveFromStraight)->RangeMultiplier(10)->Range(50, 5000)->Arg(100)->Arg(1000)
+    ->Unit(benchmark::kMillisecond)->Complexity(benchmark::oN);
+
+// Re-solve from the previous equilibrium after a 1% change of the tip force (what a fit does
+// between two Jacobian evaluations).
+void BM_WarmResolve(benchmark::State& st) {
+  Scene s = HeavySuture(static_cast<int>(st.range(0)));
+  const RodModel model(s.rod, s.material, s.gravity, s.cases[0]);
+  RodState base = model.StraightState();
+  StaticsWorkspace ws;
+  if (!SolveStatics(model, StaticsOptions(), &base, &ws).converged) st.SkipWithError("base");
+  s.cases[0].tip_force *= 1.01;
+  const RodModel changed(s.rod, s.material, s.gravity, s.cases[0]);
+  StaticsSummary summary;
+  for (auto _ : st) {
+    RodState state = base;
+    summary = SolveStatics(changed, StaticsOptions(), &state, &ws);
+    benchmark::DoNotOptimize(state.x.data());
+  }
+  if (!summary.converged) st.SkipWithError(summary.BriefReport().c_str());
+  st.counters["newton_iterations"] = summary.iterations;
+}
+BENCHMARK(BM_WarmResolve)->Arg(50)->Arg(100)->Arg(500)->Arg(1000)->Arg(5000)
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace rodfit
+
+BENCHMARK_MAIN();
