@@ -69,13 +69,24 @@ Vec11 Gradient(const Stencil& s) {
   return g;
 }
 
+// The Hessian the solver assembles: VertexHessianEdges in the edge variables (linearised
+// transport, symmetrised Jet Jacobian), mapped to the stencil by e = x_mid - x_prev,
+// f = x_next - x_mid.
 Mat11 SolverHessian(const Stencil& s) {
-  Jet11 q[11], g[11];
-  for (int a = 0; a < 11; ++a) q[a] = Jet11(s.q[a], a);
-  VertexGradient<Jet11>(s.c, q, g);
-  Mat11 J;
-  for (int a = 0; a < 11; ++a) J.row(a) = g[a].v.transpose();
-  return 0.5 * (J + J.transpose());
+  double g8[8], H8[64];
+  VertexHessianEdges(s.c, s.q.data(), g8, H8);
+  Eigen::Matrix<double, 8, 11> A = Eigen::Matrix<double, 8, 11>::Zero();
+  for (int k = 0; k < 3; ++k) {
+    A(k, k) = -1, A(k, 3 + k) = 1;
+    A(3 + k, 3 + k) = -1, A(3 + k, 6 + k) = 1;
+  }
+  A(6, 9) = A(7, 10) = 1;
+  const Eigen::Map<const Eigen::Matrix<double, 8, 8, Eigen::RowMajor>> H(H8);
+  const Eigen::Map<const Eigen::Matrix<double, 8, 1>> g(g8);
+  // Its gradient part must equal the closed-form gradient too.
+  EXPECT_LT((A.transpose() * g - Gradient(s)).cwiseAbs().maxCoeff(),
+            1e-12 * (1 + Gradient(s).cwiseAbs().maxCoeff()));
+  return A.transpose() * H * A;
 }
 
 Vec11 AutodiffGradient(const Stencil& s) {
