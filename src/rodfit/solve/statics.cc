@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 
 #include "rodfit/solve/rod_energy.h"
@@ -149,9 +148,6 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       }
     }
     ++summary->iterations;
-    if (std::getenv("RODFIT_DEBUG"))
-      std::fprintf(stderr, "it %d load %.3g |g| %.3e shift %.3e turn %.3e alpha %.3e E %.9e\n",
-                   summary->iterations, load_scale, gnorm, shift, turn, alpha, energy);
     if (!accepted) {
       // A converged-looking state whose step cannot lower Pi further is at round-off level.
       if (gnorm <= 1e3 * force_tol) {
