@@ -176,8 +176,7 @@ TEST(RodEnergy, InvariantUnderRigidMotion) {
   moved_state.ref_t = R * state.ref_t;
 
   // Elastic energy is invariant; the loads' work changes by the constant -F.p only.
-  EnergyTerms elastic;
-  elastic.loads = false;
+  const EnergyTerms elastic = EnergyTerms::Elastic();
   EXPECT_NEAR(PotentialEnergy(moved_model, moved_state, elastic),
               PotentialEnergy(model, state, elastic), 1e-12);
   VecX g, gm;

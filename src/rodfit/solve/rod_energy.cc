@@ -79,11 +79,12 @@ double PotentialEnergy(const RodModel& model, const RodState& state, const Energ
   VertexStencilConstants c;
   for (int i = 0; i < n; ++i) {
     GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, nullptr);
-    if (!terms.elastic) c.B1 = c.B2 = c.GJ = 0.0;
+    c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
+    if (!terms.AnyBendTwist() && c.moment.squaredNorm() == 0.0) continue;
     energy += VertexEnergy<double>(c, q);
   }
-  if (terms.elastic) {
-    const double EA = model.material().stretch_stiffness;
+  if (terms.stretch != 0.0) {
+    const double EA = terms.stretch * model.material().stretch_stiffness;
     for (int j = 0; j < n; ++j) {
       double qs[6];
       for (int k = 0; k < 3; ++k) {
@@ -116,8 +117,8 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   VertexStencilConstants c;
   for (int i = 0; i < n; ++i) {
     GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, &dof);
-    if (!terms.elastic) c.B1 = c.B2 = c.GJ = 0.0;
-    if (!terms.elastic && c.moment.squaredNorm() == 0.0) continue;
+    c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
+    if (!terms.AnyBendTwist() && c.moment.squaredNorm() == 0.0) continue;
     if (kHessian) {
       // Edge variables (e, f, theta_e, theta_f) -> stencil dofs: e = x_mid - x_prev and
       // f = x_next - x_mid, so each stencil dof touches at most two edge variables
@@ -155,8 +156,8 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
         if (dof[a] >= 0) (*gradient)[dof[a]] += g[a];
     }
   }
-  if (terms.elastic) {
-    const double EA = model.material().stretch_stiffness;
+  if (terms.stretch != 0.0) {
+    const double EA = terms.stretch * model.material().stretch_stiffness;
     Vec3 g;
     Eigen::Matrix3d Hs;
     for (int j = 0; j < n; ++j) {

@@ -15,12 +15,29 @@ namespace rodfit {
 /// Half bandwidth of the Hessian in the block ordering of RodModel::VertexDof/TwistDof.
 constexpr int kRodBandwidth = 11;
 
-/// Which parts of the energy to include; the load factor scales every external load
-/// (load continuation) and `stiffness` can replace the model's (sensitivities use unit ones).
+/// Which parts of the energy to include. The load factor scales every external load (load
+/// continuation); the stiffness factors scale the model's B1, B2, GJ, EA. U is linear in each
+/// stiffness, so the gradient with one factor 1, the others 0 and no loads is dg/dlog(p) of that
+/// stiffness (sensitivities).
 struct EnergyTerms {
   double load_scale = 1.0;
-  bool elastic = true;
   bool loads = true;
+  double bend1 = 1.0, bend2 = 1.0, twist = 1.0, stretch = 1.0;
+
+  bool AnyBendTwist() const { return bend1 != 0.0 || bend2 != 0.0 || twist != 0.0; }
+  /// Only the elastic energy (no loads).
+  static EnergyTerms Elastic() {
+    EnergyTerms t;
+    t.loads = false;
+    return t;
+  }
+  /// Only the stiffness named by `which` (0 = B1, 1 = B2, 2 = GJ, 3 = EA), no loads.
+  static EnergyTerms Only(int which) {
+    EnergyTerms t;
+    t.loads = false;
+    t.bend1 = which == 0, t.bend2 = which == 1, t.twist = which == 2, t.stretch = which == 3;
+    return t;
+  }
 };
 
 /// Gathers vertex i's stencil q = [x_prev, x_mid, x_next, theta_e, theta_f], its constants and

@@ -1,0 +1,39 @@
+// Stiffness sensitivities of the equilibrium (sensitivity.h).
+#include "rodfit/solve/sensitivity.h"
+
+#include "rodfit/solve/rod_energy.h"
+
+namespace rodfit {
+
+const char* StiffnessName(Stiffness s) {
+  switch (s) {
+    case Stiffness::kBend1: return "bend_stiffness";
+    case Stiffness::kBend2: return "bend_stiffness_2";
+    case Stiffness::kTwist: return "twist_stiffness";
+    case Stiffness::kStretch: return "stretch_stiffness";
+  }
+  return "?";
+}
+
+bool StiffnessSensitivities(const RodModel& model, const RodState& state,
+                            const StaticsWorkspace& workspace, const std::vector<Stiffness>& which,
+                            Eigen::MatrixXd* dq_dlogp) {
+  if (!workspace.factor_valid || workspace.hessian.size() != model.num_free_dofs()) return false;
+  dq_dlogp->resize(model.num_free_dofs(), static_cast<int>(which.size()));
+  VecX g;
+  for (size_t k = 0; k < which.size(); ++k) {
+    AssembleGradient(model, state, EnergyTerms::Only(static_cast<int>(which[k])), &g);
+    dq_dlogp->col(static_cast<int>(k)) = -g;
+  }
+  workspace.hessian.SolveInPlace(*dq_dlogp);
+  return dq_dlogp->allFinite();
+}
+
+Eigen::MatrixXd VertexSensitivities(const RodModel& model, const Eigen::MatrixXd& dq_dlogp) {
+  const int n = model.num_edges();
+  Eigen::MatrixXd dx = Eigen::MatrixXd::Zero(3 * (n + 1), dq_dlogp.cols());
+  for (int i = 1; i <= n; ++i) dx.middleRows<3>(3 * i) = dq_dlogp.middleRows<3>(RodModel::VertexDof(i));
+  return dx;
+}
+
+}  // namespace rodfit

@@ -1,0 +1,30 @@
+// Exact sensitivities of the equilibrium to the stiffness parameters (DESIGN.md §2): at
+// equilibrium g(q, p) = 0, so dq/dp = -H^{-1} dg/dp, with the factorisation the statics solver
+// kept. U is linear in each stiffness, so dg/dlog(p) is the gradient of that term alone
+// (EnergyTerms::Only). Costs one gradient assembly and one banded back-substitution per
+// parameter.
+#pragma once
+
+#include <vector>
+
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+
+/// The stiffness parameters of the rod model, in EnergyTerms::Only's numbering.
+enum class Stiffness { kBend1 = 0, kBend2 = 1, kTwist = 2, kStretch = 3 };
+
+const char* StiffnessName(Stiffness s);
+
+/// dq/dlog(p) for each stiffness in `which`, one column each, in the free-dof ordering
+/// (RodModel::VertexDof / TwistDof). Requires a converged, stable solve whose workspace still
+/// holds the factorisation (workspace.factor_valid); returns false otherwise.
+bool StiffnessSensitivities(const RodModel& model, const RodState& state,
+                            const StaticsWorkspace& workspace, const std::vector<Stiffness>& which,
+                            Eigen::MatrixXd* dq_dlogp);
+
+/// Rows of the free-dof sensitivities for vertex positions: d x_i / d log p as a 3(n+1) x m
+/// matrix (vertex 0 is clamped: zero rows).
+Eigen::MatrixXd VertexSensitivities(const RodModel& model, const Eigen::MatrixXd& dq_dlogp);
+
+}  // namespace rodfit
