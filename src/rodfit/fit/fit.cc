@@ -1,0 +1,552 @@
+// Identification (fit.h): the Ceres problem, its cost per case, the NLopt global start,
+// covariance and identifiability.
+#include "rodfit/fit/fit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/SVD>
+#include <ceres/ceres.h>
+#include <nlopt.hpp>
+
+#include "rodfit/solve/sensitivity.h"
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// A fitted parameter: where it sits in FitInput::parameters and which stiffnesses it drives
+/// (bend_stiffness drives B2 too when bend_stiffness_2 is absent: the isotropic tie).
+struct Fitted {
+  int input_index = 0;
+  std::string name;
+  std::vector<Stiffness> drives;
+};
+
+std::vector<Fitted> FittedParameters(const FitInput& in) {
+  std::vector<Fitted> out;
+  const bool tied = !in.material.bend_stiffness_2.has_value();
+  for (size_t k = 0; k < in.parameters.size(); ++k) {
+    const FitParameter& p = in.parameters[k];
+    if (!p.fit) continue;
+    Fitted f;
+    f.input_index = static_cast<int>(k);
+    f.name = p.name;
+    if (p.name == "bend_stiffness") {
+      f.drives = {Stiffness::kBend1};
+      if (tied) f.drives.push_back(Stiffness::kBend2);
+    } else if (p.name == "bend_stiffness_2") {
+      if (tied) throw std::invalid_argument("bend_stiffness_2: fitted but tied to bend_stiffness");
+      f.drives = {Stiffness::kBend2};
+    } else if (p.name == "twist_stiffness") {
+      f.drives = {Stiffness::kTwist};
+    } else if (p.name == "stretch_stiffness") {
+      f.drives = {Stiffness::kStretch};
+    } else if (p.name == "spring_stiffness") {
+      throw std::invalid_argument(
+          "spring_stiffness: fitted, but the scene has no springs for it to act on");
+    } else {
+      throw std::invalid_argument(p.name + ": not a parameter of the rod model");
+    }
+    out.push_back(f);
+  }
+  return out;
+}
+
+Material MaterialAt(const FitInput& in, const std::vector<Fitted>& fitted, const double* logp) {
+  Material m = in.material;
+  for (size_t k = 0; k < fitted.size(); ++k) {
+    const double v = std::exp(logp[k]);
+    const std::string& name = fitted[k].name;
+    if (name == "bend_stiffness") m.bend_stiffness = v;
+    if (name == "bend_stiffness_2") m.bend_stiffness_2 = v;
+    if (name == "twist_stiffness") m.twist_stiffness = v;
+    if (name == "stretch_stiffness") m.stretch_stiffness = v;
+  }
+  return m;
+}
+
+/// Robust loss applied per measurement as an exact residual transform: r~ = phi(s) r with
+/// phi = sqrt(rho(s) / s), s = |r|^2, so that 1/2 |r~|^2 = 1/2 rho(s) and Ceres' cost is the
+/// robust cost; J~ = phi J + 2 phi'(s) r r^T J.
+void ApplyLoss(const ceres::LossFunction* loss, int dim, double* r, double* J, int cols) {
+  if (!loss) return;
+  double s = 0.0;
+  for (int i = 0; i < dim; ++i) s += r[i] * r[i];
+  double rho[3];
+  loss->Evaluate(s, rho);
+  double phi, dphi;
+  if (s < 1e-12) {  // rho(s) = s + rho''(0) s^2 / 2 + ...: phi -> 1, phi' -> rho''(0) / 4
+    phi = 1.0;
+    dphi = rho[2] / 4.0;
+  } else {
+    phi = std::sqrt(rho[0] / s);
+    dphi = (rho[1] * s - rho[0]) / (2.0 * s * s * phi);
+  }
+  if (J) {
+    Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> Jm(
+        J, dim, cols);
+    const Eigen::Map<const Eigen::VectorXd> rv(r, dim);
+    const Eigen::RowVectorXd rtJ = rv.transpose() * Jm;
+    Jm = (phi * Jm + 2.0 * dphi * rv * rtJ).eval();
+  }
+  for (int i = 0; i < dim; ++i) r[i] *= phi;
+}
+
+/// The forward map of one case: solve (warm-started from the last success), observe, and chain
+/// the Jacobian. Holds the warm state behind a mutex; the cost function itself is stateless.
+class CaseEvaluator {
+ public:
+  CaseEvaluator(const FitInput& in, int case_index, std::vector<Fitted> fitted,
+                const ceres::LossFunction* loss)
+      : in_(in), case_(in.cases[case_index]), fitted_(std::move(fitted)), loss_(loss) {
+    for (const auto& obs : case_.observations) num_residuals_ += obs->num_residuals();
+  }
+
+  int num_residuals() const { return num_residuals_; }
+  int num_parameters() const { return static_cast<int>(fitted_.size()); }
+
+  /// residuals: num_residuals(); jacobian (row major num_residuals x m) optional.
+  bool Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape) const {
+    const Material material = MaterialAt(in_, fitted_, logp);
+    std::unique_ptr<RodModel> model;
+    try {
+      model = std::make_unique<RodModel>(in_.rod, material, in_.gravity, case_.load_case);
+    } catch (const std::invalid_argument&) {
+      return false;
+    }
+    RodState state;
+    StaticsWorkspace ws;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      state = has_warm_ ? warm_ : model->StraightState();
+    }
+    StaticsSummary summary = SolveStatics(*model, StaticsOptions(), &state, &ws);
+    if (!(summary.converged && summary.stable)) {  // a warm start can mislead: retry cold
+      state = model->StraightState();
+      summary = SolveStatics(*model, StaticsOptions(), &state, &ws);
+      if (!(summary.converged && summary.stable)) return false;
+    }
+    const int m = num_parameters();
+    Eigen::MatrixXd dx;
+    if (jacobian) {
+      std::vector<Stiffness> all;
+      for (const Fitted& f : fitted_) all.insert(all.end(), f.drives.begin(), f.drives.end());
+      Eigen::MatrixXd dq;
+      if (!StiffnessSensitivities(*model, state, ws, all, &dq)) return false;
+      const Eigen::MatrixXd dx_all = VertexSensitivities(*model, dq);
+      dx.setZero(dx_all.rows(), m);
+      int col = 0;
+      for (int k = 0; k < m; ++k)
+        for (size_t d = 0; d < fitted_[k].drives.size(); ++d) dx.col(k) += dx_all.col(col++);
+    }
+    int row = 0;
+    for (const auto& obs : case_.observations) {
+      VecX r;
+      VertexJacobian J;
+      if (!obs->Evaluate(state.x, &r, jacobian ? &J : nullptr)) return false;
+      Eigen::MatrixXd Jp;
+      if (jacobian) Jp = J.Multiply(dx);
+      // Per measurement: the loss sees each marker's / point's residual vector.
+      const int dim = obs->num_residuals() / std::max(1, obs->num_measurements());
+      for (int k = 0; k < obs->num_measurements(); ++k) {
+        double* rk = residuals + row + k * dim;
+        for (int i = 0; i < dim; ++i) rk[i] = r[k * dim + i];
+        double* Jk = jacobian ? jacobian + (row + k * dim) * m : nullptr;
+        if (Jk)
+          for (int i = 0; i < dim; ++i)
+            for (int c = 0; c < m; ++c) Jk[i * m + c] = Jp(k * dim + i, c);
+        ApplyLoss(loss_, dim, rk, Jk, m);
+      }
+      row += obs->num_residuals();
+    }
+    for (int i = 0; i < num_residuals_; ++i)
+      if (!std::isfinite(residuals[i])) return false;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      warm_ = state;
+      has_warm_ = true;
+    }
+    if (shape) *shape = state.x;
+    return true;
+  }
+
+ private:
+  const FitInput& in_;
+  const FitCase& case_;
+  std::vector<Fitted> fitted_;
+  const ceres::LossFunction* loss_;
+  int num_residuals_ = 0;
+  mutable std::mutex mutex_;  // guards the warm start only; evaluation is otherwise pure
+  mutable RodState warm_;
+  mutable bool has_warm_ = false;
+};
+
+class CaseCost final : public ceres::CostFunction {
+ public:
+  explicit CaseCost(const CaseEvaluator* evaluator) : evaluator_(evaluator) {
+    set_num_residuals(evaluator->num_residuals());
+    mutable_parameter_block_sizes()->push_back(evaluator->num_parameters());
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    // A failed solve returns false: Ceres then shortens the step.
+    return evaluator_->Evaluate(parameters[0], residuals, jacobians ? jacobians[0] : nullptr,
+                                nullptr);
+  }
+
+ private:
+  const CaseEvaluator* evaluator_;
+};
+
+std::unique_ptr<ceres::LossFunction> MakeLoss(RobustLoss loss, double scale) {
+  switch (loss) {
+    case RobustLoss::kNone: return nullptr;
+    case RobustLoss::kHuber: return std::make_unique<ceres::HuberLoss>(scale);
+    case RobustLoss::kCauchy: return std::make_unique<ceres::CauchyLoss>(scale);
+    case RobustLoss::kSoftL1: return std::make_unique<ceres::SoftLOneLoss>(scale);
+  }
+  return nullptr;
+}
+
+class ProgressCallback final : public ceres::IterationCallback {
+ public:
+  ProgressCallback(const FitOptions& o, Clock::time_point start) : o_(o), start_(start) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    if (o_.progress) {
+      FitIterationInfo info;
+      info.iteration = s.iteration;
+      info.cost = s.cost;
+      info.relative_decrease = s.cost > 0 ? s.cost_change / s.cost : 0.0;
+      info.seconds = std::chrono::duration<double>(Clock::now() - start_).count();
+      o_.progress(info);
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const FitOptions& o_;
+  Clock::time_point start_;
+};
+
+// Log-space search box of a fitted parameter: its bounds, or three decades around the start.
+void SearchBox(const FitParameter& p, double* lo, double* hi) {
+  *lo = p.min ? std::log(*p.min) : std::log(p.value) - 3.0 * std::log(10.0);
+  *hi = p.max ? std::log(*p.max) : std::log(p.value) + 3.0 * std::log(10.0);
+}
+
+}  // namespace
+
+bool FitOptions::Check(std::string* why) const {
+  auto fail = [&](const char* m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (!(loss_scale > 0)) return fail("loss_scale must be > 0");
+  if (max_iterations < 1) return fail("max_iterations must be >= 1");
+  if (global_evaluations < 1) return fail("global_evaluations must be >= 1");
+  if (num_threads < 1) return fail("num_threads must be >= 1");
+  if (!(max_log_std > 0)) return fail("max_log_std must be > 0");
+  return true;
+}
+
+const char* ParameterUnit(const std::string& name) {
+  if (name == "stretch_stiffness") return "N";
+  if (name == "spring_stiffness") return "N/m^2";
+  return "N m^2";
+}
+
+bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,
+                        Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) {
+  const std::vector<Fitted> fitted = FittedParameters(input);
+  if (log_values.size() != fitted.size()) throw std::invalid_argument("log_values size");
+  int total = 0;
+  std::vector<std::unique_ptr<CaseEvaluator>> evals;
+  for (size_t c = 0; c < input.cases.size(); ++c) {
+    evals.push_back(std::make_unique<CaseEvaluator>(input, static_cast<int>(c), fitted, nullptr));
+    total += evals.back()->num_residuals();
+  }
+  const int m = static_cast<int>(fitted.size());
+  residuals->resize(total);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(total, m);
+  int row = 0;
+  for (auto& e : evals) {
+    if (!e->Evaluate(log_values.data(), residuals->data() + row,
+                     jacobian ? J.data() + row * m : nullptr, nullptr))
+      return false;
+    row += e->num_residuals();
+  }
+  if (jacobian) *jacobian = J;
+  return true;
+}
+
+FitResult Fit(const FitInput& input, const FitOptions& options) {
+  const Clock::time_point start = Clock::now();
+  std::string why;
+  if (!options.Check(&why)) throw std::invalid_argument("fit options: " + why);
+  const std::vector<Fitted> fitted = FittedParameters(input);
+  if (fitted.empty()) throw std::invalid_argument("parameters: nothing to fit (no `fit: true`)");
+  const int m = static_cast<int>(fitted.size());
+  std::vector<double> logp(m);
+  for (int k = 0; k < m; ++k) {
+    const FitParameter& p = input.parameters[fitted[k].input_index];
+    if (!(p.value > 0)) throw std::invalid_argument(p.name + ": start value must be > 0");
+    if (p.min && p.max && !(*p.min < *p.max))
+      throw std::invalid_argument(p.name + ": min must be < max");
+    if ((p.min && p.value < *p.min) || (p.max && p.value > *p.max))
+      throw std::invalid_argument(p.name + ": start value outside [min, max]");
+    logp[k] = std::log(p.value);
+  }
+  int total_residuals = 0;
+  for (const FitCase& c : input.cases)
+    for (const auto& o : c.observations) total_residuals += o->num_residuals();
+  if (total_residuals == 0) throw std::invalid_argument("cases: no observations to fit");
+  if (total_residuals <= m)
+    throw std::invalid_argument("cases: fewer residuals than fitted parameters");
+
+  const std::unique_ptr<ceres::LossFunction> loss = MakeLoss(options.loss, options.loss_scale);
+  std::vector<std::unique_ptr<CaseEvaluator>> evals;
+  for (size_t c = 0; c < input.cases.size(); ++c)
+    evals.push_back(
+        std::make_unique<CaseEvaluator>(input, static_cast<int>(c), fitted, loss.get()));
+
+  FitResult result;
+  auto total_cost = [&](const double* lp, bool* ok) {
+    double cost = 0.0;
+    *ok = true;
+    for (auto& e : evals) {
+      if (e->num_residuals() == 0) continue;
+      VecX r(e->num_residuals());
+      if (!e->Evaluate(lp, r.data(), nullptr, nullptr)) {
+        *ok = false;
+        return std::numeric_limits<double>::infinity();
+      }
+      cost += 0.5 * r.squaredNorm();
+    }
+    return cost;
+  };
+
+  if (options.global) {
+    // DIRECT-L: a deterministic derivative-free global search over the log box; Ceres polishes.
+    nlopt::opt opt(nlopt::GN_DIRECT_L, m);
+    std::vector<double> lo(m), hi(m);
+    for (int k = 0; k < m; ++k) SearchBox(input.parameters[fitted[k].input_index], &lo[k], &hi[k]);
+    opt.set_lower_bounds(lo);
+    opt.set_upper_bounds(hi);
+    opt.set_maxeval(options.global_evaluations);
+    struct Ctx {
+      decltype(total_cost)* f;
+      int evaluations;
+    } ctx{&total_cost, 0};
+    opt.set_min_objective(
+        [](const std::vector<double>& x, std::vector<double>&, void* data) {
+          Ctx* c = static_cast<Ctx*>(data);
+          ++c->evaluations;
+          bool ok;
+          const double v = (*c->f)(x.data(), &ok);
+          return ok ? v : 1e30;  // a failed solve is a very bad point, not an error
+        },
+        &ctx);
+    std::vector<double> x = logp;
+    for (int k = 0; k < m; ++k) x[k] = std::min(hi[k], std::max(lo[k], x[k]));
+    double best = 0.0;
+    try {
+      opt.optimize(x, best);
+    } catch (const std::exception&) {
+      // maxeval reached is reported as success by NLopt; anything else keeps the best so far.
+    }
+    result.global_evaluations = ctx.evaluations;
+    if (best < 1e30) logp = x;
+  }
+
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  problem.AddParameterBlock(logp.data(), m);
+  for (int k = 0; k < m; ++k) {
+    const FitParameter& p = input.parameters[fitted[k].input_index];
+    if (p.min) problem.SetParameterLowerBound(logp.data(), k, std::log(*p.min));
+    if (p.max) problem.SetParameterUpperBound(logp.data(), k, std::log(*p.max));
+  }
+  for (auto& e : evals)
+    if (e->num_residuals() > 0) problem.AddResidualBlock(new CaseCost(e.get()), nullptr, logp.data());
+
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = options.max_iterations;
+  so.num_threads = options.num_threads;
+  so.function_tolerance = 1e-12;
+  so.parameter_tolerance = 1e-10;
+  so.gradient_tolerance = 1e-14;
+  so.logging_type = ceres::SILENT;
+  ProgressCallback callback(options, start);
+  so.callbacks.push_back(&callback);
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  result.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  result.initial_cost = summary.initial_cost;
+  result.final_cost = summary.final_cost;
+  result.num_residuals = total_residuals;
+  result.message = summary.message;
+  result.success = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
+  if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
+    result.success = false;
+    result.message = "no usable solution: " + summary.message;
+  } else if (summary.termination_type == ceres::NO_CONVERGENCE) {
+    result.message = "did not converge within max_iterations: " + summary.message;
+  }
+
+  // Jacobian at the solution (log space, sigma-weighted, after the loss) for identifiability.
+  Eigen::MatrixXd J;
+  VecX r;
+  {
+    double cost = 0.0;
+    ceres::CRSMatrix crs;
+    std::vector<double> res;
+    ceres::Problem::EvaluateOptions eo;
+    const bool ok = problem.Evaluate(eo, &cost, &res, nullptr, &crs);
+    if (!ok) {
+      result.success = false;
+      result.message = "the forward solve fails at the fitted parameters";
+    } else {
+      J.setZero(crs.num_rows, crs.num_cols);
+      for (int i = 0; i < crs.num_rows; ++i)
+        for (int k = crs.rows[i]; k < crs.rows[i + 1]; ++k) J(i, crs.cols[k]) = crs.values[k];
+      r = Eigen::Map<VecX>(res.data(), res.size());
+    }
+  }
+  const int dof = total_residuals - m;
+  result.residual_variance = options.trusted_sigmas ? 1.0 : 2.0 * result.final_cost / dof;
+
+  // Identifiability: columns the residuals do not depend on, directions of J's null space, and
+  // parameters whose log is determined only within max_log_std.
+  std::vector<bool> identifiable(m, true);
+  std::vector<std::string> reason(m);
+  Eigen::MatrixXd cov_log = Eigen::MatrixXd::Constant(m, m, std::numeric_limits<double>::quiet_NaN());
+  if (J.size() > 0) {
+    const Eigen::VectorXd colnorm = J.colwise().norm();
+    const double jmax = std::max(colnorm.maxCoeff(), 1e-300);
+    for (int k = 0; k < m; ++k)
+      if (colnorm[k] <= 1e-9 * jmax || colnorm[k] == 0.0) {
+        identifiable[k] = false;
+        reason[k] = "the observations do not depend on it in these cases";
+      }
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeFullV);
+    const Eigen::VectorXd sv = svd.singularValues();
+    for (int i = 0; i < sv.size(); ++i) {
+      if (sv[i] > 1e-8 * sv[0]) continue;
+      const Eigen::VectorXd v = svd.matrixV().col(i);
+      std::vector<int> involved;
+      for (int k = 0; k < m; ++k)
+        if (std::abs(v[k]) > 0.2 && identifiable[k]) involved.push_back(k);
+      for (int k : involved) {
+        std::string others;
+        for (int o : involved)
+          if (o != k) others += (others.empty() ? "" : ", ") + fitted[o].name;
+        identifiable[k] = false;
+        reason[k] = others.empty() ? "the observations do not determine it"
+                                   : "not separable from " + others +
+                                         ": only a combination is determined by these cases";
+      }
+    }
+    std::vector<int> keep;
+    for (int k = 0; k < m; ++k)
+      if (identifiable[k]) keep.push_back(k);
+    if (!keep.empty()) {
+      const int q = static_cast<int>(keep.size());
+      Eigen::MatrixXd cov_sub;
+      if (q == m) {
+        // Full rank: Ceres' covariance of the parameter block.
+        ceres::Covariance::Options co;
+        co.algorithm_type = ceres::DENSE_SVD;
+        co.num_threads = options.num_threads;
+        ceres::Covariance covariance(co);
+        std::vector<std::pair<const double*, const double*>> blocks = {{logp.data(), logp.data()}};
+        cov_sub.resize(m, m);
+        if (covariance.Compute(blocks, &problem) &&
+            covariance.GetCovarianceBlock(logp.data(), logp.data(), cov_sub.data())) {
+          cov_sub.transposeInPlace();  // row-major from Ceres (symmetric anyway)
+        } else {
+          cov_sub = (J.transpose() * J).inverse();
+        }
+      } else {
+        Eigen::MatrixXd Js(J.rows(), q);
+        for (int i = 0; i < q; ++i) Js.col(i) = J.col(keep[i]);
+        cov_sub = (Js.transpose() * Js).inverse();
+      }
+      cov_sub *= result.residual_variance;
+      for (int i = 0; i < q; ++i)
+        for (int j = 0; j < q; ++j) cov_log(keep[i], keep[j]) = cov_sub(i, j);
+      for (int i = 0; i < q; ++i) {
+        const int k = keep[i];
+        const double s = std::sqrt(std::max(0.0, cov_log(k, k)));
+        if (!(s <= options.max_log_std)) {
+          identifiable[k] = false;
+          char buf[160];
+          std::snprintf(buf, sizeof(buf),
+                        "determined only within a factor of %.3g (std of its log %.3g): its "
+                        "effect is below the noise",
+                        std::exp(s), s);
+          reason[k] = buf;
+        }
+      }
+    }
+  }
+  result.correlation.setZero(m, m);
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j)
+      result.correlation(i, j) = cov_log(i, j) / std::sqrt(cov_log(i, i) * cov_log(j, j));
+
+  // Every parameter of the model, fitted or not.
+  const Material final_material = MaterialAt(input, fitted, logp.data());
+  for (size_t k = 0; k < input.parameters.size(); ++k) {
+    const FitParameter& p = input.parameters[k];
+    ParameterEstimate e;
+    e.name = p.name;
+    e.unit = ParameterUnit(p.name);
+    e.value = p.value;
+    e.fitted = p.fit;
+    for (int f = 0; f < m; ++f) {
+      if (fitted[f].input_index != static_cast<int>(k)) continue;
+      e.value = std::exp(logp[f]);
+      e.identifiable = identifiable[f];
+      e.reason = reason[f];
+      if (identifiable[f]) e.std = e.value * std::sqrt(cov_log(f, f));  // delta method
+      e.at_bound = (p.min && std::abs(logp[f] - std::log(*p.min)) < 1e-6) ||
+                   (p.max && std::abs(logp[f] - std::log(*p.max)) < 1e-6);
+      result.fitted_names.push_back(p.name);
+    }
+    if (p.name == "bend_stiffness_2" && !p.fit && !input.material.bend_stiffness_2)
+      e.value = final_material.B2();
+    result.parameters.push_back(e);
+  }
+
+  // Shapes and RMS per observation at the fitted parameters.
+  for (size_t c = 0; c < evals.size(); ++c) {
+    Mat3X shape;
+    VecX rr(std::max(1, evals[c]->num_residuals()));
+    if (!evals[c]->Evaluate(logp.data(), rr.data(), nullptr, &shape)) continue;
+    result.shapes.push_back(shape);
+    const FitCase& fc = input.cases[c];
+    for (size_t o = 0; o < fc.observations.size(); ++o) {
+      ObservationFit of;
+      of.case_index = static_cast<int>(c);
+      of.label = o < fc.labels.size() ? fc.labels[o] : fc.observations[o]->type();
+      of.type = fc.observations[o]->type();
+      of.num_measurements = fc.observations[o]->num_measurements();
+      fc.observations[o]->RmsError(shape, &of.rms);
+      result.observations.push_back(of);
+    }
+  }
+  result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return result;
+}
+
+}  // namespace rodfit

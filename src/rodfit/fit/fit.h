@@ -1,0 +1,120 @@
+// Identification of the rod's stiffness parameters from observations (DESIGN.md §3): a Ceres
+// problem with one residual block per load case whose Evaluate runs the warm-started static
+// solve and returns the weighted residuals with their exact Jacobian (dx/dlog p from the
+// implicit-function theorem, solve/sensitivity.h, chained with the observation models'
+// closed-form d r / d x). Parameters live in log space with optional bounds; fixed ones stay out
+// of the Jacobian; an absent bend_stiffness_2 is tied to bend_stiffness. A robust loss is
+// applied per measurement. After the fit: covariance (ceres::Covariance), standard deviations,
+// correlations and an identifiability verdict per parameter.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rodfit/model/scene.h"
+#include "rodfit/observe/observations.h"
+
+namespace rodfit {
+
+/// One material parameter as the experiment declares it.
+struct FitParameter {
+  std::string name;              ///< bend_stiffness, bend_stiffness_2, twist_stiffness, ...
+  double value = 0.0;            ///< start (and the value when not fitted)
+  bool fit = false;
+  std::optional<double> min, max;
+};
+
+/// A load case with its loaded observations.
+struct FitCase {
+  LoadCase load_case;
+  std::vector<std::shared_ptr<const Observation>> observations;
+  std::vector<std::string> labels;  ///< one per observation, e.g. "markers3d flat_markers.csv"
+};
+
+struct FitInput {
+  RodSpec rod;
+  Material material;  ///< values of every parameter (fitted ones are starts)
+  Vec3 gravity = Vec3(0, 0, -9.81);
+  std::vector<FitParameter> parameters;
+  std::vector<FitCase> cases;
+};
+
+enum class RobustLoss { kNone, kHuber, kCauchy, kSoftL1 };
+
+struct FitIterationInfo {
+  int iteration = 0;
+  double cost = 0.0;
+  double relative_decrease = 0.0;
+  double seconds = 0.0;
+};
+
+struct FitOptions {
+  RobustLoss loss = RobustLoss::kNone;
+  double loss_scale = 1.0;       ///< [sigmas] where the loss turns robust
+  int max_iterations = 100;      ///< Levenberg–Marquardt iterations
+  bool trusted_sigmas = false;   ///< covariance not rescaled by the residual variance
+  bool global = false;           ///< NLopt global search over the log-bounds first
+  int global_evaluations = 300;  ///< forward evaluations the global search may spend
+  int num_threads = 2;           ///< cases evaluated in parallel
+  /// A parameter whose log has a standard deviation above this is reported as not
+  /// identifiable: the data pin it down only within a factor exp(this).
+  double max_log_std = 1.0;
+  std::function<void(const FitIterationInfo&)> progress;  ///< called once per iteration
+  bool Check(std::string* why) const;
+};
+
+struct ParameterEstimate {
+  std::string name;
+  std::string unit;
+  double value = 0.0;
+  bool fitted = false;
+  std::optional<double> std;     ///< present only for a fitted, identifiable parameter
+  bool identifiable = true;
+  std::string reason;            ///< why not identifiable
+  bool at_bound = false;
+};
+
+struct ObservationFit {
+  int case_index = 0;
+  std::string label;
+  std::string type;
+  int num_measurements = 0;
+  double rms = 0.0;  ///< [m] or [px]
+};
+
+struct FitResult {
+  bool success = false;          ///< converged to a usable estimate
+  std::string message;           ///< termination, or why the fit failed
+  int iterations = 0;
+  int global_evaluations = 0;
+  double initial_cost = 0.0;     ///< 1/2 sum of squared weighted residuals (after the loss)
+  double final_cost = 0.0;
+  int num_residuals = 0;
+  double residual_variance = 1.0;  ///< 2 cost / (N - m): 1 when the sigmas are right
+  double seconds = 0.0;
+  std::vector<ParameterEstimate> parameters;  ///< every parameter of the model
+  std::vector<std::string> fitted_names;
+  Eigen::MatrixXd correlation;   ///< among fitted parameters (in log space)
+  std::vector<ObservationFit> observations;
+  std::vector<Mat3X> shapes;     ///< fitted centre-lines, one per case
+};
+
+/// Unit of a parameter by name ("N m^2", "N", "N/m^2").
+const char* ParameterUnit(const std::string& name);
+
+/// Runs the identification. Throws std::invalid_argument for an ill-posed request (nothing to
+/// fit, a fitted parameter the model does not use, min >= max, a start outside its bounds).
+FitResult Fit(const FitInput& input, const FitOptions& options);
+
+/// The forward map for tests and benchmarks: weighted residuals of every case stacked, and
+/// optionally their Jacobian with respect to the log of the fitted parameters. False when a
+/// case's solve fails.
+bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,
+                        Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian);
+
+}  // namespace rodfit
