@@ -1,6 +1,7 @@
 // The rodfit command (DESIGN.md §6): a thin table of subcommands in the manner of COLMAP's
 // `commands.emplace_back("name", &RunName)`. Each Run* parses its options with CLI11, calls the
 // library and turns a failure into one line on stderr and a non-zero exit. No physics here.
+#include <cstdint>
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
@@ -9,12 +10,18 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Core>
 
+#include "commands.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/experiment.h"
+#include "rodfit/io/image_observations.h"
 #include "rodfit/io/shapes_csv.h"
+#include "rodfit/io/synth.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/solve/statics.h"
+#include "rodfit/vision/camera_file.h"
+#include "rodfit/vision/centreline.h"
 
 namespace {
 
@@ -72,16 +79,137 @@ int RunSimulate(int argc, char** argv) {
   return EXIT_SUCCESS;
 }
 
+int RunSynth(int argc, char** argv) {
+  CLI::App app(
+      "Synthesize every observation file of an experiment from its parameter values (the "
+      "truth); write them, DIR/experiment.yaml and DIR/truth.json.",
+      "rodfit synth");
+  std::string experiment_path, output_dir;
+  std::uint32_t seed = 1;
+  bool noise_free = false;
+  app.add_option("experiment", experiment_path, "experiment YAML (DESIGN.md §6)")->required();
+  app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
+  app.add_option("--seed", seed, "random seed; the same seed gives the same bytes")
+      ->default_val(1);
+  app.add_flag("--noise-free", noise_free, "no noise, outliers or pixel noise (exact samples)");
+  if (const int status = Parse(app, argc, argv); status >= 0) return status;
+
+  const rodfit::Experiment experiment = rodfit::LoadExperiment(experiment_path);
+  rodfit::SynthOptions options;
+  options.seed = seed;
+  options.add_noise = !noise_free;
+  const rodfit::SynthBundle bundle = rodfit::Synthesize(experiment, output_dir, options);
+  for (const std::string& line : bundle.report) std::cout << line << "\n";
+  std::cout << "wrote " << bundle.files.size() << " files to " << output_dir << "\n";
+  return EXIT_SUCCESS;
+}
+
+// "U,V" -> pixel; false when it is not two finite numbers.
+bool ParsePixel(const std::string& text, Eigen::Vector2d* uv) {
+  const size_t comma = text.find(',');
+  if (comma == std::string::npos) return false;
+  double u = 0.0, v = 0.0;
+  if (!rodfit::ParseDouble(text.substr(0, comma), &u) ||
+      !rodfit::ParseDouble(text.substr(comma + 1), &v)) {
+    return false;
+  }
+  *uv = Eigen::Vector2d(u, v);
+  return true;
+}
+
+int RunExtract(int argc, char** argv) {
+  CLI::App app(
+      "Extract the ordered centre-line of a thread from a camera image (writes u,v), or from two "
+      "images of two calibrated cameras (writes triangulated x,y,z).",
+      "rodfit extract");
+  std::vector<std::string> images, camera_paths, starts, overlays;
+  std::string stereo_path, output_path;
+  app.add_option("images", images, "one image, or two images of two cameras")
+      ->required()
+      ->expected(1, 2);
+  app.add_option("--camera", camera_paths, "camera file, one per image (DESIGN.md §6)");
+  app.add_option("--stereo", stereo_path, "stereo calibration file holding both cameras");
+  app.add_option("-o,--output", output_path, "output CSV: u,v (one image) or x,y,z (two)")
+      ->required();
+  app.add_option("--overlay", overlays, "image with the centre-line drawn, one per image");
+  app.add_option("--start", starts, "U,V: start the centre-line at the end nearest this pixel, "
+                                    "one per image");
+  if (const int status = Parse(app, argc, argv); status >= 0) return status;
+
+  const size_t n = images.size();
+  auto fail = [](const std::string& why) {
+    std::cerr << "rodfit extract: " << why << " (see --help)\n";
+    return EXIT_FAILURE;
+  };
+  std::vector<rodfit::Camera> cameras;
+  if (!stereo_path.empty()) {
+    if (n != 2 || !camera_paths.empty()) return fail("--stereo needs two images and no --camera");
+    const auto pair = rodfit::LoadStereoCameras(stereo_path);
+    cameras = {pair.first, pair.second};
+  } else {
+    if (camera_paths.size() != n) return fail("give one --camera per image, or --stereo");
+    for (const std::string& path : camera_paths) cameras.push_back(rodfit::LoadCamera(path));
+  }
+  if (!starts.empty() && starts.size() != n) return fail("give one --start per image, or none");
+  if (!overlays.empty() && overlays.size() != n) {
+    return fail("give one --overlay per image, or none");
+  }
+
+  std::vector<rodfit::CentrelineResult> lines;
+  for (size_t k = 0; k < n; ++k) {
+    rodfit::CentrelineOptions options;
+    if (!starts.empty()) {
+      Eigen::Vector2d hint;
+      if (!ParsePixel(starts[k], &hint)) return fail("--start '" + starts[k] + "' is not U,V");
+      options.start_hint = hint;
+    }
+    lines.push_back(rodfit::ExtractCentrelineFromFile(images[k], cameras[k], options));
+  }
+  std::string csv;
+  std::vector<std::vector<Eigen::Vector2d>> reprojected(n);
+  if (n == 1) {
+    csv = rodfit::FormatImagePointsCsv(lines[0].uv);
+  } else {
+    const std::vector<Eigen::Vector3d> points = rodfit::TriangulateCentrelines(
+        cameras[0], lines[0].uv, cameras[1], lines[1].uv, images[0], images[1]);
+    csv = rodfit::FormatPoints3dCsv(points);
+    for (size_t k = 0; k < n; ++k) {
+      for (const Eigen::Vector3d& p : points) {
+        Eigen::Vector2d uv;
+        if (rodfit::Project(cameras[k], p, &uv)) reprojected[k].push_back(uv);
+      }
+    }
+  }
+  // Overlays are encoded before anything is written, so a bad --overlay leaves no CSV behind.
+  std::vector<std::string> encoded;
+  for (size_t k = 0; k < overlays.size(); ++k) {
+    encoded.push_back(rodfit::EncodeImage(
+        overlays[k],
+        rodfit::DrawOverlay(rodfit::ReadImageFile(images[k]), lines[k].uv, reprojected[k])));
+  }
+  for (size_t k = 0; k < overlays.size(); ++k) {
+    rodfit::WriteFileAtomically(overlays[k], encoded[k]);
+  }
+  rodfit::WriteFileAtomically(output_path, csv);
+  for (size_t k = 0; k < n; ++k) std::cout << images[k] << ": " << lines[k].BriefReport() << "\n";
+  return EXIT_SUCCESS;
+}
+
 struct Command {
   const char* name;
   const char* help;
   int (*run)(int argc, char** argv);
 };
 
-// fit, synth, extract and bench join this table as their layers land.
+// bench joins this table when its issue lands.
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
       {"simulate", "solve every case of a scene; write DIR/shapes.csv", &RunSimulate},
+      {"synth", "synthesize an experiment's observation files from its parameters", &RunSynth},
+      {"extract", "image(s) of a thread -> centre-line pixels or triangulated points",
+       &RunExtract},
+      {"fit", "fit an experiment's parameters to its observations; write the profile JSON",
+       &RunFit},
   };
   return commands;
 }

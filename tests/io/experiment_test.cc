@@ -230,6 +230,29 @@ TEST_F(ExperimentTest, ObservationTypesAndTheirKeys) {
   ExpectError(With("sigma: 3.0e-4}", "sigma: 0}"), 20, "cases[0].observations[0].sigma");
 }
 
+TEST_F(ExperimentTest, ImageBlurAndNoiseAreForImagesOnly) {
+  const std::string images = "{type: images, file: a.png, camera: c.yaml, sigma: 1";
+  const Experiment ex = LoadExperiment(dir_.Write(
+      "scene.yaml", With("{type: markers3d, file: flat.csv, sigma: 3.0e-4",
+                         images + ", blur: 1.5, noise: 4")));
+  EXPECT_EQ(ex.cases[0].observations[0].blur, 1.5);
+  EXPECT_EQ(ex.cases[0].observations[0].noise, 4.0);
+  const Experiment plain = LoadExperiment(
+      dir_.Write("scene.yaml", With("{type: markers3d, file: flat.csv, sigma: 3.0e-4", images)));
+  EXPECT_EQ(plain.cases[0].observations[0].blur, 0.0);  // absent: a sharp, noise-free image
+  EXPECT_EQ(plain.cases[0].observations[0].noise, 0.0);
+  ExpectError(With("{type: markers3d, file: flat.csv, sigma: 3.0e-4", images + ", blur: -1"), 20,
+              "cases[0].observations[0].blur");
+  ExpectError(With("{type: markers3d, file: flat.csv, sigma: 3.0e-4", images + ", noise: -0.5"),
+              20, "cases[0].observations[0].noise");
+  ExpectError(With("{type: markers3d, file: flat.csv, sigma: 3.0e-4", images + ", noise: .nan"),
+              20, "cases[0].observations[0].noise");
+  ExpectError(With("sigma: 3.0e-4}", "sigma: 3.0e-4, blur: 1}"), 20,
+              "cases[0].observations[0].blur");  // markers3d: no image to blur
+  ExpectError(With("sigma: 3.0e-4}", "sigma: 3.0e-4, noise: 1}"), 20,
+              "cases[0].observations[0].noise");
+}
+
 TEST_F(ExperimentTest, FitBlockIsValidated) {
   const std::string text = std::string(kBase) + "fit:\n  loss: huberr\n";
   ExpectError(text, 24, "fit.loss");

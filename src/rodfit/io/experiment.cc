@@ -272,8 +272,8 @@ Clamp ReadClamp(const Reader& r, const Field& f) {
 }
 
 ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex) {
-  const std::vector<std::string> all = {"type", "file",  "camera",  "sigma",
-                                        "s",    "count", "outliers"};
+  const std::vector<std::string> all = {"type",  "file",     "camera", "sigma", "s",
+                                        "count", "outliers", "blur",   "noise"};
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
@@ -288,6 +288,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   if (image) allowed.push_back("camera");
   if (o.type != "points3d" && o.type != "images") allowed.push_back("s");
   if (o.type != "images") allowed.insert(allowed.end(), {"count", "outliers"});
+  if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise"});
   for (const auto& [name, field] : m) {
     if (!Contains(allowed, name)) {
       r.Fail(field.key_line, field.key,
@@ -316,6 +317,8 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
       r.Fail(*outliers, "must be in [0, 1), got " + Show(o.outliers));
     }
   }
+  if (const Field* blur = Reader::Find(m, "blur")) o.blur = r.NonNegative(*blur);
+  if (const Field* noise = Reader::Find(m, "noise")) o.noise = r.NonNegative(*noise);
   return o;
 }
 

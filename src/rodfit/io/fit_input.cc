@@ -1,0 +1,124 @@
+// Observation files to observation models (fit_input.h).
+#include "rodfit/io/fit_input.h"
+
+#include <cmath>
+#include <filesystem>
+#include <map>
+
+#include "rodfit/io/csv.h"
+#include "rodfit/io/errors.h"
+#include "rodfit/io/image_observations.h"
+#include "rodfit/vision/camera_file.h"
+
+namespace rodfit {
+namespace {
+
+std::vector<double> ColumnOf(const CsvTable& t, const std::string& c) { return t.Column(c); }
+
+void CheckArcLength(const CsvTable& t, int row, double s, double length) {
+  if (!(s >= -1e-12 * length && s <= length * (1 + 1e-12)))
+    throw InputError(t.name(), t.line(row), "s",
+                     "marker arc length " + FormatDouble(s) + " m is outside [0, " +
+                         FormatDouble(length) + "]");
+}
+
+std::string Label(const ObservationSpec& spec) {
+  return spec.type + " " + std::filesystem::path(spec.file).filename().string();
+}
+
+}  // namespace
+
+std::vector<FitParameter> FitParametersOf(const Experiment& e) {
+  std::vector<FitParameter> out;
+  for (const char* name : {"bend_stiffness", "bend_stiffness_2", "twist_stiffness",
+                           "stretch_stiffness", "spring_stiffness"}) {
+    const auto it = e.parameters.find(name);
+    if (it == e.parameters.end()) {
+      if (std::string(name) == "spring_stiffness") out.push_back({name, 0.0, false, {}, {}});
+      continue;  // bend_stiffness_2 absent: tied to bend_stiffness
+    }
+    const ParameterSpec& p = it->second;
+    out.push_back({name, p.value, p.fit, p.min, p.max});
+  }
+  return out;
+}
+
+FitInput BuildFitInput(const Experiment& e) {
+  FitInput in;
+  in.rod = e.scene.rod;
+  in.material = e.scene.material;
+  in.gravity = e.scene.gravity;
+  in.parameters = FitParametersOf(e);
+  const RodModel reference(e.scene.rod, e.scene.material, e.scene.gravity,
+                           e.scene.cases.empty() ? LoadCase() : e.scene.cases[0]);
+  const std::vector<double> arc = VertexArcLengths(reference);
+  const int nv = e.scene.rod.segments + 1;
+  const double L = e.scene.rod.length;
+  std::map<std::string, Camera> cameras;
+  auto camera = [&](const ObservationSpec& spec) -> const Camera& {
+    auto it = cameras.find(spec.camera);
+    if (it == cameras.end()) it = cameras.emplace(spec.camera, LoadCamera(spec.camera)).first;
+    return it->second;
+  };
+  for (size_t c = 0; c < e.scene.cases.size(); ++c) {
+    FitCase fc;
+    fc.load_case = e.scene.cases[c];
+    for (const ObservationSpec& spec : e.cases[c].observations) {
+      std::shared_ptr<const Observation> obs;
+      try {
+        if (spec.type == "markers3d") {
+          const CsvTable t = CsvTable::Read(spec.file);
+          const auto s = ColumnOf(t, "s"), x = ColumnOf(t, "x"), y = ColumnOf(t, "y"),
+                     z = ColumnOf(t, "z");
+          std::vector<Marker3d> markers;
+          for (int r = 0; r < t.num_rows(); ++r) {
+            CheckArcLength(t, r, s[r], L);
+            markers.push_back({std::min(std::max(s[r], 0.0), L), Vec3(x[r], y[r], z[r])});
+          }
+          if (markers.empty()) throw InputError(spec.file, 0, "", "no rows");
+          obs = std::make_shared<Markers3dObservation>(arc, markers, spec.sigma);
+        } else if (spec.type == "points3d") {
+          const CsvTable t = CsvTable::Read(spec.file);
+          const auto x = ColumnOf(t, "x"), y = ColumnOf(t, "y"), z = ColumnOf(t, "z");
+          std::vector<Eigen::Vector3d> pts;
+          for (int r = 0; r < t.num_rows(); ++r) pts.emplace_back(x[r], y[r], z[r]);
+          if (pts.empty()) throw InputError(spec.file, 0, "", "no rows");
+          obs = std::make_shared<Points3dObservation>(nv, pts, spec.sigma);
+        } else if (spec.type == "image_points") {
+          const CsvTable t = CsvTable::Read(spec.file);
+          const Camera& cam = camera(spec);
+          const auto u = ColumnOf(t, "u"), v = ColumnOf(t, "v");
+          if (t.num_rows() == 0) throw InputError(spec.file, 0, "", "no rows");
+          if (t.HasColumn("s")) {
+            const auto s = ColumnOf(t, "s");
+            std::vector<MarkerPixel> px;
+            for (int r = 0; r < t.num_rows(); ++r) {
+              CheckArcLength(t, r, s[r], L);
+              px.push_back({std::min(std::max(s[r], 0.0), L), Eigen::Vector2d(u[r], v[r])});
+            }
+            obs = std::make_shared<ImageMarkersObservation>(arc, cam, px, spec.sigma);
+          } else {
+            std::vector<Eigen::Vector2d> px;
+            for (int r = 0; r < t.num_rows(); ++r) px.emplace_back(u[r], v[r]);
+            obs = std::make_shared<ImageCurveObservation>(nv, cam, px, spec.sigma);
+          }
+        } else if (spec.type == "images") {
+          const Camera& cam = camera(spec);
+          const std::vector<Eigen::Vector2d> px = ImagePointsFromImage(spec, cam, fc.load_case);
+          obs = std::make_shared<ImageCurveObservation>(nv, cam, px, spec.sigma);
+        } else {
+          throw InputError(e.path, spec.line, "type", "unknown observation type " + spec.type);
+        }
+      } catch (const std::invalid_argument& err) {
+        // The observation models' own checks (a non-finite value, a camera failing its check).
+        throw InputError(spec.file, 0, spec.type, err.what());
+      }
+      fc.observations.push_back(obs);
+      fc.labels.push_back(Label(spec));
+    }
+    in.cases.push_back(std::move(fc));
+  }
+  return in;
+}
+
+}  // namespace rodfit

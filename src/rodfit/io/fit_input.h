@@ -1,0 +1,20 @@
+// From an experiment file to the fit's input (DESIGN.md §3, §6): reads every observation's data
+// file (CSV, image) and camera, checks it against the rod, and builds the observation models.
+// Errors name the file, the row's line and the column or key.
+#pragma once
+
+#include "rodfit/fit/fit.h"
+#include "rodfit/io/experiment.h"
+
+namespace rodfit {
+
+/// All five parameters of the model in a fixed order, fitted or not; an absent
+/// bend_stiffness_2 is left out (tied to bend_stiffness), an absent spring_stiffness is 0.
+std::vector<FitParameter> FitParametersOf(const Experiment& experiment);
+
+/// Loads every observation of every case. Throws InputError (or CameraFileError) for a missing
+/// or malformed file, a missing column, a non-number, a marker with s outside [0, L], a camera
+/// that sees none of its points, and an `images` entry nothing can be extracted from.
+FitInput BuildFitInput(const Experiment& experiment);
+
+}  // namespace rodfit

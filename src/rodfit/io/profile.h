@@ -1,0 +1,26 @@
+// The profile JSON of DESIGN.md §6, what a simulator imports: the rod, every parameter the model
+// used (value, std, fitted flag, unit, identifiability), correlations and the fit summary with
+// a digest of the input files.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "rodfit/fit/fit.h"
+#include "rodfit/io/experiment.h"
+
+namespace rodfit {
+
+/// FNV-1a 64-bit digest of a file's bytes as 16 hex digits (identifies the inputs of a fit; not
+/// a cryptographic hash). Throws InputError when the file cannot be read.
+std::string FileDigest(const std::string& path);
+
+/// The profile document.
+nlohmann::json ProfileJson(const Experiment& experiment, const FitOptions& options,
+                           const FitResult& result);
+
+/// Writes it atomically (temporary file, then rename).
+void WriteProfile(const std::string& path, const nlohmann::json& profile);
+
+}  // namespace rodfit

@@ -1,0 +1,603 @@
+// Synthetic observations of an experiment (see synth.h): solve, sample, perturb, render, and
+// gather every output file in memory before anything is written, so a failure leaves nothing.
+#include "rodfit/io/synth.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <yaml-cpp/yaml.h>
+
+#include "rodfit/io/csv.h"
+#include "rodfit/io/errors.h"
+#include "rodfit/model/rod.h"
+#include "rodfit/observe/camera.h"
+#include "rodfit/vision/camera_file.h"
+#include "rodfit/vision/render.h"
+
+namespace rodfit {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kExperimentFile = "experiment.yaml";
+constexpr const char* kTruthFile = "truth.json";
+
+// Random numbers that are the same on every standard library: only raw std::mt19937 output (whose
+// sequence the standard fixes) is used; the <random> distributions are implementation-defined.
+class Random {
+ public:
+  Random(std::uint32_t seed, const std::string& key) {
+    // FNV-1a of the key, so an entry's stream depends on what it is, not where it is.
+    std::uint64_t h = 14695981039346656037ull;
+    for (const unsigned char c : key) {
+      h ^= c;
+      h *= 1099511628211ull;
+    }
+    std::seed_seq seq{seed, static_cast<std::uint32_t>(h), static_cast<std::uint32_t>(h >> 32)};
+    engine_.seed(seq);
+  }
+
+  std::mt19937& engine() { return engine_; }
+
+  // [0, 1) with 53 random bits.
+  double Uniform() {
+    const double hi = static_cast<double>(engine_() >> 5);  // 27 bits
+    const double lo = static_cast<double>(engine_() >> 6);  // 26 bits
+    return (hi * 67108864.0 + lo) * (1.0 / 9007199254740992.0);
+  }
+  double Uniform(double lo, double hi) { return lo + (hi - lo) * Uniform(); }
+
+  // Standard normal by Marsaglia's polar method (no trigonometry), the pair's second kept.
+  double Normal() {
+    if (has_spare_) {
+      has_spare_ = false;
+      return spare_;
+    }
+    for (;;) {  // accepts with probability pi / 4
+      const double u = 2.0 * Uniform() - 1.0;
+      const double v = 2.0 * Uniform() - 1.0;
+      const double r2 = u * u + v * v;
+      if (r2 > 0.0 && r2 < 1.0) {
+        const double f = std::sqrt(-2.0 * std::log(r2) / r2);
+        spare_ = v * f;
+        has_spare_ = true;
+        return u * f;
+      }
+    }
+  }
+
+  // Uniform integer in [0, n) by rejection, free of modulo bias. n >= 1.
+  std::uint32_t Index(std::uint32_t n) {
+    const std::uint64_t range = std::uint64_t{1} << 32;
+    const std::uint64_t limit = range - range % n;
+    for (;;) {
+      const std::uint64_t r = engine_();
+      if (r < limit) return static_cast<std::uint32_t>(r % n);
+    }
+  }
+
+ private:
+  std::mt19937 engine_;
+  double spare_ = 0.0;
+  bool has_spare_ = false;
+};
+
+std::string EntryKey(int c, int o) {
+  return "cases[" + std::to_string(c) + "].observations[" + std::to_string(o) + "]";
+}
+
+std::string ReadBytes(const std::string& path, const std::string& what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "", "cannot read " + what);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::string Lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// Indices of round(fraction * n) distinct samples, increasing (partial Fisher–Yates).
+std::vector<int> ChooseOutliers(double fraction, int n, Random* random) {
+  const int k = static_cast<int>(std::lround(fraction * n));
+  std::vector<int> order(n);
+  for (int i = 0; i < n; ++i) order[i] = i;
+  for (int i = 0; i < k; ++i) {
+    const int j = i + static_cast<int>(random->Index(static_cast<std::uint32_t>(n - i)));
+    std::swap(order[i], order[j]);
+  }
+  std::vector<int> chosen(order.begin(), order.begin() + k);
+  std::sort(chosen.begin(), chosen.end());
+  return chosen;
+}
+
+// Arc lengths of markers: the entry's list, or `count` evenly spaced with the last at the tip
+// (a marker on the clamp carries no information); default one per free vertex.
+std::vector<double> MarkerArcLengths(const ObservationSpec& spec, const RodSpec& rod) {
+  if (!spec.s.empty()) return spec.s;
+  const int count = spec.count > 0 ? spec.count : rod.segments;
+  std::vector<double> s(count);
+  for (int k = 0; k < count; ++k) s[k] = rod.length * (k + 1) / count;
+  return s;
+}
+
+// Positions t_k of `count` samples evenly spaced over [0, total], both ends included (one sample:
+// the middle); default one per vertex.
+std::vector<double> EvenlySpaced(int count, double total) {
+  std::vector<double> t(count);
+  for (int k = 0; k < count; ++k) t[k] = count == 1 ? 0.5 * total : total * k / (count - 1);
+  return t;
+}
+
+// The point at 2-D arc length t along a polyline with cumulative lengths `cum`.
+Eigen::Vector2d AlongPolyline(const std::vector<Eigen::Vector2d>& p, const std::vector<double>& cum,
+                              double t) {
+  const auto it = std::upper_bound(cum.begin(), cum.end(), t);
+  const int i = std::clamp(static_cast<int>(it - cum.begin()) - 1, 0, static_cast<int>(p.size()) - 2);
+  const double len = cum[i + 1] - cum[i];
+  const double f = len > 0.0 ? std::clamp((t - cum[i]) / len, 0.0, 1.0) : 0.0;
+  return p[i] + f * (p[i + 1] - p[i]);
+}
+
+// Everything one observation entry needs to be synthesized.
+struct EntryContext {
+  const Experiment* experiment;
+  const SynthOptions* options;
+  const CaseShape* shape;
+  const ObservationSpec* spec;
+  const Camera* camera;      // image types only
+  std::string key;           // cases[c].observations[o]
+  std::string camera_label;  // the camera file as written in messages
+  Random* random;
+
+  [[noreturn]] void Fail(const std::string& message) const {
+    throw InputError(experiment->path, spec->line, key, message);
+  }
+  std::string CaseName() const { return "'" + shape->name + "'"; }
+};
+
+// Projects every vertex; a vertex at or behind the camera is an error (the rod would cross the
+// camera's focal plane, which no lab set-up shows). `depth` gets each vertex's camera z [m].
+std::vector<Eigen::Vector2d> ProjectVertices(const EntryContext& ctx, std::vector<double>* depth) {
+  const Camera& camera = *ctx.camera;
+  std::vector<Eigen::Vector2d> uv(ctx.shape->x.cols());
+  int behind = 0;
+  for (int i = 0; i < ctx.shape->x.cols(); ++i) {
+    const Eigen::Vector3d p = ctx.shape->x.col(i);
+    if (depth) depth->push_back((camera.cam_from_world_R * p + camera.cam_from_world_t).z());
+    if (!Project(camera, p, &uv[i])) ++behind;
+  }
+  if (behind == static_cast<int>(uv.size())) {
+    ctx.Fail("camera " + ctx.camera_label + " sees nothing of the rod in case " + ctx.CaseName() +
+             " (the rod is behind it)");
+  }
+  if (behind > 0) {
+    ctx.Fail("camera " + ctx.camera_label + ": " + std::to_string(behind) +
+             " vertices of the rod in case " + ctx.CaseName() + " are behind the camera");
+  }
+  return uv;
+}
+
+// Gaussian noise of the entry's sigma on every coordinate, drawn sample by sample.
+template <int N>
+void AddNoise(const EntryContext& ctx, std::vector<Eigen::Matrix<double, N, 1>>* p) {
+  if (!ctx.options->add_noise) return;
+  for (auto& q : *p) {
+    for (int d = 0; d < N; ++d) q(d) += ctx.spec->sigma * ctx.random->Normal();
+  }
+}
+
+// Replaces the entry's fraction of samples by uniform points in the box [lo, hi]; returns how
+// many. Drawn after the noise: first the choice, then the points.
+template <int N>
+int ReplaceOutliers(const EntryContext& ctx, const Eigen::Matrix<double, N, 1>& lo,
+                    const Eigen::Matrix<double, N, 1>& hi,
+                    std::vector<Eigen::Matrix<double, N, 1>>* p) {
+  if (!ctx.options->add_noise) return 0;
+  const std::vector<int> chosen =
+      ChooseOutliers(ctx.spec->outliers, static_cast<int>(p->size()), ctx.random);
+  for (const int i : chosen) {
+    for (int d = 0; d < N; ++d) (*p)[i](d) = ctx.random->Uniform(lo(d), hi(d));
+  }
+  return static_cast<int>(chosen.size());
+}
+
+std::string Summary(const EntryContext& ctx, const std::string& file, int n, int outliers,
+                    int dropped) {
+  std::string line = "case " + ctx.shape->name + ": " + file + ": " + ctx.spec->type + ", " +
+                     std::to_string(n) + " samples";
+  if (outliers > 0) line += ", " + std::to_string(outliers) + " outliers";
+  if (dropped > 0) line += ", " + std::to_string(dropped) + " outside the image dropped";
+  return line;
+}
+
+// The bounding box of the solved vertices grown by margin * L on every side.
+void OutlierBox(const EntryContext& ctx, Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
+  const double margin = ctx.options->outlier_box_margin * ctx.experiment->scene.rod.length;
+  *lo = ctx.shape->x.rowwise().minCoeff().array() - margin;
+  *hi = ctx.shape->x.rowwise().maxCoeff().array() + margin;
+}
+
+std::string Synth3d(const EntryContext& ctx, const std::string& file, std::string* report) {
+  const RodSpec& rod = ctx.experiment->scene.rod;
+  const bool markers = ctx.spec->type == "markers3d";
+  std::vector<double> s;
+  if (markers) {
+    s = MarkerArcLengths(*ctx.spec, rod);
+  } else {
+    s = EvenlySpaced(ctx.spec->count > 0 ? ctx.spec->count : rod.segments + 1, rod.length);
+  }
+  std::vector<Eigen::Vector3d> p(s.size());
+  for (size_t k = 0; k < s.size(); ++k) p[k] = PointAtArcLength(*ctx.shape, s[k]);
+  Eigen::Vector3d lo, hi;
+  OutlierBox(ctx, &lo, &hi);
+  AddNoise(ctx, &p);
+  const int outliers = ReplaceOutliers(ctx, lo, hi, &p);
+  *report = Summary(ctx, file, static_cast<int>(p.size()), outliers, 0);
+  return markers ? FormatMarkersCsv(s, p) : FormatPoints3dCsv(p);
+}
+
+std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
+                             std::string* report) {
+  const Camera& camera = *ctx.camera;
+  const bool with_s = !ctx.spec->s.empty();
+  std::vector<double> s;
+  std::vector<Eigen::Vector2d> uv;
+  std::vector<bool> in_front;  // a marker behind the camera is not seen
+  if (with_s) {
+    s = ctx.spec->s;
+    for (const double sk : s) {
+      Eigen::Vector2d q = Eigen::Vector2d::Zero();
+      in_front.push_back(Project(camera, PointAtArcLength(*ctx.shape, sk), &q));
+      uv.push_back(q);
+    }
+  } else {
+    // Evenly spaced along the projected centre-line: what a tracker without arc lengths reports.
+    const std::vector<Eigen::Vector2d> vertices = ProjectVertices(ctx, nullptr);
+    std::vector<double> cum(vertices.size(), 0.0);
+    for (size_t i = 1; i < vertices.size(); ++i) {
+      cum[i] = cum[i - 1] + (vertices[i] - vertices[i - 1]).norm();
+    }
+    const int count =
+        ctx.spec->count > 0 ? ctx.spec->count : ctx.experiment->scene.rod.segments + 1;
+    for (const double t : EvenlySpaced(count, cum.back())) {
+      uv.push_back(AlongPolyline(vertices, cum, t));
+    }
+    in_front.assign(uv.size(), true);
+  }
+  const int total = static_cast<int>(uv.size());
+
+  // Noise is drawn for every sample, visible or not, so that the draws do not depend on which
+  // samples the camera sees; then samples whose true or measured pixel is off the sensor go.
+  std::vector<Eigen::Vector2d> measured = uv;
+  AddNoise(ctx, &measured);
+  std::vector<Eigen::Vector2d> kept;
+  std::vector<double> kept_s;
+  for (int k = 0; k < total; ++k) {
+    if (!in_front[k] || !camera.InImage(uv[k]) || !camera.InImage(measured[k])) continue;
+    kept.push_back(measured[k]);
+    if (with_s) kept_s.push_back(s[k]);
+  }
+  if (kept.empty()) {
+    ctx.Fail("camera " + ctx.camera_label + " sees nothing of the rod in case " + ctx.CaseName() +
+             " (every sample projects outside its " + std::to_string(camera.K.width) + "x" +
+             std::to_string(camera.K.height) + " image)");
+  }
+  // Tracking mistakes land anywhere on the sensor.
+  const int outliers = ReplaceOutliers(
+      ctx, Eigen::Vector2d(-0.5, -0.5),
+      Eigen::Vector2d(camera.K.width - 0.5, camera.K.height - 0.5), &kept);
+  *report = Summary(ctx, file, static_cast<int>(kept.size()), outliers,
+                    total - static_cast<int>(kept.size()));
+  return FormatImagePointsCsv(kept, with_s ? &kept_s : nullptr);
+}
+
+std::string SynthImage(const EntryContext& ctx, const std::string& file, std::string* report) {
+  const Camera& camera = *ctx.camera;
+  if (Lower(fs::path(ctx.spec->file).extension().string()) != ".png") {
+    ctx.Fail("synth writes images as PNG; name the file *.png, not " + ctx.spec->file);
+  }
+  std::vector<double> depth;
+  const std::vector<Eigen::Vector2d> uv = ProjectVertices(ctx, &depth);
+  // The tube's silhouette half-width under a pinhole: focal length times radius over depth.
+  const double focal_px = 0.5 * (camera.K.fx + camera.K.fy);
+  std::vector<double> half_width(uv.size());
+  for (size_t i = 0; i < uv.size(); ++i) {
+    half_width[i] = focal_px * ctx.experiment->scene.rod.radius / depth[i];
+  }
+  // Visible when some point of the tube, sampled at most a pixel apart, touches the sensor.
+  bool visible = false;
+  for (size_t i = 0; i + 1 < uv.size() && !visible; ++i) {
+    const int steps = 1 + static_cast<int>(std::min(1e6, std::ceil((uv[i + 1] - uv[i]).norm())));
+    for (int k = 0; k <= steps && !visible; ++k) {
+      const double f = static_cast<double>(k) / steps;
+      const double w = half_width[i] + f * (half_width[i + 1] - half_width[i]);
+      visible = camera.InImage(uv[i] + f * (uv[i + 1] - uv[i]), -(w + 1.0));
+    }
+  }
+  if (!visible) {
+    ctx.Fail("camera " + ctx.camera_label + " sees nothing of the rod in case " + ctx.CaseName() +
+             " (it projects outside its " + std::to_string(camera.K.width) + "x" +
+             std::to_string(camera.K.height) + " image)");
+  }
+  RenderOptions render;
+  render.width = camera.K.width;
+  render.height = camera.K.height;
+  render.blur_sigma = ctx.spec->blur;
+  render.noise_sigma = ctx.options->add_noise ? ctx.spec->noise : 0.0;
+  render.rng = &ctx.random->engine();
+  cv::Mat image;
+  try {
+    image = RenderThreadImage(uv, half_width, render);
+  } catch (const std::invalid_argument& e) {
+    ctx.Fail(std::string("cannot render the image: ") + e.what());
+  }
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", image, png)) ctx.Fail("cannot encode the image as PNG");
+  *report = "case " + ctx.shape->name + ": " + file + ": images, " +
+            std::to_string(camera.K.width) + "x" + std::to_string(camera.K.height) + " px";
+  return std::string(png.begin(), png.end());
+}
+
+// Solves one case to equilibrium from the straight state.
+CaseShape SolveCase(const Experiment& ex, int c, const StaticsOptions& statics) {
+  const LoadCase& load_case = ex.scene.cases[c];
+  const std::string key = "cases[" + std::to_string(c) + "]";
+  const int line = ex.cases[c].line;
+  try {
+    RodModel model(ex.scene.rod, ex.scene.material, ex.scene.gravity, load_case);
+    RodState state = model.StraightState();
+    const StaticsSummary summary = SolveStatics(model, statics, &state);
+    if (!summary.converged) {
+      throw InputError(ex.path, line, key,
+                       "case '" + load_case.name + "' does not converge: " + summary.reason);
+    }
+    CaseShape shape;
+    shape.name = load_case.name;
+    shape.x = state.x;
+    for (int i = 0; i < model.num_vertices(); ++i) shape.s.push_back(model.arc_length(i));
+    return shape;
+  } catch (const std::invalid_argument& e) {
+    throw InputError(ex.path, line, key, "case '" + load_case.name + "': " + e.what());
+  }
+}
+
+std::string Absolute(const std::string& path) {
+  std::error_code ec;
+  fs::path p = fs::absolute(path.empty() ? fs::path(".") : fs::path(path), ec);
+  return p.lexically_normal().string();
+}
+
+}  // namespace
+
+bool SynthOptions::Check(std::string* why) const {
+  if (!(outlier_box_margin >= 0.0) || !std::isfinite(outlier_box_margin)) {
+    if (why) *why = "outlier_box_margin must be finite and >= 0";
+    return false;
+  }
+  return statics.Check(why);
+}
+
+std::string SynthRelativePath(const std::string& path, const std::string& experiment_directory) {
+  const fs::path file = Absolute(path);
+  const fs::path rel = file.lexically_relative(Absolute(experiment_directory));
+  if (!rel.empty() && rel.is_relative() && *rel.begin() != ".." && rel != ".") {
+    return rel.generic_string();
+  }
+  return file.filename().string();
+}
+
+Eigen::Vector3d PointAtArcLength(const CaseShape& shape, double s) {
+  const int n = static_cast<int>(shape.s.size());
+  if (n == 0) throw std::invalid_argument("PointAtArcLength: empty shape");
+  if (n == 1 || s <= shape.s.front()) return shape.x.col(0);
+  if (s >= shape.s.back()) return shape.x.col(n - 1);
+  const int i = static_cast<int>(std::upper_bound(shape.s.begin(), shape.s.end(), s) -
+                                 shape.s.begin()) - 1;
+  const double f = (s - shape.s[i]) / (shape.s[i + 1] - shape.s[i]);
+  // Written so that f = 0 gives the vertex exactly.
+  return shape.x.col(i) + f * (shape.x.col(i + 1) - shape.x.col(i));
+}
+
+std::string FormatMarkersCsv(const std::vector<double>& s, const std::vector<Eigen::Vector3d>& p) {
+  if (s.size() != p.size()) throw std::invalid_argument("FormatMarkersCsv: s.size() != p.size()");
+  std::string out = "s,x,y,z\n";
+  for (size_t k = 0; k < p.size(); ++k) {
+    out += FormatDouble(s[k]) + "," + FormatDouble(p[k].x()) + "," + FormatDouble(p[k].y()) +
+           "," + FormatDouble(p[k].z()) + "\n";
+  }
+  return out;
+}
+
+std::string FormatPoints3dCsv(const std::vector<Eigen::Vector3d>& p) {
+  std::string out = "x,y,z\n";
+  for (const auto& q : p) {
+    out += FormatDouble(q.x()) + "," + FormatDouble(q.y()) + "," + FormatDouble(q.z()) + "\n";
+  }
+  return out;
+}
+
+std::string FormatImagePointsCsv(const std::vector<Eigen::Vector2d>& uv,
+                                 const std::vector<double>* s) {
+  if (s && s->size() != uv.size()) {
+    throw std::invalid_argument("FormatImagePointsCsv: s.size() != uv.size()");
+  }
+  std::string out = s ? "s,u,v\n" : "u,v\n";
+  for (size_t k = 0; k < uv.size(); ++k) {
+    if (s) out += FormatDouble((*s)[k]) + ",";
+    out += FormatDouble(uv[k].x()) + "," + FormatDouble(uv[k].y()) + "\n";
+  }
+  return out;
+}
+
+std::string EmitExperimentYaml(const std::string& yaml_text, const Experiment& experiment,
+                               const std::function<std::string(const std::string&)>& map_path) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw InputError(experiment.path, e.mark.line >= 0 ? e.mark.line + 1 : 0, "", e.msg);
+  }
+  YAML::Node cases = root["cases"];
+  if (!cases.IsSequence() || cases.size() != experiment.cases.size()) {
+    throw InputError(experiment.path, 0, "cases", "changed since it was read");
+  }
+  for (size_t c = 0; c < experiment.cases.size(); ++c) {
+    const std::vector<ObservationSpec>& specs = experiment.cases[c].observations;
+    if (specs.empty()) continue;
+    YAML::Node observations = cases[c]["observations"];
+    if (!observations.IsSequence() || observations.size() != specs.size()) {
+      throw InputError(experiment.path, experiment.cases[c].line,
+                       "cases[" + std::to_string(c) + "].observations", "changed since it was read");
+    }
+    for (size_t o = 0; o < specs.size(); ++o) {
+      YAML::Node entry = observations[o];
+      entry["file"] = map_path(specs[o].file);
+      if (!specs[o].camera.empty()) entry["camera"] = map_path(specs[o].camera);
+    }
+  }
+  YAML::Emitter out;
+  out << root;
+  if (!out.good()) throw InputError(experiment.path, 0, "", "cannot emit YAML: " + out.GetLastError());
+  return std::string(out.c_str()) + "\n";
+}
+
+std::string FormatTruthJson(const Experiment& experiment, const std::vector<CaseShape>& truth,
+                            std::uint32_t seed) {
+  // Written by hand for one vertex per line; names escaped by nlohmann::json, numbers at
+  // round-trip precision (always finite, so always valid JSON).
+  std::string out = "{\n  \"format\": \"rodfit-truth\",\n  \"version\": 1,\n  \"seed\": " +
+                    std::to_string(seed) + ",\n  \"parameters\": {";
+  bool first = true;
+  for (const auto& [name, spec] : experiment.parameters) {
+    out += std::string(first ? "" : ",") + "\n    " + nlohmann::json(name).dump() + ": " +
+           FormatDouble(spec.value);
+    first = false;
+  }
+  out += "\n  },\n  \"cases\": [";
+  for (size_t c = 0; c < truth.size(); ++c) {
+    out += std::string(c ? "," : "") + "\n    {\n      \"name\": " +
+           nlohmann::json(truth[c].name).dump() + ",\n      \"vertices\": [";
+    for (int i = 0; i < truth[c].x.cols(); ++i) {
+      out += std::string(i ? "," : "") + "\n        [" + FormatDouble(truth[c].x(0, i)) + ", " +
+             FormatDouble(truth[c].x(1, i)) + ", " + FormatDouble(truth[c].x(2, i)) + "]";
+    }
+    out += "\n      ]\n    }";
+  }
+  out += "\n  ]\n}\n";
+  return out;
+}
+
+SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) throw std::invalid_argument("SynthOptions: " + why);
+  const Experiment& ex = experiment;
+  SynthBundle bundle;
+  for (size_t c = 0; c < ex.scene.cases.size(); ++c) {
+    bundle.truth.push_back(SolveCase(ex, static_cast<int>(c), options.statics));
+  }
+
+  // Output paths first: each entry's file and each camera once, with no two the same.
+  std::map<std::string, std::string> owner;  // relative output path -> who writes it
+  owner[kExperimentFile] = "the re-emitted experiment";
+  owner[kTruthFile] = "the truth";
+  auto claim = [&](const std::string& rel, const std::string& who, int line,
+                   const std::string& key) {
+    const auto [it, inserted] = owner.emplace(rel, who);
+    if (!inserted && it->second != who) {
+      throw InputError(ex.path, line, key, "writes " + rel + ", which " + it->second + " writes");
+    }
+  };
+  const auto rel = [&](const std::string& p) { return SynthRelativePath(p, ex.directory); };
+  std::map<std::string, Camera> cameras;       // by resolved camera path
+  std::vector<std::string> camera_order;       // first use
+  for (size_t c = 0; c < ex.cases.size(); ++c) {
+    for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
+      const ObservationSpec& spec = ex.cases[c].observations[o];
+      const std::string key = EntryKey(static_cast<int>(c), static_cast<int>(o));
+      claim(rel(spec.file), key, spec.line, key + ".file");
+    }
+  }
+  for (size_t c = 0; c < ex.cases.size(); ++c) {
+    for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
+      const ObservationSpec& spec = ex.cases[c].observations[o];
+      if (spec.camera.empty() || cameras.count(spec.camera)) continue;
+      const std::string key = EntryKey(static_cast<int>(c), static_cast<int>(o)) + ".camera";
+      try {
+        cameras[spec.camera] = LoadCamera(spec.camera);
+      } catch (const CameraFileError& e) {
+        throw InputError(ex.path, spec.line, key, e.what());
+      }
+      camera_order.push_back(spec.camera);
+      claim(rel(spec.camera), "camera " + spec.camera, spec.line, key);
+    }
+  }
+
+  for (size_t c = 0; c < ex.cases.size(); ++c) {
+    for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
+      const ObservationSpec& spec = ex.cases[c].observations[o];
+      const std::string file = rel(spec.file);
+      Random random(options.seed, file);
+      EntryContext ctx{&ex,  &options, &bundle.truth[c],
+                       &spec, spec.camera.empty() ? nullptr : &cameras.at(spec.camera),
+                       EntryKey(static_cast<int>(c), static_cast<int>(o)),
+                       spec.camera, &random};
+      std::string report, contents;
+      if (spec.type == "markers3d" || spec.type == "points3d") {
+        contents = Synth3d(ctx, file, &report);
+      } else if (spec.type == "image_points") {
+        contents = SynthImagePoints(ctx, file, &report);
+      } else if (spec.type == "images") {
+        contents = SynthImage(ctx, file, &report);
+      } else {
+        ctx.Fail("synth cannot make observations of type " + spec.type);
+      }
+      bundle.files.emplace_back(file, std::move(contents));
+      bundle.report.push_back(report);
+    }
+  }
+  for (const std::string& camera : camera_order) {
+    bundle.files.emplace_back(rel(camera), ReadBytes(camera, "the camera file"));
+  }
+  bundle.files.emplace_back(kExperimentFile,
+                            EmitExperimentYaml(ReadBytes(ex.path, "the experiment"), ex, rel));
+  bundle.files.emplace_back(kTruthFile, FormatTruthJson(ex, bundle.truth, options.seed));
+  return bundle;
+}
+
+void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
+                      const std::string& experiment_path) {
+  const fs::path dir(output_dir);
+  std::error_code ec;
+  if (!experiment_path.empty() && fs::exists(dir / kExperimentFile, ec) &&
+      fs::equivalent(dir / kExperimentFile, experiment_path, ec)) {
+    throw InputError(output_dir, 0, "",
+                     "would overwrite the input experiment; write to another directory");
+  }
+  CreateDirectories(output_dir);
+  for (const auto& [rel, contents] : bundle.files) {
+    const fs::path path = dir / rel;
+    CreateDirectories(path.parent_path().string());
+    WriteFileAtomically(path.string(), contents);
+  }
+}
+
+SynthBundle Synthesize(const Experiment& experiment, const std::string& output_dir,
+                       const SynthOptions& options) {
+  SynthBundle bundle = MakeSynthBundle(experiment, options);
+  WriteSynthBundle(bundle, output_dir, experiment.path);
+  return bundle;
+}
+
+}  // namespace rodfit

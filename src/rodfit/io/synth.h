@@ -1,0 +1,99 @@
+// `rodfit synth`: synthetic observations of an experiment whose parameter values are taken as
+// the truth (DESIGN.md §3, §6). Every case is solved to equilibrium; every observation entry of
+// every case gets the file it names: `markers3d` (s,x,y,z at the entry's `s` or `count` arc
+// lengths), `points3d` (x,y,z centre-line samples), `image_points` (s,u,v at given arc lengths, or
+// u,v evenly spaced along the projected centre-line) and `images` (a PNG of the tube of the rod's
+// radius as the camera sees it, RenderThreadImage). Gaussian noise of the entry's `sigma` [m or
+// px] and a fraction `outliers` of uniformly random points complete the measurement model. Beside
+// them go DIR/experiment.yaml (the experiment re-emitted with every path relative to DIR, camera
+// files copied in, so DIR is self-contained) and DIR/truth.json (the parameters and the solved
+// vertices). Randomness is std::mt19937 seeded per entry from the run's seed and the entry's
+// output path, so an entry's data does not depend on the order of entries; normal deviates use
+// Marsaglia's polar method on raw 32-bit draws, so a seed gives the same bytes on every standard
+// library.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rodfit/io/experiment.h"
+#include "rodfit/io/shapes_csv.h"
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+
+struct SynthOptions {
+  std::uint32_t seed = 1;    ///< run seed; every entry derives its own from it
+  StaticsOptions statics;    ///< solver settings for the true shapes
+  /// Outliers of 3-D types are drawn uniformly in the solved vertices' bounding box grown by
+  /// this fraction of the rod length on every side (image types: the whole image).
+  double outlier_box_margin = 0.1;
+  /// false: no Gaussian noise, no outliers, no pixel noise (exact samples; images keep `blur`).
+  bool add_noise = true;
+  bool Check(std::string* why) const;
+};
+
+/// Every file synth writes, in memory: paths relative to the output directory, contents as bytes.
+/// Order: observation files (cases and entries in file order), camera copies, experiment.yaml,
+/// truth.json.
+struct SynthBundle {
+  std::vector<std::pair<std::string, std::string>> files;
+  std::vector<CaseShape> truth;  ///< the solved shape of every case, in case order
+  /// Human-readable lines, one per observation entry: file, sample count, dropped, outliers.
+  std::vector<std::string> report;
+};
+
+/// Solves every case of `experiment` and synthesizes all its observation files in memory
+/// (experiment.path is read again for DIR/experiment.yaml). Sample positions: markers3d at `s`,
+/// else `count` (default: rod segments) evenly spaced with the last at the tip; points3d at
+/// `count` (default: segments + 1) arc lengths evenly spaced over [0, L]; image_points with `s`
+/// at those markers (s,u,v), else `count` (default: segments + 1) points evenly spaced along the
+/// projected centre-line, both ends included (u,v). Image samples whose true or noisy pixel is
+/// off the sensor are dropped.
+/// Throws InputError (naming the experiment file, the entry's line and key) for a case that does
+/// not converge, an unreadable camera file, a camera that sees nothing of the rod, two entries
+/// writing the same file, or an `images` file not ending in .png. Nothing is written.
+SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& options = {});
+
+/// Writes a bundle into `output_dir` (created if missing), each file atomically. Throws
+/// InputError if `output_dir`/experiment.yaml is the input experiment itself (`experiment_path`).
+void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
+                      const std::string& experiment_path = "");
+
+/// MakeSynthBundle then WriteSynthBundle; on an error nothing is written.
+SynthBundle Synthesize(const Experiment& experiment, const std::string& output_dir,
+                       const SynthOptions& options = {});
+
+/// Where synth puts an input path inside the output directory: its path relative to the
+/// experiment's folder when that stays inside it, else its file name alone.
+std::string SynthRelativePath(const std::string& path, const std::string& experiment_directory);
+
+/// The experiment file's text re-emitted (yaml-cpp) with every observation's `file` and `camera`
+/// replaced by map_path(resolved path), other keys and their values' text as written (comments
+/// are lost). `experiment` must be ParseExperiment(yaml_text, ...) so that entries correspond.
+/// Throws InputError when the text no longer parses.
+std::string EmitExperimentYaml(const std::string& yaml_text, const Experiment& experiment,
+                               const std::function<std::string(const std::string&)>& map_path);
+
+/// The truth.json text: {"format": "rodfit-truth", "version": 1, "seed": N, "parameters":
+/// {name: value}, "cases": [{"name": ..., "vertices": [[x, y, z], ...]}]}.
+std::string FormatTruthJson(const Experiment& experiment, const std::vector<CaseShape>& truth,
+                            std::uint32_t seed);
+
+/// Observation CSV text with DESIGN.md §6 columns, numbers at round-trip precision.
+std::string FormatMarkersCsv(const std::vector<double>& s, const std::vector<Eigen::Vector3d>& p);
+std::string FormatPoints3dCsv(const std::vector<Eigen::Vector3d>& p);
+/// `s,u,v` when s is given (same size as uv), else `u,v`.
+std::string FormatImagePointsCsv(const std::vector<Eigen::Vector2d>& uv,
+                                 const std::vector<double>* s = nullptr);
+
+/// Position at rest arc length s [m] on a solved shape: linear between the vertices around s
+/// (the material point at s). s is clamped to [0, L].
+Eigen::Vector3d PointAtArcLength(const CaseShape& shape, double s);
+
+}  // namespace rodfit

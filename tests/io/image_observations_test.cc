@@ -1,0 +1,168 @@
+// Tests of images -> observations (io/image_observations.h) on images synthesized by
+// io/synth.h: extracted centre-line pixels lie within a pixel of the projected true centre-line
+// and start at the clamped end; two views triangulate to the true centre-line within the stereo
+// error of the sample cameras; unreadable or mis-sized images are one-line InputErrors.
+#include "rodfit/io/image_observations.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "rodfit/io/errors.h"
+#include "rodfit/io/experiment.h"
+#include "rodfit/io/synth.h"
+#include "rodfit/vision/camera_file.h"
+#include "temp_dir.h"
+
+namespace rodfit {
+namespace {
+
+using test::TempDir;
+using ::testing::HasSubstr;
+
+const std::string kCameraFront = RODFIT_SOURCE_DIR "/tests/data/synth/cam_front.yaml";
+const std::string kCameraTop = RODFIT_SOURCE_DIR "/tests/data/synth/cam_top.yaml";
+
+// A sagging thread pulled sideways (a 3-D shape) seen by both sample cameras; the front image is
+// blurred and noisy as a real one would be.
+const std::string kExperiment =
+    "rod: {length: 0.2, segments: 40, radius: 2.5e-4, linear_density: 5.6e-5}\n"
+    "parameters:\n"
+    "  bend_stiffness: {value: 1.0e-5}\n"
+    "  twist_stiffness: {value: 8.0e-6}\n"
+    "  stretch_stiffness: {value: 245}\n"
+    "cases:\n"
+    "  - name: sag\n"
+    "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"
+    "    tip_force: [0, 2.0e-5, 0]\n"
+    "    observations:\n"
+    "      - {type: images, file: front.png, camera: " + kCameraFront +
+    ", sigma: 0.5, blur: 0.8, noise: 3}\n"
+    "      - {type: images, file: top.png, camera: " + kCameraTop + ", sigma: 0.5}\n";
+
+template <int N>
+double DistanceToPolyline(const Eigen::Matrix<double, N, 1>& p,
+                          const std::vector<Eigen::Matrix<double, N, 1>>& line) {
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i + 1 < line.size(); ++i) {
+    const Eigen::Matrix<double, N, 1> ab = line[i + 1] - line[i];
+    const double t = std::clamp((p - line[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (p - line[i] - t * ab).norm());
+  }
+  return best;
+}
+
+class ImageObservationsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const Experiment source = LoadExperiment(dir_.Write("src/e.yaml", kExperiment));
+    bundle_ = Synthesize(source, dir_.File("out"));
+    ex_ = LoadExperiment(dir_.File("out/experiment.yaml"));
+    front_ = LoadCamera(ex_.cases[0].observations[0].camera);
+    top_ = LoadCamera(ex_.cases[0].observations[1].camera);
+    for (int i = 0; i < bundle_.truth[0].x.cols(); ++i) {
+      truth_.push_back(bundle_.truth[0].x.col(i));
+    }
+  }
+
+  std::vector<Eigen::Vector2d> Projected(const Camera& camera) const {
+    std::vector<Eigen::Vector2d> uv(truth_.size());
+    for (size_t i = 0; i < truth_.size(); ++i) EXPECT_TRUE(Project(camera, truth_[i], &uv[i]));
+    return uv;
+  }
+
+  TempDir dir_;
+  SynthBundle bundle_;
+  Experiment ex_;
+  Camera front_, top_;
+  std::vector<Eigen::Vector3d> truth_;
+};
+
+TEST_F(ImageObservationsTest, ExtractedPointsLieOnTheProjectedTruthFromTheClamp) {
+  for (int k = 0; k < 2; ++k) {
+    SCOPED_TRACE(k == 0 ? "front (blur, noise)" : "top");
+    const Camera& camera = k == 0 ? front_ : top_;
+    const std::vector<Eigen::Vector2d> uv =
+        ImagePointsFromImage(ex_.cases[0].observations[k], camera, ex_.scene.cases[0]);
+    const std::vector<Eigen::Vector2d> truth = Projected(camera);
+    ASSERT_GT(uv.size(), 500u);  // about one point per pixel of a ~1000 px thread
+    double worst = 0.0;
+    for (const Eigen::Vector2d& p : uv) worst = std::max(worst, DistanceToPolyline<2>(p, truth));
+    EXPECT_LT(worst, 1.0);
+    // Ordered from the clamped end to the tip.
+    EXPECT_LT((uv.front() - truth.front()).norm(), 3.0);
+    EXPECT_LT((uv.back() - truth.back()).norm(), 3.0);
+  }
+}
+
+TEST_F(ImageObservationsTest, TwoViewsTriangulateToTheTrueCentreline) {
+  PolylineMatchResult match;
+  const std::vector<Eigen::Vector3d> points =
+      TriangulatedPoints(ex_.cases[0].observations[0], front_, ex_.cases[0].observations[1], top_,
+                         ex_.scene.cases[0], CentrelineOptions(), PolylineMatchOptions(), &match);
+  ASSERT_GT(points.size(), 500u);
+  // Expected error: up to 0.5 px of extraction error per view, at 0.4 m depth and f = 2000 px,
+  // across a triangulation angle of about 17 degrees: 0.4 * 0.5 / 2000 / sin(17 deg) = 0.34 mm.
+  const double expected_error_m = 0.4 * 0.5 / 2000.0 / std::sin(17.0 * M_PI / 180.0);
+  double worst = 0.0, sum = 0.0;
+  for (const Eigen::Vector3d& p : points) {
+    const double d = DistanceToPolyline<3>(p, truth_);
+    worst = std::max(worst, d);
+    sum += d;
+  }
+  EXPECT_LT(worst, expected_error_m);
+  EXPECT_LT(sum / points.size(), 0.3 * expected_error_m);  // typical errors are sub-pixel
+  // From the clamp to the tip, covering the thread.
+  EXPECT_LT((points.front() - truth_.front()).norm(), 2e-3);
+  EXPECT_LT((points.back() - truth_.back()).norm(), 2e-3);
+}
+
+TEST_F(ImageObservationsTest, BadImagesAreOneLineErrors) {
+  ObservationSpec spec = ex_.cases[0].observations[0];
+  spec.file = dir_.File("out/missing.png");
+  try {
+    ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(spec.file + ": cannot read the image"));
+  }
+  spec.file = dir_.Write("out/not_an_image.png", "hello");
+  EXPECT_THROW(ImagePointsFromImage(spec, front_, ex_.scene.cases[0]), InputError);
+
+  // An image of another size than the camera's.
+  spec.file = dir_.File("out/small.png");
+  cv::imwrite(spec.file, cv::Mat(100, 200, CV_8UC3, cv::Scalar(235, 235, 235)));
+  try {
+    ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("the image is 200x100 px but camera front is 1280x1024"));
+  }
+
+  // A blank image: nothing to extract.
+  spec.file = dir_.File("out/blank.png");
+  cv::imwrite(spec.file, cv::Mat(1024, 1280, CV_8UC3, cv::Scalar(235, 235, 235)));
+  try {
+    ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+    ADD_FAILURE() << "no error";
+  } catch (const std::exception& e) {
+    EXPECT_THAT(e.what(), HasSubstr(spec.file));
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+  }
+}
+
+TEST_F(ImageObservationsTest, EncodeImageNeedsAKnownExtension) {
+  const cv::Mat image(4, 4, CV_8UC3, cv::Scalar(1, 2, 3));
+  EXPECT_FALSE(EncodeImage("x.png", image).empty());
+  EXPECT_THROW(EncodeImage("x.unknown", image), InputError);
+  EXPECT_THROW(EncodeImage("noextension", image), InputError);
+}
+
+}  // namespace
+}  // namespace rodfit
