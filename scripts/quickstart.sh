@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# The main job on the bundled data: build, then solve the bundled scene's cases and write
-# out/cantilever/shapes.csv.
+# The main job on the bundled data: build, then fit the suture cantilever recipe
+# (calibration/suture_cantilever) and write the profile and its report into out/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/build.sh
-build/rodfit simulate data/scenes/cantilever.yaml -o out/cantilever
-echo "wrote out/cantilever/shapes.csv"
+build/rodfit fit calibration/suture_cantilever/experiment.yaml -o out/suture_profile.json \
+    --report out/suture_report
+echo "wrote out/suture_profile.json and out/suture_report/"

@@ -5,12 +5,14 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
 
 #include <CLI/CLI.hpp>
 
 #include "commands.h"
 #include "rodfit/fit/fit.h"
+#include "rodfit/io/csv.h"
 #include "rodfit/io/fit_input.h"
 #include "rodfit/io/fit_report.h"
 #include "rodfit/io/profile.h"
@@ -79,6 +81,8 @@ int RunFit(int argc, char** argv) {
               << " (no profile written)\n";
     return EXIT_FAILURE;
   }
+  const std::filesystem::path parent = std::filesystem::path(profile_path).parent_path();
+  if (!parent.empty()) rodfit::CreateDirectories(parent.string());
   rodfit::WriteProfile(profile_path, rodfit::ProfileJson(experiment, options, result));
   if (!report_dir.empty()) rodfit::WriteFitReport(report_dir, experiment, input, result);
   if (!quiet) {

@@ -113,6 +113,15 @@ class CaseEvaluator {
   int num_residuals() const { return num_residuals_; }
   int num_parameters() const { return static_cast<int>(fitted_.size()); }
 
+  struct Timing {
+    double solve = 0, jacobian = 0, observation = 0;
+    int solves = 0;
+  };
+  Timing timing() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return timing_;
+  }
+
   /// residuals: num_residuals(); jacobian (row major num_residuals x m) optional.
   bool Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape) const {
     const Material material = MaterialAt(in_, fitted_, logp);
@@ -128,12 +137,15 @@ class CaseEvaluator {
       std::lock_guard<std::mutex> lock(mutex_);
       state = has_warm_ ? warm_ : model->StraightState();
     }
+    Clock::time_point t0 = Clock::now();
     StaticsSummary summary = SolveStatics(*model, StaticsOptions(), &state, &ws);
     if (!(summary.converged && summary.stable)) {  // a warm start can mislead: retry cold
       state = model->StraightState();
       summary = SolveStatics(*model, StaticsOptions(), &state, &ws);
-      if (!(summary.converged && summary.stable)) return false;
     }
+    Charge(&timing_.solve, &t0);
+    ++timing_.solves;
+    if (!(summary.converged && summary.stable)) return false;
     const int m = num_parameters();
     Eigen::MatrixXd dx;
     if (jacobian) {
@@ -146,6 +158,7 @@ class CaseEvaluator {
       int col = 0;
       for (int k = 0; k < m; ++k)
         for (size_t d = 0; d < fitted_[k].drives.size(); ++d) dx.col(k) += dx_all.col(col++);
+      Charge(&timing_.jacobian, &t0);
     }
     int row = 0;
     for (const auto& obs : case_.observations) {
@@ -167,6 +180,7 @@ class CaseEvaluator {
       }
       row += obs->num_residuals();
     }
+    Charge(&timing_.observation, &t0);
     for (int i = 0; i < num_residuals_; ++i)
       if (!std::isfinite(residuals[i])) return false;
     {
@@ -187,6 +201,14 @@ class CaseEvaluator {
   mutable std::mutex mutex_;  // guards the warm start only; evaluation is otherwise pure
   mutable RodState warm_;
   mutable bool has_warm_ = false;
+  mutable Timing timing_;  // accumulated under mutex_ by Charge
+
+  void Charge(double* bucket, Clock::time_point* t0) const {
+    const Clock::time_point now = Clock::now();
+    std::lock_guard<std::mutex> lock(mutex_);
+    *bucket += std::chrono::duration<double>(now - *t0).count();
+    *t0 = now;
+  }
 };
 
 class CaseCost final : public ceres::CostFunction {
@@ -544,6 +566,13 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       fc.observations[o]->RmsError(shape, &of.rms);
       result.observations.push_back(of);
     }
+  }
+  for (const auto& e : evals) {
+    const CaseEvaluator::Timing t = e->timing();
+    result.solve_seconds += t.solve;
+    result.jacobian_seconds += t.jacobian;
+    result.observation_seconds += t.observation;
+    result.forward_solves += t.solves;
   }
   result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return result;

@@ -96,7 +96,11 @@ struct FitResult {
   double final_cost = 0.0;
   int num_residuals = 0;
   double residual_variance = 1.0;  ///< 2 cost / (N - m): 1 when the sigmas are right
-  double seconds = 0.0;
+  double seconds = 0.0;          ///< wall time of the whole fit
+  /// Summed over all case evaluations (threads add up): forward solves, sensitivities and the
+  /// observation models; the rest of `seconds` is Ceres and the covariance.
+  double solve_seconds = 0.0, jacobian_seconds = 0.0, observation_seconds = 0.0;
+  int forward_solves = 0;
   std::vector<ParameterEstimate> parameters;  ///< every parameter of the model
   std::vector<std::string> fitted_names;
   Eigen::MatrixXd correlation;   ///< among fitted parameters (in log space)
