@@ -43,8 +43,12 @@ class RodModel {
  public:
   /// Throws std::invalid_argument with the reason when the inputs are not a valid rod
   /// (fewer than 2 segments, non-positive length or stiffness, clamp normal parallel to tangent).
+  /// `springs`: the scene's attachment zones (none: no spring term is built). Also throws for
+  /// zones or cuts outside [0, L] or reversed, overlapping zones, a zone parameter missing from
+  /// material.spring_parameters, springs on a rod with intrinsic curvature, and a grasp at the
+  /// clamp or off the rod.
   RodModel(const RodSpec& rod, const Material& material, const Vec3& gravity,
-           const LoadCase& load_case);
+           const LoadCase& load_case, const std::vector<SpringZone>& springs = {});
 
   int num_edges() const { return n_; }
   int num_vertices() const { return n_ + 1; }
@@ -77,8 +81,25 @@ class RodModel {
   /// B / L^2. Solver tolerances are relative to it.
   double force_scale() const { return force_scale_; }
 
-  /// The straight rod along the clamp tangent with the clamp frame, untwisted.
+  /// The straight rod along the clamp tangent with the clamp frame, untwisted; with a grasp, the
+  /// part up to the grasped vertex is laid straight from the clamp to the grasp position.
   RodState StraightState() const;
+
+  // Springs (tissue paper: K(s) |r - r°|^2; cut stretches have K = 0).
+  bool has_springs() const { return !zones_.empty(); }
+  int num_spring_zones() const { return static_cast<int>(zones_.size()); }
+  const SpringZone& spring_zone(int z) const { return zones_[z]; }
+  /// Stiffness of zone z [N/m^2] from the material.
+  double zone_stiffness(int z) const;
+  /// Length [m] of vertex i's cell that zone z covers and no cut removes: the spring of vertex
+  /// i in zone z has stiffness zone_stiffness(z) * zone_cell_length(z, i) [N/m].
+  double zone_cell_length(int z, int i) const { return zone_length_[z][i]; }
+  /// Rest position of vertex i, where its springs pull it (the straight rest rod).
+  Vec3 spring_anchor(int i) const { return anchor_.col(i); }
+
+  // Grasp: the grasped vertex is held (a fixed dof block); -1 without a grasp.
+  int grasp_vertex() const { return grasp_vertex_; }
+  const Vec3& grasp_position() const { return grasp_position_; }
 
   /// Material frame of edge j in a state (reference frame rotated by theta_j).
   EdgeFrame MaterialFrame(const RodState& state, int j) const;
@@ -98,6 +119,11 @@ class RodModel {
   Vec3 clamp_p_, clamp_d3_, clamp_d1_;
   Mat3X vertex_forces_;
   double force_scale_ = 1.0;
+  std::vector<SpringZone> zones_;
+  std::vector<std::vector<double>> zone_length_;
+  Mat3X anchor_;
+  int grasp_vertex_ = -1;
+  Vec3 grasp_position_ = Vec3::Zero();
 };
 
 }  // namespace rodfit

@@ -2,6 +2,7 @@
 // Plain data with SI units; io/ fills it from YAML, model/ and solve/ build only what it needs.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,6 +31,8 @@ struct Material {
   double twist_stiffness = 0.0;                ///< GJ [N m^2]
   double stretch_stiffness = 0.0;              ///< EA [N]
   double spring_stiffness = 0.0;               ///< K [N/m^2] of the tissue springs
+  /// Stiffness [N/m^2] of spring zones that have a parameter of their own, by parameter name.
+  std::map<std::string, double> spring_parameters;
 
   double B1() const { return bend_stiffness; }
   double B2() const { return bend_stiffness_2 ? *bend_stiffness_2 : bend_stiffness; }
@@ -41,6 +44,24 @@ struct Clamp {
   Vec3 position = Vec3::Zero();     ///< [m]
   Vec3 tangent = Vec3::UnitX();
   Vec3 normal = Vec3::UnitZ();
+};
+
+/// A stretch of arc length [from, to] [m].
+struct Interval {
+  double from = 0.0, to = 0.0;
+};
+
+/// Springs tying the rod to its rest position over [from, to] (tissue paper: attachment to the
+/// surroundings). Stiffness: `spring_stiffness`, or the named parameter when `parameter` is set.
+struct SpringZone {
+  double from = 0.0, to = 0.0;  ///< [m]
+  std::string parameter;        ///< empty: spring_stiffness
+};
+
+/// An instrument holding the material point at arc length s at `position` (a grasp).
+struct Grasp {
+  double s = 0.0;                ///< [m], rounded to the nearest vertex
+  Vec3 position = Vec3::Zero();  ///< [m]
 };
 
 /// A dead force applied at arc length s (linearly shared by the two vertices around s).
@@ -56,6 +77,8 @@ struct LoadCase {
   Vec3 tip_force = Vec3::Zero();    ///< [N] at s = L
   Vec3 tip_moment = Vec3::Zero();   ///< [N m] at s = L (dead moment, see model/energy.h)
   std::vector<PointForce> point_forces;
+  std::vector<Interval> cuts;    ///< springs removed here: tissue cut free (K = 0)
+  std::optional<Grasp> grasp;    ///< an instrument holding the rod
 };
 
 /// A whole scene: one rod and material shared by every case.
@@ -63,6 +86,7 @@ struct Scene {
   RodSpec rod;
   Material material;
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s^2]
+  std::vector<SpringZone> springs;        ///< attachment zones shared by every case
   std::vector<LoadCase> cases;
 };
 

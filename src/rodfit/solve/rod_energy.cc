@@ -3,6 +3,7 @@
 // model/vertex_stencil.h for why that is exact); stretch is differentiated by hand.
 #include "rodfit/solve/rod_energy.h"
 
+#include <algorithm>
 #include <cmath>
 
 
@@ -94,6 +95,16 @@ double PotentialEnergy(const RodModel& model, const RodState& state, const Energ
       energy += StretchEnergy<double>(EA, model.rest_edge_length(j), qs);
     }
   }
+  if (terms.springs != 0.0) {
+    for (int z = 0; z < model.num_spring_zones(); ++z) {
+      if (terms.spring_parameter && model.spring_zone(z).parameter != *terms.spring_parameter)
+        continue;
+      const double K = terms.springs * model.zone_stiffness(z);
+      for (int i = 1; i <= n; ++i)
+        energy += 0.5 * K * model.zone_cell_length(z, i) *
+                  (state.x.col(i) - model.spring_anchor(i)).squaredNorm();
+    }
+  }
   if (terms.loads) {
     for (int i = 1; i <= n; ++i)
       energy -= terms.load_scale * model.vertex_forces().col(i).dot(state.x.col(i));
@@ -179,10 +190,36 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
       }
     }
   }
+  if (terms.springs != 0.0) {
+    for (int z = 0; z < model.num_spring_zones(); ++z) {
+      if (terms.spring_parameter && model.spring_zone(z).parameter != *terms.spring_parameter)
+        continue;
+      const double K = terms.springs * model.zone_stiffness(z);
+      for (int i = 1; i <= n; ++i) {
+        const double k = K * model.zone_cell_length(z, i);
+        if (k == 0.0) continue;
+        const int d = RodModel::VertexDof(i);
+        gradient->segment<3>(d) += k * (state.x.col(i) - model.spring_anchor(i));
+        if (kHessian)
+          for (int r = 0; r < 3; ++r) H->At(d + r, d + r) += k;
+      }
+    }
+  }
   if (terms.loads) {
     for (int i = 1; i <= n; ++i)
       gradient->segment<3>(RodModel::VertexDof(i)) -=
           terms.load_scale * model.vertex_forces().col(i);
+  }
+  if (terms.fix_grasp && model.grasp_vertex() >= 1) {
+    // Dirichlet rows: the grasped vertex does not move; its gradient is the constraint force.
+    const int d = RodModel::VertexDof(model.grasp_vertex());
+    gradient->segment<3>(d).setZero();
+    if (kHessian) {
+      const int p = H->bandwidth();
+      for (int r = d; r < d + 3; ++r)
+        for (int c = std::max(0, r - p); c <= std::min(H->size() - 1, r + p); ++c)
+          H->At(std::max(r, c), std::min(r, c)) = (r == c) ? 1.0 : 0.0;
+    }
   }
 }
 
@@ -219,6 +256,12 @@ bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, d
     out->x.col(j + 1) = out->x.col(j) + new_len * dir.normalized();
     prev_step = next_step;
   }
+  if (const int k = model.grasp_vertex(); k >= 1) {
+    // The grasped vertex must not move: spread the retraction's (second-order) closure error
+    // over the vertices between the clamp and the grasp, and shift the rest with it.
+    const Vec3 gap = out->x.col(k) - state.x.col(k);
+    for (int i = 1; i <= n; ++i) out->x.col(i) -= gap * std::min(1.0, double(i) / k);
+  }
   for (int j = 0; j < n; ++j) out->theta[j] += alpha * step[RodModel::TwistDof(j)];
   for (int j = 0; j < n; ++j) {
     const Vec3 e = out->x.col(j + 1) - out->x.col(j);
@@ -242,6 +285,15 @@ bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, d
     out->ref_twist[i] = UnwrapNear(raw, raw, state.ref_twist[i]);
   }
   return true;
+}
+
+Vec3 GraspReaction(const RodModel& model, const RodState& state) {
+  if (model.grasp_vertex() < 1) return Vec3::Zero();
+  EnergyTerms terms;
+  terms.fix_grasp = false;
+  VecX g;
+  AssembleGradient(model, state, terms, &g);
+  return -g.segment<3>(RodModel::VertexDof(model.grasp_vertex()));
 }
 
 double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& step) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <string>
 
 #include "rodfit/model/rod.h"
 #include "rodfit/model/vertex_stencil.h"
@@ -22,9 +23,22 @@ constexpr int kRodBandwidth = 11;
 struct EnergyTerms {
   double load_scale = 1.0;
   bool loads = true;
-  double bend1 = 1.0, bend2 = 1.0, twist = 1.0, stretch = 1.0;
+  double bend1 = 1.0, bend2 = 1.0, twist = 1.0, stretch = 1.0, springs = 1.0;
+  /// With springs on: only the zones whose parameter is this name ("" = spring_stiffness);
+  /// null = every zone.
+  const std::string* spring_parameter = nullptr;
+  /// Hold the grasped vertex (zero its gradient, identity rows in the Hessian). Off only to read
+  /// the constraint's reaction from the gradient.
+  bool fix_grasp = true;
 
   bool AnyBendTwist() const { return bend1 != 0.0 || bend2 != 0.0 || twist != 0.0; }
+  /// Only the springs of zones with parameter `name` ("" = spring_stiffness), no loads.
+  static EnergyTerms OnlySprings(const std::string* name) {
+    EnergyTerms t = Only(-1);
+    t.springs = 1.0;
+    t.spring_parameter = name;
+    return t;
+  }
   /// Only the elastic energy (no loads).
   static EnergyTerms Elastic() {
     EnergyTerms t;
@@ -36,6 +50,7 @@ struct EnergyTerms {
     EnergyTerms t;
     t.loads = false;
     t.bend1 = which == 0, t.bend2 = which == 1, t.twist = which == 2, t.stretch = which == 3;
+    t.springs = 0.0;
     return t;
   }
 };
@@ -65,6 +80,10 @@ bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, d
 
 /// Largest turn [rad] of any edge tangent under state + step (used to limit Newton steps).
 double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& step);
+
+/// The force [N] the rod exerts on the instrument at the grasped vertex: minus the constraint
+/// force that holds it, -dPi/dx_k at equilibrium (zero without a grasp).
+Vec3 GraspReaction(const RodModel& model, const RodState& state);
 
 /// Largest free generalised force [N]: forces, and moments divided by the rod length.
 double ScaledGradientNorm(const RodModel& model, const VecX& gradient);

@@ -15,18 +15,26 @@ const char* StiffnessName(Stiffness s) {
   return "?";
 }
 
-bool StiffnessSensitivities(const RodModel& model, const RodState& state,
-                            const StaticsWorkspace& workspace, const std::vector<Stiffness>& which,
-                            Eigen::MatrixXd* dq_dlogp) {
+bool TermSensitivities(const RodModel& model, const RodState& state,
+                       const StaticsWorkspace& workspace, const std::vector<EnergyTerms>& terms,
+                       Eigen::MatrixXd* dq_dlogp) {
   if (!workspace.factor_valid || workspace.hessian.size() != model.num_free_dofs()) return false;
-  dq_dlogp->resize(model.num_free_dofs(), static_cast<int>(which.size()));
+  dq_dlogp->resize(model.num_free_dofs(), static_cast<int>(terms.size()));
   VecX g;
-  for (size_t k = 0; k < which.size(); ++k) {
-    AssembleGradient(model, state, EnergyTerms::Only(static_cast<int>(which[k])), &g);
+  for (size_t k = 0; k < terms.size(); ++k) {
+    AssembleGradient(model, state, terms[k], &g);
     dq_dlogp->col(static_cast<int>(k)) = -g;
   }
   workspace.hessian.SolveInPlace(*dq_dlogp);
   return dq_dlogp->allFinite();
+}
+
+bool StiffnessSensitivities(const RodModel& model, const RodState& state,
+                            const StaticsWorkspace& workspace, const std::vector<Stiffness>& which,
+                            Eigen::MatrixXd* dq_dlogp) {
+  std::vector<EnergyTerms> terms;
+  for (Stiffness s : which) terms.push_back(EnergyTerms::Only(static_cast<int>(s)));
+  return TermSensitivities(model, state, workspace, terms, dq_dlogp);
 }
 
 Eigen::MatrixXd VertexSensitivities(const RodModel& model, const Eigen::MatrixXd& dq_dlogp) {

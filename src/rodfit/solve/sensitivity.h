@@ -7,6 +7,7 @@
 
 #include <vector>
 
+#include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
@@ -22,6 +23,12 @@ const char* StiffnessName(Stiffness s);
 bool StiffnessSensitivities(const RodModel& model, const RodState& state,
                             const StaticsWorkspace& workspace, const std::vector<Stiffness>& which,
                             Eigen::MatrixXd* dq_dlogp);
+
+/// The general form: one column per energy-term selector (EnergyTerms::Only, OnlySprings),
+/// dq/dlog(p) = -H^{-1} grad(term).
+bool TermSensitivities(const RodModel& model, const RodState& state,
+                       const StaticsWorkspace& workspace, const std::vector<EnergyTerms>& terms,
+                       Eigen::MatrixXd* dq_dlogp);
 
 /// Rows of the free-dof sensitivities for vertex positions: d x_i / d log p as a 3(n+1) x m
 /// matrix (vertex 0 is clamped: zero rows).

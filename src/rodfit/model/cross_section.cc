@@ -1,0 +1,433 @@
+// The ring of the cross-section model (cross_section.h; tissue paper §4 eqs. 10–11): rest
+// geometry, closed-form derivatives of the elastic energy, the dead load, and the constrained
+// Newton solve with its stiffness and force sensitivities.
+#include "rodfit/model/cross_section.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/QR>
+
+#include "rodfit/model/rod.h"
+
+namespace rodfit {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+using Mat2 = Eigen::Matrix2d;
+using Vec2 = Eigen::Vector2d;
+
+Vec2 Perp(const Vec2& v) { return Vec2(-v.y(), v.x()); }  // rotated by +90 degrees
+
+Vec2 Node(const Eigen::VectorXd& x, int k) { return x.segment<2>(NodeDof(k)); }
+
+// Hessian of the polar angle of v: d/dv (v_perp / |v|^2) = (J |v|^2 - 2 v_perp v^T) / |v|^4.
+Mat2 AngleHessian(const Vec2& v) {
+  Mat2 J;
+  J << 0.0, -1.0, 1.0, 0.0;
+  const double s = v.squaredNorm();
+  return (J * s - 2.0 * Perp(v) * v.transpose()) / (s * s);
+}
+
+void Require(bool ok, const std::string& why) {
+  if (!ok) throw std::invalid_argument(why);
+}
+
+}  // namespace
+
+double SectionSpec::area() const { return kPi * radius * radius; }
+double SectionSpec::influence_length() const { return h_factor * std::sqrt(area()); }
+double SectionSpec::stop_threshold() const { return stop_factor * std::sqrt(area()); }
+
+bool SectionSpec::Check(std::string* why) const {
+  std::string w;
+  if (!(radius > 0.0) || !std::isfinite(radius)) w = "section radius must be positive";
+  else if (nodes < 8) w = "section nodes must be at least 8";
+  else if (!(h_factor > 0.0) || !std::isfinite(h_factor)) w = "section h_factor must be positive";
+  else if (!(stop_factor > 0.0) || !std::isfinite(stop_factor))
+    w = "section stop_factor must be positive";
+  if (why) *why = w;
+  return w.empty();
+}
+
+bool RingStiffness::Check(std::string* why) const {
+  std::string w;
+  if (!(bend > 0.0) || !std::isfinite(bend)) w = "ring_bend_stiffness must be positive";
+  else if (!(stretch > 0.0) || !std::isfinite(stretch))
+    w = "ring_stretch_stiffness must be positive";
+  if (why) *why = w;
+  return w.empty();
+}
+
+bool RingSolveOptions::Check(std::string* why) const {
+  std::string w;
+  if (max_iterations < 1) w = "max_iterations must be at least 1";
+  else if (max_line_search_steps < 1) w = "max_line_search_steps must be at least 1";
+  else if (!(gradient_tolerance >= 0.0)) w = "gradient_tolerance must be non-negative";
+  else if (!(step_tolerance >= 0.0)) w = "step_tolerance must be non-negative";
+  if (why) *why = w;
+  return w.empty();
+}
+
+RingGeometry MakeRingGeometry(const SectionSpec& spec) {
+  std::string why;
+  Require(spec.Check(&why), why);
+  RingGeometry g;
+  g.n = spec.nodes;
+  g.radius = spec.radius;
+  g.rest.resize(2, g.n);
+  for (int k = 0; k < g.n; ++k) {
+    const double a = 2.0 * kPi * k / g.n;
+    g.rest.col(k) = spec.radius * Vec2(std::cos(a), std::sin(a));
+  }
+  g.edge.resize(g.n);
+  g.voronoi.resize(g.n);
+  g.rest_curvature.resize(g.n);
+  g.length = 0.0;
+  for (int k = 0; k < g.n; ++k) {
+    g.edge[k] = (g.rest.col(g.next(k)) - g.rest.col(k)).norm();
+    g.length += g.edge[k];
+  }
+  for (int k = 0; k < g.n; ++k) {
+    g.voronoi[k] = 0.5 * (g.edge[g.prev(k)] + g.edge[k]);
+    const Vec2 a = g.rest.col(k) - g.rest.col(g.prev(k));
+    const Vec2 b = g.rest.col(g.next(k)) - g.rest.col(k);
+    const double tan_half = (a.x() * b.y() - a.y() * b.x()) / (a.norm() * b.norm() + a.dot(b));
+    g.rest_curvature[k] = 2.0 * tan_half / g.voronoi[k];
+  }
+  g.guard = 1e-9 * g.length / g.n;
+  return g;
+}
+
+double RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const Eigen::VectorXd& x,
+                         Eigen::VectorXd* gradient, Eigen::MatrixXd* hessian) {
+  const int n = g.n;
+  assert(x.size() == 2 * n);
+  if (gradient) gradient->setZero(2 * n);
+  if (hessian) hessian->setZero(2 * n, 2 * n);
+  const double energy = RingElasticEnergy<double>(g, k, x.data());
+  if (!gradient && !hessian) return energy;
+  for (int i = 0; i < n; ++i) {
+    const int j = g.next(i), h = g.prev(i);
+    // Stretch of edge i: E = ks L / 2 (|e|/L - 1)^2.
+    {
+      const Vec2 e = Node(x, j) - Node(x, i);
+      const double len = e.norm();
+      const Vec2 t = e / len;
+      const double strain = len / g.edge[i] - 1.0;
+      const Vec2 ge = k.stretch * strain * t;
+      if (gradient) {
+        gradient->segment<2>(NodeDof(i)) -= ge;
+        gradient->segment<2>(NodeDof(j)) += ge;
+      }
+      if (hessian) {
+        const Mat2 tt = t * t.transpose();
+        const Mat2 He = k.stretch / g.edge[i] * tt + k.stretch * strain / len * (Mat2::Identity() - tt);
+        hessian->block<2, 2>(NodeDof(i), NodeDof(i)) += He;
+        hessian->block<2, 2>(NodeDof(j), NodeDof(j)) += He;
+        hessian->block<2, 2>(NodeDof(i), NodeDof(j)) -= He;
+        hessian->block<2, 2>(NodeDof(j), NodeDof(i)) -= He;
+      }
+    }
+    // Bending at node i: kappa = 2 tan(phi/2) / l with phi = angle(b) - angle(a), so
+    // d phi / d a = -a_perp / |a|^2, d phi / d b = b_perp / |b|^2, d kappa / d phi = (1 + t^2) / l.
+    {
+      const Vec2 a = Node(x, i) - Node(x, h), b = Node(x, j) - Node(x, i);
+      const double l = g.voronoi[i];
+      const double t = (a.x() * b.y() - a.y() * b.x()) / (a.norm() * b.norm() + a.dot(b));
+      const double dk = 2.0 * t / l - g.rest_curvature[i];
+      const double k1 = (1.0 + t * t) / l;      // d kappa / d phi
+      const double k2 = t * (1.0 + t * t) / l;  // d^2 kappa / d phi^2
+      const double E_phi = k.bend * l * dk * k1;
+      const double E_phiphi = k.bend * l * (k1 * k1 + dk * k2);
+      const Vec2 pa = -Perp(a) / a.squaredNorm(), pb = Perp(b) / b.squaredNorm();
+      // Node gradients of phi: node h: -pa, node i: pa - pb, node j: pb.
+      const int nodes[3] = {h, i, j};
+      const Vec2 dphi[3] = {-pa, pa - pb, pb};
+      if (gradient) {
+        for (int r = 0; r < 3; ++r) gradient->segment<2>(NodeDof(nodes[r])) += E_phi * dphi[r];
+      }
+      if (hessian) {
+        // phi's Hessian in (a, b) is blockdiag(-H_ang(a), H_ang(b)); a = X_i - X_h, b = X_j - X_i.
+        const Mat2 Ha = -AngleHessian(a), Hb = AngleHessian(b);
+        // d a / d node = (-I, I, 0), d b / d node = (0, -I, I).
+        const double sa[3] = {-1.0, 1.0, 0.0}, sb[3] = {0.0, -1.0, 1.0};
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) {
+            const Mat2 block = E_phiphi * dphi[r] * dphi[c].transpose() +
+                               E_phi * (sa[r] * sa[c] * Ha + sb[r] * sb[c] * Hb);
+            hessian->block<2, 2>(NodeDof(nodes[r]), NodeDof(nodes[c])) += block;
+          }
+        }
+      }
+    }
+  }
+  return energy;
+}
+
+int ContactNode(const RingGeometry& g, const Vec2& force) {
+  int best = 0;
+  double best_value = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < g.n; ++k) {
+    // The rest nodes lie on a circle about the origin: the outward normal is X°_k / R.
+    const double v = g.rest.col(k).dot(force);
+    if (v < best_value) {
+      best_value = v;
+      best = k;
+    }
+  }
+  return best;
+}
+
+RingLoad MakeRingLoad(const RingGeometry& g, const Vec2& force) {
+  RingLoad load;
+  load.force = force;
+  load.nodal.setZero(2 * g.n);
+  load.d_nodal_d_force.setZero(2 * g.n, 2);
+  if (force.squaredNorm() == 0.0) return load;
+  load.contact_node = ContactNode(g, force);
+  for (int k = 0; k < g.n; ++k) {
+    const double w = (k == load.contact_node ? 1.0 : 0.0) - g.voronoi[k] / g.length;
+    load.nodal.segment<2>(NodeDof(k)) = w * force;
+    load.d_nodal_d_force.block<2, 2>(NodeDof(k), 0) = w * Mat2::Identity();
+  }
+  return load;
+}
+
+Eigen::Matrix<double, 3, Eigen::Dynamic> RingConstraints(const RingGeometry& g) {
+  Eigen::Matrix<double, 3, Eigen::Dynamic> C;
+  C.setZero(3, 2 * g.n);
+  Vec2 centre = Vec2::Zero();
+  for (int k = 0; k < g.n; ++k) centre += g.voronoi[k] / g.length * g.rest.col(k);
+  for (int k = 0; k < g.n; ++k) {
+    const double w = g.voronoi[k] / g.length;
+    C(0, NodeDof(k)) = w;
+    C(1, NodeDof(k) + 1) = w;
+    // (X°_k - c°) x u_k = r_x u_y - r_y u_x.
+    const Vec2 r = g.rest.col(k) - centre;
+    C(2, NodeDof(k)) = -w * r.y();
+    C(2, NodeDof(k) + 1) = w * r.x();
+  }
+  for (int r = 0; r < 3; ++r) C.row(r).normalize();
+  return C;
+}
+
+Vec2 RingCentre(const RingGeometry& g, const Eigen::VectorXd& x) {
+  Vec2 c = Vec2::Zero();
+  for (int k = 0; k < g.n; ++k) c += g.voronoi[k] / g.length * Node(x, k);
+  return c;
+}
+
+const char* ToString(RingTermination t) {
+  switch (t) {
+    case RingTermination::kZeroLoad: return "zero load";
+    case RingTermination::kGradientTolerance: return "gradient below tolerance";
+    case RingTermination::kStepTolerance: return "step below tolerance";
+    case RingTermination::kMaxIterations: return "iteration limit reached";
+    case RingTermination::kLineSearchFailed: return "line search failed";
+    case RingTermination::kNotFinite: return "energy not finite";
+  }
+  return "unknown";
+}
+
+std::string RingSummary::BriefReport() const {
+  std::ostringstream os;
+  os << "ring: " << (converged ? "converged" : "FAILED") << " (" << ToString(reason) << "), "
+     << iterations << " iterations, |g|_inf " << gradient_norm << " N, Pi " << energy << " J"
+     << (stable ? "" : ", unstable equilibrium");
+  if (hessian_shifts > 0) os << ", " << hessian_shifts << " Hessian shifts";
+  return os.str();
+}
+
+RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
+                     const Vec2& force_in_plane, const RingSolveOptions& options,
+                     const Eigen::Matrix2Xd* warm_start) {
+  std::string why;
+  Require(stiffness.Check(&why), why);
+  Require(options.Check(&why), why);
+  Require(force_in_plane.allFinite(), "section force must be finite");
+  const RingGeometry g = MakeRingGeometry(spec);
+  const int n = g.n, m = 2 * n;
+  const RingLoad load = MakeRingLoad(g, force_in_plane);
+
+  RingResult result;
+  result.rest = g.rest;
+  result.nodes = g.rest;
+  result.contact_node = load.contact_node;
+  result.force = force_in_plane;
+  const Eigen::Map<const Eigen::VectorXd> x_rest(g.rest.data(), m);
+
+  // Orthonormal basis Z of the constraints' null space: the last m - 3 columns of Q in C^T = QR.
+  const Eigen::MatrixXd Ct = RingConstraints(g).transpose();
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(Ct);
+  const Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(m, m);
+  const Eigen::MatrixXd Z = Q.rightCols(m - 3);
+
+  const double force_norm = force_in_plane.norm();
+  RingSummary& summary = result.summary;
+  auto sensitivities = [&](const Eigen::LLT<Eigen::MatrixXd>& llt, const Eigen::VectorXd& x) {
+    if (!options.compute_sensitivities) return;
+    Eigen::VectorXd gb, gs;
+    RingElasticEnergy(g, RingStiffness{stiffness.bend, 0.0}, x, &gb);
+    RingElasticEnergy(g, RingStiffness{0.0, stiffness.stretch}, x, &gs);
+    // U is linear in each stiffness: d grad / d log kb = grad of the bending part.
+    result.d_nodes_d_log_bend = -Z * llt.solve(Z.transpose() * gb);
+    result.d_nodes_d_log_stretch = -Z * llt.solve(Z.transpose() * gs);
+    if (load.contact_node >= 0) {
+      // grad Pi = grad U - f(F): d x / d F = Z Hr^-1 Z^T d f / d F.
+      result.d_nodes_d_force = Z * llt.solve(Z.transpose() * load.d_nodal_d_force);
+    }
+  };
+
+  Eigen::VectorXd x = x_rest;
+  if (warm_start) {
+    Require(warm_start->cols() == n, "warm start must have one column per section node");
+    const Eigen::Map<const Eigen::VectorXd> ws(warm_start->data(), m);
+    x = x_rest + Z * (Z.transpose() * (ws - x_rest));
+  }
+
+  auto potential = [&](const Eigen::VectorXd& xx, Eigen::VectorXd* grad, Eigen::MatrixXd* hess,
+                       double* scale) {
+    const double u = RingElasticEnergy(g, stiffness, xx, grad, hess);
+    const double w = load.nodal.dot(xx - x_rest);
+    if (grad) *grad -= load.nodal;
+    if (scale) *scale = std::abs(u) + std::abs(w);
+    return u - w;
+  };
+
+  if (force_norm == 0.0 && !warm_start) {
+    summary.converged = true;
+    summary.reason = RingTermination::kZeroLoad;
+    summary.stable = true;
+    Eigen::MatrixXd H;
+    RingElasticEnergy(g, stiffness, x, nullptr, &H);
+    const Eigen::LLT<Eigen::MatrixXd> llt(Z.transpose() * H * Z);
+    summary.stable = llt.info() == Eigen::Success;
+    if (summary.stable) sensitivities(llt, x);
+    return result;
+  }
+
+  Eigen::VectorXd grad;
+  Eigen::MatrixXd hess;
+  double scale = 0.0;
+  double pi = potential(x, &grad, &hess, &scale);
+  bool done = false;
+  for (int it = 0; !done; ++it) {
+    if (!std::isfinite(pi) || !grad.allFinite()) {
+      summary.reason = RingTermination::kNotFinite;
+      break;
+    }
+    const Eigen::VectorXd gr = Z.transpose() * grad;
+    summary.gradient_norm = gr.lpNorm<Eigen::Infinity>();
+    if (summary.gradient_norm <= options.gradient_tolerance * force_norm) {
+      summary.converged = true;
+      summary.reason = RingTermination::kGradientTolerance;
+      break;
+    }
+    if (it >= options.max_iterations) {
+      summary.reason = RingTermination::kMaxIterations;
+      break;
+    }
+    // Newton direction on the reduced Hessian, shifted until positive definite.
+    Eigen::MatrixXd Hr = Z.transpose() * hess * Z;
+    Eigen::LLT<Eigen::MatrixXd> llt(Hr);
+    if (llt.info() != Eigen::Success) {
+      ++summary.hessian_shifts;
+      const double diag = Hr.diagonal().cwiseAbs().maxCoeff();
+      double mu = 1e-8 * diag;
+      for (int s = 0; s < 60 && llt.info() != Eigen::Success; ++s, mu *= 10.0) {
+        llt.compute(Hr + mu * Eigen::MatrixXd::Identity(m - 3, m - 3));
+      }
+      if (llt.info() != Eigen::Success) {
+        summary.reason = RingTermination::kNotFinite;
+        break;
+      }
+    }
+    const Eigen::VectorXd p = -llt.solve(gr);
+    const Eigen::VectorXd dx = Z * p;
+    const double slope = gr.dot(p);
+    const bool tiny_step = dx.lpNorm<Eigen::Infinity>() <= options.step_tolerance * g.radius;
+    // Armijo backtracking; Pi's round-off (a few ulps of its terms) is tolerated so that the last
+    // steps near convergence, whose decrease is below round-off, are not rejected as uphill.
+    const double noise = 64.0 * std::numeric_limits<double>::epsilon() * scale;
+    double alpha = 1.0;
+    bool accepted = false;
+    Eigen::VectorXd x_try, grad_try;
+    Eigen::MatrixXd hess_try;
+    double scale_try = 0.0, pi_try = 0.0;
+    for (int ls = 0; ls < options.max_line_search_steps; ++ls, alpha *= 0.5) {
+      x_try = x + alpha * dx;
+      pi_try = potential(x_try, nullptr, nullptr, nullptr);
+      if (std::isfinite(pi_try) && pi_try <= pi + 1e-4 * alpha * slope + noise) {
+        accepted = true;
+        break;
+      }
+    }
+    ++summary.iterations;
+    if (!accepted) {
+      summary.reason = RingTermination::kLineSearchFailed;
+      break;
+    }
+    x = x_try;
+    pi = potential(x, &grad, &hess, &scale);
+    if (tiny_step && alpha == 1.0) {
+      summary.converged = true;
+      summary.reason = RingTermination::kStepTolerance;
+      summary.gradient_norm = (Z.transpose() * grad).lpNorm<Eigen::Infinity>();
+      done = true;
+    }
+  }
+
+  summary.energy = pi;
+  result.nodes = Eigen::Map<const Eigen::Matrix2Xd>(x.data(), 2, n);
+  const Vec2 centre = RingCentre(g, x);
+  if (load.contact_node >= 0) {
+    const Vec2 r = result.nodes.col(load.contact_node) - centre;
+    result.pin_moment = r.x() * force_in_plane.y() - r.y() * force_in_plane.x();
+  }
+  if (std::isfinite(pi) && hess.allFinite()) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(Z.transpose() * hess * Z);
+    summary.stable = llt.info() == Eigen::Success;
+    if (summary.converged && summary.stable) sensitivities(llt, x);
+  }
+  return result;
+}
+
+SectionPlacement SectionAt(const RodModel& model, const RodState& state, double s) {
+  const double L = model.length();
+  const double slack = 1e-12 * L;
+  if (!(s >= -slack && s <= L + slack)) {
+    throw std::invalid_argument("section arc length must lie in [0, L]");
+  }
+  s = std::clamp(s, 0.0, L);
+  const int edges = model.num_edges();
+  int j = 0;
+  while (j + 1 < edges && model.arc_length(j + 1) <= s) ++j;
+  const double s0 = model.arc_length(j), s1 = model.arc_length(j + 1);
+  const double t = std::clamp((s - s0) / (s1 - s0), 0.0, 1.0);
+  SectionPlacement p;
+  p.centre = (1.0 - t) * state.x.col(j) + t * state.x.col(j + 1);
+  const EdgeFrame f = model.MaterialFrame(state, j);
+  p.d1 = f.d1;
+  p.d2 = f.d2;
+  return p;
+}
+
+Vec2 ProjectToSection(const Eigen::Vector3d& force_world, const SectionPlacement& p) {
+  return Vec2(force_world.dot(p.d1), force_world.dot(p.d2));
+}
+
+Eigen::Matrix3Xd SectionToWorld(const Eigen::Matrix2Xd& points, const SectionPlacement& p) {
+  Eigen::Matrix3Xd out(3, points.cols());
+  for (int k = 0; k < points.cols(); ++k) {
+    out.col(k) = p.centre + points(0, k) * p.d1 + points(1, k) * p.d2;
+  }
+  return out;
+}
+
+}  // namespace rodfit
