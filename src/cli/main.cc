@@ -19,6 +19,7 @@
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/io/synth.h"
 #include "rodfit/model/rod.h"
+#include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/centreline.h"
@@ -47,7 +48,8 @@ int Parse(CLI::App& app, int argc, char** argv) {
 int RunSimulate(int argc, char** argv) {
   CLI::App app(
       "Solve every load case of a scene to static equilibrium and write "
-      "DIR/shapes.csv (case,vertex,s,x,y,z).",
+      "DIR/shapes.csv (case,vertex,s,x,y,z), and DIR/forces.csv (case,fx,fy,fz) for grasped "
+      "cases.",
       "rodfit simulate");
   std::string scene_path, output_dir;
   app.add_option("scene", scene_path, "scene YAML (DESIGN.md §6)")->required();
@@ -57,8 +59,9 @@ int RunSimulate(int argc, char** argv) {
   const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
   const rodfit::Scene& scene = experiment.scene;
   std::vector<rodfit::CaseShape> shapes;
+  std::vector<rodfit::CaseForce> forces;
   for (const rodfit::LoadCase& load_case : scene.cases) {
-    rodfit::RodModel model(scene.rod, scene.material, scene.gravity, load_case);
+    rodfit::RodModel model(scene.rod, scene.material, scene.gravity, load_case, scene.springs);
     rodfit::RodState state = model.StraightState();
     const rodfit::StaticsSummary summary =
         rodfit::SolveStatics(model, rodfit::StaticsOptions(), &state);
@@ -72,10 +75,13 @@ int RunSimulate(int argc, char** argv) {
     shape.x = state.x;
     for (int i = 0; i < model.num_vertices(); ++i) shape.s.push_back(model.arc_length(i));
     shapes.push_back(shape);
+    if (load_case.grasp) forces.push_back({load_case.name, rodfit::GraspReaction(model, state)});
   }
   // Only after every case has converged, so a failed run leaves nothing behind.
   rodfit::CreateDirectories(output_dir);
   rodfit::WriteShapesCsv((std::filesystem::path(output_dir) / "shapes.csv").string(), shapes);
+  if (!forces.empty())
+    rodfit::WriteForcesCsv((std::filesystem::path(output_dir) / "forces.csv").string(), forces);
   return EXIT_SUCCESS;
 }
 

@@ -27,8 +27,16 @@ using Clock = std::chrono::steady_clock;
 struct Fitted {
   int input_index = 0;
   std::string name;
-  std::vector<Stiffness> drives;
+  std::vector<Stiffness> drives;  ///< rod stiffnesses it sets
+  bool spring = false;            ///< a spring stiffness: drives the zones of `spring_zone_name`
+  std::string spring_zone_name;   ///< "" for spring_stiffness, else the zone parameter
 };
+
+bool ZonesUse(const FitInput& in, const std::string& parameter) {
+  for (const SpringZone& z : in.springs)
+    if (z.parameter == parameter) return true;
+  return false;
+}
 
 std::vector<Fitted> FittedParameters(const FitInput& in) {
   std::vector<Fitted> out;
@@ -49,9 +57,11 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
       f.drives = {Stiffness::kTwist};
     } else if (p.name == "stretch_stiffness") {
       f.drives = {Stiffness::kStretch};
-    } else if (p.name == "spring_stiffness") {
-      throw std::invalid_argument(
-          "spring_stiffness: fitted, but the scene has no springs for it to act on");
+    } else if (p.name == "spring_stiffness" || in.material.spring_parameters.count(p.name)) {
+      f.spring = true;
+      f.spring_zone_name = p.name == "spring_stiffness" ? "" : p.name;
+      if (!ZonesUse(in, f.spring_zone_name))
+        throw std::invalid_argument(p.name + ": fitted, but no spring zone uses it");
     } else {
       throw std::invalid_argument(p.name + ": not a parameter of the rod model");
     }
@@ -69,6 +79,10 @@ Material MaterialAt(const FitInput& in, const std::vector<Fitted>& fitted, const
     if (name == "bend_stiffness_2") m.bend_stiffness_2 = v;
     if (name == "twist_stiffness") m.twist_stiffness = v;
     if (name == "stretch_stiffness") m.stretch_stiffness = v;
+    if (fitted[k].spring) {
+      if (fitted[k].spring_zone_name.empty()) m.spring_stiffness = v;
+      else m.spring_parameters[fitted[k].spring_zone_name] = v;
+    }
   }
   return m;
 }
@@ -127,7 +141,8 @@ class CaseEvaluator {
     const Material material = MaterialAt(in_, fitted_, logp);
     std::unique_ptr<RodModel> model;
     try {
-      model = std::make_unique<RodModel>(in_.rod, material, in_.gravity, case_.load_case);
+      model = std::make_unique<RodModel>(in_.rod, material, in_.gravity, case_.load_case,
+                                         in_.springs);
     } catch (const std::invalid_argument&) {
       return false;
     }
@@ -149,15 +164,24 @@ class CaseEvaluator {
     const int m = num_parameters();
     Eigen::MatrixXd dx;
     if (jacobian) {
-      std::vector<Stiffness> all;
-      for (const Fitted& f : fitted_) all.insert(all.end(), f.drives.begin(), f.drives.end());
+      // One unit-term gradient per driven stiffness; a parameter's column sums its terms.
+      std::vector<EnergyTerms> terms;
+      std::vector<int> owner;
+      for (int k = 0; k < m; ++k) {
+        for (Stiffness st : fitted_[k].drives) {
+          terms.push_back(EnergyTerms::Only(static_cast<int>(st)));
+          owner.push_back(k);
+        }
+        if (fitted_[k].spring) {
+          terms.push_back(EnergyTerms::OnlySprings(&fitted_[k].spring_zone_name));
+          owner.push_back(k);
+        }
+      }
       Eigen::MatrixXd dq;
-      if (!StiffnessSensitivities(*model, state, ws, all, &dq)) return false;
+      if (!TermSensitivities(*model, state, ws, terms, &dq)) return false;
       const Eigen::MatrixXd dx_all = VertexSensitivities(*model, dq);
       dx.setZero(dx_all.rows(), m);
-      int col = 0;
-      for (int k = 0; k < m; ++k)
-        for (size_t d = 0; d < fitted_[k].drives.size(); ++d) dx.col(k) += dx_all.col(col++);
+      for (size_t t = 0; t < terms.size(); ++t) dx.col(owner[t]) += dx_all.col(static_cast<int>(t));
       Charge(&timing_.jacobian, &t0);
     }
     int row = 0;
@@ -281,8 +305,9 @@ bool FitOptions::Check(std::string* why) const {
 
 const char* ParameterUnit(const std::string& name) {
   if (name == "stretch_stiffness") return "N";
-  if (name == "spring_stiffness") return "N/m^2";
-  return "N m^2";
+  if (name == "bend_stiffness" || name == "bend_stiffness_2" || name == "twist_stiffness")
+    return "N m^2";
+  return "N/m^2";  // spring_stiffness and spring zones' own parameters
 }
 
 bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,

@@ -40,6 +40,7 @@ struct FitInput {
   RodSpec rod;
   Material material;  ///< values of every parameter (fitted ones are starts)
   Vec3 gravity = Vec3(0, 0, -9.81);
+  std::vector<SpringZone> springs;  ///< attachment zones (tissue)
   std::vector<FitParameter> parameters;
   std::vector<FitCase> cases;
 };

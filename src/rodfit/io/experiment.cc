@@ -235,9 +235,20 @@ ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& 
   return p;
 }
 
-void ReadParameters(const Reader& r, const Field& f, Experiment* ex) {
-  const Entries m = r.Map(f, kParameterNames);
-  for (const auto& [name, field] : m) ex->parameters[name] = ReadParameter(r, field, name);
+void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
+                    const std::vector<std::string>& zone_parameters) {
+  std::vector<std::string> allowed = kParameterNames;
+  allowed.insert(allowed.end(), zone_parameters.begin(), zone_parameters.end());
+  const Entries m = r.Map(f, allowed);
+  for (const auto& [name, field] : m) {
+    // A zone's own parameter is a spring stiffness [N/m^2]: like spring_stiffness, >= 0.
+    const bool spring = name == "spring_stiffness" || Contains(zone_parameters, name);
+    ex->parameters[name] = ReadParameter(r, field, spring ? "spring_stiffness" : name);
+  }
+  for (const std::string& name : zone_parameters) {
+    r.Require(m, f, name);
+    ex->scene.material.spring_parameters[name] = ex->parameters.at(name).value;
+  }
   for (const char* name : {"bend_stiffness", "twist_stiffness", "stretch_stiffness"}) {
     r.Require(m, f, name);
   }
@@ -322,10 +333,51 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   return o;
 }
 
+Interval ReadInterval(const Reader& r, const Field& f, double length, const Entries& m) {
+  Interval iv;
+  const Field& from = r.Require(m, f, "from");
+  const Field& to = r.Require(m, f, "to");
+  iv.from = r.InRange(from, 0.0, length);
+  iv.to = r.InRange(to, 0.0, length);
+  if (!(iv.from < iv.to)) r.Fail(to, "must be greater than from (" + Show(iv.from) + ")");
+  return iv;
+}
+
+// Top-level `springs:` (issue 5): attachment zones, each with spring_stiffness or its own
+// parameter. Returns the zone parameters' names (they become allowed parameter keys).
+std::vector<std::string> ReadSprings(const Reader& r, const Field& f, Experiment* ex) {
+  std::vector<std::string> names;
+  std::vector<std::pair<Interval, int>> seen;
+  for (const Field& item : r.Sequence(f)) {
+    const Entries m = r.Map(item, {"from", "to", "parameter"});
+    const Interval iv = ReadInterval(r, item, ex->scene.rod.length, m);
+    for (const auto& [other, line] : seen) {
+      if (iv.from < other.to && other.from < iv.to) {
+        r.Fail(item, "overlaps the zone at line " + std::to_string(line));
+      }
+    }
+    seen.emplace_back(iv, item.line);
+    SpringZone zone{iv.from, iv.to, ""};
+    if (const Field* p = Reader::Find(m, "parameter")) {
+      zone.parameter = r.Text(*p);
+      if (zone.parameter == "spring_stiffness") {
+        zone.parameter.clear();
+      } else if (Contains(kParameterNames, zone.parameter)) {
+        r.Fail(*p, "'" + zone.parameter + "' is a rod parameter, not a spring stiffness");
+      } else if (!Contains(names, zone.parameter)) {
+        names.push_back(zone.parameter);
+      }
+    }
+    ex->scene.springs.push_back(zone);
+  }
+  return names;
+}
+
 void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
               std::map<std::string, int>* name_lines) {
   const Entries m =
-      r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "point_forces", "observations"});
+      r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "point_forces", "cut", "grasp",
+                "observations"});
   LoadCase c;
   c.name = "case" + std::to_string(index);
   if (const Field* name = Reader::Find(m, "name")) {
@@ -356,6 +408,24 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
       p.force = r.Vector3(r.Require(pm, item, "force"));
       c.point_forces.push_back(p);
     }
+  }
+  if (const Field* cut = Reader::Find(m, "cut")) {
+    if (ex->scene.springs.empty()) r.Fail(*cut, "a cut needs springs to cut (top-level springs:)");
+    for (const Field& item : r.Sequence(*cut)) {
+      const Entries cm = r.Map(item, {"from", "to"});
+      c.cuts.push_back(ReadInterval(r, item, ex->scene.rod.length, cm));
+    }
+  }
+  if (const Field* grasp = Reader::Find(m, "grasp")) {
+    const Entries gm = r.Map(*grasp, {"s", "position"});
+    Grasp g;
+    const Field& s_field = r.Require(gm, *grasp, "s");
+    g.s = r.InRange(s_field, 0.0, ex->scene.rod.length);
+    if (g.s < 0.5 * ex->scene.rod.length / ex->scene.rod.segments) {
+      r.Fail(s_field, "the grasp is at the clamp (s rounds to vertex 0)");
+    }
+    g.position = r.Vector3(r.Require(gm, *grasp, "position"));
+    c.grasp = g;
   }
   CaseSpec spec;
   spec.line = f.line;
@@ -427,9 +497,16 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
   ex.path = path;
   ex.directory = fs::path(path).parent_path().string();
   const Field top{root, "", 1, 0};
-  const Entries m = r.Map(top, {"rod", "parameters", "gravity", "cases", "fit"});
+  const Entries m = r.Map(top, {"rod", "parameters", "gravity", "springs", "cases", "fit"});
   ex.scene.rod = ReadRod(r, r.Require(m, top, "rod"));
-  ReadParameters(r, r.Require(m, top, "parameters"), &ex);
+  std::vector<std::string> zone_parameters;
+  if (const Field* springs = Reader::Find(m, "springs")) {
+    zone_parameters = ReadSprings(r, *springs, &ex);
+    if (ex.scene.rod.rest_curvature.squaredNorm() > 0) {
+      r.Fail(*springs, "springs tie the rod to its straight rest position: remove rest_curvature");
+    }
+  }
+  ReadParameters(r, r.Require(m, top, "parameters"), &ex, zone_parameters);
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
 

@@ -30,11 +30,13 @@ std::string Label(const ObservationSpec& spec) {
 
 std::vector<FitParameter> FitParametersOf(const Experiment& e) {
   std::vector<FitParameter> out;
-  for (const char* name : {"bend_stiffness", "bend_stiffness_2", "twist_stiffness",
-                           "stretch_stiffness", "spring_stiffness"}) {
+  std::vector<std::string> names = {"bend_stiffness", "bend_stiffness_2", "twist_stiffness",
+                                    "stretch_stiffness", "spring_stiffness"};
+  for (const auto& [name, value] : e.scene.material.spring_parameters) names.push_back(name);
+  for (const std::string& name : names) {
     const auto it = e.parameters.find(name);
     if (it == e.parameters.end()) {
-      if (std::string(name) == "spring_stiffness") out.push_back({name, 0.0, false, {}, {}});
+      if (name == "spring_stiffness") out.push_back({name, 0.0, false, {}, {}});
       continue;  // bend_stiffness_2 absent: tied to bend_stiffness
     }
     const ParameterSpec& p = it->second;
@@ -48,6 +50,7 @@ FitInput BuildFitInput(const Experiment& e) {
   in.rod = e.scene.rod;
   in.material = e.scene.material;
   in.gravity = e.scene.gravity;
+  in.springs = e.scene.springs;
   in.parameters = FitParametersOf(e);
   const RodModel reference(e.scene.rod, e.scene.material, e.scene.gravity,
                            e.scene.cases.empty() ? LoadCase() : e.scene.cases[0]);

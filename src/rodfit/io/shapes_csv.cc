@@ -63,4 +63,16 @@ std::vector<CaseShape> ReadShapesCsv(const std::string& path) {
   return shapes;
 }
 
+std::string FormatForcesCsv(const std::vector<CaseForce>& forces) {
+  std::string out = "case,fx,fy,fz\n";
+  for (const CaseForce& f : forces)
+    out += f.name + "," + FormatDouble(f.force.x()) + "," + FormatDouble(f.force.y()) + "," +
+           FormatDouble(f.force.z()) + "\n";
+  return out;
+}
+
+void WriteForcesCsv(const std::string& path, const std::vector<CaseForce>& forces) {
+  WriteFileAtomically(path, FormatForcesCsv(forces));
+}
+
 }  // namespace rodfit

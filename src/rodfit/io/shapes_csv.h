@@ -20,6 +20,14 @@ struct CaseShape {
 /// The whole file's text, header included.
 std::string FormatShapesCsv(const std::vector<CaseShape>& shapes);
 
+/// `case,fx,fy,fz`: the force [N] the tissue exerts on the instrument, one row per grasped case.
+struct CaseForce {
+  std::string name;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+};
+std::string FormatForcesCsv(const std::vector<CaseForce>& forces);
+void WriteForcesCsv(const std::string& path, const std::vector<CaseForce>& forces);
+
 /// Writes FormatShapesCsv(shapes) to path atomically (see WriteFileAtomically).
 void WriteShapesCsv(const std::string& path, const std::vector<CaseShape>& shapes);
 

@@ -356,7 +356,7 @@ CaseShape SolveCase(const Experiment& ex, int c, const StaticsOptions& statics) 
   const std::string key = "cases[" + std::to_string(c) + "]";
   const int line = ex.cases[c].line;
   try {
-    RodModel model(ex.scene.rod, ex.scene.material, ex.scene.gravity, load_case);
+    RodModel model(ex.scene.rod, ex.scene.material, ex.scene.gravity, load_case, ex.scene.springs);
     RodState state = model.StraightState();
     const StaticsSummary summary = SolveStatics(model, statics, &state);
     if (!summary.converged) {

@@ -24,7 +24,7 @@ using Vec2 = Eigen::Vector2d;
 
 Vec2 Perp(const Vec2& v) { return Vec2(-v.y(), v.x()); }  // rotated by +90 degrees
 
-Vec2 Node(const Eigen::VectorXd& x, int k) { return x.segment<2>(NodeDof(k)); }
+Vec2 Node(const Eigen::VectorXd& u, int k) { return u.segment<2>(NodeDof(k)); }
 
 // Hessian of the polar angle of v: d/dv (v_perp / |v|^2) = (J |v|^2 - 2 v_perp v^T) / |v|^4.
 Mat2 AngleHessian(const Vec2& v) {
@@ -93,33 +93,41 @@ RingGeometry MakeRingGeometry(const SectionSpec& spec) {
     g.edge[k] = (g.rest.col(g.next(k)) - g.rest.col(k)).norm();
     g.length += g.edge[k];
   }
+  g.guard = 1e-9 * g.length / g.n;
+  // The rest curvature by the energy's own formula (soft norms included), so that the rest
+  // polygon is stress free to the last bit.
+  const double d2 = g.guard * g.guard;
   for (int k = 0; k < g.n; ++k) {
     g.voronoi[k] = 0.5 * (g.edge[g.prev(k)] + g.edge[k]);
     const Vec2 a = g.rest.col(k) - g.rest.col(g.prev(k));
     const Vec2 b = g.rest.col(g.next(k)) - g.rest.col(k);
-    const double tan_half = (a.x() * b.y() - a.y() * b.x()) / (a.norm() * b.norm() + a.dot(b));
+    const double len_a = std::sqrt(a.x() * a.x() + a.y() * a.y() + d2);
+    const double len_b = std::sqrt(b.x() * b.x() + b.y() * b.y() + d2);
+    const double tan_half = (a.x() * b.y() - a.y() * b.x()) / (len_a * len_b + a.x() * b.x() + a.y() * b.y());
     g.rest_curvature[k] = 2.0 * tan_half / g.voronoi[k];
   }
-  g.guard = 1e-9 * g.length / g.n;
   return g;
 }
 
-double RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const Eigen::VectorXd& x,
+double RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const Eigen::VectorXd& u,
                          Eigen::VectorXd* gradient, Eigen::MatrixXd* hessian) {
   const int n = g.n;
-  assert(x.size() == 2 * n);
+  assert(u.size() == 2 * n);
   if (gradient) gradient->setZero(2 * n);
   if (hessian) hessian->setZero(2 * n, 2 * n);
-  const double energy = RingElasticEnergy<double>(g, k, x.data());
+  const double energy = RingElasticEnergy<double>(g, k, u.data());
+  // Edge i (node i to i + 1): its rest vector and its change, kept apart for precision.
+  auto rest_edge = [&](int i) -> Vec2 { return g.rest.col(g.next(i)) - g.rest.col(i); };
+  auto edge_change = [&](int i) -> Vec2 { return Node(u, g.next(i)) - Node(u, i); };
   if (!gradient && !hessian) return energy;
   for (int i = 0; i < n; ++i) {
     const int j = g.next(i), h = g.prev(i);
     // Stretch of edge i: E = ks L / 2 (|e|/L - 1)^2.
     {
-      const Vec2 e = Node(x, j) - Node(x, i);
+      const Vec2 e0 = rest_edge(i), de = edge_change(i), e = e0 + de;
       const double len = e.norm();
       const Vec2 t = e / len;
-      const double strain = len / g.edge[i] - 1.0;
+      const double strain = (2.0 * e0.dot(de) + de.squaredNorm()) / (g.edge[i] * (len + g.edge[i]));
       const Vec2 ge = k.stretch * strain * t;
       if (gradient) {
         gradient->segment<2>(NodeDof(i)) -= ge;
@@ -137,7 +145,7 @@ double RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const Ei
     // Bending at node i: kappa = 2 tan(phi/2) / l with phi = angle(b) - angle(a), so
     // d phi / d a = -a_perp / |a|^2, d phi / d b = b_perp / |b|^2, d kappa / d phi = (1 + t^2) / l.
     {
-      const Vec2 a = Node(x, i) - Node(x, h), b = Node(x, j) - Node(x, i);
+      const Vec2 a = rest_edge(h) + edge_change(h), b = rest_edge(i) + edge_change(i);
       const double l = g.voronoi[i];
       const double t = (a.x() * b.y() - a.y() * b.x()) / (a.norm() * b.norm() + a.dot(b));
       const double dk = 2.0 * t / l - g.rest_curvature[i];
@@ -217,9 +225,9 @@ Eigen::Matrix<double, 3, Eigen::Dynamic> RingConstraints(const RingGeometry& g) 
   return C;
 }
 
-Vec2 RingCentre(const RingGeometry& g, const Eigen::VectorXd& x) {
+Vec2 RingCentre(const RingGeometry& g, const Eigen::Matrix2Xd& nodes) {
   Vec2 c = Vec2::Zero();
-  for (int k = 0; k < g.n; ++k) c += g.voronoi[k] / g.length * Node(x, k);
+  for (int k = 0; k < g.n; ++k) c += g.voronoi[k] / g.length * nodes.col(k);
   return c;
 }
 
@@ -261,6 +269,7 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
   result.contact_node = load.contact_node;
   result.force = force_in_plane;
   const Eigen::Map<const Eigen::VectorXd> x_rest(g.rest.data(), m);
+  // The unknowns are the displacements u = x - x° (see RingElasticEnergy on precision).
 
   // Orthonormal basis Z of the constraints' null space: the last m - 3 columns of Q in C^T = QR.
   const Eigen::MatrixXd Ct = RingConstraints(g).transpose();
@@ -270,34 +279,34 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
 
   const double force_norm = force_in_plane.norm();
   RingSummary& summary = result.summary;
-  auto sensitivities = [&](const Eigen::LLT<Eigen::MatrixXd>& llt, const Eigen::VectorXd& x) {
+  auto sensitivities = [&](const Eigen::LLT<Eigen::MatrixXd>& llt, const Eigen::VectorXd& u) {
     if (!options.compute_sensitivities) return;
     Eigen::VectorXd gb, gs;
-    RingElasticEnergy(g, RingStiffness{stiffness.bend, 0.0}, x, &gb);
-    RingElasticEnergy(g, RingStiffness{0.0, stiffness.stretch}, x, &gs);
+    RingElasticEnergy(g, RingStiffness{stiffness.bend, 0.0}, u, &gb);
+    RingElasticEnergy(g, RingStiffness{0.0, stiffness.stretch}, u, &gs);
     // U is linear in each stiffness: d grad / d log kb = grad of the bending part.
     result.d_nodes_d_log_bend = -Z * llt.solve(Z.transpose() * gb);
     result.d_nodes_d_log_stretch = -Z * llt.solve(Z.transpose() * gs);
     if (load.contact_node >= 0) {
-      // grad Pi = grad U - f(F): d x / d F = Z Hr^-1 Z^T d f / d F.
+      // grad Pi = grad U - f(F): d u / d F = Z Hr^-1 Z^T d f / d F.
       result.d_nodes_d_force = Z * llt.solve(Z.transpose() * load.d_nodal_d_force);
     }
   };
 
-  Eigen::VectorXd x = x_rest;
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(m);
   if (warm_start) {
     Require(warm_start->cols() == n, "warm start must have one column per section node");
     const Eigen::Map<const Eigen::VectorXd> ws(warm_start->data(), m);
-    x = x_rest + Z * (Z.transpose() * (ws - x_rest));
+    u = Z * (Z.transpose() * (ws - x_rest));
   }
 
-  auto potential = [&](const Eigen::VectorXd& xx, Eigen::VectorXd* grad, Eigen::MatrixXd* hess,
+  auto potential = [&](const Eigen::VectorXd& uu, Eigen::VectorXd* grad, Eigen::MatrixXd* hess,
                        double* scale) {
-    const double u = RingElasticEnergy(g, stiffness, xx, grad, hess);
-    const double w = load.nodal.dot(xx - x_rest);
+    const double elastic = RingElasticEnergy(g, stiffness, uu, grad, hess);
+    const double work = load.nodal.dot(uu);
     if (grad) *grad -= load.nodal;
-    if (scale) *scale = std::abs(u) + std::abs(w);
-    return u - w;
+    if (scale) *scale = std::abs(elastic) + std::abs(work);
+    return elastic - work;
   };
 
   if (force_norm == 0.0 && !warm_start) {
@@ -305,17 +314,17 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
     summary.reason = RingTermination::kZeroLoad;
     summary.stable = true;
     Eigen::MatrixXd H;
-    RingElasticEnergy(g, stiffness, x, nullptr, &H);
+    RingElasticEnergy(g, stiffness, u, nullptr, &H);
     const Eigen::LLT<Eigen::MatrixXd> llt(Z.transpose() * H * Z);
     summary.stable = llt.info() == Eigen::Success;
-    if (summary.stable) sensitivities(llt, x);
+    if (summary.stable) sensitivities(llt, u);
     return result;
   }
 
   Eigen::VectorXd grad;
   Eigen::MatrixXd hess;
   double scale = 0.0;
-  double pi = potential(x, &grad, &hess, &scale);
+  double pi = potential(u, &grad, &hess, &scale);
   bool done = false;
   for (int it = 0; !done; ++it) {
     if (!std::isfinite(pi) || !grad.allFinite()) {
@@ -349,20 +358,19 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
       }
     }
     const Eigen::VectorXd p = -llt.solve(gr);
-    const Eigen::VectorXd dx = Z * p;
+    const Eigen::VectorXd du = Z * p;
     const double slope = gr.dot(p);
-    const bool tiny_step = dx.lpNorm<Eigen::Infinity>() <= options.step_tolerance * g.radius;
+    const bool tiny_step = du.lpNorm<Eigen::Infinity>() <= options.step_tolerance * g.radius;
     // Armijo backtracking; Pi's round-off (a few ulps of its terms) is tolerated so that the last
     // steps near convergence, whose decrease is below round-off, are not rejected as uphill.
     const double noise = 64.0 * std::numeric_limits<double>::epsilon() * scale;
     double alpha = 1.0;
     bool accepted = false;
-    Eigen::VectorXd x_try, grad_try;
-    Eigen::MatrixXd hess_try;
-    double scale_try = 0.0, pi_try = 0.0;
+    Eigen::VectorXd u_try;
+    double pi_try = 0.0;
     for (int ls = 0; ls < options.max_line_search_steps; ++ls, alpha *= 0.5) {
-      x_try = x + alpha * dx;
-      pi_try = potential(x_try, nullptr, nullptr, nullptr);
+      u_try = u + alpha * du;
+      pi_try = potential(u_try, nullptr, nullptr, nullptr);
       if (std::isfinite(pi_try) && pi_try <= pi + 1e-4 * alpha * slope + noise) {
         accepted = true;
         break;
@@ -373,8 +381,8 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
       summary.reason = RingTermination::kLineSearchFailed;
       break;
     }
-    x = x_try;
-    pi = potential(x, &grad, &hess, &scale);
+    u = u_try;
+    pi = potential(u, &grad, &hess, &scale);
     if (tiny_step && alpha == 1.0) {
       summary.converged = true;
       summary.reason = RingTermination::kStepTolerance;
@@ -384,8 +392,8 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
   }
 
   summary.energy = pi;
-  result.nodes = Eigen::Map<const Eigen::Matrix2Xd>(x.data(), 2, n);
-  const Vec2 centre = RingCentre(g, x);
+  result.nodes = g.rest + Eigen::Map<const Eigen::Matrix2Xd>(u.data(), 2, n);
+  const Vec2 centre = RingCentre(g, result.nodes);
   if (load.contact_node >= 0) {
     const Vec2 r = result.nodes.col(load.contact_node) - centre;
     result.pin_moment = r.x() * force_in_plane.y() - r.y() * force_in_plane.x();
@@ -393,7 +401,7 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
   if (std::isfinite(pi) && hess.allFinite()) {
     const Eigen::LLT<Eigen::MatrixXd> llt(Z.transpose() * hess * Z);
     summary.stable = llt.info() == Eigen::Success;
-    if (summary.converged && summary.stable) sensitivities(llt, x);
+    if (summary.converged && summary.stable) sensitivities(llt, u);
   }
   return result;
 }

@@ -84,22 +84,36 @@ RingGeometry MakeRingGeometry(const SectionSpec& spec);
 /// Node k's two coordinates in the packed vector x (size 2N): [x_0, y_0, x_1, y_1, ...].
 inline int NodeDof(int k) { return 2 * k; }
 
-/// Elastic energy U_bend + U_stretch [J] at the packed nodes x (2N entries), for double and
-/// ceres::Jet (also nested). Singular points (coincident nodes, a full fold) are softened by
-/// geometry.guard so that values and derivatives stay finite.
+/// Elastic energy U_bend + U_stretch [J] at the packed node displacements u = x - x° (2N
+/// entries), for double and ceres::Jet (also nested). Displacements, not positions, are the
+/// variables: the strain is formed as (|e|^2 - L^2) / (L (|e| + L)) with
+/// |e|^2 - L^2 = 2 e°.du + du.du, so it keeps its relative precision however small it is (from
+/// positions it would carry an absolute error of eps, i.e. stretch forces of eps ks, which a
+/// stiff ring (ks R^2 / kb >> 1) turns into displacement noise eps ks R^3 / kb). Singular
+/// points (coincident nodes, a full fold) are softened by geometry.guard so that values and
+/// derivatives stay finite.
 template <typename T>
-T RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const T* x) {
+T RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const T* u) {
   using std::sqrt;
   const T d2 = Cst<T>(g.guard * g.guard);
   T energy = Cst<T>(0.0);
+  // Edge vector k from node k to k + 1 at rest, and its change.
+  auto rest_edge = [&](int i, int c) { return g.rest(c, g.next(i)) - g.rest(c, i); };
+  auto edge_change = [&](int i, int c) { return u[NodeDof(g.next(i)) + c] - u[NodeDof(i) + c]; };
   for (int i = 0; i < g.n; ++i) {
-    const int j = g.next(i), h = g.prev(i);
-    const T ex = x[NodeDof(j)] - x[NodeDof(i)], ey = x[NodeDof(j) + 1] - x[NodeDof(i) + 1];
-    const T ax = x[NodeDof(i)] - x[NodeDof(h)], ay = x[NodeDof(i) + 1] - x[NodeDof(h) + 1];
+    const int h = g.prev(i);
+    const double e0x = rest_edge(i, 0), e0y = rest_edge(i, 1);
+    const double a0x = rest_edge(h, 0), a0y = rest_edge(h, 1);
+    const T dex = edge_change(i, 0), dey = edge_change(i, 1);
+    const T ex = Cst<T>(e0x) + dex, ey = Cst<T>(e0y) + dey;
+    const T ax = Cst<T>(a0x) + edge_change(h, 0), ay = Cst<T>(a0y) + edge_change(h, 1);
+    const double L0sq = e0x * e0x + e0y * e0y;
     const T len_e = sqrt(ex * ex + ey * ey + d2);
     const T len_a = sqrt(ax * ax + ay * ay + d2);
-    // Stretch of edge i (from node i to i + 1).
-    const T strain = len_e / Cst<T>(g.edge[i]) - Cst<T>(1.0);
+    // Stretch of edge i (from node i to i + 1): |e| / L - 1, without cancellation.
+    // The soft norm only enters the denominator, so the rest state has exactly zero strain.
+    const T strain = (Cst<T>(2.0 * e0x) * dex + Cst<T>(2.0 * e0y) * dey + dex * dex + dey * dey) /
+                     (Cst<T>(std::sqrt(L0sq)) * (len_e + Cst<T>(std::sqrt(L0sq))));
     energy += Cst<T>(0.5 * k.stretch * g.edge[i]) * strain * strain;
     // Bending at node i between a = e_{i-1} and e = e_i: 2 tan(phi/2) = 2 (a x e)/(|a||e| + a.e);
     // the denominator is > 0 with the soft norms, also at a full fold.
@@ -110,14 +124,14 @@ T RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const T* x) {
   return energy;
 }
 
-/// The same energy with its closed-form gradient (2N) and Hessian (2N x 2N), either optional.
-/// Derivatives use the exact (unguarded) formulas: identical to the guarded energy's to round-off
-/// wherever nodes do not coincide.
-double RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const Eigen::VectorXd& x,
+/// The same energy with its closed-form gradient (2N) and Hessian (2N x 2N) with respect to u
+/// (= with respect to the positions), either optional. Derivatives use the exact (unguarded)
+/// formulas: identical to the guarded energy's to round-off wherever nodes do not coincide.
+double RingElasticEnergy(const RingGeometry& g, const RingStiffness& k, const Eigen::VectorXd& u,
                          Eigen::VectorXd* gradient = nullptr, Eigen::MatrixXd* hessian = nullptr);
 
 /// The dead load of eq. 11 as nodal forces f (2N): F at the contact node minus F l_k / L_C at
-/// every node; sums to zero. W = f . (x - x°).
+/// every node; sums to zero. W = f . u.
 struct RingLoad {
   int contact_node = -1;             ///< -1 for a zero force
   Eigen::Vector2d force = Eigen::Vector2d::Zero();  ///< F in section coordinates [N]
@@ -131,11 +145,11 @@ int ContactNode(const RingGeometry& g, const Eigen::Vector2d& force);
 RingLoad MakeRingLoad(const RingGeometry& g, const Eigen::Vector2d& force);
 
 /// The two linear constraints' rows (3 x 2N): mass centre (x, y) and mean rotation, each row
-/// normalised; C (x - x°) = 0.
+/// normalised; C u = 0.
 Eigen::Matrix<double, 3, Eigen::Dynamic> RingConstraints(const RingGeometry& g);
 
-/// Mass centre sum_k l_k X_k / L_C of packed nodes [m].
-Eigen::Vector2d RingCentre(const RingGeometry& g, const Eigen::VectorXd& x);
+/// Mass centre sum_k l_k X_k / L_C of the nodes (2 x N) [m].
+Eigen::Vector2d RingCentre(const RingGeometry& g, const Eigen::Matrix2Xd& nodes);
 
 struct RingSolveOptions {
   int max_iterations = 50;            ///< Newton iterations before giving up

@@ -1,0 +1,195 @@
+// Fit benchmark (issue: fit CLI): wall time of the identification of B1 and B2 from the suture
+// cantilever protocol (calibration/suture_cantilever) against the number of load cases and of
+// markers per case, 50 segments, starts three times too soft. The synthetic markers are solved
+// and noised once in the setup, outside the timed loop; every timed iteration is a complete Fit()
+// from the same start (Fit keeps no warm start between calls). Counters: Levenberg–Marquardt
+// iterations, forward solves, and where the time goes as fractions of the wall time: forward
+// solves, sensitivities (Jacobian), observation models, and the remainder (Ceres, covariance,
+// identifiability). With 2 threads the first three are summed over both threads, so they can add
+// up to more than 1 and the remainder can be negative.
+// Target: the 4-case recipe (50 segments, 2 parameters, 40 markers) in <= 0.1 s on one core.
+// Run: build/bench_fit [--benchmark_filter=...]; Release build.
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+#include "rodfit/fit/fit.h"
+#include "rodfit/io/experiment.h"
+#include "rodfit/io/fit_input.h"
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// The recipe's suture (calibration/suture_cantilever/protocol.yaml): braided USP 2, 0.2 m.
+FitInput Suture() {
+  FitInput in;
+  in.rod.length = 0.2;
+  in.rod.segments = 50;
+  in.rod.radius = 2.5e-4;
+  in.rod.linear_density = 2.24e-4;
+  in.material.bend_stiffness = 9.2e-6;
+  in.material.bend_stiffness_2 = 1.1e-5;
+  in.material.twist_stiffness = 6.8e-6;
+  in.material.stretch_stiffness = 589;
+  in.gravity = Vec3(0, 0, -9.81);
+  return in;
+}
+
+LoadCase Clamped(const std::string& name, const Vec3& tangent, const Vec3& normal,
+                 const Vec3& tip_force = Vec3::Zero()) {
+  LoadCase c;
+  c.name = name;
+  c.clamp.tangent = tangent;
+  c.clamp.normal = normal;
+  c.tip_force = tip_force;
+  return c;
+}
+
+// Up to eight clamp orientations and loads. The first four are the recipe's cases, `pulled` first
+// so that a single case already bends the suture about both axes (gravity about d2, the sideways
+// pull about d1) and both stiffnesses are identifiable at every case count.
+std::vector<LoadCase> ProtocolCases() {
+  const double c30 = std::cos(kPi / 6), s30 = std::sin(kPi / 6);
+  const double c20 = std::cos(kPi / 9), s20 = std::sin(kPi / 9);
+  const double r2 = std::sqrt(0.5);
+  return {
+      Clamped("pulled", Vec3(1, 0, 0), Vec3(0, 0, 1), Vec3(0, 1.5e-4, 0)),
+      Clamped("rolled", Vec3(1, 0, 0), Vec3(0, 1, 0)),
+      Clamped("flat", Vec3(1, 0, 0), Vec3(0, 0, 1)),
+      Clamped("up30", Vec3(c30, 0, s30), Vec3(-s30, 0, c30)),
+      Clamped("down20", Vec3(c20, 0, -s20), Vec3(s20, 0, c20)),
+      Clamped("rolled_up30", Vec3(c30, 0, s30), Vec3(0, 1, 0)),
+      Clamped("rolled45", Vec3(1, 0, 0), Vec3(0, r2, r2)),
+      Clamped("pulled_up", Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1.0e-4)),
+  };
+}
+
+// `num_cases` cases with `markers` 3-D markers each, evenly spaced with the last at the tip,
+// Gaussian noise of 0.3 mm (the recipe's sigma), fixed seed; B1 and B2 fitted from 3e-6.
+FitInput Protocol(int num_cases, int markers, std::string* error) {
+  FitInput in = Suture();
+  const double sigma = 3.0e-4;
+  std::mt19937 rng(20240601);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const std::vector<LoadCase> all = ProtocolCases();
+  for (int c = 0; c < num_cases; ++c) {
+    const LoadCase& load = all[c % all.size()];
+    const RodModel model(in.rod, in.material, in.gravity, load);
+    RodState state = model.StraightState();
+    const StaticsSummary summary = SolveStatics(model, StaticsOptions(), &state);
+    if (!summary.converged) *error = load.name + ": " + summary.BriefReport();
+    const std::vector<double> arc = VertexArcLengths(model);
+    const double l = in.rod.length / in.rod.segments;
+    std::vector<Marker3d> observed;
+    for (int k = 1; k <= markers; ++k) {
+      Marker3d m;
+      m.s = in.rod.length * k / markers;
+      const int e = std::min(static_cast<int>(m.s / l), in.rod.segments - 1);
+      const double a = m.s / l - e;
+      m.p_world = (1 - a) * state.x.col(e) + a * state.x.col(e + 1) +
+                  sigma * Vec3(normal(rng), normal(rng), normal(rng));
+      observed.push_back(m);
+    }
+    FitCase fc;
+    fc.load_case = load;
+    fc.observations.push_back(std::make_shared<Markers3dObservation>(arc, observed, sigma));
+    fc.labels.push_back("markers3d " + load.name);
+    in.cases.push_back(fc);
+  }
+  for (const char* name : {"bend_stiffness", "bend_stiffness_2"}) {
+    FitParameter p;
+    p.name = name;
+    p.value = 3.0e-6;
+    p.fit = true;
+    p.min = 1.0e-8;
+    p.max = 1.0e-3;
+    in.parameters.push_back(p);
+  }
+  in.parameters.push_back({"twist_stiffness", in.material.twist_stiffness, false, {}, {}});
+  in.parameters.push_back({"stretch_stiffness", in.material.stretch_stiffness, false, {}, {}});
+  in.material.bend_stiffness = 3.0e-6;  // the starts
+  in.material.bend_stiffness_2 = 3.0e-6;
+  return in;
+}
+
+// Runs the timed loop and sets the counters (averages over the timed fits).
+void TimeFit(benchmark::State& st, const FitInput& in, int threads) {
+  FitOptions options;
+  options.num_threads = threads;
+  FitResult r;
+  double seconds = 0, solve = 0, jacobian = 0, observation = 0;
+  int fits = 0;
+  for (auto _ : st) {
+    r = Fit(in, options);
+    benchmark::DoNotOptimize(r.final_cost);
+    seconds += r.seconds;
+    solve += r.solve_seconds;
+    jacobian += r.jacobian_seconds;
+    observation += r.observation_seconds;
+    ++fits;
+  }
+  if (!r.success) {
+    st.SkipWithError(("fit failed: " + r.message).c_str());
+    return;
+  }
+  for (const ParameterEstimate& p : r.parameters) {
+    if (p.fitted && !p.identifiable) {
+      st.SkipWithError((p.name + " not identifiable: " + p.reason).c_str());
+      return;
+    }
+  }
+  st.counters["iterations"] = r.iterations;
+  st.counters["forward_solves"] = r.forward_solves;
+  st.counters["solve"] = solve / seconds;
+  st.counters["jacobian"] = jacobian / seconds;
+  st.counters["observe"] = observation / seconds;
+  st.counters["rest"] = 1.0 - (solve + jacobian + observation) / seconds;
+  st.counters["fit_ms"] = 1e3 * seconds / std::max(1, fits);
+}
+
+// Args: cases, markers per case, threads.
+void BM_FitProtocol(benchmark::State& st) {
+  std::string error;
+  const FitInput in =
+      Protocol(static_cast<int>(st.range(0)), static_cast<int>(st.range(1)), &error);
+  if (!error.empty()) {
+    st.SkipWithError(error.c_str());
+    return;
+  }
+  TimeFit(st, in, static_cast<int>(st.range(2)));
+}
+BENCHMARK(BM_FitProtocol)
+    ->ArgNames({"cases", "markers", "threads"})
+    ->ArgsProduct({{1, 2, 4, 8}, {5, 10, 40}, {1}})
+    ->ArgsProduct({{4}, {5, 10, 40}, {2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// The recipe itself, read from calibration/suture_cantilever/experiment.yaml: 4 cases, each
+// 10 markers in 3-D and the same 10 in two cameras (40 markers in all, 200 residuals). The
+// source folder is found from this file's path (CMake compiles it by its absolute path).
+void BM_FitRecipe(benchmark::State& st) {
+  const std::filesystem::path recipe = std::filesystem::path(__FILE__).parent_path() / ".." /
+                                       ".." / "calibration" / "suture_cantilever" /
+                                       "experiment.yaml";
+  if (!std::filesystem::is_regular_file(recipe)) {
+    st.SkipWithError(("no recipe at " + recipe.string()).c_str());
+    return;
+  }
+  const Experiment experiment = LoadExperiment(recipe.lexically_normal().string());
+  const FitInput in = BuildFitInput(experiment);
+  TimeFit(st, in, static_cast<int>(st.range(0)));
+}
+BENCHMARK(BM_FitRecipe)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+}  // namespace
+}  // namespace rodfit
+
+BENCHMARK_MAIN();
