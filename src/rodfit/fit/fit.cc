@@ -14,6 +14,7 @@
 #include <ceres/ceres.h>
 #include <nlopt.hpp>
 
+#include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/sensitivity.h"
 #include "rodfit/solve/statics.h"
 
@@ -122,6 +123,7 @@ class CaseEvaluator {
                 const ceres::LossFunction* loss)
       : in_(in), case_(in.cases[case_index]), fitted_(std::move(fitted)), loss_(loss) {
     for (const auto& obs : case_.observations) num_residuals_ += obs->num_residuals();
+    num_residuals_ += 3 * static_cast<int>(case_.grasp_forces.size());
   }
 
   int num_residuals() const { return num_residuals_; }
@@ -163,6 +165,7 @@ class CaseEvaluator {
     if (!(summary.converged && summary.stable)) return false;
     const int m = num_parameters();
     Eigen::MatrixXd dx;
+    Eigen::MatrixXd d_reaction;  // 3 x m: d(force on the instrument) / d log p
     if (jacobian) {
       // One unit-term gradient per driven stiffness; a parameter's column sums its terms.
       std::vector<EnergyTerms> terms;
@@ -182,6 +185,30 @@ class CaseEvaluator {
       const Eigen::MatrixXd dx_all = VertexSensitivities(*model, dq);
       dx.setZero(dx_all.rows(), m);
       for (size_t t = 0; t < terms.size(); ++t) dx.col(owner[t]) += dx_all.col(static_cast<int>(t));
+      if (!case_.grasp_forces.empty()) {
+        // R = -g_k(q, p) at the grasped vertex's (held) dofs, with g the unconstrained gradient:
+        // dR/dlog p = -(d g_k / dlog p at fixed q + H_k. dq/dlog p), H_k. its unconstrained rows.
+        const int d = RodModel::VertexDof(model->grasp_vertex());
+        EnergyTerms all;
+        all.fix_grasp = false;
+        VecX g_full;
+        BandedSymmetric H_full;
+        AssembleHessian(*model, state, all, &g_full, &H_full);
+        d_reaction.setZero(3, m);
+        const int p = H_full.bandwidth(), nd = H_full.size();
+        for (size_t t = 0; t < terms.size(); ++t) {
+          EnergyTerms unit = terms[t];
+          unit.fix_grasp = false;
+          VecX gu;
+          AssembleGradient(*model, state, unit, &gu);
+          for (int r = 0; r < 3; ++r) {
+            double hq = 0.0;
+            for (int j = std::max(0, d + r - p); j <= std::min(nd - 1, d + r + p); ++j)
+              hq += H_full.Get(d + r, j) * dq(j, static_cast<int>(t));
+            d_reaction(r, owner[t]) -= gu[d + r] + hq;
+          }
+        }
+      }
       Charge(&timing_.jacobian, &t0);
     }
     int row = 0;
@@ -203,6 +230,19 @@ class CaseEvaluator {
         ApplyLoss(loss_, dim, rk, Jk, m);
       }
       row += obs->num_residuals();
+    }
+    if (!case_.grasp_forces.empty()) {
+      const Vec3 reaction = GraspReaction(*model, state);
+      for (const ForceMeasurement& f : case_.grasp_forces) {
+        double* rk = residuals + row;
+        for (int i = 0; i < 3; ++i) rk[i] = (reaction[i] - f.force[i]) / f.sigma;
+        double* Jk = jacobian ? jacobian + row * m : nullptr;
+        if (Jk)
+          for (int i = 0; i < 3; ++i)
+            for (int c = 0; c < m; ++c) Jk[i * m + c] = d_reaction(i, c) / f.sigma;
+        ApplyLoss(loss_, 3, rk, Jk, m);
+        row += 3;
+      }
     }
     Charge(&timing_.observation, &t0);
     for (int i = 0; i < num_residuals_; ++i)
@@ -352,8 +392,12 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     logp[k] = std::log(p.value);
   }
   int total_residuals = 0;
-  for (const FitCase& c : input.cases)
+  for (const FitCase& c : input.cases) {
     for (const auto& o : c.observations) total_residuals += o->num_residuals();
+    if (!c.grasp_forces.empty() && !c.load_case.grasp)
+      throw std::invalid_argument("case " + c.load_case.name + ": grasp forces without a grasp");
+    total_residuals += 3 * static_cast<int>(c.grasp_forces.size());
+  }
   if (total_residuals == 0) throw std::invalid_argument("cases: no observations to fit");
   if (total_residuals <= m)
     throw std::invalid_argument("cases: fewer residuals than fitted parameters");
@@ -578,8 +622,10 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   // Shapes and RMS per observation at the fitted parameters.
   for (size_t c = 0; c < evals.size(); ++c) {
     Mat3X shape;
-    VecX rr(std::max(1, evals[c]->num_residuals()));
-    if (!evals[c]->Evaluate(logp.data(), rr.data(), nullptr, &shape)) continue;
+    // Without the robust loss, so that the reported misfit is in measurement units.
+    const CaseEvaluator plain(input, static_cast<int>(c), fitted, nullptr);
+    VecX rr(std::max(1, plain.num_residuals()));
+    if (!plain.Evaluate(logp.data(), rr.data(), nullptr, &shape)) continue;
     result.shapes.push_back(shape);
     const FitCase& fc = input.cases[c];
     for (size_t o = 0; o < fc.observations.size(); ++o) {
@@ -589,6 +635,19 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       of.type = fc.observations[o]->type();
       of.num_measurements = fc.observations[o]->num_measurements();
       fc.observations[o]->RmsError(shape, &of.rms);
+      result.observations.push_back(of);
+    }
+    if (!fc.grasp_forces.empty()) {  // the force residuals close the case's residual vector
+      const int nf = static_cast<int>(fc.grasp_forces.size());
+      double sum = 0.0;
+      for (int f = 0; f < nf; ++f)
+        sum += (rr.segment<3>(rr.size() - 3 * nf + 3 * f) * fc.grasp_forces[f].sigma).squaredNorm();
+      ObservationFit of;
+      of.case_index = static_cast<int>(c);
+      of.label = fc.grasp_forces[0].label;
+      of.type = "grasp_force";
+      of.num_measurements = nf;
+      of.rms = std::sqrt(sum / nf);
       result.observations.push_back(of);
     }
   }

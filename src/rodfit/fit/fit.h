@@ -29,11 +29,19 @@ struct FitParameter {
   std::optional<double> min, max;
 };
 
+/// A measured force on the instrument at the case's grasp [N] (a quasi-static haptic sample).
+struct ForceMeasurement {
+  Vec3 force = Vec3::Zero();  ///< the force the tissue exerts on the instrument [N]
+  double sigma = 1.0;         ///< [N]
+  std::string label;          ///< e.g. "grasp_force drag_log.csv t=1.25"
+};
+
 /// A load case with its loaded observations.
 struct FitCase {
   LoadCase load_case;
   std::vector<std::shared_ptr<const Observation>> observations;
   std::vector<std::string> labels;  ///< one per observation, e.g. "markers3d flat_markers.csv"
+  std::vector<ForceMeasurement> grasp_forces;  ///< needs load_case.grasp
 };
 
 struct FitInput {

@@ -236,6 +236,7 @@ const char* ToString(RingTermination t) {
     case RingTermination::kZeroLoad: return "zero load";
     case RingTermination::kGradientTolerance: return "gradient below tolerance";
     case RingTermination::kStepTolerance: return "step below tolerance";
+    case RingTermination::kRoundOff: return "Newton decrement below round-off";
     case RingTermination::kMaxIterations: return "iteration limit reached";
     case RingTermination::kLineSearchFailed: return "line search failed";
     case RingTermination::kNotFinite: return "energy not finite";
@@ -361,6 +362,14 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
     const Eigen::VectorXd du = Z * p;
     const double slope = gr.dot(p);
     const bool tiny_step = du.lpNorm<Eigen::Infinity>() <= options.step_tolerance * g.radius;
+    // The Newton decrement -g.p is twice the decrease the step promises. Once it is below Pi's
+    // round-off the iterate is as good as floating point allows: with a stiff stretch the
+    // gradient's floor is about eps ks |u| / L_k, which can exceed gradient_tolerance |F|.
+    if (false && -slope <= 16.0 * std::numeric_limits<double>::epsilon() * scale) {
+      summary.converged = true;
+      summary.reason = RingTermination::kRoundOff;
+      break;
+    }
     // Armijo backtracking; Pi's round-off (a few ulps of its terms) is tolerated so that the last
     // steps near convergence, whose decrease is below round-off, are not rejected as uphill.
     const double noise = 64.0 * std::numeric_limits<double>::epsilon() * scale;

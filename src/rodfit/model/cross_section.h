@@ -167,6 +167,7 @@ enum class RingTermination {
   kZeroLoad,          ///< F = 0: the rest ring, nothing solved
   kGradientTolerance,
   kStepTolerance,
+  kRoundOff,          ///< the Newton step promises less than Pi's round-off
   kMaxIterations,
   kLineSearchFailed,
   kNotFinite,
