@@ -9,6 +9,7 @@
 #include <iostream>
 
 #include <CLI/CLI.hpp>
+#include <glog/logging.h>
 
 #include "commands.h"
 #include "rodfit/fit/fit.h"
@@ -51,6 +52,11 @@ int RunFit(int argc, char** argv) {
     return EXIT_FAILURE;
   }
 
+  // Ceres logs through glog; rodfit reports for itself, in one line (see below).
+  FLAGS_minloglevel = google::GLOG_FATAL;
+  FLAGS_stderrthreshold = google::GLOG_FATAL;
+  if (!google::IsGoogleLoggingInitialized()) google::InitGoogleLogging("rodfit");
+
   const rodfit::Experiment experiment = rodfit::LoadExperiment(experiment_path);
   const rodfit::FitInput input = rodfit::BuildFitInput(experiment);
   rodfit::FitOptions options;
@@ -81,10 +87,11 @@ int RunFit(int argc, char** argv) {
               << " (no profile written)\n";
     return EXIT_FAILURE;
   }
+  // The report first: if it cannot be written, no profile claims a finished run.
+  if (!report_dir.empty()) rodfit::WriteFitReport(report_dir, experiment, input, result);
   const std::filesystem::path parent = std::filesystem::path(profile_path).parent_path();
   if (!parent.empty()) rodfit::CreateDirectories(parent.string());
   rodfit::WriteProfile(profile_path, rodfit::ProfileJson(experiment, options, result));
-  if (!report_dir.empty()) rodfit::WriteFitReport(report_dir, experiment, input, result);
   if (!quiet) {
     for (const rodfit::ParameterEstimate& p : result.parameters) {
       if (!p.fitted) continue;

@@ -61,6 +61,9 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
     } else if (p.name == "spring_stiffness" || in.material.spring_parameters.count(p.name)) {
       f.spring = true;
       f.spring_zone_name = p.name == "spring_stiffness" ? "" : p.name;
+      if (in.springs.empty())
+        throw std::invalid_argument(p.name +
+                                    ": fitted, but the scene has no springs for it to act on");
       if (!ZonesUse(in, f.spring_zone_name))
         throw std::invalid_argument(p.name + ": fitted, but no spring zone uses it");
     } else {
@@ -631,6 +634,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     for (size_t o = 0; o < fc.observations.size(); ++o) {
       ObservationFit of;
       of.case_index = static_cast<int>(c);
+      of.case_name = fc.load_case.name;
       of.label = o < fc.labels.size() ? fc.labels[o] : fc.observations[o]->type();
       of.type = fc.observations[o]->type();
       of.num_measurements = fc.observations[o]->num_measurements();
@@ -644,6 +648,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
         sum += (rr.segment<3>(rr.size() - 3 * nf + 3 * f) * fc.grasp_forces[f].sigma).squaredNorm();
       ObservationFit of;
       of.case_index = static_cast<int>(c);
+      of.case_name = fc.load_case.name;
       of.label = fc.grasp_forces[0].label;
       of.type = "grasp_force";
       of.num_measurements = nf;

@@ -89,7 +89,8 @@ struct ParameterEstimate {
 };
 
 struct ObservationFit {
-  int case_index = 0;
+  int case_index = 0;            ///< into FitInput::cases
+  std::string case_name;
   std::string label;
   std::string type;
   int num_measurements = 0;

@@ -30,7 +30,7 @@ const std::vector<std::string> kParameterNames = {"bend_stiffness", "bend_stiffn
                                                   "twist_stiffness", "stretch_stiffness",
                                                   "spring_stiffness"};
 const std::vector<std::string> kObservationTypes = {"markers3d", "points3d", "image_points",
-                                                    "images"};
+                                                    "images", "grasp_force"};
 
 std::string Join(const std::vector<std::string>& words) {
   std::string out;
@@ -284,7 +284,7 @@ Clamp ReadClamp(const Reader& r, const Field& f) {
 
 ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex) {
   const std::vector<std::string> all = {"type",  "file",     "camera", "sigma", "s",
-                                        "count", "outliers", "blur",   "noise"};
+                                        "count", "outliers", "blur",   "noise", "max_speed"};
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
@@ -296,10 +296,13 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   }
   const bool image = o.type == "image_points" || o.type == "images";
   std::vector<std::string> allowed = {"type", "file", "sigma"};
+  const bool force = o.type == "grasp_force";
   if (image) allowed.push_back("camera");
   if (o.type != "points3d" && o.type != "images") allowed.push_back("s");
-  if (o.type != "images") allowed.insert(allowed.end(), {"count", "outliers"});
+  if (o.type != "images") allowed.push_back("count");
+  if (o.type != "images" && !force) allowed.push_back("outliers");
   if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise"});
+  if (force) allowed.push_back("max_speed");
   for (const auto& [name, field] : m) {
     if (!Contains(allowed, name)) {
       r.Fail(field.key_line, field.key,
@@ -312,6 +315,23 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   o.sigma = r.Positive(r.Require(m, f, "sigma"));
   const Field* s = Reader::Find(m, "s");
   const Field* count = Reader::Find(m, "count");
+  if (force) {  // one grasped arc length; count caps the quasi-static samples used
+    if (!s) r.Require(m, f, "s");
+    if (s->node.IsScalar()) {
+      const double v = r.InRange(*s, 0.0, ex.scene.rod.length);
+      if (v < 0.5 * ex.scene.rod.length / ex.scene.rod.segments)
+        r.Fail(*s, "the grasp is at the clamp (s rounds to vertex 0)");
+      o.s.push_back(v);
+    } else {
+      r.Fail(*s, "expected one arc length [m] (the grasped point)");
+    }
+    if (count) {
+      o.count = r.Integer(*count);
+      if (o.count < 1) r.Fail(*count, "must be >= 1, got " + std::to_string(o.count));
+    }
+    if (const Field* v = Reader::Find(m, "max_speed")) o.max_speed = r.Positive(*v);
+    return o;
+  }
   if (s && count) r.Fail(count->key_line, count->key, "give either s or count, not both");
   if (s) {
     const std::vector<Field> items = r.Sequence(*s);

@@ -28,7 +28,9 @@ struct ParameterSpec {
 ///   markers3d:    file, sigma [m],  s | count, outliers
 ///   points3d:     file, sigma [m],  count, outliers
 ///   image_points: file, sigma [px], camera, s | count, outliers
-///   images:       file, sigma [px], camera, blur, noise
+///   images:       file, sigma [px], camera
+///   grasp_force:  file (haptic log t,tool_x,tool_y,tool_z,fx,fy,fz), sigma [N], s (the grasped
+///                 arc length, one value), max_speed [m/s], count (quasi-static samples used), blur, noise
 struct ObservationSpec {
   std::string type;       ///< markers3d | points3d | image_points | images
   std::string file;       ///< data file (CSV or image), resolved against the YAML's folder
@@ -37,6 +39,8 @@ struct ObservationSpec {
   std::vector<double> s;  ///< [m] arc lengths of the markers to synthesize, in [0, L]
   int count = 0;          ///< number of markers / points to synthesize (0 = not given)
   double outliers = 0.0;  ///< fraction of synthesized samples made outliers, in [0, 1)
+  /// grasp_force: tool speed [m/s] below which a haptic sample counts as quasi-static.
+  double max_speed = 1e-3;
   double blur = 0.0;      ///< [px] `images`: Gaussian blur sigma of synthesized images, >= 0
   double noise = 0.0;     ///< [grey levels] `images`: pixel noise sigma of synthesized images
   int line = 0;           ///< 1-based line of the entry

@@ -22,6 +22,44 @@ void CheckArcLength(const CsvTable& t, int row, double s, double length) {
                          FormatDouble(length) + "]");
 }
 
+// A haptic log (t, tool position, force on the instrument): the samples where the tool is at
+// rest, i.e. its speed (central differences) is below max_speed, thinned evenly to `count`.
+struct HapticSample {
+  double t;
+  Vec3 tool, force;
+};
+
+std::vector<HapticSample> QuasiStaticSamples(const ObservationSpec& spec) {
+  const CsvTable t = CsvTable::Read(spec.file);
+  const auto time = t.Column("t"), x = t.Column("tool_x"), y = t.Column("tool_y"),
+             z = t.Column("tool_z"), fx = t.Column("fx"), fy = t.Column("fy"), fz = t.Column("fz");
+  const int n = t.num_rows();
+  if (n < 3) throw InputError(spec.file, 0, "", "a force log needs at least 3 samples");
+  for (int r = 1; r < n; ++r)
+    if (!(time[r] > time[r - 1]))
+      throw InputError(spec.file, t.line(r), "t",
+                       "time must increase strictly (" + FormatDouble(time[r]) + " after " +
+                           FormatDouble(time[r - 1]) + ")");
+  std::vector<HapticSample> still;
+  for (int r = 0; r < n; ++r) {
+    const int a = std::max(0, r - 1), b = std::min(n - 1, r + 1);
+    const Vec3 pa(x[a], y[a], z[a]), pb(x[b], y[b], z[b]);
+    const double speed = (pb - pa).norm() / (time[b] - time[a]);
+    if (speed < spec.max_speed) still.push_back({time[r], Vec3(x[r], y[r], z[r]), Vec3(fx[r], fy[r], fz[r])});
+  }
+  if (still.empty())
+    throw InputError(spec.file, 0, "max_speed",
+                     "no quasi-static sample: the tool never moves slower than " +
+                         FormatDouble(spec.max_speed) + " m/s");
+  if (spec.count > 0 && static_cast<int>(still.size()) > spec.count) {
+    std::vector<HapticSample> thinned;
+    for (int k = 0; k < spec.count; ++k)
+      thinned.push_back(still[(k * (still.size() - 1)) / std::max(1, spec.count - 1)]);
+    still = thinned;
+  }
+  return still;
+}
+
 std::string Label(const ObservationSpec& spec) {
   return spec.type + " " + std::filesystem::path(spec.file).filename().string();
 }
@@ -63,10 +101,24 @@ FitInput BuildFitInput(const Experiment& e) {
     if (it == cameras.end()) it = cameras.emplace(spec.camera, LoadCamera(spec.camera)).first;
     return it->second;
   };
+  // One grasped case per quasi-static haptic sample, appended after the experiment's cases so
+  // that input.cases[c] is the experiment's case c for c < its case count.
+  std::vector<FitCase> force_cases;
   for (size_t c = 0; c < e.scene.cases.size(); ++c) {
     FitCase fc;
     fc.load_case = e.scene.cases[c];
     for (const ObservationSpec& spec : e.cases[c].observations) {
+      if (spec.type == "grasp_force") {
+        for (const HapticSample& h : QuasiStaticSamples(spec)) {
+          FitCase gc;
+          gc.load_case = e.scene.cases[c];
+          gc.load_case.name += "@t=" + FormatDouble(h.t);
+          gc.load_case.grasp = Grasp{spec.s.at(0), h.tool};
+          gc.grasp_forces.push_back({h.force, spec.sigma, Label(spec) + " t=" + FormatDouble(h.t)});
+          force_cases.push_back(std::move(gc));
+        }
+        continue;
+      }
       std::shared_ptr<const Observation> obs;
       try {
         if (spec.type == "markers3d") {
@@ -121,6 +173,7 @@ FitInput BuildFitInput(const Experiment& e) {
     }
     in.cases.push_back(std::move(fc));
   }
+  for (FitCase& gc : force_cases) in.cases.push_back(std::move(gc));
   return in;
 }
 

@@ -33,8 +33,8 @@ void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput&
   std::vector<std::vector<double>> sigma_norms;  // per case
   for (const ObservationFit& o : result.observations) {
     const bool px = o.type == "image_points" || o.type == "images";
-    summary << e.scene.cases[o.case_index].name << "," << o.label << "," << o.type << ","
-            << o.num_measurements << "," << FormatDouble(o.rms) << "," << (px ? "px" : "m")
+    summary << o.case_name << "," << o.label << "," << o.type << "," << o.num_measurements << ","
+            << FormatDouble(o.rms) << "," << (o.type == "grasp_force" ? "N" : px ? "px" : "m")
             << "\n";
   }
   for (size_t c = 0; c < input.cases.size() && c < result.shapes.size(); ++c) {

@@ -102,12 +102,13 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   json rms = json::array();
   for (const ObservationFit& o : r.observations) {
     const bool pixels = o.type == "image_points" || o.type == "images";
-    rms.push_back({{"case", e.scene.cases[o.case_index].name},
+    const char* unit = o.type == "grasp_force" ? "N" : pixels ? "px" : "m";
+    rms.push_back({{"case", o.case_name},
                    {"observation", o.label},
                    {"type", o.type},
                    {"count", o.num_measurements},
                    {"rms", o.rms},
-                   {"unit", pixels ? "px" : "m"}});
+                   {"unit", unit}});
   }
   fit["rms"] = rms;
   // Digest of every input file: the experiment, the data files and the cameras.
