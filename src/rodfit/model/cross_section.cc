@@ -310,7 +310,9 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
     return elastic - work;
   };
 
-  if (force_norm == 0.0 && !warm_start) {
+  // F = 0: the rest ring is the solution (U >= 0 vanishes only on rigid motions, which the
+  // constraints remove), whatever the warm start.
+  if (force_norm == 0.0) {
     summary.converged = true;
     summary.reason = RingTermination::kZeroLoad;
     summary.stable = true;
@@ -326,8 +328,7 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
   Eigen::MatrixXd hess;
   double scale = 0.0;
   double pi = potential(u, &grad, &hess, &scale);
-  bool done = false;
-  for (int it = 0; !done; ++it) {
+  for (int it = 0;; ++it) {
     if (!std::isfinite(pi) || !grad.allFinite()) {
       summary.reason = RingTermination::kNotFinite;
       break;
@@ -361,13 +362,19 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
     const Eigen::VectorXd p = -llt.solve(gr);
     const Eigen::VectorXd du = Z * p;
     const double slope = gr.dot(p);
-    const bool tiny_step = du.lpNorm<Eigen::Infinity>() <= options.step_tolerance * g.radius;
-    // The Newton decrement -g.p is twice the decrease the step promises. Once it is below Pi's
-    // round-off the iterate is as good as floating point allows: with a stiff stretch the
-    // gradient's floor is about eps ks |u| / L_k, which can exceed gradient_tolerance |F|.
-    if (false && -slope <= 16.0 * std::numeric_limits<double>::epsilon() * scale) {
+    // Converged once the Newton step is negligible: relative to the displacement, or promising
+    // less than Pi's round-off (the decrement -g.p is twice the promised decrease). The gradient
+    // alone cannot tell: its round-off floor (cancellation in the turning angle, eps ks |u| / L_k
+    // in the stretch) can exceed gradient_tolerance |F|. The tiny step is taken, not discarded.
+    const bool tiny_step = du.lpNorm<Eigen::Infinity>() <= options.step_tolerance * u.lpNorm<Eigen::Infinity>();
+    const bool round_off = -slope <= 16.0 * std::numeric_limits<double>::epsilon() * scale;
+    if (tiny_step || round_off) {
+      u += du;
+      pi = potential(u, &grad, &hess, &scale);
+      ++summary.iterations;
       summary.converged = true;
-      summary.reason = RingTermination::kRoundOff;
+      summary.reason = tiny_step ? RingTermination::kStepTolerance : RingTermination::kRoundOff;
+      summary.gradient_norm = (Z.transpose() * grad).lpNorm<Eigen::Infinity>();
       break;
     }
     // Armijo backtracking; Pi's round-off (a few ulps of its terms) is tolerated so that the last
@@ -392,12 +399,6 @@ RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
     }
     u = u_try;
     pi = potential(u, &grad, &hess, &scale);
-    if (tiny_step && alpha == 1.0) {
-      summary.converged = true;
-      summary.reason = RingTermination::kStepTolerance;
-      summary.gradient_norm = (Z.transpose() * grad).lpNorm<Eigen::Infinity>();
-      done = true;
-    }
   }
 
   summary.energy = pi;

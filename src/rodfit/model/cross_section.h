@@ -156,15 +156,17 @@ struct RingSolveOptions {
   int max_line_search_steps = 40;     ///< step halvings per iteration
   /// Converged when the constrained gradient's infinity norm is below this times |F| [-].
   double gradient_tolerance = 1e-10;
-  /// ... or when a full Newton step moves no node more than this times R [-] (the gradient's
-  /// round-off floor, about 1e-16 (ks + kb / R^2), can exceed 1e-10 |F| for a stiff ring).
-  double step_tolerance = 1e-13;
+  /// ... or when the Newton step changes no displacement by more than this times the largest
+  /// displacement (the step is then taken) [-]: the gradient's round-off floor (about eps ks |u|
+  /// / L_k from the stretch, more from cancellation in the turning angle of a fine ring) can
+  /// exceed gradient_tolerance |F|. A step promising less than Pi's round-off also ends the solve.
+  double step_tolerance = 1e-10;
   bool compute_sensitivities = true;  ///< fill the d_nodes_d_* fields of RingResult
   bool Check(std::string* why) const;
 };
 
 enum class RingTermination {
-  kZeroLoad,          ///< F = 0: the rest ring, nothing solved
+  kZeroLoad,          ///< F = 0: the rest ring, nothing solved (also with a warm start)
   kGradientTolerance,
   kStepTolerance,
   kRoundOff,          ///< the Newton step promises less than Pi's round-off
@@ -209,7 +211,7 @@ struct RingResult {
 /// Statics of the ring under the in-plane force F (section coordinates [N]): Newton on the
 /// constrained coordinates with a dense Cholesky (N is small), a diagonal shift when the
 /// reduced Hessian is indefinite, Armijo backtracking on Pi and an iteration cap. `warm_start`
-/// (2 x N, section coordinates) is projected onto the constraints first. Throws
+/// (node positions, 2 x N, section coordinates) is projected onto the constraints first. Throws
 /// std::invalid_argument for an invalid spec, stiffness or options.
 RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
                      const Eigen::Vector2d& force_in_plane, const RingSolveOptions& options = {},
