@@ -19,6 +19,7 @@
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/io/synth.h"
 #include "rodfit/model/rod.h"
+#include "rodfit/solve/poke.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 #include "rodfit/vision/camera_file.h"
@@ -48,8 +49,8 @@ int Parse(CLI::App& app, int argc, char** argv) {
 int RunSimulate(int argc, char** argv) {
   CLI::App app(
       "Solve every load case of a scene to static equilibrium and write "
-      "DIR/shapes.csv (case,vertex,s,x,y,z), and DIR/forces.csv (case,fx,fy,fz) for grasped "
-      "cases.",
+      "DIR/shapes.csv (case,vertex,s,x,y,z); DIR/forces.csv (case,fx,fy,fz) for grasped cases; "
+      "DIR/sections.csv (case,node,x0,y0,z0,x,y,z) and DIR/CASE.obj for poked cases.",
       "rodfit simulate");
   std::string scene_path, output_dir;
   app.add_option("scene", scene_path, "scene YAML (DESIGN.md §6)")->required();
@@ -60,6 +61,8 @@ int RunSimulate(int argc, char** argv) {
   const rodfit::Scene& scene = experiment.scene;
   std::vector<rodfit::CaseShape> shapes;
   std::vector<rodfit::CaseForce> forces;
+  std::vector<rodfit::CaseSection> sections;
+  std::vector<std::pair<std::string, std::string>> meshes;  // case name, OBJ text
   for (const rodfit::LoadCase& load_case : scene.cases) {
     rodfit::RodModel model(scene.rod, scene.material, scene.gravity, load_case, scene.springs);
     rodfit::RodState state = model.StraightState();
@@ -76,12 +79,32 @@ int RunSimulate(int argc, char** argv) {
     for (int i = 0; i < model.num_vertices(); ++i) shape.s.push_back(model.arc_length(i));
     shapes.push_back(shape);
     if (load_case.grasp) forces.push_back({load_case.name, rodfit::GraspReaction(model, state)});
+    if (load_case.poke) {
+      const rodfit::SectionSpec& section = *scene.section;  // the reader requires it
+      const rodfit::PokeResult poke = rodfit::SolvePoke(
+          model, state, section,
+          {scene.material.ring_bend_stiffness, scene.material.ring_stretch_stiffness});
+      if (!poke.ring.summary.IsUsable()) {
+        std::cerr << "rodfit simulate: case " << load_case.name
+                  << ": cross-section: " << OneLine(poke.ring.summary.BriefReport()) << "\n";
+        return EXIT_FAILURE;
+      }
+      sections.push_back({load_case.name, poke.rest_world, poke.deformed_world});
+      meshes.emplace_back(load_case.name,
+                          rodfit::FormatObj(rodfit::PokedTube(model, state, section, poke)));
+    }
   }
   // Only after every case has converged, so a failed run leaves nothing behind.
   rodfit::CreateDirectories(output_dir);
   rodfit::WriteShapesCsv((std::filesystem::path(output_dir) / "shapes.csv").string(), shapes);
   if (!forces.empty())
     rodfit::WriteForcesCsv((std::filesystem::path(output_dir) / "forces.csv").string(), forces);
+  if (!sections.empty())
+    rodfit::WriteSectionsCsv((std::filesystem::path(output_dir) / "sections.csv").string(),
+                             sections);
+  for (const auto& [name, obj] : meshes)
+    rodfit::WriteFileAtomically((std::filesystem::path(output_dir) / (name + ".obj")).string(),
+                                obj);
   return EXIT_SUCCESS;
 }
 

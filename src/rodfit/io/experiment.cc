@@ -26,9 +26,9 @@ namespace fs = std::filesystem;
 constexpr double kMinClampSine = 1e-3;
 constexpr int kMaxSegments = 1000000;  // far beyond any thread; guards against typos like 5e7
 
-const std::vector<std::string> kParameterNames = {"bend_stiffness", "bend_stiffness_2",
-                                                  "twist_stiffness", "stretch_stiffness",
-                                                  "spring_stiffness"};
+const std::vector<std::string> kParameterNames = {
+    "bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",       "stretch_stiffness",
+    "spring_stiffness", "ring_bend_stiffness", "ring_stretch_stiffness"};
 const std::vector<std::string> kObservationTypes = {"markers3d", "points3d", "image_points",
                                                     "images", "grasp_force"};
 
@@ -262,6 +262,12 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
   if (ex->parameters.count("spring_stiffness")) {
     mat.spring_stiffness = ex->parameters.at("spring_stiffness").value;
   }
+  if (ex->scene.section) {  // the cross-section ring's stiffness (tissue paper §4)
+    r.Require(m, f, "ring_bend_stiffness");
+    r.Require(m, f, "ring_stretch_stiffness");
+    mat.ring_bend_stiffness = ex->parameters.at("ring_bend_stiffness").value;
+    mat.ring_stretch_stiffness = ex->parameters.at("ring_stretch_stiffness").value;
+  }
 }
 
 Clamp ReadClamp(const Reader& r, const Field& f) {
@@ -363,6 +369,21 @@ Interval ReadInterval(const Reader& r, const Field& f, double length, const Entr
   return iv;
 }
 
+// Top-level `section:` (tissue paper §4): the cross-section ring used by pokes.
+SectionSpec ReadSection(const Reader& r, const Field& f) {
+  const Entries m = r.Map(f, {"radius", "nodes", "h_factor", "stop_factor"});
+  SectionSpec spec;
+  spec.radius = r.Positive(r.Require(m, f, "radius"));
+  if (const Field* n = Reader::Find(m, "nodes")) {
+    spec.nodes = r.Integer(*n);
+    if (spec.nodes < 8 || spec.nodes > 4096)
+      r.Fail(*n, "must be in [8, 4096], got " + std::to_string(spec.nodes));
+  }
+  if (const Field* h = Reader::Find(m, "h_factor")) spec.h_factor = r.Positive(*h);
+  if (const Field* st = Reader::Find(m, "stop_factor")) spec.stop_factor = r.Positive(*st);
+  return spec;
+}
+
 // Top-level `springs:` (issue 5): attachment zones, each with spring_stiffness or its own
 // parameter. Returns the zone parameters' names (they become allowed parameter keys).
 std::vector<std::string> ReadSprings(const Reader& r, const Field& f, Experiment* ex) {
@@ -397,7 +418,7 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
               std::map<std::string, int>* name_lines) {
   const Entries m =
       r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "point_forces", "cut", "grasp",
-                "observations"});
+                "poke", "observations"});
   LoadCase c;
   c.name = "case" + std::to_string(index);
   if (const Field* name = Reader::Find(m, "name")) {
@@ -446,6 +467,14 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     }
     g.position = r.Vector3(r.Require(gm, *grasp, "position"));
     c.grasp = g;
+  }
+  if (const Field* poke = Reader::Find(m, "poke")) {
+    if (!ex->scene.section) r.Fail(*poke, "a poke needs the cross-section model (top-level section:)");
+    const Entries pm = r.Map(*poke, {"s", "force"});
+    Poke p;
+    p.s = r.InRange(r.Require(pm, *poke, "s"), 0.0, ex->scene.rod.length);
+    p.force = r.Vector3(r.Require(pm, *poke, "force"));
+    c.poke = p;
   }
   CaseSpec spec;
   spec.line = f.line;
@@ -517,8 +546,10 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
   ex.path = path;
   ex.directory = fs::path(path).parent_path().string();
   const Field top{root, "", 1, 0};
-  const Entries m = r.Map(top, {"rod", "parameters", "gravity", "springs", "cases", "fit"});
+  const Entries m =
+      r.Map(top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit"});
   ex.scene.rod = ReadRod(r, r.Require(m, top, "rod"));
+  if (const Field* section = Reader::Find(m, "section")) ex.scene.section = ReadSection(r, *section);
   std::vector<std::string> zone_parameters;
   if (const Field* springs = Reader::Find(m, "springs")) {
     zone_parameters = ReadSprings(r, *springs, &ex);

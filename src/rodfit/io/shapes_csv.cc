@@ -75,4 +75,20 @@ void WriteForcesCsv(const std::string& path, const std::vector<CaseForce>& force
   WriteFileAtomically(path, FormatForcesCsv(forces));
 }
 
+std::string FormatSectionsCsv(const std::vector<CaseSection>& sections) {
+  std::string out = "case,node,x0,y0,z0,x,y,z\n";
+  for (const CaseSection& c : sections)
+    for (int k = 0; k < c.rest.cols(); ++k) {
+      out += c.name + "," + std::to_string(k);
+      for (int i = 0; i < 3; ++i) out += "," + FormatDouble(c.rest(i, k));
+      for (int i = 0; i < 3; ++i) out += "," + FormatDouble(c.deformed(i, k));
+      out += "\n";
+    }
+  return out;
+}
+
+void WriteSectionsCsv(const std::string& path, const std::vector<CaseSection>& sections) {
+  WriteFileAtomically(path, FormatSectionsCsv(sections));
+}
+
 }  // namespace rodfit

@@ -28,6 +28,14 @@ struct CaseForce {
 std::string FormatForcesCsv(const std::vector<CaseForce>& forces);
 void WriteForcesCsv(const std::string& path, const std::vector<CaseForce>& forces);
 
+/// `case,node,x0,y0,z0,x,y,z`: a poked case's cross-section ring, rest and deformed [m].
+struct CaseSection {
+  std::string name;
+  Eigen::Matrix3Xd rest, deformed;
+};
+std::string FormatSectionsCsv(const std::vector<CaseSection>& sections);
+void WriteSectionsCsv(const std::string& path, const std::vector<CaseSection>& sections);
+
 /// Writes FormatShapesCsv(shapes) to path atomically (see WriteFileAtomically).
 void WriteShapesCsv(const std::string& path, const std::vector<CaseShape>& shapes);
 

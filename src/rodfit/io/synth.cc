@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -20,6 +21,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
+#include "rodfit/solve/rod_energy.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/render.h"
 
@@ -160,6 +162,7 @@ struct EntryContext {
   std::string key;           // cases[c].observations[o]
   std::string camera_label;  // the camera file as written in messages
   Random* random;
+  int case_index;            // the entry's case in experiment->scene.cases
 
   [[noreturn]] void Fail(const std::string& message) const {
     throw InputError(experiment->path, spec->line, key, message);
@@ -350,6 +353,112 @@ std::string SynthImage(const EntryContext& ctx, const std::string& file, std::st
   return std::string(png.begin(), png.end());
 }
 
+// Solves `load_case` with its grasp moved to `position` from the straight state (as `simulate`
+// and `fit` solve a grasped case) and returns the force on the instrument.
+Eigen::Vector3d ReactionAt(const EntryContext& ctx, const LoadCase& load_case,
+                           const Eigen::Vector3d& position, const std::string& where) {
+  const Scene& scene = ctx.experiment->scene;
+  LoadCase moved = load_case;
+  moved.grasp = Grasp{ctx.spec->s.at(0), position};
+  try {
+    const RodModel model(scene.rod, scene.material, scene.gravity, moved, scene.springs);
+    RodState state = model.StraightState();
+    const StaticsSummary summary = SolveStatics(model, ctx.options->statics, &state);
+    if (!summary.converged) {
+      ctx.Fail("case " + ctx.CaseName() + ": the grasp " + where + " does not converge: " +
+               summary.reason);
+    }
+    return GraspReaction(model, state);
+  } catch (const std::invalid_argument& e) {
+    ctx.Fail("case " + ctx.CaseName() + ": the grasp " + where + ": " + e.what());
+  }
+}
+
+// Numbers in messages as a person would type them (not FormatDouble's round-trip digits).
+std::string Show(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.10g", v);
+  return buffer;
+}
+
+std::string FormatPoint(const Eigen::Vector3d& p) {
+  return "[" + Show(p.x()) + ", " + Show(p.y()) + ", " + Show(p.z()) + "]";
+}
+
+// A haptic log of the instrument dragging the grasped point from its rest position to the
+// case's grasp.position in steps, dwelling at each (the schedule is SynthOptions' comment).
+std::string SynthGraspForce(const EntryContext& ctx, const std::string& file, std::string* report) {
+  // A log longer than this is a mistake in max_speed or the rate, not a protocol (~100 MB).
+  constexpr double kMaxRows = 1e6;
+  const Scene& scene = ctx.experiment->scene;
+  const SynthOptions& options = *ctx.options;
+  const ObservationSpec& spec = *ctx.spec;
+  const LoadCase& load_case = scene.cases[ctx.case_index];
+  if (!load_case.grasp) {
+    ctx.Fail("case " + ctx.CaseName() + " has no grasp: a grasp_force log drags s to the case's "
+             "grasp.position (add grasp: {s, position} to the case)");
+  }
+  const double s = spec.s.at(0);
+  const double edge = scene.rod.length / scene.rod.segments;
+  const long vertex = std::lround(s / edge), grasped = std::lround(load_case.grasp->s / edge);
+  if (vertex != grasped) {
+    ctx.Fail("s = " + Show(s) + " grasps vertex " + std::to_string(vertex) +
+             ", but the case's grasp.s = " + Show(load_case.grasp->s) + " grasps vertex " +
+             std::to_string(grasped) + ": the log must be of the case's grasp");
+  }
+  const int steps = spec.count > 0 ? spec.count : options.haptic_default_steps;
+  const double dt = 1.0 / options.haptic_rate;
+  const int dwell = static_cast<int>(std::lround(options.haptic_dwell_time * options.haptic_rate));
+  const Eigen::Vector3d start =
+      load_case.clamp.position + s * load_case.clamp.tangent.normalized();
+  const Eigen::Vector3d end = load_case.grasp->position;
+  const double move_speed = options.haptic_move_speed_factor * spec.max_speed;  // [m/s]
+  const double intervals_real = std::ceil((end - start).norm() / steps / (move_speed * dt));
+  const double rows_real = 1.0 + steps * (std::max(2.0, intervals_real) - 1.0 + dwell);
+  if (!(rows_real <= kMaxRows)) {
+    ctx.Fail("the log would have " + Show(std::round(rows_real)) + " samples (more than " +
+             Show(kMaxRows) + "): raise max_speed or lower count");
+  }
+  const int intervals = std::max(2, static_cast<int>(intervals_real));
+
+  // The tool's stops P_0..P_N and the forces there.
+  std::vector<Eigen::Vector3d> stop(steps + 1), force(steps + 1);
+  for (int k = 0; k <= steps; ++k) {
+    stop[k] = k == steps ? end : Eigen::Vector3d(start + (double(k) / steps) * (end - start));
+    force[k] = ReactionAt(ctx, load_case, stop[k],
+                          "at step " + std::to_string(k) + " of " + std::to_string(steps) +
+                              " (tool at " + FormatPoint(stop[k]) + ")");
+  }
+
+  std::vector<HapticLogRow> rows;
+  rows.reserve(static_cast<size_t>(rows_real));
+  auto add = [&](const Eigen::Vector3d& tool, const Eigen::Vector3d& f) {
+    rows.push_back({static_cast<double>(rows.size()) / options.haptic_rate, tool, f});
+  };
+  add(stop[0], force[0]);
+  for (int k = 1; k <= steps; ++k) {
+    for (int j = 1; j < intervals; ++j) {  // the move: not quasi-static, forces interpolated
+      const double f = static_cast<double>(j) / intervals;
+      add(stop[k - 1] + f * (stop[k] - stop[k - 1]), force[k - 1] + f * (force[k] - force[k - 1]));
+    }
+    for (int d = 0; d < dwell; ++d) add(stop[k], force[k]);
+  }
+  if (options.add_noise) {
+    const double tool_sigma = options.haptic_tool_noise_factor * spec.max_speed * dt;  // [m]
+    for (HapticLogRow& row : rows) {
+      for (int d = 0; d < 3; ++d) row.tool(d) += tool_sigma * ctx.random->Normal();
+      for (int d = 0; d < 3; ++d) row.force(d) += spec.sigma * ctx.random->Normal();
+    }
+  }
+  char speed[32];
+  std::snprintf(speed, sizeof(speed), "%.3g", (end - start).norm() / steps / (intervals * dt));
+  *report = "case " + ctx.shape->name + ": " + file + ": grasp_force, " +
+            std::to_string(rows.size()) + " samples, " + std::to_string(steps) + " dwells of " +
+            std::to_string(dwell) + " at " + Show(options.haptic_rate) +
+            " Hz, moves at " + speed + " m/s";
+  return FormatHapticLogCsv(rows);
+}
+
 // Solves one case to equilibrium from the straight state.
 CaseShape SolveCase(const Experiment& ex, int c, const StaticsOptions& statics) {
   const LoadCase& load_case = ex.scene.cases[c];
@@ -386,6 +495,24 @@ bool SynthOptions::Check(std::string* why) const {
     if (why) *why = "outlier_box_margin must be finite and >= 0";
     return false;
   }
+  auto fail = [why](const std::string& message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (!(haptic_rate > 0.0) || !std::isfinite(haptic_rate)) {
+    return fail("haptic_rate must be finite and > 0");
+  }
+  if (!(haptic_dwell_time * haptic_rate >= 2.5) || !std::isfinite(haptic_dwell_time)) {
+    // A dwell needs a sample whose neighbours are both still for the central difference.
+    return fail("haptic_dwell_time must be finite and hold at least 3 samples");
+  }
+  if (!(haptic_move_speed_factor > 2.0) || !std::isfinite(haptic_move_speed_factor)) {
+    return fail("haptic_move_speed_factor must be finite and > 2");
+  }
+  if (!(haptic_tool_noise_factor >= 0.0 && haptic_tool_noise_factor <= 0.2)) {
+    return fail("haptic_tool_noise_factor must be in [0, 0.2]");
+  }
+  if (haptic_default_steps < 1) return fail("haptic_default_steps must be >= 1");
   return statics.Check(why);
 }
 
@@ -416,6 +543,17 @@ std::string FormatMarkersCsv(const std::vector<double>& s, const std::vector<Eig
   for (size_t k = 0; k < p.size(); ++k) {
     out += FormatDouble(s[k]) + "," + FormatDouble(p[k].x()) + "," + FormatDouble(p[k].y()) +
            "," + FormatDouble(p[k].z()) + "\n";
+  }
+  return out;
+}
+
+std::string FormatHapticLogCsv(const std::vector<HapticLogRow>& rows) {
+  std::string out = "t,tool_x,tool_y,tool_z,fx,fy,fz\n";
+  for (const HapticLogRow& r : rows) {
+    out += FormatDouble(r.t);
+    for (int d = 0; d < 3; ++d) out += "," + FormatDouble(r.tool(d));
+    for (int d = 0; d < 3; ++d) out += "," + FormatDouble(r.force(d));
+    out += "\n";
   }
   return out;
 }
@@ -552,7 +690,7 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
       EntryContext ctx{&ex,  &options, &bundle.truth[c],
                        &spec, spec.camera.empty() ? nullptr : &cameras.at(spec.camera),
                        EntryKey(static_cast<int>(c), static_cast<int>(o)),
-                       spec.camera, &random};
+                       spec.camera, &random, static_cast<int>(c)};
       std::string report, contents;
       if (spec.type == "markers3d" || spec.type == "points3d") {
         contents = Synth3d(ctx, file, &report);
@@ -560,6 +698,8 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
         contents = SynthImagePoints(ctx, file, &report);
       } else if (spec.type == "images") {
         contents = SynthImage(ctx, file, &report);
+      } else if (spec.type == "grasp_force") {
+        contents = SynthGraspForce(ctx, file, &report);
       } else {
         ctx.Fail("synth cannot make observations of type " + spec.type);
       }

@@ -3,8 +3,10 @@
 // every case gets the file it names: `markers3d` (s,x,y,z at the entry's `s` or `count` arc
 // lengths), `points3d` (x,y,z centre-line samples), `image_points` (s,u,v at given arc lengths, or
 // u,v evenly spaced along the projected centre-line) and `images` (a PNG of the tube of the rod's
-// radius as the camera sees it, RenderThreadImage). Gaussian noise of the entry's `sigma` [m or
-// px] and a fraction `outliers` of uniformly random points complete the measurement model. Beside
+// radius as the camera sees it, RenderThreadImage) and `grasp_force` (a haptic log of an
+// instrument dragging the grasped point in steps, see SynthOptions). Gaussian noise of the entry's
+// `sigma` [m, px or N] and a fraction `outliers` of uniformly random points complete the
+// measurement model. Beside
 // them go DIR/experiment.yaml (the experiment re-emitted with every path relative to DIR, camera
 // files copied in, so DIR is self-contained) and DIR/truth.json (the parameters and the solved
 // vertices). Randomness is std::mt19937 seeded per entry from the run's seed and the entry's
@@ -35,6 +37,32 @@ struct SynthOptions {
   double outlier_box_margin = 0.1;
   /// false: no Gaussian noise, no outliers, no pixel noise (exact samples; images keep `blur`).
   bool add_noise = true;
+
+  /// `grasp_force` haptic logs. The instrument holds the entry's grasped point s and drags it
+  /// from its rest position P_0 = clamp position + s * unit clamp tangent (the straight rest
+  /// rod) to the case's grasp.position P_N in N = the entry's `count` (default 8) equal steps
+  /// P_k = P_0 + k/N (P_N - P_0). The log starts at t = 0 with the tool at P_0 and moves at once;
+  /// each step is a move to P_k at haptic_move_speed_factor * max_speed (at least two sample
+  /// intervals, so a step shorter than 2 * that speed / rate moves more slowly), then a dwell of
+  /// haptic_dwell_time with the tool still at P_k, the move's arrival sample being the dwell's
+  /// first. Forces: at P_0 and during dwells the solved GraspReaction at P_k (each P_k solved
+  /// from the straight state, as `simulate` and `fit` do); during moves linear between the two
+  /// neighbouring P_k; Gaussian noise of the entry's sigma on every force component. Tool
+  /// positions get Gaussian noise of haptic_tool_noise_factor * max_speed / rate per coordinate
+  /// (0.5 um at the defaults), so that the speed the fit estimates for a still tool (central
+  /// differences) is about 0.1 max_speed: realistic, yet above max_speed with probability below
+  /// 1e-10 per sample (that for the log's last sample, whose difference is one-sided; far less
+  /// elsewhere), while the moves stay well above it. The first and last sample of a dwell border
+  /// a move, which the central difference sees (about half the move speed): the fit drops them
+  /// with the moves, so each dwell of D = haptic_dwell_time * rate samples gives D - 2
+  /// quasi-static samples (the final dwell D - 1). Rows: 1 + N (M - 1 + D), M the intervals of
+  /// a move; more than 1e6 is an error.
+  double haptic_rate = 200.0;              ///< [Hz] log sample rate
+  double haptic_dwell_time = 0.5;          ///< [s] tool still at each step, >= 3 samples
+  double haptic_move_speed_factor = 20.0;  ///< move speed / max_speed, > 2
+  double haptic_tool_noise_factor = 0.1;   ///< tool noise sigma / (max_speed / rate), in [0, 0.2]
+  int haptic_default_steps = 8;            ///< steps when the entry gives no `count`, >= 1
+
   bool Check(std::string* why) const;
 };
 
@@ -54,7 +82,10 @@ struct SynthBundle {
 /// `count` (default: segments + 1) arc lengths evenly spaced over [0, L]; image_points with `s`
 /// at those markers (s,u,v), else `count` (default: segments + 1) points evenly spaced along the
 /// projected centre-line, both ends included (u,v). Image samples whose true or noisy pixel is
-/// off the sensor are dropped.
+/// off the sensor are dropped. grasp_force: `t,tool_x,tool_y,tool_z,fx,fy,fz` as SynthOptions
+/// describes (fx.. the force the tissue exerts on the instrument [N]).
+/// grasp_force also throws InputError for a case without a grasp, an entry whose s grasps
+/// another vertex than the case's grasp.s, and a step whose grasp does not converge.
 /// Throws InputError (naming the experiment file, the entry's line and key) for a case that does
 /// not converge, an unreadable camera file, a camera that sees nothing of the rod, two entries
 /// writing the same file, or an `images` file not ending in .png. Nothing is written.
@@ -88,6 +119,14 @@ std::string FormatTruthJson(const Experiment& experiment, const std::vector<Case
 /// Observation CSV text with DESIGN.md §6 columns, numbers at round-trip precision.
 std::string FormatMarkersCsv(const std::vector<double>& s, const std::vector<Eigen::Vector3d>& p);
 std::string FormatPoints3dCsv(const std::vector<Eigen::Vector3d>& p);
+/// One row of a haptic log: time, instrument position, force the tissue exerts on it.
+struct HapticLogRow {
+  double t = 0.0;                                    ///< [s]
+  Eigen::Vector3d tool = Eigen::Vector3d::Zero();    ///< [m]
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();   ///< [N]
+};
+/// `t,tool_x,tool_y,tool_z,fx,fy,fz`, the columns `grasp_force` reads.
+std::string FormatHapticLogCsv(const std::vector<HapticLogRow>& rows);
 /// `s,u,v` when s is given (same size as uv), else `u,v`.
 std::string FormatImagePointsCsv(const std::vector<Eigen::Vector2d>& uv,
                                  const std::vector<double>* s = nullptr);

@@ -139,6 +139,16 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     grasp_position_ = g.position;
   }
 
+  if (load_case.poke) {  // the poke's force acts on the rod like a point force at s
+    const Poke& pk = *load_case.poke;
+    Require(std::isfinite(pk.s) && pk.s >= 0 && pk.s <= length_ && Finite(pk.force),
+            "poke s must lie in [0, length] and its force be finite");
+    const double u = pk.s / l;
+    const int k = std::min(static_cast<int>(std::floor(u)), n_ - 1);
+    vertex_forces_.col(k) += (1.0 - (u - k)) * pk.force;
+    vertex_forces_.col(k + 1) += (u - k) * pk.force;
+    point_force_sum += pk.force.norm();
+  }
   const double weight = rod.linear_density * length_ * gravity_.norm();
   force_scale_ = std::max({weight, load_case.tip_force.norm(), load_case.tip_moment.norm() / length_,
                            point_force_sum, material.B1() / (length_ * length_),

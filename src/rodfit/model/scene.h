@@ -9,6 +9,8 @@
 
 #include <Eigen/Core>
 
+#include "rodfit/model/cross_section.h"
+
 namespace rodfit {
 
 using Vec3 = Eigen::Vector3d;
@@ -33,6 +35,8 @@ struct Material {
   double spring_stiffness = 0.0;               ///< K [N/m^2] of the tissue springs
   /// Stiffness [N/m^2] of spring zones that have a parameter of their own, by parameter name.
   std::map<std::string, double> spring_parameters;
+  double ring_bend_stiffness = 0.0;     ///< kb [N m^2] of the cross-section ring (tissue §4)
+  double ring_stretch_stiffness = 0.0;  ///< ks [N] of the cross-section ring
 
   double B1() const { return bend_stiffness; }
   double B2() const { return bend_stiffness_2 ? *bend_stiffness_2 : bend_stiffness; }
@@ -64,6 +68,13 @@ struct Grasp {
   Vec3 position = Vec3::Zero();  ///< [m]
 };
 
+/// An instrument pushing the tissue at arc length s: the force acts on the rod (a point force)
+/// and, in the section plane, on the cross-section ring (DESIGN.md §1, tissue paper §4).
+struct Poke {
+  double s = 0.0;              ///< [m]
+  Vec3 force = Vec3::Zero();   ///< [N]
+};
+
 /// A dead force applied at arc length s (linearly shared by the two vertices around s).
 struct PointForce {
   double s = 0.0;              ///< [m], in [0, L]
@@ -79,6 +90,7 @@ struct LoadCase {
   std::vector<PointForce> point_forces;
   std::vector<Interval> cuts;    ///< springs removed here: tissue cut free (K = 0)
   std::optional<Grasp> grasp;    ///< an instrument holding the rod
+  std::optional<Poke> poke;      ///< an instrument pushing the tissue (needs Scene::section)
 };
 
 /// A whole scene: one rod and material shared by every case.
@@ -87,6 +99,7 @@ struct Scene {
   Material material;
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s^2]
   std::vector<SpringZone> springs;        ///< attachment zones shared by every case
+  std::optional<SectionSpec> section;     ///< the cross-section model, for pokes
   std::vector<LoadCase> cases;
 };
 
