@@ -9,7 +9,10 @@
 // up to more than 1 and the remainder can be negative.
 // Target: the 4-case recipe (50 segments, 2 parameters, 40 markers) in <= 0.1 s on one core.
 // Run: build/bench_fit [--benchmark_filter=...]; Release build.
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>

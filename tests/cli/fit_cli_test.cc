@@ -37,15 +37,13 @@ const std::string kSource = RODFIT_SOURCE_DIR;
 const std::string kCameras = kSource + "/tests/data/synth/";
 const std::string kRecipe = kSource + "/calibration/suture_cantilever/";
 
-const std::vector<std::string> kAllParameters = {"bend_stiffness", "bend_stiffness_2",
-                                                 "twist_stiffness", "stretch_stiffness"};
-
 // A braided suture (the recipe's material, 30 segments to keep the test quick) sagging in two
 // clamp rolls, so that gravity bends it about d2 (`flat`) and about d1 (`rolled`): both bending
 // stiffnesses act. Each case has 3-D markers and marker pixels in one or both cameras. START1 and
 // START2 are replaced by the values of bend_stiffness and bend_stiffness_2: the truth for synth,
 // the start for fit.
-const char* const kExperiment = R"(rod: {length: 0.2, segments: 30, radius: 2.5e-4, linear_density: 2.24e-4}
+const char* const kExperiment =
+    R"(rod: {length: 0.2, segments: 30, radius: 2.5e-4, linear_density: 2.24e-4}
 parameters:
   bend_stiffness: {value: START1, fit: true, min: 1.0e-8, max: 1.0e-3}
   bend_stiffness_2: {value: START2, fit: true, min: 1.0e-8, max: 1.0e-3}
@@ -130,7 +128,8 @@ class FitCliTest : public ::testing::Test {
 
   // Runs `rodfit fit` and expects failure: non-zero exit, exactly one line on stderr starting
   // with "rodfit" and holding every one of `expected`, and no profile.
-  void ExpectFitError(const std::string& experiment_path, const std::vector<std::string>& expected) {
+  void ExpectFitError(const std::string& experiment_path,
+                      const std::vector<std::string>& expected) {
     const std::string profile = dir_.File("bad_profile.json");
     const RunResult run = Rodfit("fit " + Q(experiment_path) + " -o " + Q(profile));
     EXPECT_GT(run.status, 0) << run.err;
@@ -138,10 +137,9 @@ class FitCliTest : public ::testing::Test {
     for (const std::string& e : expected) EXPECT_THAT(run.err, HasSubstr(e));
     EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
     EXPECT_FALSE(fs::exists(profile)) << run.err;
-    // No temporary file left beside it either.
+    // No temporary file (".bad_profile.json.tmp.*") left beside it either.
     for (const auto& entry : fs::directory_iterator(dir_.path()))
-      EXPECT_THAT(entry.path().filename().string(), Not(StartsWith("bad_profile")))
-          << entry.path();
+      EXPECT_THAT(entry.path().filename().string(), Not(HasSubstr("bad_profile"))) << entry.path();
   }
 
   TempDir dir_;
@@ -271,7 +269,8 @@ TEST_F(FitCliTest, SynthesizedExperimentIsRecoveredAndTheProfileIsComplete) {
   // The report: tables, the residual plot and one picture per case and camera.
   for (const char* name : {"summary.csv", "residuals.csv", "residuals.png"})
     EXPECT_TRUE(fs::is_regular_file(report + "/" + name)) << name;
-  EXPECT_THAT(ReadText(report + "/summary.csv"), StartsWith("case,observation,type,count,rms,unit"));
+  EXPECT_THAT(ReadText(report + "/summary.csv"),
+              StartsWith("case,observation,type,count,rms,unit"));
   // residuals.csv: a header and one row per measurement (2 x 8 markers + 12 marker pixels).
   const std::string residuals = ReadText(report + "/residuals.csv");
   EXPECT_EQ(std::count(residuals.begin(), residuals.end(), '\n'), 1 + 2 * 8 + 12);
@@ -431,11 +430,34 @@ TEST_F(FitCliErrorTest, ForwardSolveThatFailsIsAnError) {
   ExpectFitError(path, {"buckled.yaml", "forward solve", "no profile written"});
 }
 
+TEST_F(FitCliErrorTest, ReportThatCannotBeWrittenLeavesNoProfile) {
+  // --report names a plain file: the run fails, and a failed run leaves no output behind.
+  const std::string not_a_dir = dir_.Write("report_is_a_file", "x");
+  const std::string profile = dir_.File("bad_profile.json");
+  const RunResult run =
+      Rodfit("fit " + Q(good_) + " -o " + Q(profile) + " --report " + Q(not_a_dir) + " -q");
+  EXPECT_GT(run.status, 0);
+  EXPECT_THAT(run.err, StartsWith("rodfit"));
+  EXPECT_THAT(run.err, HasSubstr("report_is_a_file"));
+  EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+  EXPECT_FALSE(fs::exists(profile));
+}
+
 TEST_F(FitCliErrorTest, SpringStiffnessWithoutSprings) {
+  // No top-level `springs:` at all: K has nothing to act on.
   ExpectFitError(Edited("stretch_stiffness: {value: 589}",
-                        "stretch_stiffness: {value: 589}\n  spring_stiffness: {value: 10, fit: true}",
+                        "stretch_stiffness: {value: 589}\n"
+                        "  spring_stiffness: {value: 10, fit: true}",
                         "springs"),
                  {"springs.yaml", "spring_stiffness", "no springs"});
+  // Springs, but the only zone has its own stiffness parameter: spring_stiffness still acts on
+  // nothing.
+  ExpectFitError(
+      Edited("stretch_stiffness: {value: 589}\n",
+             "stretch_stiffness: {value: 589}\n  spring_stiffness: {value: 10, fit: true}\n"
+             "  mesentery: {value: 10}\nsprings:\n  - {from: 0.1, to: 0.2, parameter: mesentery}\n",
+             "zone_springs"),
+      {"zone_springs.yaml", "spring_stiffness", "no spring zone"});
 }
 
 }  // namespace
