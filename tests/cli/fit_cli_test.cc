@@ -21,9 +21,12 @@
 #include <nlohmann/json.hpp>
 
 #include "../io/temp_dir.h"
+#include "run_cli.h"
 
 namespace rodfit {
 namespace {
+
+using test::RunResult;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -69,11 +72,6 @@ cases:
 
 const double kTrueB1 = 9.2e-6, kTrueB2 = 1.1e-5;
 
-struct RunResult {
-  int status = -1;  // exit status, -1 when the program did not exit normally
-  std::string out, err;
-};
-
 std::string Replace(std::string text, const std::string& from, const std::string& to) {
   const size_t at = text.find(from);
   if (at == std::string::npos) {
@@ -96,14 +94,7 @@ std::string WithStarts(std::string text, const std::string& start1, const std::s
 class FitCliTest : public ::testing::Test {
  protected:
   RunResult Rodfit(const std::string& args) {
-    const std::string out = dir_.File("stdout.txt"), err = dir_.File("stderr.txt");
-    const int raw = std::system(
-        (std::string("'") + RODFIT_CLI + "' " + args + " >'" + out + "' 2>'" + err + "'").c_str());
-    RunResult run;
-    run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    run.out = ReadText(out);
-    run.err = ReadText(err);
-    return run;
+    return test::RunRodfit(dir_, args);
   }
   static std::string Q(const std::string& s) { return "'" + s + "'"; }
 

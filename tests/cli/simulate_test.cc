@@ -12,33 +12,24 @@
 #include <gtest/gtest.h>
 
 #include "../io/temp_dir.h"
+#include "run_cli.h"
 #include "rodfit/io/csv.h"
 
 namespace rodfit {
 namespace {
+
+using test::RunResult;
 
 using test::ReadText;
 using test::TempDir;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 
-struct RunResult {
-  int status = -1;  // exit status, -1 when the program did not exit normally
-  std::string out, err;
-};
-
 class CliTest : public ::testing::Test {
  protected:
   // Runs `rodfit ARGS` with stdout and stderr captured in files of the temp dir.
   RunResult Rodfit(const std::string& args) {
-    const std::string out = dir_.File("stdout.txt"), err = dir_.File("stderr.txt");
-    const int raw = std::system(
-        (std::string("'") + RODFIT_CLI + "' " + args + " >'" + out + "' 2>'" + err + "'").c_str());
-    RunResult run;
-    run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    run.out = ReadText(out);
-    run.err = ReadText(err);
-    return run;
+    return test::RunRodfit(dir_, args);
   }
 
   static std::string Quote(const std::string& s) { return "'" + s + "'"; }

@@ -19,12 +19,15 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "../io/temp_dir.h"
+#include "run_cli.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/vision/camera_file.h"
 
 namespace rodfit {
 namespace {
+
+using test::RunResult;
 
 namespace fs = std::filesystem;
 using test::ReadText;
@@ -50,11 +53,6 @@ const char* const kExperiment =
     "      - {type: images, file: front.png, camera: CAMERA, sigma: 0.5, blur: 0.8, noise: 2}\n"
     "      - {type: images, file: top.png, camera: cam_top.yaml, sigma: 0.5}\n";
 
-struct RunResult {
-  int status = -1;  // exit status, -1 when the program did not exit normally
-  std::string out, err;
-};
-
 template <int N>
 double DistanceToPolyline(const Eigen::Matrix<double, N, 1>& p,
                           const std::vector<Eigen::Matrix<double, N, 1>>& line) {
@@ -70,14 +68,7 @@ double DistanceToPolyline(const Eigen::Matrix<double, N, 1>& p,
 class SynthExtractCliTest : public ::testing::Test {
  protected:
   RunResult Rodfit(const std::string& args) {
-    const std::string out = dir_.File("stdout.txt"), err = dir_.File("stderr.txt");
-    const int raw = std::system(
-        (std::string("'") + RODFIT_CLI + "' " + args + " >'" + out + "' 2>'" + err + "'").c_str());
-    RunResult run;
-    run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    run.out = ReadText(out);
-    run.err = ReadText(err);
-    return run;
+    return test::RunRodfit(dir_, args);
   }
   static std::string Q(const std::string& s) { return "'" + s + "'"; }
 

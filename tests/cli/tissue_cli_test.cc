@@ -19,11 +19,14 @@
 #include <nlohmann/json.hpp>
 
 #include "../io/temp_dir.h"
+#include "run_cli.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/experiment.h"
 
 namespace rodfit {
 namespace {
+
+using test::RunResult;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -62,11 +65,6 @@ const char* const kScene =
     "    observations:\n"                                                               // 22
     "      - {type: grasp_force, file: log.csv, sigma: 0.01, s: 0.1, max_speed: 1.0e-3}\n";  // 23
 
-struct RunResult {
-  int status = -1;  // exit status, -1 when the program did not exit normally
-  std::string out, err;
-};
-
 std::string Replace(std::string text, const std::string& from, const std::string& to) {
   const size_t at = text.find(from);
   if (at == std::string::npos) {
@@ -88,14 +86,7 @@ std::string StillLog(int rows) {
 class TissueCliTest : public ::testing::Test {
  protected:
   RunResult Rodfit(const std::string& args) {
-    const std::string out = dir_.File("stdout.txt"), err = dir_.File("stderr.txt");
-    const int raw = std::system(
-        (std::string("'") + RODFIT_CLI + "' " + args + " >'" + out + "' 2>'" + err + "'").c_str());
-    RunResult run;
-    run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    run.out = ReadText(out);
-    run.err = ReadText(err);
-    return run;
+    return test::RunRodfit(dir_, args);
   }
   static std::string Q(const std::string& s) { return "'" + s + "'"; }
 
