@@ -4,6 +4,7 @@
 // Run: build/bench_tissue; one core, Release build.
 #include <benchmark/benchmark.h>
 
+#include "rodfit/solve/poke.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
@@ -50,6 +51,28 @@ void BM_Bowel(benchmark::State& st) {
   st.SetLabel(st.range(1) == 0 ? "free" : st.range(1) == 1 ? "springs" : "springs+grasp");
 }
 BENCHMARK(BM_Bowel)->ArgsProduct({{50, 200}, {0, 1, 2}})->Unit(benchmark::kMillisecond);
+
+// The cross-section on top of a solved rod: the ring solve at the poke and the tube mesh with
+// the dent propagated (eqs. 12-13). A case without a poke builds neither.
+void BM_Poke(benchmark::State& st) {
+  Setup s = Bowel(static_cast<int>(st.range(0)), 1);
+  s.load_case.poke = Poke{0.075, Vec3(0, -0.02, 0)};
+  SectionSpec section;
+  section.radius = 0.012;
+  section.nodes = 32;
+  section.stop_factor = 0.002;
+  const RodModel model(s.rod, s.material, Vec3(0, 0, -9.81), s.load_case, s.zones);
+  RodState state = model.StraightState();
+  if (!SolveStatics(model, StaticsOptions(), &state).converged) st.SkipWithError("rod");
+  const RingStiffness ring{2e-5, 5.0};
+  for (auto _ : st) {
+    const PokeResult poke = SolvePoke(model, state, section, ring);
+    if (st.range(1)) benchmark::DoNotOptimize(PokedTube(model, state, section, poke).vertices.data());
+    benchmark::DoNotOptimize(poke.ring.nodes.data());
+  }
+  st.SetLabel(st.range(1) ? "ring + tube mesh" : "ring only");
+}
+BENCHMARK(BM_Poke)->ArgsProduct({{50, 200}, {0, 1}})->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace rodfit
