@@ -101,6 +101,13 @@ int RunFit(int argc, char** argv) {
       else
         std::fprintf(stderr, "%-18s NOT IDENTIFIABLE: %s\n", p.name.c_str(), p.reason.c_str());
     }
+    // A residual variance far above 1 means the model does not explain the data (or the sigmas
+    // are far too small): the numbers are then not to be trusted, whatever their std says.
+    if (!options.trusted_sigmas && result.residual_variance > 100.0)
+      std::fprintf(stderr,
+                   "warning: residual variance %.3g: the model does not explain the data (missing "
+                   "load, wrong units, or sigmas far too small)\n",
+                   result.residual_variance);
     std::fprintf(stderr, "%d iterations, %.3f s, residual variance %.3g; wrote %s\n",
                  result.iterations, result.seconds, result.residual_variance,
                  profile_path.c_str());

@@ -14,6 +14,7 @@
 #include <ceres/ceres.h>
 #include <nlopt.hpp>
 
+#include "rodfit/solve/poke.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/sensitivity.h"
 #include "rodfit/solve/statics.h"
@@ -31,7 +32,43 @@ struct Fitted {
   std::vector<Stiffness> drives;  ///< rod stiffnesses it sets
   bool spring = false;            ///< a spring stiffness: drives the zones of `spring_zone_name`
   std::string spring_zone_name;   ///< "" for spring_stiffness, else the zone parameter
+  int ring = 0;                   ///< 1: ring_bend_stiffness, 2: ring_stretch_stiffness
 };
+
+int NumSurfacePoints(const FitCase& c) {
+  int n = 0;
+  for (const SurfacePoints& sp : c.surface_points) n += static_cast<int>(sp.points.size());
+  return n;
+}
+
+// What `surface_points` need and what they can determine (fit.h).
+void CheckSurfacePoints(const FitInput& in, const std::vector<Fitted>& fitted) {
+  bool any = false;
+  for (const FitCase& c : in.cases) {
+    if (c.surface_points.empty()) continue;
+    any = true;
+    if (!c.load_case.poke)
+      throw std::invalid_argument("case " + c.load_case.name + ": surface_points without a poke");
+    if (!in.section)
+      throw std::invalid_argument("case " + c.load_case.name +
+                                  ": surface_points need the cross-section model (section:)");
+    for (const SurfacePoints& sp : c.surface_points)
+      if (!(sp.sigma > 0) || sp.points.empty())
+        throw std::invalid_argument("case " + c.load_case.name + ": " + sp.label +
+                                    ": needs points and sigma > 0");
+  }
+  for (const Fitted& f : fitted) {
+    if (f.ring != 0 && !any)
+      throw std::invalid_argument(f.name + ": fitted, but no case has surface_points (the ring's "
+                                  "stiffness is seen only through the dented section)");
+    if (f.ring == 0 && any)
+      throw std::invalid_argument(
+          "surface_points constrain the ring's stiffness only: fit rod parameters (here " + f.name +
+          ") from other cases without surface_points, then hold them while fitting "
+          "ring_bend_stiffness / ring_stretch_stiffness (the section's placement on the rod "
+          "moves with them, which the surface residuals' Jacobian does not model)");
+  }
+}
 
 bool ZonesUse(const FitInput& in, const std::string& parameter) {
   for (const SpringZone& z : in.springs)
@@ -58,6 +95,8 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
       f.drives = {Stiffness::kTwist};
     } else if (p.name == "stretch_stiffness") {
       f.drives = {Stiffness::kStretch};
+    } else if (p.name == "ring_bend_stiffness" || p.name == "ring_stretch_stiffness") {
+      f.ring = p.name == "ring_bend_stiffness" ? 1 : 2;
     } else if (p.name == "spring_stiffness" || in.material.spring_parameters.count(p.name)) {
       f.spring = true;
       f.spring_zone_name = p.name == "spring_stiffness" ? "" : p.name;
@@ -71,6 +110,7 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
     }
     out.push_back(f);
   }
+  CheckSurfacePoints(in, out);
   return out;
 }
 
@@ -83,6 +123,8 @@ Material MaterialAt(const FitInput& in, const std::vector<Fitted>& fitted, const
     if (name == "bend_stiffness_2") m.bend_stiffness_2 = v;
     if (name == "twist_stiffness") m.twist_stiffness = v;
     if (name == "stretch_stiffness") m.stretch_stiffness = v;
+    if (name == "ring_bend_stiffness") m.ring_bend_stiffness = v;
+    if (name == "ring_stretch_stiffness") m.ring_stretch_stiffness = v;
     if (fitted[k].spring) {
       if (fitted[k].spring_zone_name.empty()) m.spring_stiffness = v;
       else m.spring_parameters[fitted[k].spring_zone_name] = v;
@@ -127,6 +169,7 @@ class CaseEvaluator {
       : in_(in), case_(in.cases[case_index]), fitted_(std::move(fitted)), loss_(loss) {
     for (const auto& obs : case_.observations) num_residuals_ += obs->num_residuals();
     num_residuals_ += 3 * static_cast<int>(case_.grasp_forces.size());
+    num_residuals_ += 3 * NumSurfacePoints(case_);
   }
 
   int num_residuals() const { return num_residuals_; }
@@ -139,6 +182,11 @@ class CaseEvaluator {
   Timing timing() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return timing_;
+  }
+  /// Why the last failed evaluation failed (empty if none did).
+  std::string last_failure() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return last_failure_;
   }
 
   /// residuals: num_residuals(); jacobian (row major num_residuals x m) optional.
@@ -165,7 +213,12 @@ class CaseEvaluator {
     }
     Charge(&timing_.solve, &t0);
     ++timing_.solves;
-    if (!(summary.converged && summary.stable)) return false;
+    if (!(summary.converged && summary.stable)) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      last_failure_ = "case " + case_.load_case.name + ": " +
+                      (summary.converged ? "the equilibrium found is unstable" : summary.reason);
+      return false;
+    }
     const int m = num_parameters();
     Eigen::MatrixXd dx;
     Eigen::MatrixXd d_reaction;  // 3 x m: d(force on the instrument) / d log p
@@ -184,10 +237,13 @@ class CaseEvaluator {
         }
       }
       Eigen::MatrixXd dq;
-      if (!TermSensitivities(*model, state, ws, terms, &dq)) return false;
-      const Eigen::MatrixXd dx_all = VertexSensitivities(*model, dq);
-      dx.setZero(dx_all.rows(), m);
-      for (size_t t = 0; t < terms.size(); ++t) dx.col(owner[t]) += dx_all.col(static_cast<int>(t));
+      dx.setZero(3 * model->num_vertices(), m);
+      if (!terms.empty()) {  // ring parameters alone leave the rod unchanged
+        if (!TermSensitivities(*model, state, ws, terms, &dq)) return false;
+        const Eigen::MatrixXd dx_all = VertexSensitivities(*model, dq);
+        for (size_t t = 0; t < terms.size(); ++t)
+          dx.col(owner[t]) += dx_all.col(static_cast<int>(t));
+      }
       if (!case_.grasp_forces.empty()) {
         // R = -g_k(q, p) at the grasped vertex's (held) dofs, with g the unconstrained gradient:
         // dR/dlog p = -(d g_k / dlog p at fixed q + H_k. dq/dlog p), H_k. its unconstrained rows.
@@ -247,6 +303,9 @@ class CaseEvaluator {
         row += 3;
       }
     }
+    if (!case_.surface_points.empty() &&
+        !SurfaceResiduals(*model, state, material, residuals, jacobian, &row))
+      return false;
     Charge(&timing_.observation, &t0);
     for (int i = 0; i < num_residuals_; ++i)
       if (!std::isfinite(residuals[i])) return false;
@@ -260,6 +319,86 @@ class CaseEvaluator {
   }
 
  private:
+  // The case's surface points against the deformed ring of its poke (fit.h SurfacePoints), rows
+  // from *row on. Only ring parameters have non-zero columns (CheckSurfacePoints refuses rod
+  // parameters together with surface points): the ring's d nodes / d log k in section
+  // coordinates, mapped to the world by the placement's d1, d2 and chained through the foot.
+  bool SurfaceResiduals(const RodModel& model, const RodState& state, const Material& material,
+                        double* residuals, double* jacobian, int* row) const {
+    const int m = num_parameters();
+    PokeResult poke;
+    try {
+      poke = SolvePoke(model, state, *in_.section,
+                       RingStiffness{material.ring_bend_stiffness, material.ring_stretch_stiffness});
+    } catch (const std::invalid_argument&) {
+      return false;
+    }
+    if (!poke.ring.summary.converged) return false;
+    const int n = static_cast<int>(poke.deformed_world.cols());
+    // The closed ring as a polyline: node 0 repeated at the end (polyline vertex j is node j % n).
+    Eigen::Matrix3Xd ring(3, n + 1);
+    ring.leftCols(n) = poke.deformed_world;
+    ring.col(n) = poke.deformed_world.col(0);
+    // d (world node) / d log p per fitted column: 3 x (n + 1) per column.
+    std::vector<Eigen::Matrix3Xd> d_ring;
+    if (jacobian) {
+      const SectionPlacement& pl = poke.placement;
+      for (int c = 0; c < m; ++c) {
+        Eigen::Matrix3Xd d = Eigen::Matrix3Xd::Zero(3, n + 1);
+        if (fitted_[c].ring != 0) {
+          const Eigen::VectorXd& dn = fitted_[c].ring == 1 ? poke.ring.d_nodes_d_log_bend
+                                                           : poke.ring.d_nodes_d_log_stretch;
+          if (dn.size() != 2 * n) return false;  // an unstable ring equilibrium: no sensitivity
+          for (int j = 0; j <= n; ++j) {
+            const int k = j % n;
+            d.col(j) = dn[NodeDof(k)] * pl.d1 + dn[NodeDof(k) + 1] * pl.d2;
+          }
+        }
+        d_ring.push_back(d);
+      }
+    }
+    for (const SurfacePoints& sp : case_.surface_points) {
+      for (const Eigen::Vector3d& q : sp.points) {
+        const PolylineFoot foot = ClosestPointOnPolyline<3>(ring, q);
+        if (foot.edge < 0) return false;
+        Eigen::Vector3d p;
+        double t = 0.0;
+        Eigen::Vector3d a = Eigen::Vector3d::Zero(), e = Eigen::Vector3d::Zero();
+        if (foot.vertex >= 0) {
+          p = ring.col(foot.vertex);
+        } else {
+          a = ring.col(foot.edge);
+          e = ring.col(foot.edge + 1) - a;
+          t = (q - a).dot(e) / e.squaredNorm();
+          p = a + t * e;
+        }
+        double* rk = residuals + *row;
+        for (int i = 0; i < 3; ++i) rk[i] = (p[i] - q[i]) / sp.sigma;
+        double* Jk = jacobian ? jacobian + *row * m : nullptr;
+        if (Jk) {
+          for (int c = 0; c < m; ++c) {
+            Eigen::Vector3d dp;
+            if (foot.vertex >= 0) {
+              dp = d_ring[c].col(foot.vertex);
+            } else {
+              // p = a + t e, t = (q - a).e / |e|^2:
+              // dt = (-da.e + (q - a).de - 2 t e.de) / |e|^2, dp = da + dt e + t de.
+              const Eigen::Vector3d da = d_ring[c].col(foot.edge);
+              const Eigen::Vector3d de = d_ring[c].col(foot.edge + 1) - da;
+              const double dt = (-da.dot(e) + (q - a).dot(de) - 2.0 * t * e.dot(de)) /
+                                e.squaredNorm();
+              dp = da + dt * e + t * de;
+            }
+            for (int i = 0; i < 3; ++i) Jk[i * m + c] = dp[i] / sp.sigma;
+          }
+        }
+        ApplyLoss(loss_, 3, rk, Jk, m);
+        *row += 3;
+      }
+    }
+    return true;
+  }
+
   const FitInput& in_;
   const FitCase& case_;
   std::vector<Fitted> fitted_;
@@ -269,6 +408,7 @@ class CaseEvaluator {
   mutable RodState warm_;
   mutable bool has_warm_ = false;
   mutable Timing timing_;  // accumulated under mutex_ by Charge
+  mutable std::string last_failure_;
 
   void Charge(double* bucket, Clock::time_point* t0) const {
     const Clock::time_point now = Clock::now();
@@ -347,8 +487,9 @@ bool FitOptions::Check(std::string* why) const {
 }
 
 const char* ParameterUnit(const std::string& name) {
-  if (name == "stretch_stiffness") return "N";
-  if (name == "bend_stiffness" || name == "bend_stiffness_2" || name == "twist_stiffness")
+  if (name == "stretch_stiffness" || name == "ring_stretch_stiffness") return "N";
+  if (name == "bend_stiffness" || name == "bend_stiffness_2" || name == "twist_stiffness" ||
+      name == "ring_bend_stiffness")
     return "N m^2";
   return "N/m^2";  // spring_stiffness and spring zones' own parameters
 }
@@ -400,6 +541,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     if (!c.grasp_forces.empty() && !c.load_case.grasp)
       throw std::invalid_argument("case " + c.load_case.name + ": grasp forces without a grasp");
     total_residuals += 3 * static_cast<int>(c.grasp_forces.size());
+    total_residuals += 3 * NumSurfacePoints(c);
   }
   if (total_residuals == 0) throw std::invalid_argument("cases: no observations to fit");
   if (total_residuals <= m)
@@ -507,8 +649,13 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     ceres::Problem::EvaluateOptions eo;
     const bool ok = problem.Evaluate(eo, &cost, &res, nullptr, &crs);
     if (!ok) {
+      std::string why;
+      for (const auto& e : evals)
+        if (!e->last_failure().empty()) why = e->last_failure();
       result.success = false;
-      result.message = "the forward solve fails at the fitted parameters";
+      result.message = (result.iterations <= 0 ? "the forward solve fails at the start values"
+                                                : "the forward solve fails at the fitted values") +
+                       (why.empty() ? std::string() : " (" + why + ")");
     } else {
       J.setZero(crs.num_rows, crs.num_cols);
       for (int i = 0; i < crs.num_rows; ++i)
@@ -641,11 +788,15 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       fc.observations[o]->RmsError(shape, &of.rms);
       result.observations.push_back(of);
     }
-    if (!fc.grasp_forces.empty()) {  // the force residuals close the case's residual vector
+    // The case's residual vector: observations, then grasp forces, then surface points.
+    int offset = 0;
+    for (const auto& o : fc.observations) offset += o->num_residuals();
+    if (!fc.grasp_forces.empty()) {
       const int nf = static_cast<int>(fc.grasp_forces.size());
       double sum = 0.0;
       for (int f = 0; f < nf; ++f)
-        sum += (rr.segment<3>(rr.size() - 3 * nf + 3 * f) * fc.grasp_forces[f].sigma).squaredNorm();
+        sum += (rr.segment<3>(offset + 3 * f) * fc.grasp_forces[f].sigma).squaredNorm();
+      offset += 3 * nf;
       ObservationFit of;
       of.case_index = static_cast<int>(c);
       of.case_name = fc.load_case.name;
@@ -653,6 +804,19 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       of.type = "grasp_force";
       of.num_measurements = nf;
       of.rms = std::sqrt(sum / nf);
+      result.observations.push_back(of);
+    }
+    for (const SurfacePoints& sp : fc.surface_points) {  // [m]: the distance to the ring
+      const int np = static_cast<int>(sp.points.size());
+      const double sum = (rr.segment(offset, 3 * np) * sp.sigma).squaredNorm();
+      offset += 3 * np;
+      ObservationFit of;
+      of.case_index = static_cast<int>(c);
+      of.case_name = fc.load_case.name;
+      of.label = sp.label;
+      of.type = "surface_points";
+      of.num_measurements = np;
+      of.rms = std::sqrt(sum / np);
       result.observations.push_back(of);
     }
   }

@@ -36,12 +36,24 @@ struct ForceMeasurement {
   std::string label;          ///< e.g. "grasp_force drag_log.csv t=1.25"
 };
 
+/// Points tracked on the tissue surface around a poke, in the poked cross-section's plane (a
+/// laser profile or tracked dots on the dented section) [m]. Residual per point: the 3-D vector
+/// from the point to its closest point on the deformed ring (the closed polyline of
+/// PokeResult::deformed_world) over sigma, with observe/observations.h's foot rules.
+struct SurfacePoints {
+  std::vector<Eigen::Vector3d> points;  ///< [m], world
+  double sigma = 1.0;                   ///< [m]
+  std::string label;                    ///< e.g. "surface_points dent.csv"
+};
+
 /// A load case with its loaded observations.
 struct FitCase {
   LoadCase load_case;
   std::vector<std::shared_ptr<const Observation>> observations;
   std::vector<std::string> labels;  ///< one per observation, e.g. "markers3d flat_markers.csv"
   std::vector<ForceMeasurement> grasp_forces;  ///< needs load_case.grasp
+  /// Surface point sets (`surface_points`); need load_case.poke and FitInput::section.
+  std::vector<SurfacePoints> surface_points;
 };
 
 struct FitInput {
@@ -49,6 +61,7 @@ struct FitInput {
   Material material;  ///< values of every parameter (fitted ones are starts)
   Vec3 gravity = Vec3(0, 0, -9.81);
   std::vector<SpringZone> springs;  ///< attachment zones (tissue)
+  std::optional<SectionSpec> section;  ///< the cross-section model, for surface_points
   std::vector<FitParameter> parameters;
   std::vector<FitCase> cases;
 };
@@ -94,7 +107,7 @@ struct ObservationFit {
   std::string label;
   std::string type;
   int num_measurements = 0;
-  double rms = 0.0;  ///< [m] or [px]
+  double rms = 0.0;  ///< [m], [px] or [N]
 };
 
 struct FitResult {
@@ -123,6 +136,10 @@ const char* ParameterUnit(const std::string& name);
 
 /// Runs the identification. Throws std::invalid_argument for an ill-posed request (nothing to
 /// fit, a fitted parameter the model does not use, min >= max, a start outside its bounds).
+/// The ring's `ring_bend_stiffness` / `ring_stretch_stiffness` are fitted from `surface_points`
+/// only (fitting one without any surface points is an error); surface points move with the
+/// section's placement on the rod as well, whose sensitivity is not modelled, so fitting a rod
+/// parameter together with cases that have surface points is an error too.
 FitResult Fit(const FitInput& input, const FitOptions& options);
 
 /// The forward map for tests and benchmarks: weighted residuals of every case stacked, and

@@ -168,6 +168,7 @@ bool ParseDouble(const std::string& text, double* value) {
 
 std::string FormatDouble(double value) {
   char buffer[32];
+  if (value == 0.0) value = 0.0;  // no "-0" in data files
   std::snprintf(buffer, sizeof(buffer), "%.17g", value);
   return buffer;
 }

@@ -30,7 +30,8 @@ const std::vector<std::string> kParameterNames = {
     "bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",       "stretch_stiffness",
     "spring_stiffness", "ring_bend_stiffness", "ring_stretch_stiffness"};
 const std::vector<std::string> kObservationTypes = {"markers3d", "points3d", "image_points",
-                                                    "images", "grasp_force"};
+                                                    "images", "grasp_force",
+                                                    "surface_points"};
 
 std::string Join(const std::vector<std::string>& words) {
   std::string out;
@@ -288,7 +289,8 @@ Clamp ReadClamp(const Reader& r, const Field& f) {
   return clamp;
 }
 
-ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex) {
+ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex,
+                                bool case_has_poke) {
   const std::vector<std::string> all = {"type",  "file",     "camera", "sigma", "s",
                                         "count", "outliers", "blur",   "noise", "max_speed"};
   const Entries m = r.Map(f, all);
@@ -303,10 +305,15 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   const bool image = o.type == "image_points" || o.type == "images";
   std::vector<std::string> allowed = {"type", "file", "sigma"};
   const bool force = o.type == "grasp_force";
+  const bool surface = o.type == "surface_points";
+  if (surface && !case_has_poke) {
+    r.Fail(type, "surface_points are tracked around a poke, but this case has no poke (add "
+                 "poke: {s, force} to the case)");
+  }
   if (image) allowed.push_back("camera");
-  if (o.type != "points3d" && o.type != "images") allowed.push_back("s");
+  if (o.type != "points3d" && o.type != "images" && !surface) allowed.push_back("s");
   if (o.type != "images") allowed.push_back("count");
-  if (o.type != "images" && !force) allowed.push_back("outliers");
+  if (o.type != "images" && !force && !surface) allowed.push_back("outliers");
   if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise"});
   if (force) allowed.push_back("max_speed");
   for (const auto& [name, field] : m) {
@@ -480,7 +487,7 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   spec.line = f.line;
   if (const Field* obs = Reader::Find(m, "observations")) {
     for (const Field& item : r.Sequence(*obs)) {
-      spec.observations.push_back(ReadObservation(r, item, *ex));
+      spec.observations.push_back(ReadObservation(r, item, *ex, c.poke.has_value()));
     }
   }
   ex->scene.cases.push_back(c);

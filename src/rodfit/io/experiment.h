@@ -28,11 +28,16 @@ struct ParameterSpec {
 ///   markers3d:    file, sigma [m],  s | count, outliers
 ///   points3d:     file, sigma [m],  count, outliers
 ///   image_points: file, sigma [px], camera, s | count, outliers
-///   images:       file, sigma [px], camera
+///   images:       file, sigma [px], camera, blur, noise
 ///   grasp_force:  file (haptic log t,tool_x,tool_y,tool_z,fx,fy,fz), sigma [N], s (the grasped
-///                 arc length, one value), max_speed [m/s], count (quasi-static samples used), blur, noise
+///                 arc length, one value), max_speed [m/s], count (fit: quasi-static samples
+///                 used; synth: the steps of the synthesized drag)
+///   surface_points: file (x,y,z: points on the tissue surface in the poked section's plane),
+///                 sigma [m], count (synth: points, default the section's nodes); only in a case
+///                 with a `poke`
 struct ObservationSpec {
-  std::string type;       ///< markers3d | points3d | image_points | images
+  std::string type;       ///< markers3d | points3d | image_points | images | grasp_force |
+                          ///< surface_points
   std::string file;       ///< data file (CSV or image), resolved against the YAML's folder
   std::string camera;     ///< camera file, resolved likewise; empty for 3-D types
   double sigma = 0.0;     ///< measurement standard deviation, > 0

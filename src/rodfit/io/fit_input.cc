@@ -2,6 +2,7 @@
 #include "rodfit/io/fit_input.h"
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <map>
 
@@ -15,11 +16,16 @@ namespace {
 
 std::vector<double> ColumnOf(const CsvTable& t, const std::string& c) { return t.Column(c); }
 
+std::string Short(double v) {  // numbers in messages, as a person would type them
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.10g", v);
+  return b;
+}
+
 void CheckArcLength(const CsvTable& t, int row, double s, double length) {
   if (!(s >= -1e-12 * length && s <= length * (1 + 1e-12)))
     throw InputError(t.name(), t.line(row), "s",
-                     "marker arc length " + FormatDouble(s) + " m is outside [0, " +
-                         FormatDouble(length) + "]");
+                     "marker arc length " + Short(s) + " m is outside [0, " + Short(length) + "]");
 }
 
 // A haptic log (t, tool position, force on the instrument): the samples where the tool is at
@@ -68,8 +74,9 @@ std::string Label(const ObservationSpec& spec) {
 
 std::vector<FitParameter> FitParametersOf(const Experiment& e) {
   std::vector<FitParameter> out;
-  std::vector<std::string> names = {"bend_stiffness", "bend_stiffness_2", "twist_stiffness",
-                                    "stretch_stiffness", "spring_stiffness"};
+  std::vector<std::string> names = {"bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",
+                                    "stretch_stiffness", "spring_stiffness", "ring_bend_stiffness",
+                                    "ring_stretch_stiffness"};
   for (const auto& [name, value] : e.scene.material.spring_parameters) names.push_back(name);
   for (const std::string& name : names) {
     const auto it = e.parameters.find(name);
@@ -89,6 +96,7 @@ FitInput BuildFitInput(const Experiment& e) {
   in.material = e.scene.material;
   in.gravity = e.scene.gravity;
   in.springs = e.scene.springs;
+  in.section = e.scene.section;
   in.parameters = FitParametersOf(e);
   const RodModel reference(e.scene.rod, e.scene.material, e.scene.gravity,
                            e.scene.cases.empty() ? LoadCase() : e.scene.cases[0]);
@@ -117,6 +125,17 @@ FitInput BuildFitInput(const Experiment& e) {
           gc.grasp_forces.push_back({h.force, spec.sigma, Label(spec) + " t=" + FormatDouble(h.t)});
           force_cases.push_back(std::move(gc));
         }
+        continue;
+      }
+      if (spec.type == "surface_points") {  // fitted against the poke's deformed ring
+        const CsvTable t = CsvTable::Read(spec.file);
+        const auto x = ColumnOf(t, "x"), y = ColumnOf(t, "y"), z = ColumnOf(t, "z");
+        SurfacePoints sp;
+        for (int r = 0; r < t.num_rows(); ++r) sp.points.emplace_back(x[r], y[r], z[r]);
+        if (sp.points.empty()) throw InputError(spec.file, 0, "", "no rows");
+        sp.sigma = spec.sigma;
+        sp.label = Label(spec);
+        fc.surface_points.push_back(std::move(sp));
         continue;
       }
       std::shared_ptr<const Observation> obs;

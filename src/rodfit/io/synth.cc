@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <random>
 #include <sstream>
@@ -21,6 +22,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
+#include "rodfit/solve/poke.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/render.h"
@@ -459,6 +461,61 @@ std::string SynthGraspForce(const EntryContext& ctx, const std::string& file, st
   return FormatHapticLogCsv(rows);
 }
 
+// `surface_points`: the case's poke solved on its equilibrium, and `count` (default the section's
+// nodes) points on the deformed ring at angles 2 pi (k + 1/2) / count about the section's centre
+// (where the ray from the centre crosses the ring's polygon, in the section's plane), mapped to
+// the world; Gaussian noise of sigma on every world coordinate.
+std::string SynthSurfacePoints(const EntryContext& ctx, const std::string& file,
+                               std::string* report) {
+  const Scene& scene = ctx.experiment->scene;
+  const LoadCase& load_case = scene.cases[ctx.case_index];
+  if (!load_case.poke || !scene.section) {
+    ctx.Fail("case " + ctx.CaseName() + " has no poke: surface_points are tracked around one");
+  }
+  PokeResult poke;
+  try {
+    const RodModel model(scene.rod, scene.material, scene.gravity, load_case, scene.springs);
+    RodState state = model.StraightState();
+    const StaticsSummary summary = SolveStatics(model, ctx.options->statics, &state);
+    if (!summary.converged) ctx.Fail("case " + ctx.CaseName() + " does not converge");
+    poke = SolvePoke(model, state, *scene.section,
+                     RingStiffness{scene.material.ring_bend_stiffness,
+                                   scene.material.ring_stretch_stiffness});
+  } catch (const std::invalid_argument& e) {
+    ctx.Fail("case " + ctx.CaseName() + ": the poke: " + e.what());
+  }
+  if (!poke.ring.summary.converged) {
+    ctx.Fail("case " + ctx.CaseName() + ": the poked ring does not converge: " +
+             poke.ring.summary.BriefReport());
+  }
+  const Eigen::Matrix2Xd& ring = poke.ring.nodes;
+  const int n = static_cast<int>(ring.cols());
+  const int count = ctx.spec->count > 0 ? ctx.spec->count : n;
+  Eigen::Matrix2Xd sample(2, count);
+  for (int k = 0; k < count; ++k) {
+    const double angle = 2.0 * M_PI * (k + 0.5) / count;
+    const Eigen::Vector2d u(std::cos(angle), std::sin(angle));
+    // The nearest crossing of the ray {r u, r > 0} with an edge a + t (b - a), t in [0, 1].
+    double best = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < n; ++j) {
+      const Eigen::Vector2d a = ring.col(j), e = ring.col((j + 1) % n) - a;
+      const double det = u.x() * (-e.y()) - u.y() * (-e.x());  // [u, -e] (r, t) = a
+      if (std::abs(det) < 1e-300) continue;
+      const double r = (a.x() * (-e.y()) - a.y() * (-e.x())) / det;
+      const double t = (u.x() * a.y() - u.y() * a.x()) / det;
+      if (r > 0.0 && t >= 0.0 && t <= 1.0) best = std::min(best, r);
+    }
+    if (!std::isfinite(best)) ctx.Fail("the deformed ring does not surround its centre");
+    sample.col(k) = best * u;
+  }
+  const Eigen::Matrix3Xd world = SectionToWorld(sample, poke.placement);
+  std::vector<Eigen::Vector3d> p(count);
+  for (int k = 0; k < count; ++k) p[k] = world.col(k);
+  AddNoise(ctx, &p);
+  *report = Summary(ctx, file, count, 0, 0);
+  return FormatPoints3dCsv(p);
+}
+
 // Solves one case to equilibrium from the straight state.
 CaseShape SolveCase(const Experiment& ex, int c, const StaticsOptions& statics) {
   const LoadCase& load_case = ex.scene.cases[c];
@@ -700,6 +757,8 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
         contents = SynthImage(ctx, file, &report);
       } else if (spec.type == "grasp_force") {
         contents = SynthGraspForce(ctx, file, &report);
+      } else if (spec.type == "surface_points") {
+        contents = SynthSurfacePoints(ctx, file, &report);
       } else {
         ctx.Fail("synth cannot make observations of type " + spec.type);
       }

@@ -84,6 +84,8 @@ struct SynthBundle {
 /// projected centre-line, both ends included (u,v). Image samples whose true or noisy pixel is
 /// off the sensor are dropped. grasp_force: `t,tool_x,tool_y,tool_z,fx,fy,fz` as SynthOptions
 /// describes (fx.. the force the tissue exerts on the instrument [N]).
+/// surface_points: x,y,z of `count` (default: section nodes) points on the case's deformed poke
+/// ring, evenly spaced in angle about the section's centre, in the world (noise on x, y, z).
 /// grasp_force also throws InputError for a case without a grasp, an entry whose s grasps
 /// another vertex than the case's grasp.s, and a step whose grasp does not converge.
 /// Throws InputError (naming the experiment file, the entry's line and key) for a case that does
