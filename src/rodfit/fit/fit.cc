@@ -536,8 +536,19 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     logp[k] = std::log(p.value);
   }
   int total_residuals = 0;
+  // Residuals that carry noise: a closest-point residual is perpendicular to the curve, so a
+  // 3-D point (points3d, surface_points) carries 2 and a pixel of an image curve 1. The
+  // residual variance 2 cost / (N - m) must count these, or it underestimates the noise and the
+  // reported std by up to sqrt(3/2) (points) or sqrt(2) (pixels).
+  int effective_residuals = 0;
   for (const FitCase& c : input.cases) {
-    for (const auto& o : c.observations) total_residuals += o->num_residuals();
+    for (const auto& o : c.observations) {
+      total_residuals += o->num_residuals();
+      const bool curve = dynamic_cast<const Points3dObservation*>(o.get()) ||
+                         dynamic_cast<const ImageCurveObservation*>(o.get());
+      effective_residuals += o->num_residuals() - (curve ? o->num_measurements() : 0);
+    }
+    effective_residuals += 3 * static_cast<int>(c.grasp_forces.size()) + 2 * NumSurfacePoints(c);
     if (!c.grasp_forces.empty() && !c.load_case.grasp)
       throw std::invalid_argument("case " + c.load_case.name + ": grasp forces without a grasp");
     total_residuals += 3 * static_cast<int>(c.grasp_forces.size());
@@ -663,7 +674,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       r = Eigen::Map<VecX>(res.data(), res.size());
     }
   }
-  const int dof = total_residuals - m;
+  const int dof = std::max(1, effective_residuals - m);
   result.residual_variance = options.trusted_sigmas ? 1.0 : 2.0 * result.final_cost / dof;
 
   // Identifiability: columns the residuals do not depend on, directions of J's null space, and
