@@ -81,7 +81,7 @@ std::string Replace(std::string text, const std::string& from, const std::string
   return text.replace(at, from.size(), to);
 }
 
-// Every START1 / START2 placeholder (there may be none left) set to a value.
+// Every START1 / START2 token of the template (there may be none left) set to a value.
 std::string WithStarts(std::string text, const std::string& start1, const std::string& start2) {
   for (const auto& [key, value] : {std::pair<std::string, std::string>{"START1", start1},
                                    std::pair<std::string, std::string>{"START2", start2}}) {
