@@ -4,7 +4,8 @@
 set -euo pipefail
 packages=(
   build-essential cmake pkg-config
-  libeigen3-dev libceres-dev libnlopt-cxx-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
+  libeigen3-dev libceres-dev libgoogle-glog-dev libnlopt-cxx-dev libyaml-cpp-dev nlohmann-json3-dev
+  libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   # OpenCV: only the modules rodfit uses (core, imgproc, imgcodecs, calib3d), not the metapackage.
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-calib3d-dev
