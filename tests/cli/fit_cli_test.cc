@@ -27,6 +27,7 @@ namespace rodfit {
 namespace {
 
 using test::RunResult;
+using test::Replace;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -72,15 +73,6 @@ cases:
 
 const double kTrueB1 = 9.2e-6, kTrueB2 = 1.1e-5;
 
-std::string Replace(std::string text, const std::string& from, const std::string& to) {
-  const size_t at = text.find(from);
-  if (at == std::string::npos) {
-    ADD_FAILURE() << "'" << from << "' not in the text";
-    return text;
-  }
-  return text.replace(at, from.size(), to);
-}
-
 // Every START1 / START2 token of the template (there may be none left) set to a value.
 std::string WithStarts(std::string text, const std::string& start1, const std::string& start2) {
   for (const auto& [key, value] : {std::pair<std::string, std::string>{"START1", start1},
@@ -96,7 +88,7 @@ class FitCliTest : public ::testing::Test {
   RunResult Rodfit(const std::string& args) {
     return test::RunRodfit(dir_, args);
   }
-  static std::string Q(const std::string& s) { return "'" + s + "'"; }
+  static std::string Q(const std::string& s) { return test::Quote(s); }
 
   // Synthesizes `experiment` at the truth (B1 = 9.2e-6, B2 = 1.1e-5 N m^2) into DIR/data
   // (seed 5) and writes DIR/data/fit.yaml, the same experiment with both starts at 3e-6, about

@@ -25,6 +25,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using test::ReadText;
 using test::RunResult;
+using test::Replace;
 using test::TempDir;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
@@ -53,19 +54,10 @@ const char* const kScene =
     "    observations:\n"                                                               // 20
     "      - {type: surface_points, file: side.csv, sigma: 3.0e-5, count: 40}\n";       // 21
 
-std::string Replace(std::string text, const std::string& from, const std::string& to) {
-  const size_t at = text.find(from);
-  if (at == std::string::npos) {
-    ADD_FAILURE() << "'" << from << "' not in the text";
-    return text;
-  }
-  return text.replace(at, from.size(), to);
-}
-
 class PokeCliTest : public ::testing::Test {
  protected:
   RunResult Rodfit(const std::string& args) { return test::RunRodfit(dir_, args); }
-  static std::string Q(const std::string& s) { return "'" + s + "'"; }
+  static std::string Q(const std::string& s) { return test::Quote(s); }
   TempDir dir_;
 };
 

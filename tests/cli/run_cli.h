@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <string>
 
+#include <gtest/gtest.h>
+
 #include "../io/temp_dir.h"
 
 namespace rodfit::test {
@@ -30,5 +32,16 @@ inline RunResult RunRodfit(const TempDir& dir, const std::string& args) {
 
 /// A path or word single-quoted for the shell.
 inline std::string Quote(const std::string& s) { return "'" + s + "'"; }
+
+/// `text` with the first `from` replaced by `to`; a test failure when `from` is not there (so a
+/// bad-input test cannot pass on an unchanged, valid file).
+inline std::string Replace(std::string text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  if (at == std::string::npos) {
+    ADD_FAILURE() << "'" << from << "' not in the text";
+    return text;
+  }
+  return text.replace(at, from.size(), to);
+}
 
 }  // namespace rodfit::test

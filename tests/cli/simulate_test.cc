@@ -32,7 +32,7 @@ class CliTest : public ::testing::Test {
     return test::RunRodfit(dir_, args);
   }
 
-  static std::string Quote(const std::string& s) { return "'" + s + "'"; }
+  static std::string Quote(const std::string& s) { return test::Quote(s); }
 
   // `rodfit simulate` on `yaml` fails with one stderr line containing `expected`, writing nothing.
   void ExpectSimulateFails(const std::string& yaml, const std::string& expected) {

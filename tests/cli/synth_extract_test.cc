@@ -70,7 +70,7 @@ class SynthExtractCliTest : public ::testing::Test {
   RunResult Rodfit(const std::string& args) {
     return test::RunRodfit(dir_, args);
   }
-  static std::string Q(const std::string& s) { return "'" + s + "'"; }
+  static std::string Q(const std::string& s) { return test::Quote(s); }
 
   // Writes the experiment (front camera = `camera`) beside copies of the camera files.
   std::string WriteExperiment(const std::string& camera = "cam_front.yaml") {

@@ -27,6 +27,7 @@ namespace rodfit {
 namespace {
 
 using test::RunResult;
+using test::Replace;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -65,15 +66,6 @@ const char* const kScene =
     "    observations:\n"                                                               // 22
     "      - {type: grasp_force, file: log.csv, sigma: 0.01, s: 0.1, max_speed: 1.0e-3}\n";  // 23
 
-std::string Replace(std::string text, const std::string& from, const std::string& to) {
-  const size_t at = text.find(from);
-  if (at == std::string::npos) {
-    ADD_FAILURE() << "'" << from << "' not in the text";
-    return text;
-  }
-  return text.replace(at, from.size(), to);
-}
-
 // A haptic log of `rows` samples at 200 Hz with the tool still at the grasp's position and a
 // constant force: every sample but the ends is quasi-static.
 std::string StillLog(int rows) {
@@ -88,7 +80,7 @@ class TissueCliTest : public ::testing::Test {
   RunResult Rodfit(const std::string& args) {
     return test::RunRodfit(dir_, args);
   }
-  static std::string Q(const std::string& s) { return "'" + s + "'"; }
+  static std::string Q(const std::string& s) { return test::Quote(s); }
 
   // A failed run: non-zero exit, one line on stderr starting "rodfit: " holding each of
   // `expected`.
