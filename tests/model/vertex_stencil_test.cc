@@ -3,6 +3,7 @@
 // symmetric part of the Jet Jacobian of that gradient) against full second-order autodiff of the
 // energy and against central differences, on random states from nearly straight to strongly
 // bent and twisted, with and without an end moment.
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -69,12 +70,33 @@ Vec11 Gradient(const Stencil& s) {
   return g;
 }
 
-// The Hessian the solver assembles: VertexHessianEdges in the edge variables (linearised
-// transport, symmetrised Jet Jacobian), mapped to the stencil by e = x_mid - x_prev,
-// f = x_next - x_mid.
+// The reference for the hand-derived VertexHessianEdges: the symmetric part of the Jet Jacobian
+// of the closed-form gradient with the linearised transport, in the edge variables.
+void JetHessianEdges(const VertexStencilConstants& c, const double* q, double* g8, double* H8) {
+  using Jet8 = ceres::Jet<double, 8>;
+  const Vec3T<Jet8> e(Jet8(q[3] - q[0], 0), Jet8(q[4] - q[1], 1), Jet8(q[5] - q[2], 2));
+  const Vec3T<Jet8> f(Jet8(q[6] - q[3], 3), Jet8(q[7] - q[4], 4), Jet8(q[8] - q[5], 5));
+  Jet8 out[8];
+  VertexGradientEdges<Jet8, true>(c, e, f, Jet8(q[9], 6), Jet8(q[10], 7), out);
+  for (int a = 0; a < 8; ++a) {
+    g8[a] = out[a].a;
+    for (int b = 0; b < 8; ++b) H8[8 * a + b] = 0.5 * (out[a].v[b] + out[b].v[a]);
+  }
+}
+
+// The Hessian the solver assembles: VertexHessianEdges in the edge variables (hand-derived
+// symmetric part of the closed-form gradient's Jacobian), mapped to the stencil by
+// e = x_mid - x_prev, f = x_next - x_mid. Also checks it against the Jet Jacobian to round-off.
 Mat11 SolverHessian(const Stencil& s) {
-  double g8[8], H8[64];
+  double g8[8], H8[64], g8_jet[8], H8_jet[64];
   VertexHessianEdges(s.c, s.q.data(), g8, H8);
+  JetHessianEdges(s.c, s.q.data(), g8_jet, H8_jet);
+  double hmax = 0.0, gmax = 0.0;
+  for (int a = 0; a < 64; ++a) hmax = std::max(hmax, std::abs(H8_jet[a]));
+  for (int a = 0; a < 8; ++a) gmax = std::max(gmax, std::abs(g8_jet[a]));
+  for (int a = 0; a < 8; ++a) EXPECT_NEAR(g8[a], g8_jet[a], 1e-12 * gmax) << "g8[" << a << "]";
+  for (int a = 0; a < 64; ++a)
+    EXPECT_NEAR(H8[a], H8_jet[a], 1e-11 * hmax) << "H8(" << a / 8 << ", " << a % 8 << ")";
   Eigen::Matrix<double, 8, 11> A = Eigen::Matrix<double, 8, 11>::Zero();
   for (int k = 0; k < 3; ++k) {
     A(k, k) = -1, A(k, 3 + k) = 1;

@@ -1,22 +1,193 @@
-// The one instantiation of the vertex stencil's Hessian (vertex_stencil.h) with ceres::Jet over
-// the 8 edge variables, kept out of the header so only this file pays for the Jet templates.
+// Hand-derived Hessian of the vertex bend–twist stencil (vertex_stencil.h) at fresh frames.
+//
+// It is the symmetric part of the Jacobian of the closed-form gradient VertexGradientEdges with
+// the linearised transport, which is the true Hessian at fresh frames (the two differ only by
+// an antisymmetric holonomy term). The derivation works in the tangent variables
+// (te, tf, theta_e, theta_f) and maps to the edges at the end. First-order variations at fresh
+// frames, for dte, dtf perpendicular to te, tf:
+//   d(d_k,e) = -te (d_k,e . dte) + (twist rotation by d theta_e)   (transport to first order)
+//   d kb     = dKb/dte dte + dKb/dtf dtf,  dKb/dte = -(2 [tf]x + kb tf^T) / chi,
+//                                          dKb/dtf =  (2 [te]x - kb te^T) / chi
+//   d m      = kb . (dte + dtf) / 2                                 (reference twist)
+// Every bending measure is K = kb . D for a vector D = D_e + D_f carried by the frames of e and f
+// (K1: D = d1e + d1f, K2: D = d2e + d2f) or fixed (the end moment: D = M). Its gradient is
+//   dK = [ue, uf, kb.n_e, kb.n_f],  ue = (2 tf x D - K tf) / chi,  uf = (2 D x te - K te) / chi,
+// with n = dD/dtheta, and the Jacobian of that gradient is written out in AddKbJacobian. The
+// energy E(K1, K2, Delta) then has the Jacobian
+//   B1/(4l) dK1 dK1^T + B2/(4l) dK2 dK2^T + GJ/l dDelta dDelta^T       (Gauss–Newton part)
+//   + a1/2 J(dK1) + a2/2 J(dK2) + a3 J(dDelta) + end-moment terms      (curvature part).
+// The test (tests/model/vertex_stencil_test.cc) checks it entry by entry against the Jet
+// Jacobian of the closed-form gradient and against the energy's true Hessian.
 #include "rodfit/model/vertex_stencil.h"
 
-#include <ceres/jet.h>
-
 namespace rodfit {
+namespace {
+
+using Vec2 = Eigen::Vector2d;
+using Mat2 = Eigen::Matrix2d;
+using Vec3d = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+
+/// The stencil's frames: tangent-plane bases E = [d1e d2e], F = [d1f d2f] (the material
+/// directors, orthonormal and perpendicular to te, tf) and the projections every term needs.
+struct ReducedGeometry {
+  Vec3d te, tf, kb, d1e, d2e, d1f, d2f;
+  double ic;             // 1 / chi
+  Vec2 kbE, kbF;         // E^T kb, F^T kb
+  Vec2 tfE, teF;         // E^T tf, F^T te
+  Mat2 C;                // E^T F
+  Vec2 ToE(const Vec3d& v) const { return Vec2(d1e.dot(v), d2e.dot(v)); }
+  Vec2 ToF(const Vec3d& v) const { return Vec2(d1f.dot(v), d2f.dot(v)); }
+};
+
+/// K = kb . D, with D = D_e + D_f turning with the frames of e and f (n = dD/dtheta) or fixed
+/// (D_e = D_f = n = 0). In the reduced variables r = [E^T dte, F^T dtf, theta_e, theta_f] it
+/// writes dK (6) and te . dK/dte = tf . dK/dtf = K / chi, and adds coef * sym(J(dK)) to J.
+/// DeE = E^T D_e, DfF = F^T D_f, kbDe = kb . D_e, kbDf = kb . D_f.
+double AddKbTerm(const ReducedGeometry& g, const Vec3d& D, const Vec2& DeE, const Vec2& DfF,
+                 double kbDe, double kbDf, const Vec3d* n_e, const Vec3d* n_f, double coef,
+                 Vec6* dK, Mat6* J) {
+  const double K = g.kb.dot(D), ic = g.ic;
+  const Vec2 weE = (2.0 * g.ToE(g.tf.cross(D)) - K * g.tfE) * ic;
+  const Vec2 wfF = (2.0 * g.ToF(D.cross(g.te)) - K * g.teF) * ic;
+  const double kne = n_e ? g.kb.dot(*n_e) : 0.0, knf = n_f ? g.kb.dot(*n_f) : 0.0;
+  *dK << weE, wfF, kne, knf;
+  if (coef != 0.0) {
+    const double cic = coef * ic;
+    // (te, te): sym(kb D_e^T) - (tf w_e^T + w_e tf^T) / chi; likewise (tf, tf).
+    const Mat2 kbDe_outer = g.kbE * DeE.transpose(), kbDf_outer = g.kbF * DfF.transpose();
+    J->block<2, 2>(0, 0) += 0.5 * coef * (kbDe_outer + kbDe_outer.transpose()) -
+                            cic * (g.tfE * weE.transpose() + weE * g.tfE.transpose());
+    J->block<2, 2>(2, 2) += 0.5 * coef * (kbDf_outer + kbDf_outer.transpose()) -
+                            cic * (g.teF * wfF.transpose() + wfF * g.teF.transpose());
+    // (te, tf): -(2 [D]x + tf w_f^T + K I + w_e te^T) / chi (already symmetric with (tf, te)).
+    const Vec3d Dx1 = D.cross(g.d1f), Dx2 = D.cross(g.d2f);
+    Mat2 X;
+    X << g.d1e.dot(Dx1), g.d1e.dot(Dx2), g.d2e.dot(Dx1), g.d2e.dot(Dx2);
+    const Mat2 ef = -cic * (2.0 * X + g.tfE * wfF.transpose() + K * g.C + weE * g.teF.transpose());
+    J->block<2, 2>(0, 2) += ef;
+    J->block<2, 2>(2, 0) += ef.transpose();
+    // (t, theta): (2 tf x n - (kb.n) tf) / chi and (2 n x te - (kb.n) te) / chi.
+    for (int t = 0; t < 2; ++t) {
+      const Vec3d* n = (t == 0) ? n_e : n_f;
+      if (!n) continue;
+      const double kn = (t == 0) ? kne : knf;
+      const Vec2 e_col = cic * (2.0 * g.ToE(g.tf.cross(*n)) - kn * g.tfE);
+      const Vec2 f_col = cic * (2.0 * g.ToF(n->cross(g.te)) - kn * g.teF);
+      J->block<2, 1>(0, 4 + t) += e_col;
+      J->block<1, 2>(4 + t, 0) += e_col.transpose();
+      J->block<2, 1>(2, 4 + t) += f_col;
+      J->block<1, 2>(4 + t, 2) += f_col.transpose();
+    }
+    // (theta, theta): d n_e / d theta_e = -D_e for both bending directions.
+    (*J)(4, 4) -= coef * kbDe;
+    (*J)(5, 5) -= coef * kbDf;
+  }
+  return K * ic;
+}
+
+/// Adds coef * sym(J(dDelta)), dDelta = [kb/2, kb/2, -1, 1] (d m = kb . (dte + dtf) / 2):
+/// (te, te) -(kb tf^T + tf kb^T) / 4 chi, (tf, tf) -(kb te^T + te kb^T) / 4 chi,
+/// (te, tf) ([te]x + [tf]x) / 2 chi - (kb te^T + tf kb^T) / 4 chi.
+void AddTwistCurvature(const ReducedGeometry& g, double coef, Mat6* J) {
+  const double c4 = 0.25 * coef * g.ic;
+  J->block<2, 2>(0, 0) -= c4 * (g.kbE * g.tfE.transpose() + g.tfE * g.kbE.transpose());
+  J->block<2, 2>(2, 2) -= c4 * (g.kbF * g.teF.transpose() + g.teF * g.kbF.transpose());
+  // E^T ([te]x + [tf]x) F from the frames: d1 x t = -d2, d2 x t = d1, t x d1 = d2, t x d2 = -d1.
+  const Mat2& C = g.C;
+  Mat2 S;
+  S << C(0, 1) - C(1, 0), -C(0, 0) - C(1, 1), C(0, 0) + C(1, 1), C(0, 1) - C(1, 0);
+  const Mat2 ef = 2.0 * c4 * S - c4 * (g.kbE * g.teF.transpose() + g.tfE * g.kbF.transpose());
+  J->block<2, 2>(0, 2) += ef;
+  J->block<2, 2>(2, 0) += ef.transpose();
+}
+
+}  // namespace
 
 void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double* g8,
                         double* H8) {
-  using Jet8 = ceres::Jet<double, 8>;
-  const Vec3T<Jet8> e(Jet8(q[3] - q[0], 0), Jet8(q[4] - q[1], 1), Jet8(q[5] - q[2], 2));
-  const Vec3T<Jet8> f(Jet8(q[6] - q[3], 3), Jet8(q[7] - q[4], 4), Jet8(q[8] - q[5], 5));
-  Jet8 out[8];
-  VertexGradientEdges<Jet8, true>(c, e, f, Jet8(q[9], 6), Jet8(q[10], 7), out);
-  for (int a = 0; a < 8; ++a) {
-    g8[a] = out[a].a;
-    for (int b = 0; b < 8; ++b) H8[8 * a + b] = 0.5 * (out[a].v[b] + out[b].v[a]);
+  const VertexGeometry<double, true> geo(c, Vec3d(q[3] - q[0], q[4] - q[1], q[5] - q[2]),
+                                         Vec3d(q[6] - q[3], q[7] - q[4], q[8] - q[5]), q[9],
+                                         q[10]);
+  const double l = c.voronoi_length;
+  ReducedGeometry g;
+  g.te = geo.te, g.tf = geo.tf, g.kb = geo.kb;
+  g.d1e = geo.d1e, g.d2e = geo.d2e, g.d1f = geo.d1f, g.d2f = geo.d2f;
+  g.ic = 1.0 / geo.chi;
+  g.kbE = g.ToE(g.kb), g.kbF = g.ToF(g.kb);
+  g.tfE = g.ToE(g.tf), g.teF = g.ToF(g.te);
+  g.C << g.d1e.dot(g.d1f), g.d1e.dot(g.d2f), g.d2e.dot(g.d1f), g.d2e.dot(g.d2f);
+
+  const double delta = q[10] - q[9] + geo.ref_twist;
+  const double K1 = g.kbE[0] + g.kbF[0], K2 = g.kbE[1] + g.kbF[1];
+  const double a1 = c.B1 * (K1 / (2.0 * l) - c.rest_curvature[0]);
+  const double a2 = c.B2 * (K2 / (2.0 * l) - c.rest_curvature[1]);
+  const double a3 = c.GJ * (delta / l - c.rest_curvature[2]);
+
+  Mat6 J = Mat6::Zero();
+  Vec6 dK1, dK2, dDelta;
+  const Vec3d n1e = -g.d1e, n1f = -g.d1f;
+  const double t1 = AddKbTerm(g, g.d1e + g.d1f, Vec2(1, 0), Vec2(1, 0), g.kbE[0], g.kbF[0],
+                              &g.d2e, &g.d2f, 0.5 * a1, &dK1, &J);
+  const double t2 = AddKbTerm(g, g.d2e + g.d2f, Vec2(0, 1), Vec2(0, 1), g.kbE[1], g.kbF[1],
+                              &n1e, &n1f, 0.5 * a2, &dK2, &J);
+  dDelta << 0.5 * g.kbE, 0.5 * g.kbF, -1.0, 1.0;
+  AddTwistCurvature(g, a3, &J);
+  J += (c.B1 / (4.0 * l)) * dK1 * dK1.transpose() + (c.B2 / (4.0 * l)) * dK2 * dK2.transpose() +
+       (c.GJ / l) * dDelta * dDelta.transpose();
+  Vec6 grad = 0.5 * a1 * dK1 + 0.5 * a2 * dK2 + a3 * dDelta;
+  // Tangential components of the tangent gradients (te . g_te, tf . g_tf): projected away from
+  // the edge gradient, but they enter its derivative through d P_e.
+  double g_te_t = 0.5 * a1 * t1 + 0.5 * a2 * t2;
+  double g_tf_t = g_te_t;
+
+  if (c.moment.squaredNorm() > 0.0) {
+    // E_M = -kb.M - Delta Mt, Mt = M.(te + tf) / 2: gradient -dKM - Delta dMt - Mt dDelta,
+    // Jacobian -J(dKM) - dMt dDelta^T - dDelta dMt^T - Mt J(dDelta).
+    const Vec3d& M = c.moment;
+    const double Mt = 0.5 * M.dot(g.te + g.tf);
+    Vec6 dKM, dMt;
+    const double tM = AddKbTerm(g, M, Vec2::Zero(), Vec2::Zero(), 0.0, 0.0, nullptr, nullptr,
+                                -1.0, &dKM, &J);
+    dMt << 0.5 * g.ToE(M), 0.5 * g.ToF(M), 0.0, 0.0;
+    J -= dMt * dDelta.transpose() + dDelta * dMt.transpose();
+    AddTwistCurvature(g, -Mt, &J);
+    grad -= dKM + delta * dMt + Mt * dDelta;
+    g_te_t -= tM + 0.5 * delta * M.dot(g.te);
+    g_tf_t -= tM + 0.5 * delta * M.dot(g.tf);
   }
+
+  // Reduced to edge variables: dte = E (E^T de) / |e|, and g_e = P_e g_te / |e| = E g_eE / |e|,
+  //   d g_e / de = [E (J_ee - (te.g_te) I) E^T - te p_e^T - p_e te^T] / |e|^2,  p_e = E g_eE,
+  // the cross blocks carrying E / |e| and F / |f|.
+  const double ie = 1.0 / geo.len_e, jf = 1.0 / geo.len_f;
+  Eigen::Matrix<double, 3, 2> E, F;
+  E << g.d1e, g.d2e;
+  F << g.d1f, g.d2f;
+  const Vec3d pe = E * grad.segment<2>(0), pf = F * grad.segment<2>(2);
+  const Mat2 Jee = J.block<2, 2>(0, 0) - g_te_t * Mat2::Identity();
+  const Mat2 Jff = J.block<2, 2>(2, 2) - g_tf_t * Mat2::Identity();
+  Eigen::Map<Eigen::Matrix<double, 8, 8, Eigen::RowMajor>> H(H8);
+  H.block<3, 3>(0, 0) = (E * Jee * E.transpose() - g.te * pe.transpose() - pe * g.te.transpose()) *
+                        (ie * ie);
+  H.block<3, 3>(3, 3) = (F * Jff * F.transpose() - g.tf * pf.transpose() - pf * g.tf.transpose()) *
+                        (jf * jf);
+  H.block<3, 3>(0, 3) = (E * J.block<2, 2>(0, 2) * F.transpose()) * (ie * jf);
+  H.block<3, 3>(3, 0) = H.block<3, 3>(0, 3).transpose();
+  H.block<3, 2>(0, 6) = (E * J.block<2, 2>(0, 4)) * ie;
+  H.block<3, 2>(3, 6) = (F * J.block<2, 2>(2, 4)) * jf;
+  H.block<2, 6>(6, 0) = H.block<6, 2>(0, 6).transpose();
+  H.block<2, 2>(6, 6) = J.block<2, 2>(4, 4);
+
+  const Vec3d ge = pe * ie, gf = pf * jf;
+  for (int k = 0; k < 3; ++k) {
+    g8[k] = ge[k];
+    g8[3 + k] = gf[k];
+  }
+  g8[6] = grad[4];
+  g8[7] = grad[5];
 }
 
 }  // namespace rodfit

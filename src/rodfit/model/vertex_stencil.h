@@ -187,8 +187,9 @@ void VertexGradient(const VertexStencilConstants& c, const T* q, T* grad) {
 }
 
 /// Gradient g8 and Hessian H8 (row major 8x8) of VertexEnergy in the edge variables
-/// (e, f, theta_e, theta_f) at fresh frames: H8 is the symmetric part of the Jet Jacobian of the
-/// linearised closed-form gradient. q is the stencil (11 entries). Defined in vertex_stencil.cc.
+/// (e, f, theta_e, theta_f) at fresh frames: H8 is the symmetric part of the Jacobian of the
+/// linearised closed-form gradient, derived by hand (about 10x cheaper than its Jet Jacobian,
+/// which the tests compare it with). q is the stencil (11 entries). Defined in vertex_stencil.cc.
 void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double* g8,
                         double* H8);
 /// Stretch energy of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2 (per-edge stretch, DESIGN.md §1),

@@ -6,9 +6,12 @@
 
 namespace rodfit {
 
-void BandedSymmetric::Resize(int size, int bandwidth) {
+void BandedSymmetric::Resize(int size, int bandwidth, int block_size) {
+  const int p = std::min(bandwidth, std::max(size - 1, 0));
+  block_ = std::max(block_size, 1);
+  if (size == n_ && p == p_) return;  // keep the storage (and its contents) between assemblies
   n_ = size;
-  p_ = std::min(bandwidth, std::max(size - 1, 0));
+  p_ = p;
   band_.setZero(p_ + 1, n_);
 }
 
@@ -38,45 +41,144 @@ Eigen::MatrixXd BandedSymmetric::ToDense() const {
   return A;
 }
 
+// Right-looking (outer-product) form: once column j of L is known, it updates the columns
+// j+1..j+p below their diagonal. In the column-major band each of those updates is a
+// contiguous axpy, which the compiler vectorises; the inner-product form would walk rows of the
+// band with stride p + 1.
 bool BandedCholesky::Factor(const BandedSymmetric& A, double diagonal_shift) {
+  n_ = A.size();
+  valid_ = false;
+  block_mode_ = false;
+  if (A.block_size() == 4 && A.size() % 4 == 0 && (A.bandwidth() + 1) % 4 == 0 &&
+      A.bandwidth() >= 3)
+    return FactorBlocks4(A, diagonal_shift);
+  // Right-looking (outer-product) form: once column j of L is known, it updates the columns
+  // j+1..j+p below their diagonal, each a contiguous axpy in the column-major band.
   L_ = A;
   const int n = A.size(), p = A.bandwidth();
   Eigen::MatrixXd& b = L_.band();
+  const Eigen::MatrixXd& a = A.band();
   for (int j = 0; j < n; ++j) {
-    double d = b(0, j) + diagonal_shift;
-    const int kbeg = std::max(0, j - p);
-    for (int k = kbeg; k < j; ++k) d -= b(j - k, k) * b(j - k, k);
+    const double a_jj = a(0, j) + diagonal_shift;
+    const double d = b(0, j) + diagonal_shift;
     // Relative pivot test: a pivot lost to cancellation means "not positive definite".
-    if (!(d > 1e-14 * std::abs(b(0, j) + diagonal_shift)) || !std::isfinite(d)) {
-      valid_ = false;
-      return false;
-    }
-    const double ljj = std::sqrt(d);
-    b(0, j) = ljj;
-    const int iend = std::min(n - 1, j + p);
-    for (int i = j + 1; i <= iend; ++i) {
-      double s = b(i - j, j);
-      for (int k = std::max(kbeg, i - p); k < j; ++k) s -= b(i - k, k) * b(j - k, k);
-      b(i - j, j) = s / ljj;
+    if (!(d > 1e-14 * std::abs(a_jj)) || !std::isfinite(d)) return false;
+    const double ljj = std::sqrt(d), inv = 1.0 / ljj;
+    double* col = &b(0, j);
+    col[0] = ljj;
+    const int m = std::min(p, n - 1 - j);
+    for (int r = 1; r <= m; ++r) col[r] *= inv;
+    for (int c = 1; c <= m; ++c) {
+      // A(j+c+r, j+c) -= L(j+c+r, j) L(j+c, j) for r = 0..m-c (the shift enters the pivots).
+      const double lc = col[c];
+      double* target = &b(0, j + c);
+      const double* source = col + c;
+      for (int r = 0; r <= m - c; ++r) target[r] -= lc * source[r];
     }
   }
   valid_ = true;
   return true;
 }
 
+// Block form, left-looking with q = (p + 1) / 4 - 1 block diagonals:
+//   S = A(J,J) - sum_K L(J,K) L(J,K)^T,  L(J,J) = chol(S)  (scalar, same pivot test),
+//   L(I,J) = (A(I,J) - sum_K L(I,K) L(J,K)^T) L(J,J)^{-T}  for I = J+1..J+q,
+// with K over the block columns both rows reach. Fill-in stays inside the block band.
+bool BandedCholesky::FactorBlocks4(const BandedSymmetric& A, double diagonal_shift) {
+  const int nb = n_ / 4, q = (A.bandwidth() + 1) / 4 - 1, stride = q + 1;
+  const Eigen::MatrixXd& a = A.band();
+  block_mode_ = true;
+  block_bandwidth_ = q;
+  blocks_.resize(static_cast<size_t>(nb) * stride);
+  // L(I, K) for I > K is blocks_[K * stride + (I - K)].
+  auto L = [&](int I, int K) -> const Block& { return blocks_[K * stride + (I - K)]; };
+  for (int J = 0; J < nb; ++J) {
+    const int j0 = 4 * J;
+    Block S;
+    for (int c = 0; c < 4; ++c)
+      for (int r = c; r < 4; ++r) S(r, c) = a(r - c, j0 + c);
+    for (int K = std::max(0, J - q); K < J; ++K) S.noalias() -= L(J, K) * L(J, K).transpose();
+    // Cholesky of the diagonal block (lower triangle of S), then its inverse.
+    Block Ljj = Block::Zero();
+    for (int k = 0; k < 4; ++k) {
+      double d = S(k, k) + diagonal_shift;
+      for (int m = 0; m < k; ++m) d -= Ljj(k, m) * Ljj(k, m);
+      if (!(d > 1e-14 * std::abs(a(0, j0 + k) + diagonal_shift)) || !std::isfinite(d))
+        return false;
+      const double lkk = std::sqrt(d), inv = 1.0 / lkk;
+      Ljj(k, k) = lkk;
+      for (int r = k + 1; r < 4; ++r) {
+        double s = S(r, k);
+        for (int m = 0; m < k; ++m) s -= Ljj(r, m) * Ljj(k, m);
+        Ljj(r, k) = s * inv;
+      }
+    }
+    Block inv = Block::Zero();  // L(J,J)^{-1} by forward substitution on the identity
+    for (int c = 0; c < 4; ++c) {
+      inv(c, c) = 1.0 / Ljj(c, c);
+      for (int r = c + 1; r < 4; ++r) {
+        double s = 0.0;
+        for (int m = c; m < r; ++m) s -= Ljj(r, m) * inv(m, c);
+        inv(r, c) = s / Ljj(r, r);
+      }
+    }
+    blocks_[J * stride] = inv;
+    for (int I = J + 1; I <= std::min(nb - 1, J + q); ++I) {
+      const int d = 4 * (I - J);
+      Block B;
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) B(r, c) = a(d + r - c, j0 + c);
+      for (int K = std::max(0, I - q); K < J; ++K) B.noalias() -= L(I, K) * L(J, K).transpose();
+      blocks_[J * stride + (I - J)].noalias() = B * inv.transpose();
+    }
+  }
+  valid_ = true;
+  return true;
+}
+
+void BandedCholesky::SolveBlocks4(double* x) const {
+  using Vec4 = Eigen::Vector4d;
+  const int nb = n_ / 4, q = block_bandwidth_, stride = q + 1;
+  // L y = x: y_J = L(J,J)^{-1} (x_J - sum_K L(J,K) y_K).
+  for (int J = 0; J < nb; ++J) {
+    Eigen::Map<Vec4> xJ(x + 4 * J);
+    Vec4 s = xJ;
+    for (int K = std::max(0, J - q); K < J; ++K)
+      s.noalias() -= blocks_[K * stride + (J - K)] * Eigen::Map<const Vec4>(x + 4 * K);
+    xJ.noalias() = blocks_[J * stride] * s;
+  }
+  // L^T z = y: z_J = L(J,J)^{-T} (y_J - sum_I L(I,J)^T z_I).
+  for (int J = nb - 1; J >= 0; --J) {
+    Eigen::Map<Vec4> xJ(x + 4 * J);
+    Vec4 s = xJ;
+    for (int I = J + 1; I <= std::min(nb - 1, J + q); ++I)
+      s.noalias() -= blocks_[J * stride + (I - J)].transpose() * Eigen::Map<const Vec4>(x + 4 * I);
+    xJ.noalias() = blocks_[J * stride].transpose() * s;
+  }
+}
+
 void BandedCholesky::SolveInPlace(Eigen::Ref<Eigen::MatrixXd> x) const {
+  if (block_mode_) {
+    for (int c = 0; c < x.cols(); ++c) SolveBlocks4(&x(0, c));
+    return;
+  }
   const int n = L_.size(), p = L_.bandwidth();
   const Eigen::MatrixXd& b = L_.band();
   for (int c = 0; c < x.cols(); ++c) {
-    for (int i = 0; i < n; ++i) {  // L y = x
-      double s = x(i, c);
-      for (int k = std::max(0, i - p); k < i; ++k) s -= b(i - k, k) * x(k, c);
-      x(i, c) = s / b(0, i);
+    double* v = &x(0, c);
+    for (int j = 0; j < n; ++j) {  // L y = x, by columns of L (contiguous)
+      const double* col = &b(0, j);
+      const double y = v[j] / col[0];
+      v[j] = y;
+      const int m = std::min(p, n - 1 - j);
+      for (int r = 1; r <= m; ++r) v[j + r] -= col[r] * y;
     }
-    for (int i = n - 1; i >= 0; --i) {  // L^T z = y
-      double s = x(i, c);
-      for (int k = i + 1; k <= std::min(n - 1, i + p); ++k) s -= b(k - i, i) * x(k, c);
-      x(i, c) = s / b(0, i);
+    for (int i = n - 1; i >= 0; --i) {  // L^T z = y: row i of L^T is column i of L
+      const double* col = &b(0, i);
+      const int m = std::min(p, n - 1 - i);
+      double s = v[i];
+      for (int r = 1; r <= m; ++r) s -= col[r] * v[i + r];
+      v[i] = s / col[0];
     }
   }
 }
@@ -89,6 +191,11 @@ Eigen::VectorXd BandedCholesky::Solve(const Eigen::VectorXd& rhs) const {
 
 double BandedCholesky::LogDeterminant() const {
   double s = 0.0;
+  if (block_mode_) {  // the diagonal of L(J,J)^{-1} is 1 / L_jj
+    for (int J = 0; J < n_ / 4; ++J)
+      for (int k = 0; k < 4; ++k) s -= 2.0 * std::log(blocks_[J * (block_bandwidth_ + 1)](k, k));
+    return s;
+  }
   for (int i = 0; i < L_.size(); ++i) s += 2.0 * std::log(L_.band()(0, i));
   return s;
 }

@@ -1,6 +1,6 @@
 // Energy, gradient and banded Hessian assembly of the rod (rod_energy.h). The vertex Hessian is
-// the symmetric part of the Jet Jacobian of the closed-form stencil gradient (see
-// model/vertex_stencil.h for why that is exact); stretch is differentiated by hand.
+// the symmetric part of the Jacobian of the closed-form stencil gradient, derived by hand (see
+// model/vertex_stencil.h for why that is exact); stretch is differentiated by hand too.
 #include "rodfit/solve/rod_energy.h"
 
 #include <algorithm>
@@ -23,6 +23,48 @@ void StretchGradientHessian(double EA, double L0, const Vec3& xa, const Vec3& xb
   if (H)
     *H = (EA / L0) * t * t.transpose() +
          (EA * strain / len) * (Eigen::Matrix3d::Identity() - t * t.transpose());
+}
+
+// Adds vertex i's stencil gradient and Hessian, given in the edge variables (e, f, theta_e,
+// theta_f), to the free dofs. With e = x_i - x_{i-1} and f = x_{i+1} - x_i the stencil covers
+// the dof blocks i-2, i-1, i = [x_{i-1}, theta_{i-2}, x_i, theta_{i-1}, x_{i+1}, theta_i]: twelve
+// consecutive dofs from 4 (i - 2), local x_prev 0..2, x_mid 4..6, theta_e 7, x_next 8..10,
+// theta_f 11 (local 3 is not in the stencil). Dofs below zero are the clamp and the ghost edge.
+void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gradient,
+                       BandedSymmetric* H) {
+  using Mat3 = Eigen::Matrix3d;
+  const Eigen::Map<const Eigen::Matrix<double, 8, 8, Eigen::RowMajor>> h(H8);
+  const Mat3 Hee = h.block<3, 3>(0, 0), Hfe = h.block<3, 3>(3, 0), Hff = h.block<3, 3>(3, 3);
+  // H_local = A^T H8 A with d/dx_prev = -d/de, d/dx_mid = d/de - d/df, d/dx_next = d/df.
+  Eigen::Matrix<double, 12, 12> L = Eigen::Matrix<double, 12, 12>::Zero();
+  L.block<3, 3>(0, 0) = Hee;
+  L.block<3, 3>(4, 0) = Hfe - Hee;
+  L.block<3, 3>(4, 4) = Hee - Hfe - Hfe.transpose() + Hff;
+  L.block<3, 3>(8, 0) = -Hfe;
+  L.block<3, 3>(8, 4) = Hfe - Hff;
+  L.block<3, 3>(8, 8) = Hff;
+  // theta_e (local 7) lies between x_mid and x_next, theta_f (local 11) after everything.
+  const Eigen::RowVector3d he_e = h.block<1, 3>(6, 0), he_f = h.block<1, 3>(6, 3);
+  const Eigen::RowVector3d hf_e = h.block<1, 3>(7, 0), hf_f = h.block<1, 3>(7, 3);
+  L.block<1, 3>(7, 0) = -he_e;
+  L.block<1, 3>(7, 4) = he_e - he_f;
+  L.block<3, 1>(8, 7) = he_f.transpose();
+  L.block<1, 3>(11, 0) = -hf_e;
+  L.block<1, 3>(11, 4) = hf_e - hf_f;
+  L.block<1, 3>(11, 8) = hf_f;
+  L(7, 7) = h(6, 6);
+  L(11, 7) = h(7, 6);
+  L(11, 11) = h(7, 7);
+  // L now holds the lower triangle (and full diagonal blocks); add it to the lower band.
+  const int base = 4 * (i - 2);
+  const double g_local[12] = {-g8[0],        -g8[1],        -g8[2],        0.0,
+                              g8[0] - g8[3], g8[1] - g8[4], g8[2] - g8[5], g8[6],
+                              g8[3],         g8[4],         g8[5],         g8[7]};
+  for (int a = 0; a < 12; ++a) {
+    if (base + a < 0) continue;
+    (*gradient)[base + a] += g_local[a];
+    for (int r = a; r < 12; ++r) H->At(base + r, base + a) += L(r, a);
+  }
 }
 
 void AddBlock(BandedSymmetric* H, int r, int c, double v) {
@@ -120,7 +162,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   const int n = model.num_edges();
   gradient->setZero(model.num_free_dofs());
   if (kHessian) {
-    H->Resize(model.num_free_dofs(), kRodBandwidth);
+    H->Resize(model.num_free_dofs(), kRodBandwidth, 4);  // blocks [x_i, theta_{i-1}]
     H->SetZero();
   }
   double q[11];
@@ -131,35 +173,9 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
     c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
     if (!terms.AnyBendTwist() && c.moment.squaredNorm() == 0.0) continue;
     if (kHessian) {
-      // Edge variables (e, f, theta_e, theta_f) -> stencil dofs: e = x_mid - x_prev and
-      // f = x_next - x_mid, so each stencil dof touches at most two edge variables
-      // (H11 = A^T H8 A with a sparse A, written out).
       double g8[8], H8[64];
       VertexHessianEdges(c, q, g8, H8);
-      int var[11][2], nvar[11];
-      double sign[11][2];
-      for (int k = 0; k < 3; ++k) {
-        nvar[k] = 1, var[k][0] = k, sign[k][0] = -1.0;                    // x_prev: -e
-        nvar[3 + k] = 2, var[3 + k][0] = k, sign[3 + k][0] = 1.0;        // x_mid: +e - f
-        var[3 + k][1] = 3 + k, sign[3 + k][1] = -1.0;
-        nvar[6 + k] = 1, var[6 + k][0] = 3 + k, sign[6 + k][0] = 1.0;    // x_next: +f
-      }
-      nvar[9] = nvar[10] = 1;
-      var[9][0] = 6, var[10][0] = 7, sign[9][0] = sign[10][0] = 1.0;
-      for (int a = 0; a < 11; ++a) {
-        if (dof[a] < 0) continue;
-        double ga = 0.0;
-        for (int r = 0; r < nvar[a]; ++r) ga += sign[a][r] * g8[var[a][r]];
-        (*gradient)[dof[a]] += ga;
-        for (int b = 0; b < 11; ++b) {
-          if (dof[b] < 0 || dof[b] > dof[a]) continue;
-          double h = 0.0;
-          for (int r = 0; r < nvar[a]; ++r)
-            for (int t = 0; t < nvar[b]; ++t)
-              h += sign[a][r] * sign[b][t] * H8[8 * var[a][r] + var[b][t]];
-          H->At(dof[a], dof[b]) += h;
-        }
-      }
+      AddStencilHessian(i, g8, H8, gradient, H);
     } else {
       double g[11];
       VertexGradient<double>(c, q, g);
