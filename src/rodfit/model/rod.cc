@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <utility>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 #include <stdexcept>
 
@@ -149,6 +150,26 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     vertex_forces_.col(k + 1) += (u - k) * pk.force;
     point_force_sum += pk.force.norm();
   }
+  // Hessian digest over the bytes of every number Assemble's Hessian reads (see rod.h).
+  uint64_t h = 1469598103934665603ULL;
+  auto mix = [&h](double v) {
+    unsigned char bytes[sizeof v];
+    std::memcpy(bytes, &v, sizeof v);
+    for (unsigned char b : bytes) h = (h ^ b) * 1099511628211ULL;
+  };
+  auto mix3 = [&mix](const Vec3& v) { mix(v[0]), mix(v[1]), mix(v[2]); };
+  mix(n_);
+  for (int j = 0; j < n_; ++j) mix(rest_edge_[j]), mix(voronoi_[j]);
+  mix(material_.B1()), mix(material_.B2());
+  mix(material_.twist_stiffness), mix(material_.stretch_stiffness);
+  mix3(rod_.rest_curvature);
+  mix3(clamp_p_), mix3(clamp_d3_), mix3(clamp_d1_);
+  mix3(case_.tip_moment);
+  for (int z = 0; z < num_spring_zones(); ++z)
+    for (int i = 0; i <= n_; ++i) mix(zone_stiffness(z) * zone_length_[z][i]);
+  mix(grasp_vertex_);
+  hessian_digest_ = h;
+
   const double weight = rod.linear_density * length_ * gravity_.norm();
   force_scale_ = std::max({weight, load_case.tip_force.norm(), load_case.tip_moment.norm() / length_,
                            point_force_sum, material.B1() / (length_ * length_),

@@ -8,6 +8,7 @@
 // makes an end moment close a circle. Free degrees of freedom: x_1..x_n and theta_0..theta_{n-1}.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -101,6 +102,13 @@ class RodModel {
   int grasp_vertex() const { return grasp_vertex_; }
   const Vec3& grasp_position() const { return grasp_position_; }
 
+  /// Digest (FNV-1a) of everything the Hessian of Pi reads: stiffness, rest geometry and
+  /// curvature, clamp, tip moment, springs and cuts, grasp vertex. Two models with equal
+  /// digests differ at most in dead loads (gravity, tip and point forces, poke force), which do
+  /// not enter the Hessian, so a factorisation made at a state on one is exact for the other
+  /// at that state (the statics solver reuses it for a warm start after a load change).
+  uint64_t hessian_digest() const { return hessian_digest_; }
+
   /// Material frame of edge j in a state (reference frame rotated by theta_j).
   EdgeFrame MaterialFrame(const RodState& state, int j) const;
 
@@ -124,6 +132,7 @@ class RodModel {
   Mat3X anchor_;
   int grasp_vertex_ = -1;
   Vec3 grasp_position_ = Vec3::Zero();
+  uint64_t hessian_digest_ = 0;
 };
 
 }  // namespace rodfit

@@ -100,26 +100,28 @@ bool BandedCholesky::FactorBlocks4(const BandedSymmetric& A, double diagonal_shi
     for (int K = std::max(0, J - q); K < J; ++K) S.noalias() -= L(J, K) * L(J, K).transpose();
     // Cholesky of the diagonal block (lower triangle of S), then its inverse.
     Block Ljj = Block::Zero();
+    double inv_diag[4];
     for (int k = 0; k < 4; ++k) {
       double d = S(k, k) + diagonal_shift;
       for (int m = 0; m < k; ++m) d -= Ljj(k, m) * Ljj(k, m);
       if (!(d > 1e-14 * std::abs(a(0, j0 + k) + diagonal_shift)) || !std::isfinite(d))
         return false;
-      const double lkk = std::sqrt(d), inv = 1.0 / lkk;
+      const double lkk = std::sqrt(d);
+      inv_diag[k] = 1.0 / lkk;
       Ljj(k, k) = lkk;
       for (int r = k + 1; r < 4; ++r) {
         double s = S(r, k);
         for (int m = 0; m < k; ++m) s -= Ljj(r, m) * Ljj(k, m);
-        Ljj(r, k) = s * inv;
+        Ljj(r, k) = s * inv_diag[k];
       }
     }
     Block inv = Block::Zero();  // L(J,J)^{-1} by forward substitution on the identity
     for (int c = 0; c < 4; ++c) {
-      inv(c, c) = 1.0 / Ljj(c, c);
+      inv(c, c) = inv_diag[c];
       for (int r = c + 1; r < 4; ++r) {
         double s = 0.0;
         for (int m = c; m < r; ++m) s -= Ljj(r, m) * inv(m, c);
-        inv(r, c) = s / Ljj(r, r);
+        inv(r, c) = s * inv_diag[r];
       }
     }
     blocks_[J * stride] = inv;

@@ -36,7 +36,7 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
   const Eigen::Map<const Eigen::Matrix<double, 8, 8, Eigen::RowMajor>> h(H8);
   const Mat3 Hee = h.block<3, 3>(0, 0), Hfe = h.block<3, 3>(3, 0), Hff = h.block<3, 3>(3, 3);
   // H_local = A^T H8 A with d/dx_prev = -d/de, d/dx_mid = d/de - d/df, d/dx_next = d/df.
-  Eigen::Matrix<double, 12, 12> L = Eigen::Matrix<double, 12, 12>::Zero();
+  Eigen::Matrix<double, 12, 12> L;  // lower triangle filled below; local 3 is not used
   L.block<3, 3>(0, 0) = Hee;
   L.block<3, 3>(4, 0) = Hfe - Hee;
   L.block<3, 3>(4, 4) = Hee - Hfe - Hfe.transpose() + Hff;
@@ -61,15 +61,12 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
                               g8[0] - g8[3], g8[1] - g8[4], g8[2] - g8[5], g8[6],
                               g8[3],         g8[4],         g8[5],         g8[7]};
   for (int a = 0; a < 12; ++a) {
-    if (base + a < 0) continue;
+    if (base + a < 0 || a == 3) continue;
     (*gradient)[base + a] += g_local[a];
-    for (int r = a; r < 12; ++r) H->At(base + r, base + a) += L(r, a);
+    double* column = &H->At(base + a, base + a);  // the band column is contiguous in the row
+    for (int r = a; r < 12; ++r)
+      if (r != 3) column[r - a] += L(r, a);
   }
-}
-
-void AddBlock(BandedSymmetric* H, int r, int c, double v) {
-  if (r < 0 || c < 0) return;
-  if (r >= c) H->At(r, c) += v;  // lower band only; the symmetric entry is implied
 }
 
 }  // namespace
@@ -168,42 +165,47 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   double q[11];
   std::array<int, 11> dof;
   VertexStencilConstants c;
+  const double EA = terms.stretch * model.material().stretch_stiffness;
   for (int i = 0; i < n; ++i) {
     GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, &dof);
     c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
-    if (!terms.AnyBendTwist() && c.moment.squaredNorm() == 0.0) continue;
+    const bool bend_twist = terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0;
     if (kHessian) {
+      // Vertex i's stencil in the edge variables, with the stretch of its edge f = edge i
+      // added (every edge is the f of exactly one vertex), scattered once.
+      if (!bend_twist && EA == 0.0) continue;
       double g8[8], H8[64];
-      VertexHessianEdges(c, q, g8, H8);
+      if (bend_twist) {
+        VertexHessianEdges(c, q, g8, H8);
+      } else {
+        std::fill(g8, g8 + 8, 0.0);
+        std::fill(H8, H8 + 64, 0.0);
+      }
+      if (EA != 0.0) {
+        Vec3 gs;
+        Eigen::Matrix3d Hs;
+        StretchGradientHessian(EA, model.rest_edge_length(i), state.x.col(i), state.x.col(i + 1),
+                               &gs, &Hs);
+        for (int r = 0; r < 3; ++r) {
+          g8[3 + r] += gs[r];
+          for (int k = 0; k < 3; ++k) H8[8 * (3 + r) + 3 + k] += Hs(r, k);
+        }
+      }
       AddStencilHessian(i, g8, H8, gradient, H);
-    } else {
+    } else if (bend_twist) {
       double g[11];
       VertexGradient<double>(c, q, g);
       for (int a = 0; a < 11; ++a)
         if (dof[a] >= 0) (*gradient)[dof[a]] += g[a];
     }
   }
-  if (terms.stretch != 0.0) {
-    const double EA = terms.stretch * model.material().stretch_stiffness;
+  if (!kHessian && EA != 0.0) {
     Vec3 g;
-    Eigen::Matrix3d Hs;
     for (int j = 0; j < n; ++j) {
       StretchGradientHessian(EA, model.rest_edge_length(j), state.x.col(j), state.x.col(j + 1),
-                             &g, kHessian ? &Hs : nullptr);
-      const int da = (j >= 1) ? RodModel::VertexDof(j) : -1;
-      const int db = RodModel::VertexDof(j + 1);
-      for (int r = 0; r < 3; ++r) {
-        if (da >= 0) (*gradient)[da + r] -= g[r];
-        (*gradient)[db + r] += g[r];
-        if (!kHessian) continue;
-        for (int s = 0; s < 3; ++s) {
-          AddBlock(H, db + r, db + s, Hs(r, s));
-          if (da >= 0) {
-            AddBlock(H, da + r, da + s, Hs(r, s));
-            AddBlock(H, db + r, da + s, -Hs(r, s));
-          }
-        }
-      }
+                             &g, nullptr);
+      if (j >= 1) gradient->segment<3>(RodModel::VertexDof(j)) -= g;
+      gradient->segment<3>(RodModel::VertexDof(j + 1)) += g;
     }
   }
   if (terms.springs != 0.0) {

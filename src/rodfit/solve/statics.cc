@@ -41,10 +41,19 @@ namespace {
 
 enum class StepResult { kConverged, kFailed, kIterationCap };
 
+bool SameState(const RodState& a, const RodState& b) {
+  return a.x.cols() == b.x.cols() && a.theta.size() == b.theta.size() &&
+         a.ref_u.cols() == b.ref_u.cols() && a.ref_t.cols() == b.ref_t.cols() &&
+         a.ref_twist.size() == b.ref_twist.size() && a.x == b.x && a.theta == b.theta &&
+         a.ref_u == b.ref_u && a.ref_t == b.ref_t && a.ref_twist == b.ref_twist;
+}
+
 /// Newton iterations at one load factor. Returns kConverged with *state at equilibrium.
+/// With `factor_at_start`, ws->hessian already holds the factor of the (unshifted) Hessian at
+/// *state for this model and load, so the first iteration only assembles the gradient.
 StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double load_scale,
                         int max_iterations, RodState* state, StaticsWorkspace* ws,
-                        StaticsSummary* summary, std::string* why) {
+                        StaticsSummary* summary, std::string* why, bool factor_at_start) {
   EnergyTerms terms;
   terms.load_scale = load_scale;
   VecX g, step;
@@ -63,7 +72,12 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
   constexpr int kMaxSaddleEscapes = 5;
   int escapes = 0;
   for (int it = 0; it < max_iterations; ++it) {
-    AssembleHessian(model, *state, terms, &g, &H);
+    const bool reuse = (it == 0 && factor_at_start);
+    if (reuse) {
+      AssembleGradient(model, *state, terms, &g);
+    } else {
+      AssembleHessian(model, *state, terms, &g, &H);
+    }
     const double gnorm = ScaledGradientNorm(model, g);
     summary->gradient_norm = gnorm;
     summary->energy = energy;
@@ -73,9 +87,10 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
     }
     // Factor; on failure (indefinite or singular) shift the diagonal, growing the shift tenfold.
     double shift = 0.0;
-    const double diag_scale = std::max(H.band().row(0).cwiseAbs().maxCoeff(), 1e-300);
+    const double diag_scale =
+        reuse ? 0.0 : std::max(H.band().row(0).cwiseAbs().maxCoeff(), 1e-300);
     bool shifted = false;
-    while (!ws->hessian.Factor(H, shift)) {
+    while (!reuse && !ws->hessian.Factor(H, shift)) {
       shift = (shift == 0.0) ? 1e-10 * diag_scale : shift * 10.0;
       shifted = true;
       if (shift > 1e6 * diag_scale) {
@@ -180,17 +195,26 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
   }
   StaticsWorkspace local;
   StaticsWorkspace* ws = workspace ? workspace : &local;
+  const bool factor_at_start = ws->factor_valid && ws->factor_digest == model.hessian_digest() &&
+                               SameState(ws->factor_state, *state);
   ws->factor_valid = false;
+  // Keeps the factor's provenance with it: the state and model it was made for.
+  auto converged = [&](const char* reason) {
+    summary.converged = true;
+    summary.reason = reason;
+    if (ws->factor_valid) {
+      ws->factor_state = *state;
+      ws->factor_digest = model.hessian_digest();
+    }
+    return summary;
+  };
 
   // Full load first; on failure, continuation from the unloaded equilibrium.
   const RodState start = *state;
   int budget = options.max_iterations;
-  StepResult r = NewtonAtLoad(model, options, 1.0, budget, state, ws, &summary, &why);
-  if (r == StepResult::kConverged) {
-    summary.converged = true;
-    summary.reason = "gradient below tolerance";
-    return summary;
-  }
+  StepResult r =
+      NewtonAtLoad(model, options, 1.0, budget, state, ws, &summary, &why, factor_at_start);
+  if (r == StepResult::kConverged) return converged("gradient below tolerance");
   *state = start;
   summary.load_steps = 0;
   double done = 0.0, increment = 0.25;
@@ -201,7 +225,7 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     const double target = have_base ? std::min(1.0, done + increment) : 0.0;
     RodState saved = *state;
     const int per_step = std::min(budget, 50);
-    r = NewtonAtLoad(model, options, target, per_step, state, ws, &summary, &why);
+    r = NewtonAtLoad(model, options, target, per_step, state, ws, &summary, &why, false);
     ++summary.load_steps;
     if (r == StepResult::kConverged) {
       if (!have_base) {
@@ -209,11 +233,7 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
         continue;
       }
       done = target;
-      if (done >= 1.0) {
-        summary.converged = true;
-        summary.reason = "gradient below tolerance (load continuation)";
-        return summary;
-      }
+      if (done >= 1.0) return converged("gradient below tolerance (load continuation)");
       increment = std::min(0.5, increment * 1.5);
     } else {
       *state = saved;

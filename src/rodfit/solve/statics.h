@@ -49,6 +49,12 @@ struct StaticsSummary {
 struct StaticsWorkspace {
   BandedCholesky hessian;
   bool factor_valid = false;
+  /// The state and model (RodModel::hessian_digest) the kept factor belongs to. A solve that
+  /// starts from exactly this state on a model with the same digest (a warm start after a
+  /// change of dead loads only) takes its first Newton step with the kept factor, which is the
+  /// exact Hessian there, instead of assembling and factoring it again.
+  RodState factor_state;
+  uint64_t factor_digest = 0;
 };
 
 /// Solves for equilibrium starting from *state (a warm start, or model.StraightState()).
