@@ -71,6 +71,29 @@ double StepFor(const RodModel& model, int k) {
   return (k % 4 == 3) ? 1e-5 : 1e-5 * model.rest_edge_length(0);
 }
 
+// The solver's line search evaluates Pi with each edge's frame computed once and no transport
+// (fresh frames); at a fresh state that is the full energy to round-off, for every term.
+TEST(RodEnergy, FreshFramePathEqualsTheFullEnergyAtFreshStates) {
+  for (double amplitude : {1e-4, 0.05, 0.3}) {
+    const Scene s = LoadedScene(12);
+    const RodModel model = ModelOf(s);
+    std::mt19937 rng(11);
+    const RodState state = RandomState(model, &rng, amplitude);
+    for (const EnergyTerms& terms : {EnergyTerms(), EnergyTerms::Elastic(), EnergyTerms::Only(0),
+                                     EnergyTerms::Only(2), EnergyTerms::Only(3)}) {
+      const double full = PotentialEnergy(model, state, terms);
+      const double fresh = PotentialEnergyFreshFrames(model, state, terms);
+      EXPECT_NEAR(fresh, full, 1e-12 * (std::abs(full) + 1e-6)) << "amplitude " << amplitude;
+    }
+    // Not a shortcut that ignores the twist: a twisted state changes both alike.
+    RodState twisted = state;
+    twisted.theta[5] += 0.3;
+    EXPECT_NEAR(PotentialEnergyFreshFrames(model, twisted), PotentialEnergy(model, twisted),
+                1e-12 * std::abs(PotentialEnergy(model, twisted)));
+    EXPECT_GT(std::abs(PotentialEnergy(model, twisted) - PotentialEnergy(model, state)), 1e-6);
+  }
+}
+
 TEST(RodEnergy, GradientAndHessianMatchCentralDifferences) {
   for (double amplitude : {1e-4, 0.05, 0.3}) {  // nearly straight to strongly bent
     const Scene s = LoadedScene(12);

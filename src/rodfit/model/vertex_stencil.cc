@@ -111,16 +111,26 @@ void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double
   const VertexGeometry<double, true> geo(c, Vec3d(q[3] - q[0], q[4] - q[1], q[5] - q[2]),
                                          Vec3d(q[6] - q[3], q[7] - q[4], q[8] - q[5]), q[9],
                                          q[10]);
+  StencilFrames fr;
+  fr.te = geo.te, fr.tf = geo.tf;
+  fr.d1e = geo.d1e, fr.d2e = geo.d2e, fr.d1f = geo.d1f, fr.d2f = geo.d2f;
+  fr.len_e = geo.len_e, fr.len_f = geo.len_f;
+  VertexHessianFromFrames(c, fr, q[10] - q[9] + geo.ref_twist, g8, H8);
+}
+
+void VertexHessianFromFrames(const VertexStencilConstants& c, const StencilFrames& fr,
+                             double delta, double* g8, double* H8) {
   const double l = c.voronoi_length;
   ReducedGeometry g;
-  g.te = geo.te, g.tf = geo.tf, g.kb = geo.kb;
-  g.d1e = geo.d1e, g.d2e = geo.d2e, g.d1f = geo.d1f, g.d2f = geo.d2f;
-  g.ic = 1.0 / geo.chi;
+  g.te = fr.te, g.tf = fr.tf;
+  g.d1e = fr.d1e, g.d2e = fr.d2e, g.d1f = fr.d1f, g.d2f = fr.d2f;
+  const double chi = 1.0 + g.te.dot(g.tf);
+  g.ic = 1.0 / chi;
+  g.kb = 2.0 * g.te.cross(g.tf) * g.ic;
   g.kbE = g.ToE(g.kb), g.kbF = g.ToF(g.kb);
   g.tfE = g.ToE(g.tf), g.teF = g.ToF(g.te);
   g.C << g.d1e.dot(g.d1f), g.d1e.dot(g.d2f), g.d2e.dot(g.d1f), g.d2e.dot(g.d2f);
 
-  const double delta = q[10] - q[9] + geo.ref_twist;
   const double K1 = g.kbE[0] + g.kbF[0], K2 = g.kbE[1] + g.kbF[1];
   const double a1 = c.B1 * (K1 / (2.0 * l) - c.rest_curvature[0]);
   const double a2 = c.B2 * (K2 / (2.0 * l) - c.rest_curvature[1]);
@@ -162,7 +172,7 @@ void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double
   // Reduced to edge variables: dte = E (E^T de) / |e|, and g_e = P_e g_te / |e| = E g_eE / |e|,
   //   d g_e / de = [E (J_ee - (te.g_te) I) E^T - te p_e^T - p_e te^T] / |e|^2,  p_e = E g_eE,
   // the cross blocks carrying E / |e| and F / |f|.
-  const double ie = 1.0 / geo.len_e, jf = 1.0 / geo.len_f;
+  const double ie = 1.0 / fr.len_e, jf = 1.0 / fr.len_f;
   Eigen::Matrix<double, 3, 2> E, F;
   E << g.d1e, g.d2e;
   F << g.d1f, g.d2f;

@@ -106,22 +106,38 @@ Vec3T<T> VertexCurvatures(const VertexStencilConstants& c, const T* q) {
                   (q[10] - q[9] + g.ref_twist) * Cst<T>(1.0 / c.voronoi_length));
 }
 
-/// Energy of the stencil [J] (bend, twist, minus the end moment's work).
+/// Energy of the stencil [J] from its geometry: tangents, curvature binormal kb, the summed
+/// directors D1 = d1e + d1f, D2 = d2e + d2f and the twist difference dtheta (including the
+/// reference twist). The one formula behind VertexEnergy and the solver's fresh-frame path.
 template <typename T>
-T VertexEnergy(const VertexStencilConstants& c, const T* q) {
-  const VertexGeometry<T> g(c, q);
+T StencilEnergy(const VertexStencilConstants& c, const Vec3T<T>& te, const Vec3T<T>& tf,
+                const Vec3T<T>& kb, const Vec3T<T>& D1, const Vec3T<T>& D2, const T& dtheta) {
   const double l = c.voronoi_length;
-  const T dtheta = q[10] - q[9] + g.ref_twist;
-  const T k1 = g.kb.dot(g.d1e + g.d1f) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[0]);
-  const T k2 = g.kb.dot(g.d2e + g.d2f) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[1]);
+  const T k1 = kb.dot(D1) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[0]);
+  const T k2 = kb.dot(D2) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[1]);
   const T tw = dtheta / Cst<T>(l) - Cst<T>(c.rest_curvature[2]);
   T energy = Cst<T>(0.5 * l) * (Cst<T>(c.B1) * k1 * k1 + Cst<T>(c.B2) * k2 * k2 + Cst<T>(c.GJ) * tw * tw);
   if (c.moment.squaredNorm() > 0.0) {
     const Vec3T<T> M = CastVec<T>(c.moment);
-    energy -= M.dot(g.kb) + dtheta * M.dot(g.te + g.tf) * Cst<T>(0.5);
+    energy -= M.dot(kb) + dtheta * M.dot(te + tf) * Cst<T>(0.5);
   }
   return energy;
 }
+
+/// Energy of the stencil [J] (bend, twist, minus the end moment's work).
+template <typename T>
+T VertexEnergy(const VertexStencilConstants& c, const T* q) {
+  const VertexGeometry<T> g(c, q);
+  return StencilEnergy<T>(c, g.te, g.tf, g.kb, g.d1e + g.d1f, g.d2e + g.d2f,
+                          q[10] - q[9] + g.ref_twist);
+}
+
+/// A stencil's two edges where the frames are fresh (reference tangents equal to the edges'):
+/// unit tangents, material directors and lengths. The solver computes them once per edge.
+struct StencilFrames {
+  Eigen::Vector3d te, tf, d1e, d2e, d1f, d2f;
+  double len_e = 1.0, len_f = 1.0;
+};
 
 /// Closed-form gradient of VertexEnergy with respect to (e, f, theta_e, theta_f), exact where
 /// the frames are fresh: out = [dE/de (3), dE/df (3), dE/dtheta_e, dE/dtheta_f].
@@ -192,6 +208,11 @@ void VertexGradient(const VertexStencilConstants& c, const T* q, T* grad) {
 /// which the tests compare it with). q is the stencil (11 entries). Defined in vertex_stencil.cc.
 void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double* g8,
                         double* H8);
+/// The same from the stencil's fresh frames and its twist difference
+/// dtheta = theta_f - theta_e + reference twist; reads only the stiffness, rest curvature,
+/// Voronoi length and moment of c.
+void VertexHessianFromFrames(const VertexStencilConstants& c, const StencilFrames& frames,
+                             double dtheta, double* g8, double* H8);
 /// Stretch energy of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2 (per-edge stretch, DESIGN.md §1),
 /// with its gradient and Hessian with respect to q = [x_a (3), x_b (3)].
 template <typename T>

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 
 #include "rodfit/model/frames.h"
@@ -69,6 +70,83 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
   }
 }
 
+// Tangent, length and material directors of the ghost edge (index 0, the clamp frame) and of
+// edges 0..n-1 (index j + 1), with the transport linearised about the reference tangent as in
+// VertexGeometry<double, true>: where frames are fresh (t = ref_t, as ApplyStep leaves them)
+// that is the frame itself. Each edge is computed once instead of once per vertex it touches.
+struct EdgeFrameData {
+  Vec3 t, d1, d2;
+  double len;
+};
+
+void FreshEdgeFrames(const RodModel& model, const RodState& state,
+                     std::vector<EdgeFrameData>* frames) {
+  const int n = model.num_edges();
+  frames->resize(n + 1);
+  EdgeFrameData& ghost = (*frames)[0];
+  ghost.t = model.clamp_tangent();
+  ghost.d1 = model.clamp_d1();
+  ghost.d2 = ghost.t.cross(ghost.d1);
+  ghost.len = model.rest_edge_length(0);
+  for (int j = 0; j < n; ++j) {
+    EdgeFrameData& f = (*frames)[j + 1];
+    const Vec3 e = state.x.col(j + 1) - state.x.col(j);
+    f.len = std::sqrt(e.squaredNorm());
+    f.t = e / f.len;
+    const Vec3 t_old = state.ref_t.col(j), u_old = state.ref_u.col(j);
+    const Vec3 u = u_old - t_old * (f.t - t_old).dot(u_old);
+    const Vec3 v = f.t.cross(u);
+    const double c = std::cos(state.theta[j]), sn = std::sin(state.theta[j]);
+    f.d1 = c * u + sn * v;
+    f.d2 = -sn * u + c * v;
+  }
+}
+
+// Energy of the springs, the stretch and the dead loads (everything but bend and twist).
+double NonBendingEnergy(const RodModel& model, const RodState& state, const EnergyTerms& terms) {
+  const int n = model.num_edges();
+  double energy = 0.0;
+  if (terms.stretch != 0.0) {
+    const double EA = terms.stretch * model.material().stretch_stiffness;
+    for (int j = 0; j < n; ++j) {
+      double qs[6];
+      for (int k = 0; k < 3; ++k) {
+        qs[k] = state.x(k, j);
+        qs[3 + k] = state.x(k, j + 1);
+      }
+      energy += StretchEnergy<double>(EA, model.rest_edge_length(j), qs);
+    }
+  }
+  if (terms.springs != 0.0) {
+    for (int z = 0; z < model.num_spring_zones(); ++z) {
+      if (terms.spring_parameter && model.spring_zone(z).parameter != *terms.spring_parameter)
+        continue;
+      const double K = terms.springs * model.zone_stiffness(z);
+      for (int i = 1; i <= n; ++i)
+        energy += 0.5 * K * model.zone_cell_length(z, i) *
+                  (state.x.col(i) - model.spring_anchor(i)).squaredNorm();
+    }
+  }
+  if (terms.loads) {
+    for (int i = 1; i <= n; ++i)
+      energy -= terms.load_scale * model.vertex_forces().col(i).dot(state.x.col(i));
+  }
+  return energy;
+}
+
+// Stiffness, rest curvature and moment of every vertex stencil under `terms`; the Voronoi
+// length and transport anchors are set per vertex.
+VertexStencilConstants StencilStiffness(const RodModel& model, const EnergyTerms& terms) {
+  VertexStencilConstants c;
+  const Material& m = model.material();
+  c.B1 = terms.bend1 * m.B1();
+  c.B2 = terms.bend2 * m.B2();
+  c.GJ = terms.twist * m.twist_stiffness;
+  c.rest_curvature = model.rod().rest_curvature;
+  c.moment = (terms.loads ? terms.load_scale : 0.0) * model.load_case().tip_moment;
+  return c;
+}
+
 }  // namespace
 
 void GatherVertexStencil(const RodModel& model, const RodState& state, int i, double load_scale,
@@ -123,32 +201,27 @@ double PotentialEnergy(const RodModel& model, const RodState& state, const Energ
     if (!terms.AnyBendTwist() && c.moment.squaredNorm() == 0.0) continue;
     energy += VertexEnergy<double>(c, q);
   }
-  if (terms.stretch != 0.0) {
-    const double EA = terms.stretch * model.material().stretch_stiffness;
-    for (int j = 0; j < n; ++j) {
-      double qs[6];
-      for (int k = 0; k < 3; ++k) {
-        qs[k] = state.x(k, j);
-        qs[3 + k] = state.x(k, j + 1);
-      }
-      energy += StretchEnergy<double>(EA, model.rest_edge_length(j), qs);
+  return energy + NonBendingEnergy(model, state, terms);
+}
+
+double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
+                                  const EnergyTerms& terms) {
+  const int n = model.num_edges();
+  double energy = 0.0;
+  VertexStencilConstants c = StencilStiffness(model, terms);
+  if (terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0) {
+    std::vector<EdgeFrameData> fr;
+    FreshEdgeFrames(model, state, &fr);
+    for (int i = 0; i < n; ++i) {
+      const EdgeFrameData &e = fr[i], &f = fr[i + 1];
+      c.voronoi_length = model.voronoi_length(i);
+      const Vec3 kb = 2.0 * e.t.cross(f.t) / (1.0 + e.t.dot(f.t));
+      const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
+      energy += StencilEnergy<double>(c, e.t, f.t, kb, e.d1 + f.d1, e.d2 + f.d2,
+                                      state.theta[i] - theta_e + state.ref_twist[i]);
     }
   }
-  if (terms.springs != 0.0) {
-    for (int z = 0; z < model.num_spring_zones(); ++z) {
-      if (terms.spring_parameter && model.spring_zone(z).parameter != *terms.spring_parameter)
-        continue;
-      const double K = terms.springs * model.zone_stiffness(z);
-      for (int i = 1; i <= n; ++i)
-        energy += 0.5 * K * model.zone_cell_length(z, i) *
-                  (state.x.col(i) - model.spring_anchor(i)).squaredNorm();
-    }
-  }
-  if (terms.loads) {
-    for (int i = 1; i <= n; ++i)
-      energy -= terms.load_scale * model.vertex_forces().col(i).dot(state.x.col(i));
-  }
-  return energy;
+  return energy + NonBendingEnergy(model, state, terms);
 }
 
 namespace {
@@ -166,17 +239,26 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   std::array<int, 11> dof;
   VertexStencilConstants c;
   const double EA = terms.stretch * model.material().stretch_stiffness;
+  std::vector<EdgeFrameData> fr;
+  if (kHessian) {
+    c = StencilStiffness(model, terms);
+    FreshEdgeFrames(model, state, &fr);
+  }
   for (int i = 0; i < n; ++i) {
-    GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, &dof);
-    c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
-    const bool bend_twist = terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0;
     if (kHessian) {
       // Vertex i's stencil in the edge variables, with the stretch of its edge f = edge i
       // added (every edge is the f of exactly one vertex), scattered once.
+      const bool bend_twist = terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0;
       if (!bend_twist && EA == 0.0) continue;
       double g8[8], H8[64];
       if (bend_twist) {
-        VertexHessianEdges(c, q, g8, H8);
+        const EdgeFrameData &e = fr[i], &f = fr[i + 1];
+        StencilFrames frames;
+        frames.te = e.t, frames.d1e = e.d1, frames.d2e = e.d2, frames.len_e = e.len;
+        frames.tf = f.t, frames.d1f = f.d1, frames.d2f = f.d2, frames.len_f = f.len;
+        c.voronoi_length = model.voronoi_length(i);
+        const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
+        VertexHessianFromFrames(c, frames, state.theta[i] - theta_e + state.ref_twist[i], g8, H8);
       } else {
         std::fill(g8, g8 + 8, 0.0);
         std::fill(H8, H8 + 64, 0.0);
@@ -192,7 +274,11 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
         }
       }
       AddStencilHessian(i, g8, H8, gradient, H);
-    } else if (bend_twist) {
+      continue;
+    }
+    GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, &dof);
+    c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
+    if (terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0) {
       double g[11];
       VertexGradient<double>(c, q, g);
       for (int a = 0; a < 11; ++a)
@@ -316,15 +402,14 @@ Vec3 GraspReaction(const RodModel& model, const RodState& state) {
 
 double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& step) {
   const int n = model.num_edges();
-  double worst = 0.0;
+  double lowest_cos = 1.0;  // the largest turn has the smallest cosine: one acos at the end
   for (int j = 0; j < n; ++j) {
     Vec3 e0 = state.x.col(j + 1) - state.x.col(j);
     Vec3 e1 = e0 + step.segment<3>(RodModel::VertexDof(j + 1));
     if (j >= 1) e1 -= step.segment<3>(RodModel::VertexDof(j));
-    const double c = e0.normalized().dot(e1.normalized());
-    worst = std::max(worst, std::acos(std::max(-1.0, std::min(1.0, c))));
+    lowest_cos = std::min(lowest_cos, e0.normalized().dot(e1.normalized()));
   }
-  return worst;
+  return std::acos(std::max(-1.0, std::min(1.0, lowest_cos)));
 }
 
 double ScaledGradientNorm(const RodModel& model, const VecX& g) {

@@ -64,6 +64,13 @@ void GatherVertexStencil(const RodModel& model, const RodState& state, int i, do
 double PotentialEnergy(const RodModel& model, const RodState& state,
                        const EnergyTerms& terms = EnergyTerms());
 
+/// The same for a state whose frames are fresh (reference tangents equal to the edges', as
+/// ApplyStep leaves them): the transports are then the identity and the reference twist the
+/// stored one, so each edge's frame is computed once and no transport is evaluated. Equal to
+/// PotentialEnergy to round-off there; the solver's line search uses it.
+double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
+                                  const EnergyTerms& terms = EnergyTerms());
+
 /// Gradient of Pi over the free dofs (size 4n).
 void AssembleGradient(const RodModel& model, const RodState& state, const EnergyTerms& terms,
                       VecX* gradient);

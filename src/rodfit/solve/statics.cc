@@ -114,7 +114,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       for (double sgn : {1.0, -1.0}) {
         for (double a = scale; a > 1e-6 * scale && !escaped; a *= 0.5) {
           if (!ApplyStep(model, *state, d, sgn * a, &trial)) continue;
-          const double e_trial = PotentialEnergy(model, trial, terms);
+          const double e_trial = PotentialEnergyFreshFrames(model, trial, terms);
           const double noise = 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
           if (e_trial < energy - 10.0 * noise) {
             escaped = true;
@@ -155,7 +155,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
     bool accepted = false;
     for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
       if (!ApplyStep(model, *state, step, alpha, &trial)) continue;
-      const double e_trial = PotentialEnergy(model, trial, terms);
+      const double e_trial = PotentialEnergyFreshFrames(model, trial, terms);
       if (std::isfinite(e_trial) && e_trial <= energy + opt.armijo * alpha * slope + noise) {
         accepted = true;
         energy = e_trial;
