@@ -141,14 +141,14 @@ struct StencilFrames {
 
 /// Closed-form gradient of VertexEnergy with respect to (e, f, theta_e, theta_f), exact where
 /// the frames are fresh: out = [dE/de (3), dE/df (3), dE/dtheta_e, dE/dtheta_f].
-template <typename T, bool Linearized = false>
-void VertexGradientEdges(const VertexStencilConstants& c, const Vec3T<T>& e, const Vec3T<T>& f,
-                         const T& theta_e, const T& theta_f, T* out) {
-  const VertexGeometry<T, Linearized> g(c, e, f, theta_e, theta_f);
+/// The formula itself, from a geometry g with the members of VertexGeometry (te, tf, kb, chi,
+/// d1e, d2e, d1f, d2f, len_e, len_f) and the twist difference dtheta (with the reference twist).
+template <typename T, typename Geometry>
+void StencilGradient(const VertexStencilConstants& c, const Geometry& g, const T& dtheta,
+                     T* out) {
   const double l = c.voronoi_length;
   const Vec3T<T> D1 = g.d1e + g.d1f, D2 = g.d2e + g.d2f;
   const T kbD1 = g.kb.dot(D1), kbD2 = g.kb.dot(D2);
-  const T dtheta = theta_f - theta_e + g.ref_twist;
   // Moments conjugate to l*k1, l*k2 and l*tau.
   const T a1 = Cst<T>(c.B1) * (kbD1 / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[0]));
   const T a2 = Cst<T>(c.B2) * (kbD2 / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[1]));
@@ -184,6 +184,13 @@ void VertexGradientEdges(const VertexStencilConstants& c, const Vec3T<T>& e, con
   }
   out[6] = g_th_e;
   out[7] = g_th_f;
+}
+
+template <typename T, bool Linearized = false>
+void VertexGradientEdges(const VertexStencilConstants& c, const Vec3T<T>& e, const Vec3T<T>& f,
+                         const T& theta_e, const T& theta_f, T* out) {
+  const VertexGeometry<T, Linearized> g(c, e, f, theta_e, theta_f);
+  StencilGradient<T>(c, g, theta_f - theta_e + g.ref_twist, out);
 }
 
 /// The same gradient with respect to the stencil q (11 entries).

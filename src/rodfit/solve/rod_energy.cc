@@ -31,8 +31,18 @@ void StretchGradientHessian(double EA, double L0, const Vec3& xa, const Vec3& xb
 // the dof blocks i-2, i-1, i = [x_{i-1}, theta_{i-2}, x_i, theta_{i-1}, x_{i+1}, theta_i]: twelve
 // consecutive dofs from 4 (i - 2), local x_prev 0..2, x_mid 4..6, theta_e 7, x_next 8..10,
 // theta_f 11 (local 3 is not in the stencil). Dofs below zero are the clamp and the ghost edge.
+void AddStencilGradient(int i, const double g8[8], VecX* gradient) {
+  const int base = 4 * (i - 2);
+  const double g_local[12] = {-g8[0],        -g8[1],        -g8[2],        0.0,
+                              g8[0] - g8[3], g8[1] - g8[4], g8[2] - g8[5], g8[6],
+                              g8[3],         g8[4],         g8[5],         g8[7]};
+  for (int a = 0; a < 12; ++a)
+    if (base + a >= 0 && a != 3) (*gradient)[base + a] += g_local[a];
+}
+
 void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gradient,
                        BandedSymmetric* H) {
+  AddStencilGradient(i, g8, gradient);
   using Mat3 = Eigen::Matrix3d;
   const Eigen::Map<const Eigen::Matrix<double, 8, 8, Eigen::RowMajor>> h(H8);
   const Mat3 Hee = h.block<3, 3>(0, 0), Hfe = h.block<3, 3>(3, 0), Hff = h.block<3, 3>(3, 3);
@@ -58,12 +68,8 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
   L(11, 11) = h(7, 7);
   // L now holds the lower triangle (and full diagonal blocks); add it to the lower band.
   const int base = 4 * (i - 2);
-  const double g_local[12] = {-g8[0],        -g8[1],        -g8[2],        0.0,
-                              g8[0] - g8[3], g8[1] - g8[4], g8[2] - g8[5], g8[6],
-                              g8[3],         g8[4],         g8[5],         g8[7]};
   for (int a = 0; a < 12; ++a) {
     if (base + a < 0 || a == 3) continue;
-    (*gradient)[base + a] += g_local[a];
     double* column = &H->At(base + a, base + a);  // the band column is contiguous in the row
     for (int r = a; r < 12; ++r)
       if (r != 3) column[r - a] += L(r, a);
@@ -79,8 +85,12 @@ struct EdgeFrameData {
   double len;
 };
 
-void FreshEdgeFrames(const RodModel& model, const RodState& state,
+// Returns whether the frames are fresh (every tangent within 1e-13 of its reference tangent,
+// round-off of the edge's own normalisation); callers fall back to the per-vertex transports
+// otherwise.
+bool FreshEdgeFrames(const RodModel& model, const RodState& state,
                      std::vector<EdgeFrameData>* frames) {
+  bool fresh = true;
   const int n = model.num_edges();
   frames->resize(n + 1);
   EdgeFrameData& ghost = (*frames)[0];
@@ -94,13 +104,26 @@ void FreshEdgeFrames(const RodModel& model, const RodState& state,
     f.len = std::sqrt(e.squaredNorm());
     f.t = e / f.len;
     const Vec3 t_old = state.ref_t.col(j), u_old = state.ref_u.col(j);
+    fresh = fresh && (f.t - t_old).cwiseAbs().maxCoeff() <= 1e-13;
     const Vec3 u = u_old - t_old * (f.t - t_old).dot(u_old);
     const Vec3 v = f.t.cross(u);
     const double c = std::cos(state.theta[j]), sn = std::sin(state.theta[j]);
     f.d1 = c * u + sn * v;
     f.d2 = -sn * u + c * v;
   }
+  return fresh;
 }
+
+// Geometry of vertex i's stencil from the edge frames, in the form StencilGradient reads.
+struct FreshStencilGeometry {
+  Vec3 te, tf, kb, d1e, d2e, d1f, d2f;
+  double chi, len_e, len_f;
+  FreshStencilGeometry(const EdgeFrameData& e, const EdgeFrameData& f)
+      : te(e.t), tf(f.t), d1e(e.d1), d2e(e.d2), d1f(f.d1), d2f(f.d2), len_e(e.len), len_f(f.len) {
+    chi = 1.0 + te.dot(tf);
+    kb = 2.0 * te.cross(tf) / chi;
+  }
+};
 
 // Energy of the springs, the stretch and the dead loads (everything but bend and twist).
 double NonBendingEnergy(const RodModel& model, const RodState& state, const EnergyTerms& terms) {
@@ -211,13 +234,12 @@ double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
   VertexStencilConstants c = StencilStiffness(model, terms);
   if (terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0) {
     std::vector<EdgeFrameData> fr;
-    FreshEdgeFrames(model, state, &fr);
+    if (!FreshEdgeFrames(model, state, &fr)) return PotentialEnergy(model, state, terms);
     for (int i = 0; i < n; ++i) {
-      const EdgeFrameData &e = fr[i], &f = fr[i + 1];
+      const FreshStencilGeometry g(fr[i], fr[i + 1]);
       c.voronoi_length = model.voronoi_length(i);
-      const Vec3 kb = 2.0 * e.t.cross(f.t) / (1.0 + e.t.dot(f.t));
       const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
-      energy += StencilEnergy<double>(c, e.t, f.t, kb, e.d1 + f.d1, e.d2 + f.d2,
+      energy += StencilEnergy<double>(c, g.te, g.tf, g.kb, g.d1e + g.d1f, g.d2e + g.d2f,
                                       state.theta[i] - theta_e + state.ref_twist[i]);
     }
   }
@@ -240,25 +262,32 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   VertexStencilConstants c;
   const double EA = terms.stretch * model.material().stretch_stiffness;
   std::vector<EdgeFrameData> fr;
-  if (kHessian) {
-    c = StencilStiffness(model, terms);
-    FreshEdgeFrames(model, state, &fr);
-  }
+  const bool fresh = FreshEdgeFrames(model, state, &fr);
+  const VertexStencilConstants stiffness = StencilStiffness(model, terms);
+  const bool bend_twist = terms.AnyBendTwist() || stiffness.moment.squaredNorm() != 0.0;
   for (int i = 0; i < n; ++i) {
+    if (fresh) {
+      c = stiffness;
+      c.voronoi_length = model.voronoi_length(i);
+    } else {
+      GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, &dof);
+      c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
+    }
+    const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
+    const double dtheta = state.theta[i] - theta_e + state.ref_twist[i];
     if (kHessian) {
       // Vertex i's stencil in the edge variables, with the stretch of its edge f = edge i
       // added (every edge is the f of exactly one vertex), scattered once.
-      const bool bend_twist = terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0;
       if (!bend_twist && EA == 0.0) continue;
       double g8[8], H8[64];
-      if (bend_twist) {
+      if (bend_twist && fresh) {
         const EdgeFrameData &e = fr[i], &f = fr[i + 1];
         StencilFrames frames;
         frames.te = e.t, frames.d1e = e.d1, frames.d2e = e.d2, frames.len_e = e.len;
         frames.tf = f.t, frames.d1f = f.d1, frames.d2f = f.d2, frames.len_f = f.len;
-        c.voronoi_length = model.voronoi_length(i);
-        const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
-        VertexHessianFromFrames(c, frames, state.theta[i] - theta_e + state.ref_twist[i], g8, H8);
+        VertexHessianFromFrames(c, frames, dtheta, g8, H8);
+      } else if (bend_twist) {
+        VertexHessianEdges(c, q, g8, H8);
       } else {
         std::fill(g8, g8 + 8, 0.0);
         std::fill(H8, H8 + 64, 0.0);
@@ -276,9 +305,12 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
       AddStencilHessian(i, g8, H8, gradient, H);
       continue;
     }
-    GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, &dof);
-    c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
-    if (terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0) {
+    if (!bend_twist) continue;
+    if (fresh) {
+      double g8[8];
+      StencilGradient<double>(c, FreshStencilGeometry(fr[i], fr[i + 1]), dtheta, g8);
+      AddStencilGradient(i, g8, gradient);
+    } else {
       double g[11];
       VertexGradient<double>(c, q, g);
       for (int a = 0; a < 11; ++a)

@@ -67,7 +67,8 @@ double PotentialEnergy(const RodModel& model, const RodState& state,
 /// The same for a state whose frames are fresh (reference tangents equal to the edges', as
 /// ApplyStep leaves them): the transports are then the identity and the reference twist the
 /// stored one, so each edge's frame is computed once and no transport is evaluated. Equal to
-/// PotentialEnergy to round-off there; the solver's line search uses it.
+/// PotentialEnergy to round-off there, and PotentialEnergy itself for any other state. The
+/// assembly takes the same shortcut; the solver uses both.
 double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
                                   const EnergyTerms& terms = EnergyTerms());
 

@@ -68,7 +68,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
                                 model.rest_edge_length(0);
   const double force_tol =
       std::max(opt.gradient_tolerance * model.force_scale(), roundoff_floor);
-  double energy = PotentialEnergy(model, *state, terms);
+  double energy = PotentialEnergyFreshFrames(model, *state, terms);
   constexpr int kMaxSaddleEscapes = 5;
   int escapes = 0;
   for (int it = 0; it < max_iterations; ++it) {
