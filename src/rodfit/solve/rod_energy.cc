@@ -76,49 +76,41 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
   }
 }
 
-// Tangent, length and material directors of the ghost edge (index 0, the clamp frame) and of
-// edges 0..n-1 (index j + 1), with the transport linearised about the reference tangent as in
-// VertexGeometry<double, true>: where frames are fresh (t = ref_t, as ApplyStep leaves them)
-// that is the frame itself. Each edge is computed once instead of once per vertex it touches.
-struct EdgeFrameData {
-  Vec3 t, d1, d2;
-  double len;
-};
+}  // namespace
 
-// Returns whether the frames are fresh (every tangent within 1e-13 of its reference tangent,
-// round-off of the edge's own normalisation); callers fall back to the per-vertex transports
-// otherwise.
-bool FreshEdgeFrames(const RodModel& model, const RodState& state,
-                     std::vector<EdgeFrameData>* frames) {
-  bool fresh = true;
+void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames) {
   const int n = model.num_edges();
-  frames->resize(n + 1);
-  EdgeFrameData& ghost = (*frames)[0];
+  frames->edges.resize(n + 1);
+  frames->fresh = true;
+  RodFrames::Edge& ghost = frames->edges[0];
   ghost.t = model.clamp_tangent();
   ghost.d1 = model.clamp_d1();
   ghost.d2 = ghost.t.cross(ghost.d1);
   ghost.len = model.rest_edge_length(0);
   for (int j = 0; j < n; ++j) {
-    EdgeFrameData& f = (*frames)[j + 1];
+    RodFrames::Edge& f = frames->edges[j + 1];
     const Vec3 e = state.x.col(j + 1) - state.x.col(j);
     f.len = std::sqrt(e.squaredNorm());
     f.t = e / f.len;
     const Vec3 t_old = state.ref_t.col(j), u_old = state.ref_u.col(j);
-    fresh = fresh && (f.t - t_old).cwiseAbs().maxCoeff() <= 1e-13;
+    frames->fresh = frames->fresh && (f.t - t_old).cwiseAbs().maxCoeff() <= 1e-13;
+    // The transport linearised about the reference tangent, as in VertexGeometry<double, true>:
+    // the identity where frames are fresh.
     const Vec3 u = u_old - t_old * (f.t - t_old).dot(u_old);
     const Vec3 v = f.t.cross(u);
     const double c = std::cos(state.theta[j]), sn = std::sin(state.theta[j]);
     f.d1 = c * u + sn * v;
     f.d2 = -sn * u + c * v;
   }
-  return fresh;
 }
+
+namespace {
 
 // Geometry of vertex i's stencil from the edge frames, in the form StencilGradient reads.
 struct FreshStencilGeometry {
   Vec3 te, tf, kb, d1e, d2e, d1f, d2f;
   double chi, len_e, len_f;
-  FreshStencilGeometry(const EdgeFrameData& e, const EdgeFrameData& f)
+  FreshStencilGeometry(const RodFrames::Edge& e, const RodFrames::Edge& f)
       : te(e.t), tf(f.t), d1e(e.d1), d2e(e.d2), d1f(f.d1), d2f(f.d2), len_e(e.len), len_f(f.len) {
     chi = 1.0 + te.dot(tf);
     kb = 2.0 * te.cross(tf) / chi;
@@ -228,13 +220,16 @@ double PotentialEnergy(const RodModel& model, const RodState& state, const Energ
 }
 
 double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
-                                  const EnergyTerms& terms) {
+                                  const EnergyTerms& terms, const RodFrames* frames) {
   const int n = model.num_edges();
   double energy = 0.0;
   VertexStencilConstants c = StencilStiffness(model, terms);
   if (terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0) {
-    std::vector<EdgeFrameData> fr;
-    if (!FreshEdgeFrames(model, state, &fr)) return PotentialEnergy(model, state, terms);
+    RodFrames local;
+    if (!frames) ComputeRodFrames(model, state, &local);
+    const RodFrames& rf = frames ? *frames : local;
+    if (!rf.fresh) return PotentialEnergy(model, state, terms);
+    const std::vector<RodFrames::Edge>& fr = rf.edges;
     for (int i = 0; i < n; ++i) {
       const FreshStencilGeometry g(fr[i], fr[i + 1]);
       c.voronoi_length = model.voronoi_length(i);
@@ -250,7 +245,7 @@ namespace {
 
 template <bool kHessian>
 void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& terms,
-              VecX* gradient, BandedSymmetric* H) {
+              VecX* gradient, BandedSymmetric* H, const RodFrames* frames) {
   const int n = model.num_edges();
   gradient->setZero(model.num_free_dofs());
   if (kHessian) {
@@ -261,8 +256,11 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   std::array<int, 11> dof;
   VertexStencilConstants c;
   const double EA = terms.stretch * model.material().stretch_stiffness;
-  std::vector<EdgeFrameData> fr;
-  const bool fresh = FreshEdgeFrames(model, state, &fr);
+  RodFrames local;
+  if (!frames) ComputeRodFrames(model, state, &local);
+  const RodFrames& rf = frames ? *frames : local;
+  const bool fresh = rf.fresh;
+  const std::vector<RodFrames::Edge>& fr = rf.edges;
   const VertexStencilConstants stiffness = StencilStiffness(model, terms);
   const bool bend_twist = terms.AnyBendTwist() || stiffness.moment.squaredNorm() != 0.0;
   for (int i = 0; i < n; ++i) {
@@ -281,7 +279,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
       if (!bend_twist && EA == 0.0) continue;
       double g8[8], H8[64];
       if (bend_twist && fresh) {
-        const EdgeFrameData &e = fr[i], &f = fr[i + 1];
+        const RodFrames::Edge &e = fr[i], &f = fr[i + 1];
         StencilFrames frames;
         frames.te = e.t, frames.d1e = e.d1, frames.d2e = e.d2, frames.len_e = e.len;
         frames.tf = f.t, frames.d1f = f.d1, frames.d2f = f.d2, frames.len_f = f.len;
@@ -362,13 +360,13 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
 }  // namespace
 
 void AssembleGradient(const RodModel& model, const RodState& state, const EnergyTerms& terms,
-                      VecX* gradient) {
-  Assemble<false>(model, state, terms, gradient, nullptr);
+                      VecX* gradient, const RodFrames* frames) {
+  Assemble<false>(model, state, terms, gradient, nullptr, frames);
 }
 
 void AssembleHessian(const RodModel& model, const RodState& state, const EnergyTerms& terms,
-                     VecX* gradient, BandedSymmetric* hessian) {
-  Assemble<true>(model, state, terms, gradient, hessian);
+                     VecX* gradient, BandedSymmetric* hessian, const RodFrames* frames) {
+  Assemble<true>(model, state, terms, gradient, hessian, frames);
 }
 
 bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, double alpha,

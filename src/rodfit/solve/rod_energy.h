@@ -6,6 +6,7 @@
 
 #include <array>
 #include <string>
+#include <vector>
 
 #include "rodfit/model/rod.h"
 #include "rodfit/model/vertex_stencil.h"
@@ -55,6 +56,23 @@ struct EnergyTerms {
   }
 };
 
+/// Per-edge frames of a state (ComputeRodFrames): the ghost edge (index 0, the clamp frame) and
+/// edges 0..n-1 (index j + 1), each with its unit tangent, length and material directors, the
+/// reference director transported by the first-order transport about its reference tangent.
+/// `fresh` says the frames are fresh (every tangent within 1e-13 of its reference tangent, as
+/// ApplyStep leaves them); only then do the energy and assembly use them, computing each edge
+/// once instead of once per vertex and no transport. The solver computes them once per state
+/// and passes them to every evaluation at that state.
+struct RodFrames {
+  struct Edge {
+    Vec3 t, d1, d2;
+    double len = 0.0;
+  };
+  std::vector<Edge> edges;
+  bool fresh = false;
+};
+void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames);
+
 /// Gathers vertex i's stencil q = [x_prev, x_mid, x_next, theta_e, theta_f], its constants and
 /// the free-dof index of each entry (-1 for a fixed one: the clamp and the ghost edge).
 void GatherVertexStencil(const RodModel& model, const RodState& state, int i, double load_scale,
@@ -70,15 +88,18 @@ double PotentialEnergy(const RodModel& model, const RodState& state,
 /// PotentialEnergy to round-off there, and PotentialEnergy itself for any other state. The
 /// assembly takes the same shortcut; the solver uses both.
 double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
-                                  const EnergyTerms& terms = EnergyTerms());
+                                  const EnergyTerms& terms = EnergyTerms(),
+                                  const RodFrames* frames = nullptr);
 
 /// Gradient of Pi over the free dofs (size 4n).
+/// `frames`, if given, must be ComputeRodFrames of `state` (computed here otherwise).
 void AssembleGradient(const RodModel& model, const RodState& state, const EnergyTerms& terms,
-                      VecX* gradient);
+                      VecX* gradient, const RodFrames* frames = nullptr);
 
 /// Gradient and banded Hessian of Pi over the free dofs.
 void AssembleHessian(const RodModel& model, const RodState& state, const EnergyTerms& terms,
-                     VecX* gradient, BandedSymmetric* hessian);
+                     VecX* gradient, BandedSymmetric* hessian,
+                     const RodFrames* frames = nullptr);
 
 /// state + alpha * step over the free dofs, with reference frames transported in time to the
 /// new tangents and the reference twist carried along (continuous). Returns false, leaving *out

@@ -68,15 +68,19 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
                                 model.rest_edge_length(0);
   const double force_tol =
       std::max(opt.gradient_tolerance * model.force_scale(), roundoff_floor);
-  double energy = PotentialEnergyFreshFrames(model, *state, terms);
+  // Frames of the current state and of the trial, each computed once and shared by the energy
+  // and the assembly at that state.
+  RodFrames frames, trial_frames;
+  ComputeRodFrames(model, *state, &frames);
+  double energy = PotentialEnergyFreshFrames(model, *state, terms, &frames);
   constexpr int kMaxSaddleEscapes = 5;
   int escapes = 0;
   for (int it = 0; it < max_iterations; ++it) {
     const bool reuse = (it == 0 && factor_at_start);
     if (reuse) {
-      AssembleGradient(model, *state, terms, &g);
+      AssembleGradient(model, *state, terms, &g, &frames);
     } else {
-      AssembleHessian(model, *state, terms, &g, &H);
+      AssembleHessian(model, *state, terms, &g, &H, &frames);
     }
     const double gnorm = ScaledGradientNorm(model, g);
     summary->gradient_norm = gnorm;
@@ -114,7 +118,8 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       for (double sgn : {1.0, -1.0}) {
         for (double a = scale; a > 1e-6 * scale && !escaped; a *= 0.5) {
           if (!ApplyStep(model, *state, d, sgn * a, &trial)) continue;
-          const double e_trial = PotentialEnergyFreshFrames(model, trial, terms);
+          ComputeRodFrames(model, trial, &trial_frames);
+          const double e_trial = PotentialEnergyFreshFrames(model, trial, terms, &trial_frames);
           const double noise = 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
           if (e_trial < energy - 10.0 * noise) {
             escaped = true;
@@ -125,6 +130,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       }
       if (escaped) {
         std::swap(*state, trial);
+        std::swap(frames, trial_frames);
         ++summary->iterations;
         continue;
       }
@@ -155,7 +161,8 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
     bool accepted = false;
     for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
       if (!ApplyStep(model, *state, step, alpha, &trial)) continue;
-      const double e_trial = PotentialEnergyFreshFrames(model, trial, terms);
+      ComputeRodFrames(model, trial, &trial_frames);
+      const double e_trial = PotentialEnergyFreshFrames(model, trial, terms, &trial_frames);
       if (std::isfinite(e_trial) && e_trial <= energy + opt.armijo * alpha * slope + noise) {
         accepted = true;
         energy = e_trial;
@@ -174,6 +181,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       return StepResult::kFailed;
     }
     std::swap(*state, trial);
+    std::swap(frames, trial_frames);
   }
   *why = "iteration limit reached";
   return StepResult::kIterationCap;
