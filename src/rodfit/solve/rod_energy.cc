@@ -48,6 +48,7 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
   const Mat3 Hee = h.block<3, 3>(0, 0), Hfe = h.block<3, 3>(3, 0), Hff = h.block<3, 3>(3, 3);
   // H_local = A^T H8 A with d/dx_prev = -d/de, d/dx_mid = d/de - d/df, d/dx_next = d/df.
   Eigen::Matrix<double, 12, 12> L;  // lower triangle filled below; local 3 is not used
+  L.row(3).setZero();
   L.block<3, 3>(0, 0) = Hee;
   L.block<3, 3>(4, 0) = Hfe - Hee;
   L.block<3, 3>(4, 4) = Hee - Hfe - Hfe.transpose() + Hff;
@@ -70,9 +71,10 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
   const int base = 4 * (i - 2);
   for (int a = 0; a < 12; ++a) {
     if (base + a < 0 || a == 3) continue;
-    double* column = &H->At(base + a, base + a);  // the band column is contiguous in the row
-    for (int r = a; r < 12; ++r)
-      if (r != 3) column[r - a] += L(r, a);
+    // The band column is contiguous in the row, like the column of L.
+    double* column = &H->At(base + a, base + a);
+    const double* local = &L(a, a);
+    for (int r = 0; r < 12 - a; ++r) column[r] += local[r];
   }
 }
 
