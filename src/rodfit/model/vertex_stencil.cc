@@ -42,50 +42,55 @@ struct ReducedGeometry {
   Vec2 ToF(const Vec3d& v) const { return Vec2(d1f.dot(v), d2f.dot(v)); }
 };
 
-/// K = kb . D, with D = D_e + D_f turning with the frames of e and f (n = dD/dtheta) or fixed
-/// (D_e = D_f = n = 0). In the reduced variables r = [E^T dte, F^T dtf, theta_e, theta_f] it
-/// writes dK (6) and te . dK/dte = tf . dK/dtf = K / chi, and adds coef * sym(J(dK)) to J.
-/// DeE = E^T D_e, DfF = F^T D_f, kbDe = kb . D_e, kbDf = kb . D_f.
-double AddKbTerm(const ReducedGeometry& g, const Vec3d& D, const Vec2& DeE, const Vec2& DfF,
-                 double kbDe, double kbDf, const Vec3d* n_e, const Vec3d* n_f, double coef,
-                 Vec6* dK, Mat6* J) {
-  const double K = g.kb.dot(D), ic = g.ic;
-  const Vec2 weE = (2.0 * g.ToE(g.tf.cross(D)) - K * g.tfE) * ic;
-  const Vec2 wfF = (2.0 * g.ToF(D.cross(g.te)) - K * g.teF) * ic;
-  const double kne = n_e ? g.kb.dot(*n_e) : 0.0, knf = n_f ? g.kb.dot(*n_f) : 0.0;
-  *dK << weE, wfF, kne, knf;
-  if (coef != 0.0) {
-    const double cic = coef * ic;
-    // (te, te): sym(kb D_e^T) - (tf w_e^T + w_e tf^T) / chi; likewise (tf, tf).
-    const Mat2 kbDe_outer = g.kbE * DeE.transpose(), kbDf_outer = g.kbF * DfF.transpose();
-    J->block<2, 2>(0, 0) += 0.5 * coef * (kbDe_outer + kbDe_outer.transpose()) -
-                            cic * (g.tfE * weE.transpose() + weE * g.tfE.transpose());
-    J->block<2, 2>(2, 2) += 0.5 * coef * (kbDf_outer + kbDf_outer.transpose()) -
-                            cic * (g.teF * wfF.transpose() + wfF * g.teF.transpose());
-    // (te, tf): -(2 [D]x + tf w_f^T + K I + w_e te^T) / chi (already symmetric with (tf, te)).
-    const Vec3d Dx1 = D.cross(g.d1f), Dx2 = D.cross(g.d2f);
-    Mat2 X;
-    X << g.d1e.dot(Dx1), g.d1e.dot(Dx2), g.d2e.dot(Dx1), g.d2e.dot(Dx2);
-    const Mat2 ef = -cic * (2.0 * X + g.tfE * wfF.transpose() + K * g.C + weE * g.teF.transpose());
-    J->block<2, 2>(0, 2) += ef;
-    J->block<2, 2>(2, 0) += ef.transpose();
-    // (t, theta): (2 tf x n - (kb.n) tf) / chi and (2 n x te - (kb.n) te) / chi.
-    for (int t = 0; t < 2; ++t) {
-      const Vec3d* n = (t == 0) ? n_e : n_f;
-      if (!n) continue;
-      const double kn = (t == 0) ? kne : knf;
-      const Vec2 e_col = cic * (2.0 * g.ToE(g.tf.cross(*n)) - kn * g.tfE);
-      const Vec2 f_col = cic * (2.0 * g.ToF(n->cross(g.te)) - kn * g.teF);
-      J->block<2, 1>(0, 4 + t) += e_col;
-      J->block<1, 2>(4 + t, 0) += e_col.transpose();
-      J->block<2, 1>(2, 4 + t) += f_col;
-      J->block<1, 2>(4 + t, 2) += f_col.transpose();
-    }
-    // (theta, theta): d n_e / d theta_e = -D_e for both bending directions.
-    (*J)(4, 4) -= coef * kbDe;
-    (*J)(5, 5) -= coef * kbDf;
+/// Gradient of K = kb . D in the reduced variables r = [E^T dte, F^T dtf, theta_e, theta_f]
+/// for D = D_e + D_f turning with the frames of e and f (n_e, n_f = dD/dtheta) or fixed
+/// (n = 0): [(2 E^T(tf x D) - K E^T tf) / chi, (2 F^T(D x te) - K F^T te) / chi, kb.n_e,
+/// kb.n_f]. The tangential parts te . dK/dte = tf . dK/dtf are K / chi.
+Vec6 KbGradient(const ReducedGeometry& g, const Vec3d& D, const Vec3d& n_e, const Vec3d& n_f,
+                double* K) {
+  *K = g.kb.dot(D);
+  Vec6 dK;
+  dK << (2.0 * g.ToE(g.tf.cross(D)) - *K * g.tfE) * g.ic,
+      (2.0 * g.ToF(D.cross(g.te)) - *K * g.teF) * g.ic, g.kb.dot(n_e), g.kb.dot(n_f);
+  return dK;
+}
+
+/// Adds sym(J(dK)), the symmetric part of the Jacobian of KbGradient, for K = kb . D with
+/// dK = KbGradient(D). Every term is linear in the data (D, D_e, D_f, n_e, n_f, and dK, K with
+/// them), so one call adds any linear combination of bending measures, the coefficients folded
+/// into the data. DeE = E^T D_e, DfF = F^T D_f, kbDe = kb . D_e, kbDf = kb . D_f.
+void AddKbJacobian(const ReducedGeometry& g, const Vec3d& D, const Vec2& DeE, const Vec2& DfF,
+                   double kbDe, double kbDf, const Vec3d& n_e, const Vec3d& n_f,
+                   const Vec6& dK, double K, Mat6* J) {
+  const double ic = g.ic;
+  const Vec2 weE = dK.segment<2>(0), wfF = dK.segment<2>(2);
+  // (te, te): sym(kb D_e^T) - (tf w_e^T + w_e tf^T) / chi; likewise (tf, tf).
+  const Mat2 kbDe_outer = g.kbE * DeE.transpose(), kbDf_outer = g.kbF * DfF.transpose();
+  J->block<2, 2>(0, 0) += 0.5 * (kbDe_outer + kbDe_outer.transpose()) -
+                          ic * (g.tfE * weE.transpose() + weE * g.tfE.transpose());
+  J->block<2, 2>(2, 2) += 0.5 * (kbDf_outer + kbDf_outer.transpose()) -
+                          ic * (g.teF * wfF.transpose() + wfF * g.teF.transpose());
+  // (te, tf): -(2 [D]x + tf w_f^T + K I + w_e te^T) / chi (already symmetric with (tf, te)).
+  const Vec3d Dx1 = D.cross(g.d1f), Dx2 = D.cross(g.d2f);
+  Mat2 X;
+  X << g.d1e.dot(Dx1), g.d1e.dot(Dx2), g.d2e.dot(Dx1), g.d2e.dot(Dx2);
+  const Mat2 ef = -ic * (2.0 * X + g.tfE * wfF.transpose() + K * g.C + weE * g.teF.transpose());
+  J->block<2, 2>(0, 2) += ef;
+  J->block<2, 2>(2, 0) += ef.transpose();
+  // (t, theta): (2 tf x n - (kb.n) tf) / chi and (2 n x te - (kb.n) te) / chi.
+  for (int t = 0; t < 2; ++t) {
+    const Vec3d& n = (t == 0) ? n_e : n_f;
+    const double kn = dK[4 + t];
+    const Vec2 e_col = ic * (2.0 * g.ToE(g.tf.cross(n)) - kn * g.tfE);
+    const Vec2 f_col = ic * (2.0 * g.ToF(n.cross(g.te)) - kn * g.teF);
+    J->block<2, 1>(0, 4 + t) += e_col;
+    J->block<1, 2>(4 + t, 0) += e_col.transpose();
+    J->block<2, 1>(2, 4 + t) += f_col;
+    J->block<1, 2>(4 + t, 2) += f_col.transpose();
   }
-  return K * ic;
+  // (theta, theta): d n_e / d theta_e = -D_e for both bending directions.
+  (*J)(4, 4) -= kbDe;
+  (*J)(5, 5) -= kbDf;
 }
 
 /// Adds coef * sym(J(dDelta)), dDelta = [kb/2, kb/2, -1, 1] (d m = kb . (dte + dtf) / 2):
@@ -136,38 +141,51 @@ void VertexHessianFromFrames(const VertexStencilConstants& c, const StencilFrame
   const double a2 = c.B2 * (K2 / (2.0 * l) - c.rest_curvature[1]);
   const double a3 = c.GJ * (delta / l - c.rest_curvature[2]);
 
-  Mat6 J = Mat6::Zero();
-  Vec6 dK1, dK2, dDelta;
-  const Vec3d n1e = -g.d1e, n1f = -g.d1f;
-  const double t1 = AddKbTerm(g, g.d1e + g.d1f, Vec2(1, 0), Vec2(1, 0), g.kbE[0], g.kbF[0],
-                              &g.d2e, &g.d2f, 0.5 * a1, &dK1, &J);
-  const double t2 = AddKbTerm(g, g.d2e + g.d2f, Vec2(0, 1), Vec2(0, 1), g.kbE[1], g.kbF[1],
-                              &n1e, &n1f, 0.5 * a2, &dK2, &J);
+  // Gradients of K1 = kb.(d1e + d1f) (n = d2) and K2 = kb.(d2e + d2f) (n = -d1), and of the
+  // twist difference Delta: dDelta = [kb/2, kb/2, -1, 1].
+  double K1c, K2c;
+  const Vec6 dK1 = KbGradient(g, g.d1e + g.d1f, g.d2e, g.d2f, &K1c);
+  const Vec6 dK2 = KbGradient(g, g.d2e + g.d2f, -g.d1e, -g.d1f, &K2c);
+  Vec6 dDelta;
   dDelta << 0.5 * g.kbE, 0.5 * g.kbF, -1.0, 1.0;
-  AddTwistCurvature(g, a3, &J);
-  J += (c.B1 / (4.0 * l)) * dK1 * dK1.transpose() + (c.B2 / (4.0 * l)) * dK2 * dK2.transpose() +
-       (c.GJ / l) * dDelta * dDelta.transpose();
   Vec6 grad = 0.5 * a1 * dK1 + 0.5 * a2 * dK2 + a3 * dDelta;
   // Tangential components of the tangent gradients (te . g_te, tf . g_tf): projected away from
   // the edge gradient, but they enter its derivative through d P_e.
-  double g_te_t = 0.5 * a1 * t1 + 0.5 * a2 * t2;
+  double g_te_t = (0.5 * a1 * K1c + 0.5 * a2 * K2c) * g.ic;
   double g_tf_t = g_te_t;
+  // Curvature part of the Jacobian, a1/2 J(dK1) + a2/2 J(dK2) - J(dKM) in one call (linear in
+  // the data), and (a3 - Mt) J(dDelta).
+  const double c1 = 0.5 * a1, c2 = 0.5 * a2;
+  Vec3d D = c1 * (g.d1e + g.d1f) + c2 * (g.d2e + g.d2f);
+  const Vec2 Dside(c1, c2);  // E^T D_e = F^T D_f: the frames' own components
+  Vec6 dK = c1 * dK1 + c2 * dK2;
+  double K = c1 * K1c + c2 * K2c;
+  double twist_coef = a3;
+  Mat6 J = (c.B1 / (4.0 * l)) * dK1 * dK1.transpose() + (c.B2 / (4.0 * l)) * dK2 * dK2.transpose() +
+           (c.GJ / l) * dDelta * dDelta.transpose();
 
   if (c.moment.squaredNorm() > 0.0) {
     // E_M = -kb.M - Delta Mt, Mt = M.(te + tf) / 2: gradient -dKM - Delta dMt - Mt dDelta,
     // Jacobian -J(dKM) - dMt dDelta^T - dDelta dMt^T - Mt J(dDelta).
     const Vec3d& M = c.moment;
     const double Mt = 0.5 * M.dot(g.te + g.tf);
-    Vec6 dKM, dMt;
-    const double tM = AddKbTerm(g, M, Vec2::Zero(), Vec2::Zero(), 0.0, 0.0, nullptr, nullptr,
-                                -1.0, &dKM, &J);
+    double KM;
+    const Vec3d zero = Vec3d::Zero();
+    const Vec6 dKM = KbGradient(g, M, zero, zero, &KM);
+    Vec6 dMt;
     dMt << 0.5 * g.ToE(M), 0.5 * g.ToF(M), 0.0, 0.0;
     J -= dMt * dDelta.transpose() + dDelta * dMt.transpose();
-    AddTwistCurvature(g, -Mt, &J);
+    D -= M;
+    dK -= dKM;
+    K -= KM;
+    twist_coef -= Mt;
     grad -= dKM + delta * dMt + Mt * dDelta;
-    g_te_t -= tM + 0.5 * delta * M.dot(g.te);
-    g_tf_t -= tM + 0.5 * delta * M.dot(g.tf);
+    g_te_t -= KM * g.ic + 0.5 * delta * M.dot(g.te);
+    g_tf_t -= KM * g.ic + 0.5 * delta * M.dot(g.tf);
   }
+  AddKbJacobian(g, D, Dside, Dside, c1 * g.kbE[0] + c2 * g.kbE[1], c1 * g.kbF[0] + c2 * g.kbF[1],
+                c1 * g.d2e - c2 * g.d1e, c1 * g.d2f - c2 * g.d1f, dK, K, &J);
+  AddTwistCurvature(g, twist_coef, &J);
 
   // Reduced to edge variables: dte = E (E^T de) / |e|, and g_e = P_e g_te / |e| = E g_eE / |e|,
   //   d g_e / de = [E (J_ee - (te.g_te) I) E^T - te p_e^T - p_e te^T] / |e|^2,  p_e = E g_eE,
