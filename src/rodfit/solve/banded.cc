@@ -94,9 +94,11 @@ bool BandedCholesky::FactorBlocks4(const BandedSymmetric& A, double diagonal_shi
   auto L = [&](int I, int K) -> const Block& { return blocks_[K * stride + (I - K)]; };
   for (int J = 0; J < nb; ++J) {
     const int j0 = 4 * J;
+    // Column c of block (I, J) is the contiguous run band(4 (I - J) - c .. + 3, 4 J + c); the
+    // diagonal block's upper entries fall outside the band and are never read (lower only).
     Block S;
     for (int c = 0; c < 4; ++c)
-      for (int r = c; r < 4; ++r) S(r, c) = a(r - c, j0 + c);
+      S.col(c).tail(4 - c) = a.col(j0 + c).head(4 - c);
     for (int K = std::max(0, J - q); K < J; ++K) S.noalias() -= L(J, K) * L(J, K).transpose();
     // Cholesky of the diagonal block (lower triangle of S), then its inverse.
     Block Ljj = Block::Zero();
@@ -128,8 +130,7 @@ bool BandedCholesky::FactorBlocks4(const BandedSymmetric& A, double diagonal_shi
     for (int I = J + 1; I <= std::min(nb - 1, J + q); ++I) {
       const int d = 4 * (I - J);
       Block B;
-      for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 4; ++r) B(r, c) = a(d + r - c, j0 + c);
+      for (int c = 0; c < 4; ++c) B.col(c) = a.col(j0 + c).segment<4>(d - c);
       for (int K = std::max(0, I - q); K < J; ++K) B.noalias() -= L(I, K) * L(J, K).transpose();
       blocks_[J * stride + (I - J)].noalias() = B * inv.transpose();
     }
