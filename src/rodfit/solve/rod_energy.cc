@@ -144,10 +144,7 @@ double NonBendingEnergy(const RodModel& model, const RodState& state, const Ener
                   (state.x.col(i) - model.spring_anchor(i)).squaredNorm();
     }
   }
-  if (terms.loads) {
-    for (int i = 1; i <= n; ++i)
-      energy -= terms.load_scale * model.vertex_forces().col(i).dot(state.x.col(i));
-  }
+  if (terms.loads) energy += DeadLoadEnergy(model, state, terms.load_scale);
   return energy;
 }
 
@@ -165,6 +162,21 @@ VertexStencilConstants StencilStiffness(const RodModel& model, const EnergyTerms
 }
 
 }  // namespace
+
+double DeadLoadEnergy(const RodModel& model, const RodState& state, double load_scale) {
+  double energy = 0.0;
+  for (int i = 1; i <= model.num_edges(); ++i)
+    energy -= load_scale * model.vertex_forces().col(i).dot(state.x.col(i));
+  return energy;
+}
+
+void AddDeadLoadGradient(const RodModel& model, double load_scale, bool hold_grasp,
+                         VecX* gradient) {
+  for (int i = 1; i <= model.num_edges(); ++i) {
+    if (hold_grasp && i == model.grasp_vertex()) continue;
+    gradient->segment<3>(RodModel::VertexDof(i)) -= load_scale * model.vertex_forces().col(i);
+  }
+}
 
 void GatherVertexStencil(const RodModel& model, const RodState& state, int i, double load_scale,
                          double q[11], VertexStencilConstants* c, std::array<int, 11>* dof) {
@@ -341,11 +353,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
       }
     }
   }
-  if (terms.loads) {
-    for (int i = 1; i <= n; ++i)
-      gradient->segment<3>(RodModel::VertexDof(i)) -=
-          terms.load_scale * model.vertex_forces().col(i);
-  }
+  if (terms.loads) AddDeadLoadGradient(model, terms.load_scale, /*hold_grasp=*/false, gradient);
   if (terms.fix_grasp && model.grasp_vertex() >= 1) {
     // Dirichlet rows: the grasped vertex does not move; its gradient is the constraint force.
     const int d = RodModel::VertexDof(model.grasp_vertex());

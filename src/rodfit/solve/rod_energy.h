@@ -73,6 +73,13 @@ struct RodFrames {
 };
 void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames);
 
+/// The dead loads' part of Pi, -load_scale sum_i f_i . x_i, and of its gradient, -load_scale f_i
+/// on x_i's dofs (added to *gradient; with hold_grasp, not on the held vertex, whose rows the
+/// assembly zeroes). Pi is linear in them, so a change of dead loads changes only these parts.
+double DeadLoadEnergy(const RodModel& model, const RodState& state, double load_scale);
+void AddDeadLoadGradient(const RodModel& model, double load_scale, bool hold_grasp,
+                         VecX* gradient);
+
 /// Gathers vertex i's stencil q = [x_prev, x_mid, x_next, theta_e, theta_f], its constants and
 /// the free-dof index of each entry (-1 for a fixed one: the clamp and the ghost edge).
 void GatherVertexStencil(const RodModel& model, const RodState& state, int i, double load_scale,

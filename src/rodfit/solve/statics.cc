@@ -72,13 +72,23 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
   // and the assembly at that state.
   RodFrames frames, trial_frames;
   ComputeRodFrames(model, *state, &frames);
-  double energy = PotentialEnergyFreshFrames(model, *state, terms, &frames);
+  double energy = factor_at_start ? ws->factor_unloaded_energy +
+                                        DeadLoadEnergy(model, *state, load_scale)
+                                  : PotentialEnergyFreshFrames(model, *state, terms, &frames);
+  // On convergence, keeps Pi and its gradient without the dead loads with the factor.
+  auto converged = [&]() {
+    ws->factor_unloaded_energy = energy - DeadLoadEnergy(model, *state, load_scale);
+    ws->factor_unloaded_gradient = g;
+    AddDeadLoadGradient(model, -load_scale, /*hold_grasp=*/true, &ws->factor_unloaded_gradient);
+    return StepResult::kConverged;
+  };
   constexpr int kMaxSaddleEscapes = 5;
   int escapes = 0;
   for (int it = 0; it < max_iterations; ++it) {
     const bool reuse = (it == 0 && factor_at_start);
     if (reuse) {
-      AssembleGradient(model, *state, terms, &g, &frames);
+      g = ws->factor_unloaded_gradient;
+      AddDeadLoadGradient(model, load_scale, /*hold_grasp=*/true, &g);
     } else {
       AssembleHessian(model, *state, terms, &g, &H, &frames);
     }
@@ -138,7 +148,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
     if (gnorm <= force_tol) {
       ws->factor_valid = !shifted;
       summary->stable = !shifted;
-      return StepResult::kConverged;
+      return converged();
     }
     step = -ws->hessian.Solve(g);
     if (gnorm <= 1e-5 * model.force_scale()) {
@@ -148,7 +158,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       if (dx <= opt.step_tolerance * model.rest_edge_length(0) && dtheta <= opt.step_tolerance) {
         ws->factor_valid = !shifted;
         summary->stable = !shifted;
-        return StepResult::kConverged;
+        return converged();
       }
     }
     const double slope = g.dot(step);
@@ -175,7 +185,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       if (gnorm <= 1e3 * force_tol) {
         ws->factor_valid = !shifted;
         summary->stable = !shifted;
-        return StepResult::kConverged;
+        return converged();
       }
       *why = "line search failed";
       return StepResult::kFailed;

@@ -55,6 +55,10 @@ struct StaticsWorkspace {
   /// exact Hessian there, instead of assembling and factoring it again.
   RodState factor_state;
   uint64_t factor_digest = 0;
+  /// Pi and its gradient at factor_state without the dead loads: with them, the re-solve's
+  /// first iteration needs no assembly at all (Pi is linear in the dead loads).
+  double factor_unloaded_energy = 0.0;
+  VecX factor_unloaded_gradient;
 };
 
 /// Solves for equilibrium starting from *state (a warm start, or model.StraightState()).
