@@ -50,7 +50,8 @@ bool SameState(const RodState& a, const RodState& b) {
 
 /// Newton iterations at one load factor. Returns kConverged with *state at equilibrium.
 /// With `factor_at_start`, ws->hessian already holds the factor of the (unshifted) Hessian at
-/// *state for this model and load, so the first iteration only assembles the gradient.
+/// *state for this model and load, and ws the energy and gradient there without dead loads, so
+/// the first iteration assembles nothing.
 StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double load_scale,
                         int max_iterations, RodState* state, StaticsWorkspace* ws,
                         StaticsSummary* summary, std::string* why, bool factor_at_start) {
@@ -70,8 +71,9 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       std::max(opt.gradient_tolerance * model.force_scale(), roundoff_floor);
   // Frames of the current state and of the trial, each computed once and shared by the energy
   // and the assembly at that state.
+  // (With the kept factor the first iteration needs no frames; later states arrive with theirs.)
   RodFrames frames, trial_frames;
-  ComputeRodFrames(model, *state, &frames);
+  if (!factor_at_start) ComputeRodFrames(model, *state, &frames);
   double energy = factor_at_start ? ws->factor_unloaded_energy +
                                         DeadLoadEnergy(model, *state, load_scale)
                                   : PotentialEnergyFreshFrames(model, *state, terms, &frames);
