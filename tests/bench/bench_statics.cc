@@ -44,6 +44,7 @@ void BM_SolveFromStraight(benchmark::State& st) {
   }
   if (!summary.converged) st.SkipWithError(summary.BriefReport().c_str());
   st.counters["newton_iterations"] = summary.iterations;
+  st.counters["chord_steps"] = summary.chord_steps;
   st.SetComplexityN(st.range(0));
 }
 BENCHMARK(BM_SolveFromStraight)->RangeMultiplier(10)->Range(50, 5000)->Arg(100)->Arg(1000)
@@ -57,16 +58,18 @@ void AlternatingResolves(benchmark::State& st, const RodModel& a, const RodModel
   StaticsWorkspace ws;
   if (!SolveStatics(a, StaticsOptions(), &state, &ws).converged) st.SkipWithError("base");
   StaticsSummary summary;
-  int iterations = 0, solves = 0;
+  int iterations = 0, chord_steps = 0, solves = 0;
   for (auto _ : st) {
     summary = SolveStatics((solves % 2 == 0) ? b : a, StaticsOptions(), &state, &ws);
     iterations += summary.iterations;
+    chord_steps += summary.chord_steps;
     ++solves;
     if (!summary.converged) break;
     benchmark::DoNotOptimize(state.x.data());
   }
   if (!summary.converged) st.SkipWithError(summary.BriefReport().c_str());
   st.counters["newton_iterations"] = double(iterations) / std::max(solves, 1);
+  st.counters["chord_steps"] = double(chord_steps) / std::max(solves, 1);
 }
 
 // After a 1% change of the tip force (a dead load: the kept factor is the exact Hessian at the

@@ -26,12 +26,17 @@ struct StaticsOptions {
   double armijo = 1e-4;                ///< sufficient-decrease constant
   int max_load_steps = 64;             ///< load increments before giving up on continuation
   double max_rotation_per_step = 0.5;  ///< [rad] cap on any tangent's turn in one Newton step
+  /// Between Newton steps, take chord steps with the last factor (carried to the current edge
+  /// directions, see statics.cc) while they converge fast; the Hessian is always assembled and
+  /// factored at the solution, so the result and the kept factor do not depend on this.
+  bool chord_steps = true;
   bool Check(std::string* why) const;
 };
 
 struct StaticsSummary {
   bool converged = false;
-  int iterations = 0;            ///< Newton iterations
+  int iterations = 0;            ///< Newton iterations (chord steps included)
+  int chord_steps = 0;           ///< of which chord steps (StaticsOptions::chord_steps)
   /// False when the equilibrium found is not a minimum (the Hessian there is indefinite, e.g. a
   /// column loaded past its buckling load and kept perfectly straight). Such a state is an
   /// equilibrium, but an experiment would not show it.
@@ -59,6 +64,9 @@ struct StaticsWorkspace {
   /// first iteration needs no assembly at all (Pi is linear in the dead loads).
   double factor_unloaded_energy = 0.0;
   VecX factor_unloaded_gradient;
+  /// Unit edge tangents (3 x edges) of the state `hessian` was last factored at, converged or
+  /// not: chord steps carry that factor to the current edge directions.
+  Eigen::Matrix3Xd factor_tangents;
 };
 
 /// Solves for equilibrium starting from *state (a warm start, or model.StraightState()).
