@@ -6,31 +6,14 @@
 #include <benchmark/benchmark.h>
 
 #include "rodfit/solve/statics.h"
+#include "../solve/test_util.h"
 
 namespace rodfit {
 namespace {
 
-// A nylon-like suture clamped at 30 degrees from horizontal, sagging under gravity with a
+// A nylon-like suture clamped at 29 degrees above horizontal, sagging under gravity with a
 // sideways tip force: a fully 3-D, bent and twisted equilibrium.
-Scene HeavySuture(int segments) {
-  Scene s;
-  s.rod.length = 0.2;
-  s.rod.segments = segments;
-  s.rod.radius = 1.25e-4;
-  s.rod.linear_density = 5.6e-5;
-  s.material.bend_stiffness = 1.0e-6;
-  s.material.bend_stiffness_2 = 1.5e-6;
-  s.material.twist_stiffness = 8.0e-7;
-  s.material.stretch_stiffness = 245.0;
-  s.gravity = Vec3(0, 0, -9.81);
-  LoadCase c;
-  c.name = "heavy";
-  c.clamp.tangent = Vec3(std::cos(0.5), 0, std::sin(0.5));
-  c.clamp.normal = Vec3(0, 1, 0);
-  c.tip_force = Vec3(0, 3e-5, 0);
-  s.cases.push_back(c);
-  return s;
-}
+Scene HeavySuture(int segments) { return testing::BenchmarkSuture(segments); }
 
 void BM_SolveFromStraight(benchmark::State& st) {
   const Scene s = HeavySuture(static_cast<int>(st.range(0)));

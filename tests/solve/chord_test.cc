@@ -15,17 +15,12 @@
 namespace rodfit {
 namespace {
 
-using testing::Cantilever;
 using testing::ModelOf;
 
-// A heavy, anisotropic, bent and twisted 3-D cantilever with a sideways tip force and a tip
-// moment; EA L^2 / EI = 1e6, the stiff-stretch regime where unrotated chords fail.
+// The heavy cantilever with a tip moment as well; EA L^2 / EI = 1e6, the stiff-stretch regime
+// where unrotated chords fail.
 Scene Heavy() {
-  Scene s = Cantilever(40, /*density=*/2.0);
-  s.gravity = Vec3(0, 0, -9.81);
-  s.material.bend_stiffness_2 = 1.4;
-  s.cases[0].clamp.tangent = Vec3(std::cos(0.4), 0, std::sin(0.4));
-  s.cases[0].tip_force = Vec3(0, 3.0, 0);
+  Scene s = testing::HeavyCantilever();
   s.cases[0].tip_moment = Vec3(0.2, 0.0, 0.1);
   return s;
 }
@@ -110,30 +105,13 @@ TEST(ChordSteps, WarmResolvesEndWhereNewtonEnds) {
   EXPECT_GE(solves_with_chords, 3);  // the comparison means something only if chords were taken
 }
 
-// The benchmark suture (bench_statics): 0.2 m, 100 segments, EA L^2 / EI ~ 1e7, clamped at
-// 0.5 rad, sagging with a sideways tip force.
-Scene Suture() {
-  Scene s = Cantilever(100, /*density=*/5.6e-5);
-  s.rod.length = 0.2;
-  s.rod.radius = 1.25e-4;
-  s.material.bend_stiffness = 1.0e-6;
-  s.material.bend_stiffness_2 = 1.5e-6;
-  s.material.twist_stiffness = 8.0e-7;
-  s.material.stretch_stiffness = 245.0;
-  s.gravity = Vec3(0, 0, -9.81);
-  s.cases[0].clamp.tangent = Vec3(std::cos(0.5), 0, std::sin(0.5));
-  s.cases[0].clamp.normal = Vec3(0, 1, 0);
-  s.cases[0].tip_force = Vec3(0, 3e-5, 0);
-  return s;
-}
-
 // The case chord steps are for: a haptic loop re-solving a suture after 1 % load changes. The
 // first step reuses the kept factor (the exact Newton step); then one chord step reaches the
 // tolerance where Newton would have assembled and factored a Hessian, and the Hessian is
 // assembled once, at the solution. Over 40 re-solves in a row, each from the last, the state
 // does not drift from Newton's.
 TEST(ChordSteps, HapticLoopOnASutureTakesOneChordPerResolveAndDoesNotDrift) {
-  Scene s = Suture();
+  Scene s = testing::BenchmarkSuture(100);
   const RodModel a = ModelOf(s);
   s.cases[0].tip_force *= 1.01;
   const RodModel b = ModelOf(s);

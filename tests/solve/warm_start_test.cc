@@ -14,18 +14,9 @@
 namespace rodfit {
 namespace {
 
-using testing::Cantilever;
 using testing::ModelOf;
 
-// A heavy, bent and twisted 3-D cantilever with a sideways tip force.
-Scene Heavy() {
-  Scene s = Cantilever(40, /*density=*/2.0);
-  s.gravity = Vec3(0, 0, -9.81);
-  s.material.bend_stiffness_2 = 1.4;
-  s.cases[0].clamp.tangent = Vec3(std::cos(0.4), 0, std::sin(0.4));
-  s.cases[0].tip_force = Vec3(0, 3.0, 0);
-  return s;
-}
+Scene Heavy() { return testing::HeavyCantilever(); }
 
 TEST(HessianDigest, DeadLoadsKeepItEverythingTheHessianReadsChangesIt) {
   const Scene base = Heavy();
