@@ -18,10 +18,8 @@
 #include "rodfit/io/image_observations.h"
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/io/synth.h"
-#include "rodfit/model/rod.h"
-#include "rodfit/solve/poke.h"
-#include "rodfit/solve/rod_energy.h"
-#include "rodfit/solve/statics.h"
+#include "rodfit/io/errors.h"
+#include "rodfit/solve/case_solve.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/centreline.h"
 
@@ -48,13 +46,17 @@ int Parse(CLI::App& app, int argc, char** argv) {
 
 int RunSimulate(int argc, char** argv) {
   CLI::App app(
-      "Solve every load case of a scene to static equilibrium and write "
-      "DIR/shapes.csv (case,vertex,s,x,y,z); DIR/forces.csv (case,fx,fy,fz) for grasped cases; "
-      "DIR/sections.csv (case,node,x0,y0,z0,x,y,z) and DIR/CASE.obj for poked cases.",
+      "Solve every load case of a scene to static equilibrium and write DIR/shapes.csv "
+      "(case,vertex,s,x,y,z), DIR/forces.csv (the force and moment on every held point), "
+      "DIR/summary.csv (how each solve ended); DIR/sections.csv and DIR/CASE.obj for poked "
+      "cases. Cases that converge to an unstable equilibrium are warned about on stderr.",
       "rodfit simulate");
   std::string scene_path, output_dir;
-  app.add_option("scene", scene_path, "scene YAML (DESIGN.md §6)")->required();
+  bool keep_going = false;
+  app.add_option("scene", scene_path, "scene YAML (docs/formats.md)")->required();
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
+  app.add_flag("--keep-going", keep_going,
+               "write the cases that converged and summary.csv even when one fails (exit 3)");
   if (const int status = Parse(app, argc, argv); status >= 0) return status;
 
   const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
@@ -62,49 +64,76 @@ int RunSimulate(int argc, char** argv) {
   std::vector<rodfit::CaseShape> shapes;
   std::vector<rodfit::CaseForce> forces;
   std::vector<rodfit::CaseSection> sections;
+  std::vector<rodfit::CaseSummaryRow> summary;
   std::vector<std::pair<std::string, std::string>> meshes;  // case name, OBJ text
-  for (const rodfit::LoadCase& load_case : scene.cases) {
-    rodfit::RodModel model(scene.rod, scene.material, scene.gravity, load_case, scene.springs);
-    rodfit::RodState state = model.StraightState();
-    const rodfit::StaticsSummary summary =
-        rodfit::SolveStatics(model, rodfit::StaticsOptions(), &state);
-    if (!summary.converged) {
-      std::cerr << "rodfit simulate: case " << load_case.name << ": " << OneLine(summary.reason)
-                << "\n";
-      return EXIT_FAILURE;
+  std::vector<std::string> warnings;
+  std::string first_failure;
+  std::vector<rodfit::CaseSolution> solutions;
+  solutions.reserve(scene.cases.size());
+  for (size_t k = 0; k < scene.cases.size(); ++k) {
+    const rodfit::LoadCase& load_case = scene.cases[k];
+    const std::string where = "case " + load_case.name + ": ";
+    rodfit::CaseSolution solution;
+    try {
+      solution = rodfit::SolveCase(scene, static_cast<int>(k),
+                                   solutions.empty() ? nullptr : &solutions.back(),
+                                   experiment.statics);
+    } catch (const std::invalid_argument& e) {
+      // The case is not a valid rod: name the case's entry in the file.
+      throw rodfit::InputError(scene_path, experiment.cases[k].line,
+                               "cases[" + std::to_string(k) + "]", e.what());
     }
-    rodfit::CaseShape shape;
-    shape.name = load_case.name;
-    shape.x = state.x;
-    for (int i = 0; i < model.num_vertices(); ++i) shape.s.push_back(model.arc_length(i));
-    shapes.push_back(shape);
-    if (load_case.grasp) forces.push_back({load_case.name, rodfit::GraspReaction(model, state)});
-    if (load_case.poke) {
-      const rodfit::SectionSpec& section = *scene.section;  // the reader requires it
-      const rodfit::PokeResult poke = rodfit::SolvePoke(
-          model, state, section,
-          {scene.material.ring_bend_stiffness, scene.material.ring_stretch_stiffness});
+    const rodfit::StaticsSummary& s = solution.summary;
+    summary.push_back({load_case.name, s.converged, s.converged && s.stable, s.iterations,
+                       s.gradient_norm, solution.seconds, s.reason});
+    if (!s.converged) {
+      if (first_failure.empty()) first_failure = where + OneLine(s.reason);
+      solutions.push_back(std::move(solution));
+      continue;
+    }
+    if (!s.stable)
+      warnings.push_back("rodfit simulate: warning: " + where +
+                         "the equilibrium found is unstable (a displacement the rod does not "
+                         "resist); an experiment would not hold it");
+    shapes.push_back({load_case.name, solution.shape_s, solution.shape});
+    for (const rodfit::HeldReaction& r : solution.reactions)
+      forces.push_back({load_case.name, r.point, r.s, r.position, r.force, r.moment});
+    if (solution.poke) {
+      const rodfit::PokeResult& poke = *solution.poke;
       if (!poke.ring.summary.IsUsable()) {
-        std::cerr << "rodfit simulate: case " << load_case.name
-                  << ": cross-section: " << OneLine(poke.ring.summary.BriefReport()) << "\n";
-        return EXIT_FAILURE;
+        if (first_failure.empty())
+          first_failure = where + "cross-section: " + OneLine(poke.ring.summary.BriefReport());
+        summary.back().converged = false;
+        summary.back().reason = "cross-section: " + poke.ring.summary.BriefReport();
+        solutions.push_back(std::move(solution));
+        continue;
       }
       sections.push_back({load_case.name, poke.rest_world, poke.deformed_world});
-      meshes.emplace_back(load_case.name,
-                          rodfit::FormatObj(rodfit::PokedTube(model, state, section, poke)));
+      meshes.emplace_back(load_case.name, rodfit::FormatObj(rodfit::PokedTube(
+                                              *solution.model, solution.state, *scene.section, poke)));
     }
+    solutions.push_back(std::move(solution));
   }
-  // Only after every case has converged, so a failed run leaves nothing behind.
+  if (!first_failure.empty() && !keep_going) {
+    std::cerr << "rodfit simulate: " << first_failure << "\n";
+    return EXIT_FAILURE;
+  }
+  // Only now, so a failed run leaves nothing behind.
+  namespace fs = std::filesystem;
   rodfit::CreateDirectories(output_dir);
-  rodfit::WriteShapesCsv((std::filesystem::path(output_dir) / "shapes.csv").string(), shapes);
-  if (!forces.empty())
-    rodfit::WriteForcesCsv((std::filesystem::path(output_dir) / "forces.csv").string(), forces);
+  rodfit::WriteShapesCsv((fs::path(output_dir) / "shapes.csv").string(), shapes);
+  rodfit::WriteForcesCsv((fs::path(output_dir) / "forces.csv").string(), forces);
+  rodfit::WriteFileAtomically((fs::path(output_dir) / "summary.csv").string(),
+                              rodfit::FormatSummaryCsv(summary));
   if (!sections.empty())
-    rodfit::WriteSectionsCsv((std::filesystem::path(output_dir) / "sections.csv").string(),
-                             sections);
+    rodfit::WriteSectionsCsv((fs::path(output_dir) / "sections.csv").string(), sections);
   for (const auto& [name, obj] : meshes)
-    rodfit::WriteFileAtomically((std::filesystem::path(output_dir) / (name + ".obj")).string(),
-                                obj);
+    rodfit::WriteFileAtomically((fs::path(output_dir) / (name + ".obj")).string(), obj);
+  for (const std::string& w : warnings) std::cerr << w << "\n";
+  if (!first_failure.empty()) {
+    std::cerr << "rodfit simulate: " << first_failure << " (other cases written)\n";
+    return 3;
+  }
   return EXIT_SUCCESS;
 }
 
@@ -127,6 +156,7 @@ int RunSynth(int argc, char** argv) {
   rodfit::SynthOptions options;
   options.seed = seed;
   options.add_noise = !noise_free;
+  options.statics = experiment.statics;
   const rodfit::SynthBundle bundle = rodfit::Synthesize(experiment, output_dir, options);
   for (const std::string& line : bundle.report) std::cout << line << "\n";
   std::cout << "wrote " << bundle.files.size() << " files to " << output_dir << "\n";

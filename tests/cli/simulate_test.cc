@@ -129,6 +129,20 @@ TEST_F(CliTest, UnwritableOutputDirectory) {
 // Relies on the case being beyond the statics solver: an axial thrust of 1e3 N is about 1e7
 // times this thread's Euler load. Should a future solver find that equilibrium, pick a harder case.
 TEST_F(CliTest, UnconvergedCaseFailsWithoutOutput) {
+  // One Newton iteration cannot reach the sagging shape from the straight rod.
+  const std::string scene =
+      dir_.Write("scene.yaml", With("gravity: [0, 0, -9.81]\n",
+                                    "gravity: [0, 0, -9.81]\nsolver: {max_iterations: 1}\n"));
+  const std::string out_dir = dir_.File("out");
+  const RunResult run = Rodfit("simulate " + Quote(scene) + " -o " + Quote(out_dir));
+  EXPECT_GT(run.status, 0);
+  EXPECT_THAT(run.err, StartsWith("rodfit simulate: case sag: no equilibrium found: "));
+  EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(out_dir));
+}
+
+TEST_F(CliTest, LoadsBeyondARodAreRefusedNamingTheCase) {
+  // 1000 N on a suture of EA = 245 N would stretch it past twice its length: a unit mistake.
   const std::string scene =
       dir_.Write("scene.yaml",
                  With("    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n",
@@ -137,7 +151,8 @@ TEST_F(CliTest, UnconvergedCaseFailsWithoutOutput) {
   const std::string out_dir = dir_.File("out");
   const RunResult run = Rodfit("simulate " + Quote(scene) + " -o " + Quote(out_dir));
   EXPECT_GT(run.status, 0);
-  EXPECT_THAT(run.err, StartsWith("rodfit simulate: case sag: "));
+  EXPECT_THAT(run.err, StartsWith("rodfit: " + scene + ":12: cases[0]: the loads (1000 N) would "
+                                  "stretch the rod by more than 100 %"));
   EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
   EXPECT_FALSE(std::filesystem::exists(out_dir));
 }
@@ -171,7 +186,18 @@ TEST_F(CliTest, SimulatesTheSampleScene) {
   for (const auto& entry : std::filesystem::directory_iterator(out_dir)) {
     listing.push_back(entry.path().filename().string());
   }
-  EXPECT_THAT(listing, ::testing::ElementsAre("shapes.csv"));  // no temporary file left
+  // No temporary file left.
+  EXPECT_THAT(listing,
+              ::testing::UnorderedElementsAre("shapes.csv", "forces.csv", "summary.csv"));
+  // Every case has its clamp's reaction, and a summary row with how its solve ended.
+  const CsvTable forces = CsvTable::Read(out_dir + "/forces.csv");
+  EXPECT_EQ(forces.header(), std::vector<std::string>({"case", "point", "s", "x", "y", "z", "fx",
+                                                       "fy", "fz", "mx", "my", "mz"}));
+  EXPECT_EQ(forces.TextColumn("point"), std::vector<std::string>(kCases, "clamp"));
+  const CsvTable summary = CsvTable::Read(out_dir + "/summary.csv");
+  EXPECT_EQ(summary.TextColumn("case"), std::vector<std::string>({"sag", "tip_force", "tip_moment"}));
+  EXPECT_EQ(summary.Column("converged"), std::vector<double>(kCases, 1.0));
+  EXPECT_EQ(summary.Column("stable"), std::vector<double>(kCases, 1.0));
 }
 
 }  // namespace

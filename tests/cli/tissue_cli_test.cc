@@ -128,12 +128,23 @@ TEST_F(TissueCliTest, SimulateBowelDragWritesOneForceRowPerGraspedCase) {
   ASSERT_LT(grasped.size(), all.size());  // a case without a grasp gets no row
 
   const std::string text = ReadText(out + "/forces.csv");
-  EXPECT_THAT(text, StartsWith("case,fx,fy,fz\n"));
-  const CsvTable forces = CsvTable::Parse(text, "forces.csv");
-  EXPECT_EQ(forces.header(), std::vector<std::string>({"case", "fx", "fy", "fz"}));
-  EXPECT_EQ(forces.TextColumn("case"), grasped);  // in file order
-  const auto fx = forces.Column("fx"), fy = forces.Column("fy"), fz = forces.Column("fz");
-  for (int r = 0; r < forces.num_rows(); ++r) {
+  EXPECT_THAT(text, StartsWith("case,point,s,x,y,z,fx,fy,fz,mx,my,mz\n"));
+  const CsvTable all_forces = CsvTable::Parse(text, "forces.csv");
+  // One row per held point: the clamp of every case, and the grasp of the grasped ones. Keep
+  // the grasp rows (the force on the instrument).
+  const auto points = all_forces.TextColumn("point"), names = all_forces.TextColumn("case");
+  EXPECT_EQ(all_forces.num_rows(), static_cast<int>(all.size() + grasped.size()));
+  std::vector<std::string> grasp_rows;
+  std::vector<double> fx, fy, fz;
+  const auto fx_all = all_forces.Column("fx"), fy_all = all_forces.Column("fy"),
+             fz_all = all_forces.Column("fz");
+  for (int r = 0; r < all_forces.num_rows(); ++r) {
+    if (points[r] != "grasp") continue;
+    grasp_rows.push_back(names[r]);
+    fx.push_back(fx_all[r]), fy.push_back(fy_all[r]), fz.push_back(fz_all[r]);
+  }
+  EXPECT_EQ(grasp_rows, grasped);  // in file order
+  for (size_t r = 0; r < fx.size(); ++r) {
     // Lifted 2 cm against springs, gravity and stretch: the instrument is pulled back and down
     // with a force of order a newton.
     const double norm = std::sqrt(fx[r] * fx[r] + fy[r] * fy[r] + fz[r] * fz[r]);
@@ -155,7 +166,8 @@ TEST_F(TissueCliTest, TheBaseSceneSimulates) {
   const RunResult run = Rodfit("simulate " + Q(scene) + " -o " + Q(dir_.File("out")));
   ASSERT_EQ(run.status, 0) << run.err;
   const CsvTable forces = CsvTable::Read(dir_.File("out/forces.csv"));
-  EXPECT_EQ(forces.TextColumn("case"), std::vector<std::string>({"drag"}));
+  EXPECT_EQ(forces.TextColumn("case"), std::vector<std::string>({"rest", "drag", "drag"}));
+  EXPECT_EQ(forces.TextColumn("point"), std::vector<std::string>({"clamp", "clamp", "grasp"}));
 }
 
 TEST_F(TissueCliTest, SpringZonesThatOverlap) {

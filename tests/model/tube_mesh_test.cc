@@ -99,6 +99,7 @@ TEST(TubeMesh, FollowsABentRodWithItsFrames) {
     const double a = (kPi / 2) * i / 20;
     state.x.col(i) = Vec3(rho * std::sin(a), 0.0, rho * (1 - std::cos(a)));
   }
+  state.SyncEdges();
   const double R = 0.003;
   const TubeMesh t = BuildTube(model, state, R, 10);
   const VertexFrames f = RodVertexFrames(model, state);
@@ -314,6 +315,7 @@ TEST(LocalDeformation, OtherPartsOfTheTubeCrossingThePlaneAreNotSelected) {
     const double s = 0.1 * i / 40;
     state.x.col(i) = s <= 0.05 ? Vec3(s, 0, 0) : Vec3(0.1 - s, 0, 0.05);
   }
+  state.SyncEdges();
   // Fresh reference frames (a transport from +x to -x would be a half-turn): u = +y throughout.
   for (int j = 0; j < 40; ++j) {
     state.ref_t.col(j) = (state.x.col(j + 1) - state.x.col(j)).normalized();

@@ -17,13 +17,10 @@ namespace {
 
 using testing::ModelOf;
 
-// The heavy cantilever with a tip moment as well; EA L^2 / EI = 1e6, the stiff-stretch regime
-// where unrotated chords fail.
-Scene Heavy() {
-  Scene s = testing::HeavyCantilever();
-  s.cases[0].tip_moment = Vec3(0.2, 0.0, 0.1);
-  return s;
-}
+// The heavy cantilever; EA L^2 / EI = 1e6, the stiff-stretch regime where unrotated chords
+// fail. (Chord steps belong to the potential's symmetric path: a case with moments is solved
+// with its non-symmetric tangent instead.)
+Scene Heavy() { return testing::HeavyCantilever(); }
 
 StaticsOptions WithChords(bool on) {
   StaticsOptions o;
@@ -59,7 +56,6 @@ TEST(ChordSteps, WarmResolvesEndWhereNewtonEnds) {
       {"tip force x3", [](Scene* s) { s->cases[0].tip_force *= 3.0; }},
       {"gravity +1%", [](Scene* s) { s->gravity *= 1.01; }},
       {"gravity +5%", [](Scene* s) { s->gravity *= 1.05; }},
-      {"tip moment +10%", [](Scene* s) { s->cases[0].tip_moment *= 1.1; }},
       {"B1 +1%", [](Scene* s) { s->material.bend_stiffness *= 1.01; }},
       {"B1 +30%", [](Scene* s) { s->material.bend_stiffness *= 1.3; }},
       {"GJ +10%", [](Scene* s) { s->material.twist_stiffness *= 1.1; }},

@@ -130,6 +130,7 @@ TEST(Springs, GradientAndHessianMatchCentralDifferences) {
       RodState r = bent;
       if (a % 4 == 3) r.theta[a / 4] += d;
       else r.x(a % 4, a / 4 + 1) += d;
+      r.SyncEdges();
       return r;
     };
     const double fd = (PotentialEnergy(model, displaced(h)) - PotentialEnergy(model, displaced(-h))) / (2 * h);
@@ -197,7 +198,7 @@ TEST(Grasp, ReactionClosesTheForceBalance) {
   }
   EnergyTerms elastic = EnergyTerms::Elastic();
   elastic.springs = 0.0;
-  elastic.fix_grasp = false;
+  elastic.hold = false;
   VecX g;
   AssembleGradient(model, state, elastic, &g);
   Vec3 clamp_on_rod = Vec3::Zero();

@@ -128,6 +128,8 @@ TEST(WarmStart, AFactorFromAnotherStateOrModelIsNotTakenForTheHessian) {
   RodState c = base, d = base;
   c.x.col(5) += Vec3(1e-4, 0, 0);
   d.x.col(5) += Vec3(1e-4, 0, 0);
+  c.SyncEdges();
+  d.SyncEdges();
   StaticsWorkspace ws2 = ws, fresh2;
   ASSERT_TRUE(SolveStatics(model, newton, &c, &ws2).converged);
   ASSERT_TRUE(SolveStatics(model, newton, &d, &fresh2).converged);

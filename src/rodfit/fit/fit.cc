@@ -249,7 +249,7 @@ class CaseEvaluator {
         // dR/dlog p = -(d g_k / dlog p at fixed q + H_k. dq/dlog p), H_k. its unconstrained rows.
         const int d = RodModel::VertexDof(model->grasp_vertex());
         EnergyTerms all;
-        all.fix_grasp = false;
+        all.hold = false;
         VecX g_full;
         BandedSymmetric H_full;
         AssembleHessian(*model, state, all, &g_full, &H_full);
@@ -257,7 +257,7 @@ class CaseEvaluator {
         const int p = H_full.bandwidth(), nd = H_full.size();
         for (size_t t = 0; t < terms.size(); ++t) {
           EnergyTerms unit = terms[t];
-          unit.fix_grasp = false;
+          unit.hold = false;
           VecX gu;
           AssembleGradient(*model, state, unit, &gu);
           for (int r = 0; r < 3; ++r) {

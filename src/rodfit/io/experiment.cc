@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>  // cross product
 #include <yaml-cpp/yaml.h>
 
+#include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 
 namespace rodfit {
@@ -421,11 +422,66 @@ std::vector<std::string> ReadSprings(const Reader& r, const Field& f, Experiment
   return names;
 }
 
+// A unit direction from a vector key; zero is an error at the key.
+Vec3 Direction(const Reader& r, const Field& f) {
+  const Vec3 v = r.Vector3(f);
+  if (!(v.norm() > 0.0)) r.Fail(f, "must not be zero");
+  return v;
+}
+
+EndClamp ReadEndClamp(const Reader& r, const Field& f) {
+  const Entries m = r.Map(f, {"position", "tangent", "normal"});
+  EndClamp ec;
+  ec.position = r.Vector3(r.Require(m, f, "position"));
+  const Field& tangent = r.Require(m, f, "tangent");
+  ec.tangent = Direction(r, tangent);
+  if (const Field* normal = Reader::Find(m, "normal")) {
+    ec.normal = Direction(r, *normal);
+    if (ec.tangent.cross(*ec.normal).norm() < kMinClampSine * ec.tangent.norm() * ec.normal->norm())
+      r.Fail(*normal, "is (nearly) parallel to the tangent");
+  }
+  return ec;
+}
+
+// `start:` straight | previous | a CSV of the ordered centre-line (s,x,y,z or x,y,z).
+StartShape ReadStart(const Reader& r, const Field& f, const Experiment& ex, int index) {
+  StartShape start;
+  const std::string text = r.Text(f);
+  if (text == "straight") return start;
+  if (text == "previous") {
+    if (index == 0) r.Fail(f, "the first case has no previous case to start from");
+    start.kind = StartShape::Kind::kPrevious;
+    return start;
+  }
+  start.kind = StartShape::Kind::kPoints;
+  start.file = r.Path(f, ex.directory);
+  const CsvTable table = CsvTable::Read(start.file);
+  const std::vector<double> x = table.Column("x"), y = table.Column("y"), z = table.Column("z");
+  if (table.num_rows() < 2)
+    throw InputError(start.file, 0, "", "a start shape needs at least 2 points, got " +
+                                            std::to_string(table.num_rows()));
+  start.points.resize(3, table.num_rows());
+  for (int k = 0; k < table.num_rows(); ++k) start.points.col(k) = Vec3(x[k], y[k], z[k]);
+  if (table.HasColumn("s")) {
+    start.s = table.Column("s");
+    for (int k = 1; k < table.num_rows(); ++k)
+      if (!(start.s[k] > start.s[k - 1]))
+        throw InputError(start.file, table.line(k), "s", "must increase from row to row");
+  } else {
+    for (int k = 1; k < table.num_rows(); ++k)
+      if (start.points.col(k) == start.points.col(k - 1))
+        throw InputError(start.file, table.line(k), "x",
+                         "repeats the point before it (a start shape's points must differ)");
+  }
+  return start;
+}
+
 void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
               std::map<std::string, int>* name_lines) {
   const Entries m =
-      r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "point_forces", "cut", "grasp",
-                "poke", "observations"});
+      r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "tip_moment_follower", "point_forces",
+                "point_moments", "cut", "grasp", "poke", "end_clamp", "end_pin", "pins", "start",
+                "observations"});
   LoadCase c;
   c.name = "case" + std::to_string(index);
   if (const Field* name = Reader::Find(m, "name")) {
@@ -446,8 +502,60 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     (*name_lines)[c.name] = f.line;
   }
   c.clamp = ReadClamp(r, r.Require(m, f, "clamp"));
-  if (const Field* tf = Reader::Find(m, "tip_force")) c.tip_force = r.Vector3(*tf);
-  if (const Field* tm = Reader::Find(m, "tip_moment")) c.tip_moment = r.Vector3(*tm);
+  const double L = ex->scene.rod.length;
+  const Field* end_clamp = Reader::Find(m, "end_clamp");
+  const Field* end_pin = Reader::Find(m, "end_pin");
+  if (end_clamp && end_pin)
+    r.Fail(end_pin->key_line, end_pin->key, "s = L is already held by end_clamp: give one");
+  if (end_clamp) c.end_clamp = ReadEndClamp(r, *end_clamp);
+  if (end_pin) {
+    const Entries pm = r.Map(*end_pin, {"position"});
+    c.end_pin = r.Vector3(r.Require(pm, *end_pin, "position"));
+  }
+  const char* held_end = end_clamp ? "end_clamp" : "end_pin";
+  if (const Field* tf = Reader::Find(m, "tip_force")) {
+    c.tip_force = r.Vector3(*tf);
+    if ((end_clamp || end_pin) && c.tip_force.squaredNorm() > 0)
+      r.Fail(*tf, std::string("acts on s = L, which the ") + held_end + " holds: remove it");
+  }
+  if (const Field* tm = Reader::Find(m, "tip_moment")) {
+    c.tip_moment = r.Vector3(*tm);
+    if (end_clamp && c.tip_moment.squaredNorm() > 0)
+      r.Fail(*tm, "acts on s = L, which the end_clamp holds: remove it");
+  }
+  if (const Field* tm = Reader::Find(m, "tip_moment_follower")) {
+    c.tip_moment_follower = r.Vector3(*tm);
+    if (end_clamp && c.tip_moment_follower.squaredNorm() > 0)
+      r.Fail(*tm, "acts on s = L, which the end_clamp holds: remove it");
+  }
+  if (const Field* pm = Reader::Find(m, "point_moments")) {
+    for (const Field& item : r.Sequence(*pm)) {
+      const Entries mm = r.Map(item, {"s", "moment"});
+      PointMoment p;
+      p.s = r.InRange(r.Require(mm, item, "s"), 0.0, L);
+      p.moment = r.Vector3(r.Require(mm, item, "moment"));
+      c.point_moments.push_back(p);
+    }
+  }
+  if (const Field* pins = Reader::Find(m, "pins")) {
+    std::vector<std::pair<double, int>> seen;
+    for (const Field& item : r.Sequence(*pins)) {
+      const Entries pm = r.Map(item, {"s", "position"});
+      Pin p;
+      const Field& s_field = r.Require(pm, item, "s");
+      p.s = r.Number(s_field);
+      if (!(p.s > 0.0 && p.s < L))
+        r.Fail(s_field, "must lie inside (0, " + Show(L) + ") (the clamp holds s = 0; use end_pin "
+                        "for s = L), got " + Show(p.s));
+      for (const auto& [other, line] : seen)
+        if (other == p.s) r.Fail(s_field, "another pin holds s = " + Show(p.s) + " (line " +
+                                              std::to_string(line) + ")");
+      seen.emplace_back(p.s, s_field.line);
+      p.position = r.Vector3(r.Require(pm, item, "position"));
+      c.pins.push_back(p);
+    }
+  }
+  if (const Field* start = Reader::Find(m, "start")) c.start = ReadStart(r, *start, *ex, index);
   if (const Field* pf = Reader::Find(m, "point_forces")) {
     for (const Field& item : r.Sequence(*pf)) {
       const Entries pm = r.Map(item, {"s", "force"});
@@ -470,8 +578,10 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     const Field& s_field = r.Require(gm, *grasp, "s");
     g.s = r.InRange(s_field, 0.0, ex->scene.rod.length);
     if (g.s < 0.5 * ex->scene.rod.length / ex->scene.rod.segments) {
-      r.Fail(s_field, "the grasp is at the clamp (s rounds to vertex 0)");
+      r.Fail(s_field, "the grasp is at the clamp (within half an edge of s = 0)");
     }
+    if ((end_clamp || end_pin) && g.s >= L - 0.5 * L / ex->scene.rod.segments)
+      r.Fail(s_field, std::string("the grasp is at s = L, which the ") + held_end + " holds");
     g.position = r.Vector3(r.Require(gm, *grasp, "position"));
     c.grasp = g;
   }
@@ -492,6 +602,25 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   }
   ex->scene.cases.push_back(c);
   ex->cases.push_back(spec);
+}
+
+StaticsOptions ReadSolver(const Reader& r, const Field& f) {
+  const Entries m =
+      r.Map(f, {"max_iterations", "gradient_tolerance", "step_tolerance", "escape_saddles"});
+  StaticsOptions o;
+  if (const Field* it = Reader::Find(m, "max_iterations")) {
+    o.max_iterations = r.Integer(*it);
+    if (o.max_iterations < 1 || o.max_iterations > 100000)
+      r.Fail(*it, "must be in [1, 100000], got " + std::to_string(o.max_iterations));
+  }
+  if (const Field* g = Reader::Find(m, "gradient_tolerance")) {
+    o.gradient_tolerance = r.InRange(*g, 1e-16, 1e-2);
+  }
+  if (const Field* st = Reader::Find(m, "step_tolerance")) {
+    o.step_tolerance = r.InRange(*st, 1e-16, 1e-2);
+  }
+  if (const Field* e = Reader::Find(m, "escape_saddles")) o.escape_saddles = r.Bool(*e);
+  return o;
 }
 
 FitSpec ReadFit(const Reader& r, const Field& f) {
@@ -553,20 +682,18 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
   ex.path = path;
   ex.directory = fs::path(path).parent_path().string();
   const Field top{root, "", 1, 0};
-  const Entries m =
-      r.Map(top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit"});
+  const Entries m = r.Map(
+      top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit", "solver"});
   ex.scene.rod = ReadRod(r, r.Require(m, top, "rod"));
   if (const Field* section = Reader::Find(m, "section")) ex.scene.section = ReadSection(r, *section);
   std::vector<std::string> zone_parameters;
   if (const Field* springs = Reader::Find(m, "springs")) {
     zone_parameters = ReadSprings(r, *springs, &ex);
-    if (ex.scene.rod.rest_curvature.squaredNorm() > 0) {
-      r.Fail(*springs, "springs tie the rod to its straight rest position: remove rest_curvature");
-    }
   }
   ReadParameters(r, r.Require(m, top, "parameters"), &ex, zone_parameters);
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
+  if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
 
   const Field& cases = r.Require(m, top, "cases");
   const std::vector<Field> items = r.Sequence(cases);

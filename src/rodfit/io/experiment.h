@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "rodfit/model/scene.h"
+#include "rodfit/solve/statics.h"
 
 namespace rodfit {
 
@@ -78,6 +79,9 @@ struct Experiment {
   std::map<std::string, ParameterSpec> parameters;
   std::vector<CaseSpec> cases;  ///< parallel to scene.cases
   FitSpec fit;
+  /// The optional top-level `solver:` block (max_iterations, gradient_tolerance,
+  /// step_tolerance, escape_saddles); defaults otherwise.
+  StaticsOptions statics;
 };
 
 /// Reads and validates an experiment / scene YAML. Throws InputError (rodfit/io/errors.h).

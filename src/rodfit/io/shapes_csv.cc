@@ -64,10 +64,25 @@ std::vector<CaseShape> ReadShapesCsv(const std::string& path) {
 }
 
 std::string FormatForcesCsv(const std::vector<CaseForce>& forces) {
-  std::string out = "case,fx,fy,fz\n";
-  for (const CaseForce& f : forces)
-    out += f.name + "," + FormatDouble(f.force.x()) + "," + FormatDouble(f.force.y()) + "," +
-           FormatDouble(f.force.z()) + "\n";
+  std::string out = "case,point,s,x,y,z,fx,fy,fz,mx,my,mz\n";
+  for (const CaseForce& f : forces) {
+    out += f.name + "," + f.point + "," + FormatDouble(f.s);
+    for (const Eigen::Vector3d* v : {&f.position, &f.force, &f.moment})
+      for (int i = 0; i < 3; ++i) out += "," + FormatDouble((*v)[i]);
+    out += "\n";
+  }
+  return out;
+}
+
+std::string FormatSummaryCsv(const std::vector<CaseSummaryRow>& rows) {
+  std::string out = "case,converged,stable,iterations,gradient_norm,seconds,reason\n";
+  for (const CaseSummaryRow& r : rows) {
+    std::string reason;
+    for (char c : r.reason) reason += (c == '"') ? std::string("\"\"") : std::string(1, c);
+    out += r.name + "," + (r.converged ? "1" : "0") + "," + (r.stable ? "1" : "0") + "," +
+           std::to_string(r.iterations) + "," + FormatDouble(r.gradient_norm) + "," +
+           FormatDouble(r.seconds) + ",\"" + reason + "\"\n";
+  }
   return out;
 }
 

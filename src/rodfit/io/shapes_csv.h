@@ -20,13 +20,31 @@ struct CaseShape {
 /// The whole file's text, header included.
 std::string FormatShapesCsv(const std::vector<CaseShape>& shapes);
 
-/// `case,fx,fy,fz`: the force [N] the tissue exerts on the instrument, one row per grasped case.
+/// `case,point,s,x,y,z,fx,fy,fz,mx,my,mz`: the force [N] and moment [N m] (about the held point
+/// x,y,z [m]) the rod exerts on each holder, one row per held point of every case: the clamp,
+/// an end clamp or end pin, pins, a grasp (the force on the instrument). The moment is zero for
+/// points held in position only.
 struct CaseForce {
   std::string name;
+  std::string point;  ///< clamp, end_clamp, end_pin, pins[k], grasp
+  double s = 0.0;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
 };
 std::string FormatForcesCsv(const std::vector<CaseForce>& forces);
 void WriteForcesCsv(const std::string& path, const std::vector<CaseForce>& forces);
+
+/// `case,converged,stable,iterations,gradient_norm,seconds,reason`: how each case's solve ended
+/// (gradient_norm [N], seconds of wall time; reason in double quotes).
+struct CaseSummaryRow {
+  std::string name;
+  bool converged = false, stable = false;
+  int iterations = 0;
+  double gradient_norm = 0.0, seconds = 0.0;
+  std::string reason;
+};
+std::string FormatSummaryCsv(const std::vector<CaseSummaryRow>& rows);
 
 /// `case,node,x0,y0,z0,x,y,z`: a poked case's cross-section ring, rest and deformed [m].
 struct CaseSection {

@@ -10,6 +10,9 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <set>
+#include <memory>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -22,8 +25,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
-#include "rodfit/solve/poke.h"
-#include "rodfit/solve/rod_energy.h"
+#include "rodfit/solve/case_solve.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/render.h"
 
@@ -159,6 +161,7 @@ struct EntryContext {
   const Experiment* experiment;
   const SynthOptions* options;
   const CaseShape* shape;
+  const CaseSolution* solution;  // the case solved (model, state, poke)
   const ObservationSpec* spec;
   const Camera* camera;      // image types only
   std::string key;           // cases[c].observations[o]
@@ -355,22 +358,33 @@ std::string SynthImage(const EntryContext& ctx, const std::string& file, std::st
   return std::string(png.begin(), png.end());
 }
 
-// Solves `load_case` with its grasp moved to `position` from the straight state (as `simulate`
-// and `fit` solve a grasped case) and returns the force on the instrument.
+// Solves `load_case` with its grasp moved to `position` from the case's start and returns the
+// force on the instrument; *warm becomes this solution.
 Eigen::Vector3d ReactionAt(const EntryContext& ctx, const LoadCase& load_case,
-                           const Eigen::Vector3d& position, const std::string& where) {
+                           const Eigen::Vector3d& position, const std::string& where,
+                           std::optional<CaseSolution>* warm) {
   const Scene& scene = ctx.experiment->scene;
   LoadCase moved = load_case;
   moved.grasp = Grasp{ctx.spec->s.at(0), position};
+  moved.start = StartShape{};
   try {
-    const RodModel model(scene.rod, scene.material, scene.gravity, moved, scene.springs);
-    RodState state = model.StraightState();
-    const StaticsSummary summary = SolveStatics(model, ctx.options->statics, &state);
-    if (!summary.converged) {
+    auto model = std::make_shared<const RodModel>(scene.rod, scene.material, scene.gravity, moved,
+                                                  scene.springs);
+    // Each stop from the case's start, as `simulate` and `fit` solve a grasped case (`warm` only
+    // keeps the solution).
+    RodState start = StartState(*model, ctx.solution);
+    CaseSolution solved = SolveModel(model, scene, nullptr, ctx.options->statics, nullptr, &start);
+    if (!solved.ok()) {
       ctx.Fail("case " + ctx.CaseName() + ": the grasp " + where + " does not converge: " +
-               summary.reason);
+               solved.summary.reason);
     }
-    return GraspReaction(model, state);
+    for (const HeldReaction& r : solved.reactions)
+      if (r.point == "grasp") {
+        *warm = std::move(solved);
+        for (const HeldReaction& q : (*warm)->reactions)
+          if (q.point == "grasp") return q.force;
+      }
+    ctx.Fail("case " + ctx.CaseName() + ": the grasp " + where + " holds no point");
   } catch (const std::invalid_argument& e) {
     ctx.Fail("case " + ctx.CaseName() + ": the grasp " + where + ": " + e.what());
   }
@@ -401,12 +415,9 @@ std::string SynthGraspForce(const EntryContext& ctx, const std::string& file, st
              "grasp.position (add grasp: {s, position} to the case)");
   }
   const double s = spec.s.at(0);
-  const double edge = scene.rod.length / scene.rod.segments;
-  const long vertex = std::lround(s / edge), grasped = std::lround(load_case.grasp->s / edge);
-  if (vertex != grasped) {
-    ctx.Fail("s = " + Show(s) + " grasps vertex " + std::to_string(vertex) +
-             ", but the case's grasp.s = " + Show(load_case.grasp->s) + " grasps vertex " +
-             std::to_string(grasped) + ": the log must be of the case's grasp");
+  if (std::abs(s - load_case.grasp->s) > 1e-9 * scene.rod.length) {
+    ctx.Fail("s = " + Show(s) + " is not the case's grasp.s = " + Show(load_case.grasp->s) +
+             ": the log must be of the case's grasp");
   }
   const int steps = spec.count > 0 ? spec.count : options.haptic_default_steps;
   const double dt = 1.0 / options.haptic_rate;
@@ -425,11 +436,13 @@ std::string SynthGraspForce(const EntryContext& ctx, const std::string& file, st
 
   // The tool's stops P_0..P_N and the forces there.
   std::vector<Eigen::Vector3d> stop(steps + 1), force(steps + 1);
+  std::optional<CaseSolution> warm;
   for (int k = 0; k <= steps; ++k) {
     stop[k] = k == steps ? end : Eigen::Vector3d(start + (double(k) / steps) * (end - start));
     force[k] = ReactionAt(ctx, load_case, stop[k],
                           "at step " + std::to_string(k) + " of " + std::to_string(steps) +
-                              " (tool at " + FormatPoint(stop[k]) + ")");
+                              " (tool at " + FormatPoint(stop[k]) + ")",
+                          &warm);
   }
 
   std::vector<HapticLogRow> rows;
@@ -472,18 +485,8 @@ std::string SynthSurfacePoints(const EntryContext& ctx, const std::string& file,
   if (!load_case.poke || !scene.section) {
     ctx.Fail("case " + ctx.CaseName() + " has no poke: surface_points are tracked around one");
   }
-  PokeResult poke;
-  try {
-    const RodModel model(scene.rod, scene.material, scene.gravity, load_case, scene.springs);
-    RodState state = model.StraightState();
-    const StaticsSummary summary = SolveStatics(model, ctx.options->statics, &state);
-    if (!summary.converged) ctx.Fail("case " + ctx.CaseName() + " does not converge");
-    poke = SolvePoke(model, state, *scene.section,
-                     RingStiffness{scene.material.ring_bend_stiffness,
-                                   scene.material.ring_stretch_stiffness});
-  } catch (const std::invalid_argument& e) {
-    ctx.Fail("case " + ctx.CaseName() + ": the poke: " + e.what());
-  }
+  if (!ctx.solution->poke) ctx.Fail("case " + ctx.CaseName() + ": the poke was not solved");
+  const PokeResult& poke = *ctx.solution->poke;
   if (!poke.ring.summary.converged) {
     ctx.Fail("case " + ctx.CaseName() + ": the poked ring does not converge: " +
              poke.ring.summary.BriefReport());
@@ -516,27 +519,27 @@ std::string SynthSurfacePoints(const EntryContext& ctx, const std::string& file,
   return FormatPoints3dCsv(p);
 }
 
-// Solves one case to equilibrium from the straight state.
-CaseShape SolveCase(const Experiment& ex, int c, const StaticsOptions& statics) {
-  const LoadCase& load_case = ex.scene.cases[c];
-  const std::string key = "cases[" + std::to_string(c) + "]";
-  const int line = ex.cases[c].line;
-  try {
-    RodModel model(ex.scene.rod, ex.scene.material, ex.scene.gravity, load_case, ex.scene.springs);
-    RodState state = model.StraightState();
-    const StaticsSummary summary = SolveStatics(model, statics, &state);
-    if (!summary.converged) {
-      throw InputError(ex.path, line, key,
-                       "case '" + load_case.name + "' does not converge: " + summary.reason);
+// Solves every case in order (a case may start from the previous one's solution); a case that
+// is not a valid rod or does not converge is an error at its entry.
+std::vector<CaseSolution> SolveCases(const Experiment& ex, const StaticsOptions& statics) {
+  std::vector<CaseSolution> out;
+  out.reserve(ex.scene.cases.size());
+  for (size_t c = 0; c < ex.scene.cases.size(); ++c) {
+    const LoadCase& load_case = ex.scene.cases[c];
+    const std::string key = "cases[" + std::to_string(c) + "]";
+    const int line = ex.cases[c].line;
+    try {
+      out.push_back(SolveCase(ex.scene, static_cast<int>(c), out.empty() ? nullptr : &out.back(),
+                              statics));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(ex.path, line, key, "case '" + load_case.name + "': " + e.what());
     }
-    CaseShape shape;
-    shape.name = load_case.name;
-    shape.x = state.x;
-    for (int i = 0; i < model.num_vertices(); ++i) shape.s.push_back(model.arc_length(i));
-    return shape;
-  } catch (const std::invalid_argument& e) {
-    throw InputError(ex.path, line, key, "case '" + load_case.name + "': " + e.what());
+    if (!out.back().ok()) {
+      throw InputError(ex.path, line, key,
+                       "case '" + load_case.name + "' does not converge: " + out.back().summary.reason);
+    }
   }
+  return out;
 }
 
 std::string Absolute(const std::string& path) {
@@ -649,6 +652,8 @@ std::string EmitExperimentYaml(const std::string& yaml_text, const Experiment& e
     throw InputError(experiment.path, 0, "cases", "changed since it was read");
   }
   for (size_t c = 0; c < experiment.cases.size(); ++c) {
+    const StartShape& start = experiment.scene.cases[c].start;
+    if (start.kind == StartShape::Kind::kPoints) cases[c]["start"] = map_path(start.file);
     const std::vector<ObservationSpec>& specs = experiment.cases[c].observations;
     if (specs.empty()) continue;
     YAML::Node observations = cases[c]["observations"];
@@ -699,9 +704,9 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
   if (!options.Check(&why)) throw std::invalid_argument("SynthOptions: " + why);
   const Experiment& ex = experiment;
   SynthBundle bundle;
-  for (size_t c = 0; c < ex.scene.cases.size(); ++c) {
-    bundle.truth.push_back(SolveCase(ex, static_cast<int>(c), options.statics));
-  }
+  const std::vector<CaseSolution> solutions = SolveCases(ex, options.statics);
+  for (size_t c = 0; c < solutions.size(); ++c)
+    bundle.truth.push_back({ex.scene.cases[c].name, solutions[c].shape_s, solutions[c].shape});
 
   // Output paths first: each entry's file and each camera once, with no two the same.
   std::map<std::string, std::string> owner;  // relative output path -> who writes it
@@ -744,7 +749,7 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
       const ObservationSpec& spec = ex.cases[c].observations[o];
       const std::string file = rel(spec.file);
       Random random(options.seed, file);
-      EntryContext ctx{&ex,  &options, &bundle.truth[c],
+      EntryContext ctx{&ex,  &options, &bundle.truth[c], &solutions[c],
                        &spec, spec.camera.empty() ? nullptr : &cameras.at(spec.camera),
                        EntryKey(static_cast<int>(c), static_cast<int>(o)),
                        spec.camera, &random, static_cast<int>(c)};
@@ -768,6 +773,15 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
   }
   for (const std::string& camera : camera_order) {
     bundle.files.emplace_back(rel(camera), ReadBytes(camera, "the camera file"));
+  }
+  // Start shapes are copied too, so DIR/experiment.yaml is self-contained.
+  std::set<std::string> starts;
+  for (size_t c = 0; c < ex.scene.cases.size(); ++c) {
+    const StartShape& start = ex.scene.cases[c].start;
+    if (start.kind != StartShape::Kind::kPoints || !starts.insert(start.file).second) continue;
+    const std::string key = "cases[" + std::to_string(c) + "].start";
+    claim(rel(start.file), "start shape " + start.file, ex.cases[c].line, key);
+    bundle.files.emplace_back(rel(start.file), ReadBytes(start.file, "the start shape"));
   }
   bundle.files.emplace_back(kExperimentFile,
                             EmitExperimentYaml(ReadBytes(ex.path, "the experiment"), ex, rel));

@@ -1,12 +1,17 @@
-// RodModel: validation, rest geometry, lumped loads and the straight start state (rod.h).
+// RodModel: validation, rest geometry, held points, lumped loads, the rest shape and start
+// states (rod.h).
 #include "rodfit/model/rod.h"
 
 #include <algorithm>
-#include <utility>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
-#include <sstream>
+#include <limits>
 #include <stdexcept>
+#include <utility>
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
 
 #include "rodfit/model/frames.h"
 
@@ -19,29 +24,134 @@ void Require(bool ok, const std::string& what) {
 
 bool Finite(const Vec3& v) { return v.allFinite(); }
 
+std::string Num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.6g", v);
+  return b;
+}
+
+// Limits of what double precision can solve (docs/model.md, "Limits"). Beyond the stiffness
+// ratio the bending response of a stretch-stiff rod falls below the round-off of its stretch
+// forces; the rod is then inextensible for every purpose, and a smaller EA gives the same
+// answer.
+constexpr double kMaxStretchRatio = 1e13;     // EA L^2 / min(B1, B2)
+constexpr double kMaxStiffnessRatio = 1e13;   // GJ / B, B1 / B2 and their inverses
+constexpr double kMaxLoadStrain = 1.0;        // |load| / EA: more is not a rod's small strain
+constexpr double kMaxMomentTurns = 1e4;       // |M| L / (2 pi B): turns a moment winds
+constexpr double kMaxHeldStretch = 1.5;       // held points farther apart than this x the rod
+
+// Rotation taking unit a onto unit b (the smallest; a half turn about `fallback_axis` when b =
+// -a).
+Eigen::Matrix3d RotationBetween(const Vec3& a, const Vec3& b, const Vec3& fallback_axis) {
+  if (a.dot(b) < -1.0 + 1e-12) {
+    Vec3 axis = fallback_axis - fallback_axis.dot(a) * a;
+    return Eigen::AngleAxisd(M_PI, axis.normalized()).toRotationMatrix();
+  }
+  return Eigen::Quaterniond::FromTwoVectors(a, b).toRotationMatrix();
+}
+
+// Discrete bending and twist measures l (k1, k2, tau) of the stencil from frame E = [d1 d2 t]
+// of edge e to frame F of edge f, with zero twist angles (u = d1): the same formulas as
+// VertexCurvatures (model/vertex_stencil.h) times the Voronoi length.
+Vec3 StencilMeasures(const Eigen::Matrix3d& E, const Eigen::Matrix3d& F) {
+  const Vec3 te = E.col(2), tf = F.col(2);
+  const Vec3 kb = 2.0 * te.cross(tf) / (1.0 + te.dot(tf));
+  const Vec3 transported = ParallelTransport<double, double>(te, tf, Vec3(E.col(0)));
+  const double twist = SignedAngle<double>(transported, Vec3(F.col(0)), tf);
+  return Vec3(0.5 * kb.dot(E.col(0) + F.col(0)), 0.5 * kb.dot(E.col(1) + F.col(1)), twist);
+}
+
+// The body rotation Q (frame F = E Q) whose stencil measures are `target` (= l times the rest
+// curvature): Newton on the rotation vector, from target itself (exact to first order).
+Eigen::Matrix3d RestRotation(const Vec3& target) {
+  if (target.squaredNorm() == 0.0) return Eigen::Matrix3d::Identity();
+  auto rotation = [](const Vec3& w) {
+    const double a = w.norm();
+    return a == 0.0 ? Eigen::Matrix3d::Identity()
+                    : Eigen::AngleAxisd(a, w / a).toRotationMatrix();
+  };
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  Vec3 w = target;
+  for (int it = 0; it < 50; ++it) {
+    const Vec3 r = StencilMeasures(I, rotation(w)) - target;
+    if (r.norm() <= 1e-15 * (1.0 + target.norm())) return rotation(w);
+    Eigen::Matrix3d J;
+    for (int k = 0; k < 3; ++k) {
+      Vec3 dw = Vec3::Zero();
+      dw[k] = 1e-7 * (1.0 + w.norm());
+      J.col(k) = (StencilMeasures(I, rotation(w + dw)) - StencilMeasures(I, rotation(w - dw))) /
+                 (2.0 * dw[k]);
+    }
+    const Vec3 step = J.fullPivLu().solve(r);
+    if (!step.allFinite()) break;
+    w -= step;
+  }
+  const Vec3 r = StencilMeasures(I, rotation(w)) - target;
+  Require(r.norm() <= 1e-10 * (1.0 + target.norm()),
+          "rod.rest_curvature is too large for the segment length: a vertex would have to turn "
+          "by " + Num(target.norm()) + " rad (use more segments)");
+  return rotation(w);
+}
+
 }  // namespace
+
+std::string HeldVertex::Label() const {
+  switch (kind) {
+    case Kind::kEndClamp: return "end_clamp";
+    case Kind::kEndPin: return "end_pin";
+    case Kind::kPin: return "pins[" + std::to_string(index) + "]";
+    case Kind::kGrasp: return "grasp";
+  }
+  return "?";
+}
+
+void RodState::SyncEdges() {
+  const int n = static_cast<int>(x.cols()) - 1;
+  e.resize(3, n);
+  for (int j = 0; j < n; ++j) e.col(j) = x.col(j + 1) - x.col(j);
+}
+
+void RodState::SyncVertices() {
+  for (int j = 0; j < e.cols(); ++j) x.col(j + 1) = x.col(j) + e.col(j);
+}
 
 RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gravity,
                    const LoadCase& load_case, const std::vector<SpringZone>& springs)
     : rod_(rod), material_(material), case_(load_case), gravity_(gravity), zones_(springs) {
   Require(rod.segments >= 2, "rod.segments must be at least 2");
   Require(std::isfinite(rod.length) && rod.length > 0, "rod.length must be positive");
+  Require(rod.length >= 1e-9 && rod.length <= 1e6,
+          "rod.length " + Num(rod.length) + " m is outside [1e-9, 1e6] m");
   Require(std::isfinite(rod.linear_density) && rod.linear_density >= 0,
           "rod.linear_density must be non-negative");
   Require(Finite(rod.rest_curvature), "rod.rest_curvature must be finite");
-  Require(std::isfinite(material.B1()) && material.B1() > 0, "bend_stiffness must be positive");
-  Require(std::isfinite(material.B2()) && material.B2() > 0, "bend_stiffness_2 must be positive");
-  Require(std::isfinite(material.twist_stiffness) && material.twist_stiffness > 0,
-          "twist_stiffness must be positive");
-  Require(std::isfinite(material.stretch_stiffness) && material.stretch_stiffness > 0,
-          "stretch_stiffness must be positive");
+  const Material& m = material;
+  for (const auto& [name, value] : {std::pair<const char*, double>{"bend_stiffness", m.B1()},
+                                    {"bend_stiffness_2", m.B2()},
+                                    {"twist_stiffness", m.twist_stiffness},
+                                    {"stretch_stiffness", m.stretch_stiffness}}) {
+    Require(std::isfinite(value) && value > 0, std::string(name) + " must be positive");
+    Require(value >= 1e-30 && value <= 1e30,
+            std::string(name) + " " + Num(value) + " is outside [1e-30, 1e30]");
+  }
+  const double B = std::min(m.B1(), m.B2());
+  Require(m.stretch_stiffness * rod.length * rod.length / B <= kMaxStretchRatio,
+          "stretch_stiffness L^2 / bend_stiffness = " +
+              Num(m.stretch_stiffness * rod.length * rod.length / B) +
+              " exceeds 1e13: the bending response would be below the round-off of the stretch "
+              "forces; the rod is inextensible for every purpose at 1e12, use that EA");
+  Require(std::max(m.B1(), m.B2()) / B <= kMaxStiffnessRatio,
+          "bend_stiffness / bend_stiffness_2 is beyond 1e13 either way");
+  Require(m.twist_stiffness / B <= kMaxStiffnessRatio && B / m.twist_stiffness <= kMaxStiffnessRatio,
+          "twist_stiffness / bend_stiffness is beyond 1e13 either way");
   Require(Finite(gravity), "gravity must be finite");
   const Clamp& clamp = load_case.clamp;
   Require(Finite(clamp.position) && Finite(clamp.tangent) && Finite(clamp.normal),
           "clamp vectors must be finite");
   Require(clamp.tangent.norm() > 0, "clamp.tangent must not be zero");
-  Require(Finite(load_case.tip_force) && Finite(load_case.tip_moment),
-          "tip_force and tip_moment must be finite");
+  Require(Finite(load_case.tip_force) && Finite(load_case.tip_moment) &&
+              Finite(load_case.tip_moment_follower),
+          "tip_force and tip moments must be finite");
 
   n_ = rod.segments;
   length_ = rod.length;
@@ -53,33 +163,102 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
           "clamp.normal must not be (nearly) parallel to clamp.tangent");
   clamp_d1_ = normal_perp.normalized();
 
-  const double l = length_ / n_;
-  rest_edge_.assign(n_, l);
-  voronoi_.assign(n_, l);
-  voronoi_[0] = 0.5 * l;  // half cell against the clamp (see the file comment in rod.h)
-  arc_.resize(n_ + 1);
-  for (int i = 0; i <= n_; ++i) arc_[i] = i * l;
-  vertex_mass_.assign(n_ + 1, rod.linear_density * l);
-  vertex_mass_[0] = vertex_mass_[n_] = 0.5 * rod.linear_density * l;
+  if (load_case.end_clamp && load_case.end_pin)
+    throw std::invalid_argument("end_clamp and end_pin both hold s = L: give one");
+  if (const auto& ec = load_case.end_clamp) {
+    Require(Finite(ec->position) && Finite(ec->tangent) && (!ec->normal || Finite(*ec->normal)),
+            "end_clamp vectors must be finite");
+    Require(ec->tangent.norm() > 0, "end_clamp.tangent must not be zero");
+    end_clamp_ = true;
+    end_d3_ = ec->tangent.normalized();
+    if (ec->normal) {
+      const Vec3 perp = *ec->normal - ec->normal->dot(end_d3_) * end_d3_;
+      Require(ec->normal->norm() > 0 && perp.norm() > 1e-3 * ec->normal->norm(),
+              "end_clamp.normal must not be (nearly) parallel to end_clamp.tangent");
+      end_twist_held_ = true;
+      end_d1_ = perp.normalized();
+    }
+  }
+  if (load_case.end_pin) Require(Finite(*load_case.end_pin), "end_pin must be finite");
+  const bool end_held = load_case.end_clamp || load_case.end_pin;
+  Require(!(end_held && load_case.tip_force.squaredNorm() > 0),
+          "tip_force acts on the held end s = L, which the end_clamp / end_pin takes: remove it");
+  Require(!(load_case.end_clamp && (load_case.tip_moment.squaredNorm() > 0 ||
+                                    load_case.tip_moment_follower.squaredNorm() > 0)),
+          "a tip moment acts on the clamped end s = L, which the end_clamp takes: remove it");
 
+  BuildVertices();
+  PlaceHeldPoints();
+
+  // Positions must be resolvable at the scale of an edge (a coordinate of 1e300 m leaves no
+  // digits for the rod).
+  auto resolvable = [&](const Vec3& p, const std::string& what) {
+    Require(p.cwiseAbs().maxCoeff() * std::numeric_limits<double>::epsilon() <= 1e-7 * min_edge_,
+            what + " is too far from the origin (" + Num(p.norm()) +
+                " m) to resolve edges of " + Num(min_edge_) + " m in double precision");
+  };
+  resolvable(clamp_p_, "clamp.position");
+  for (const HeldVertex& h : held_) resolvable(h.target, h.Label() + " position");
+
+  vertex_mass_.assign(n_ + 1, 0.0);
+  for (int j = 0; j < n_; ++j) {
+    vertex_mass_[j] += 0.5 * rod.linear_density * rest_edge_[j];
+    vertex_mass_[j + 1] += 0.5 * rod.linear_density * rest_edge_[j];
+  }
   vertex_forces_.setZero(3, n_ + 1);
   for (int i = 0; i <= n_; ++i) vertex_forces_.col(i) = vertex_mass_[i] * gravity_;
   vertex_forces_.col(n_) += load_case.tip_force;
+  // A force at s acts on the interpolated point x(s) = (1 - a) x_k + a x_{k+1}.
+  auto locate = [&](double s, int* k, double* a) {
+    *k = static_cast<int>(std::upper_bound(arc_.begin(), arc_.end(), s) - arc_.begin()) - 1;
+    *k = std::clamp(*k, 0, n_ - 1);
+    *a = std::clamp((s - arc_[*k]) / rest_edge_[*k], 0.0, 1.0);
+  };
   double point_force_sum = 0.0;
-  for (const PointForce& pf : load_case.point_forces) {
-    Require(std::isfinite(pf.s) && pf.s >= 0 && pf.s <= length_ && Finite(pf.force),
-            "point force s must lie in [0, length] and its force be finite");
-    // Linear interpolation x(s) = (1 - a) x_k + a x_{k+1}; the force does work on x(s).
-    const double u = pf.s / l;
-    const int k = std::min(static_cast<int>(std::floor(u)), n_ - 1);
-    const double a = u - k;
-    vertex_forces_.col(k) += (1.0 - a) * pf.force;
-    vertex_forces_.col(k + 1) += a * pf.force;
-    point_force_sum += pf.force.norm();
+  auto add_point_force = [&](double s, const Vec3& force, const char* what) {
+    Require(std::isfinite(s) && s >= 0 && s <= length_ * (1 + 1e-12) && Finite(force),
+            std::string(what) + " s must lie in [0, length] and its force be finite");
+    int k;
+    double a;
+    locate(s, &k, &a);
+    vertex_forces_.col(k) += (1.0 - a) * force;
+    vertex_forces_.col(k + 1) += a * force;
+    point_force_sum += force.stableNorm();
+  };
+  for (const PointForce& pf : load_case.point_forces) add_point_force(pf.s, pf.force, "point force");
+  if (load_case.poke) add_point_force(load_case.poke->s, load_case.poke->force, "poke");
+
+  // Moments on edges. A point moment between two edge midpoints is shared linearly.
+  double moment_sum = 0.0;
+  auto add_moment = [&](int edge, const Vec3& M, bool follower) {
+    if (M.squaredNorm() == 0.0) return;
+    edge_moments_.push_back({edge, M, follower});
+  };
+  add_moment(n_ - 1, load_case.tip_moment, false);
+  add_moment(n_ - 1, load_case.tip_moment_follower, true);
+  moment_sum += load_case.tip_moment.stableNorm() + load_case.tip_moment_follower.stableNorm();
+  for (const PointMoment& pm : load_case.point_moments) {
+    Require(std::isfinite(pm.s) && pm.s >= 0 && pm.s <= length_ * (1 + 1e-12) && Finite(pm.moment),
+            "point moment s must lie in [0, length] and its moment be finite");
+    const double first_mid = 0.5 * (arc_[0] + arc_[1]), last_mid = 0.5 * (arc_[n_ - 1] + arc_[n_]);
+    if (pm.s <= first_mid) {
+      add_moment(0, pm.moment, false);
+    } else if (pm.s >= last_mid) {
+      add_moment(n_ - 1, pm.moment, false);
+    } else {
+      int j = 0;
+      while (j + 1 < n_ && 0.5 * (arc_[j + 1] + arc_[j + 2]) < pm.s) ++j;
+      const double m0 = 0.5 * (arc_[j] + arc_[j + 1]), m1 = 0.5 * (arc_[j + 1] + arc_[j + 2]);
+      const double a = (pm.s - m0) / (m1 - m0);
+      add_moment(j, (1.0 - a) * pm.moment, false);
+      add_moment(j + 1, a * pm.moment, false);
+    }
+    moment_sum += pm.moment.stableNorm();
   }
-  // Springs: per zone and vertex, the length of the vertex's cell [s_i - l/2, s_i + l/2] within
-  // [0, L] that the zone covers and no cut removes (the exact integral of a piecewise constant
-  // K(s) over the cell).
+
+  // Springs: per zone and vertex, the length of the vertex's cell [s_i - l_{i-1}/2, s_i + l_i/2]
+  // within [0, L] that the zone covers and no cut removes (the exact integral of a piecewise
+  // constant K(s) over the cell).
   auto inside = [&](const Interval& iv, const char* what) {
     Require(std::isfinite(iv.from) && std::isfinite(iv.to) && iv.from >= 0 &&
                 iv.to <= length_ * (1 + 1e-12) && iv.from < iv.to,
@@ -95,21 +274,18 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
             "spring zone parameter " + zones_[z].parameter + " has no value");
   }
   for (const Interval& cut : load_case.cuts) inside(cut, "cut");
-  if (!zones_.empty()) {
-    Require(rod.rest_curvature.squaredNorm() == 0.0,
-            "springs tie the rod to its straight rest position: a rod with springs must have no "
-            "rest_curvature");
-    for (int z = 0; z < num_spring_zones(); ++z)
-      Require(std::isfinite(zone_stiffness(z)) && zone_stiffness(z) >= 0,
-              "spring stiffness must be finite and non-negative");
-  }
+  for (int z = 0; z < num_spring_zones(); ++z)
+    Require(std::isfinite(zone_stiffness(z)) && zone_stiffness(z) >= 0 &&
+                zone_stiffness(z) <= 1e30,
+            "spring stiffness must be finite, non-negative and at most 1e30");
   auto overlap = [](double a0, double a1, double b0, double b1) {
     return std::max(0.0, std::min(a1, b1) - std::max(a0, b0));
   };
   zone_length_.assign(zones_.size(), std::vector<double>(n_ + 1, 0.0));
   for (size_t z = 0; z < zones_.size(); ++z) {
     for (int i = 1; i <= n_; ++i) {
-      const double c0 = std::max(0.0, arc_[i] - 0.5 * l), c1 = std::min(length_, arc_[i] + 0.5 * l);
+      const double c0 = arc_[i] - 0.5 * rest_edge_[i - 1];
+      const double c1 = i < n_ ? arc_[i] + 0.5 * rest_edge_[i] : length_;
       const double z0 = zones_[z].from, z1 = zones_[z].to;
       double covered = overlap(c0, c1, z0, z1);
       // Cuts may overlap each other: subtract the union of their parts inside cell and zone.
@@ -128,29 +304,27 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
       zone_length_[z][i] = std::max(0.0, covered);
     }
   }
-  anchor_.resize(3, n_ + 1);
-  for (int i = 0; i <= n_; ++i) anchor_.col(i) = clamp_p_ + arc_[i] * clamp_d3_;
+  // Springs pull towards the rest shape, rest curvature included.
+  anchor_ = RestState().x;
 
-  if (load_case.grasp) {
-    const Grasp& g = *load_case.grasp;
-    Require(std::isfinite(g.s) && g.s >= 0 && g.s <= length_ * (1 + 1e-12) && Finite(g.position),
-            "grasp s must lie in [0, length] and its position be finite");
-    grasp_vertex_ = static_cast<int>(std::lround(g.s / l));
-    Require(grasp_vertex_ >= 1, "grasp s is at the clamp (nearest vertex 0)");
-    grasp_position_ = g.position;
-  }
+  // Loads a small-strain rod can carry: refuse what would stretch it past its length or wind
+  // it into thousands of turns (such inputs are unit mistakes, and the answer would be noise).
+  const double weight = rod.linear_density * length_ * gravity_.stableNorm();
+  const double applied = weight + load_case.tip_force.stableNorm() + point_force_sum;
+  Require(std::isfinite(applied) && applied <= kMaxLoadStrain * m.stretch_stiffness,
+          "the loads (" + Num(applied) + " N) would stretch the rod by more than " +
+              Num(100 * kMaxLoadStrain) + " % (stretch_stiffness " + Num(m.stretch_stiffness) +
+              " N): outside a rod model, check the units");
+  Require(std::isfinite(moment_sum) &&
+              moment_sum * length_ / (2 * M_PI * B) <= kMaxMomentTurns,
+          "the moments (" + Num(moment_sum) + " N m) would wind the rod into more than 1e4 "
+          "turns: check the units");
+  for (int z = 0; z < num_spring_zones(); ++z)
+    Require(zone_stiffness(z) * length_ * length_ <= 1e3 * m.stretch_stiffness,
+            "spring stiffness K L^2 is more than 1e3 x stretch_stiffness: the springs would "
+            "crush the rod; check the units");
 
-  if (load_case.poke) {  // the poke's force acts on the rod like a point force at s
-    const Poke& pk = *load_case.poke;
-    Require(std::isfinite(pk.s) && pk.s >= 0 && pk.s <= length_ && Finite(pk.force),
-            "poke s must lie in [0, length] and its force be finite");
-    const double u = pk.s / l;
-    const int k = std::min(static_cast<int>(std::floor(u)), n_ - 1);
-    vertex_forces_.col(k) += (1.0 - (u - k)) * pk.force;
-    vertex_forces_.col(k + 1) += (u - k) * pk.force;
-    point_force_sum += pk.force.norm();
-  }
-  // Hessian digest over the bytes of every number Assemble's Hessian reads (see rod.h).
+  // Hessian digest over the bytes of every number the Hessian reads (see rod.h).
   uint64_t h = 1469598103934665603ULL;
   auto mix = [&h](double v) {
     unsigned char bytes[sizeof v];
@@ -159,21 +333,152 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   };
   auto mix3 = [&mix](const Vec3& v) { mix(v[0]), mix(v[1]), mix(v[2]); };
   mix(n_);
-  for (int j = 0; j < n_; ++j) mix(rest_edge_[j]), mix(voronoi_[j]);
+  for (int j = 0; j < n_; ++j) mix(rest_edge_[j]);
+  for (double v : voronoi_) mix(v);
   mix(material_.B1()), mix(material_.B2());
   mix(material_.twist_stiffness), mix(material_.stretch_stiffness);
   mix3(rod_.rest_curvature);
   mix3(clamp_p_), mix3(clamp_d3_), mix3(clamp_d1_);
-  mix3(case_.tip_moment);
+  mix(end_clamp_), mix(end_twist_held_), mix3(end_d3_), mix3(end_d1_);
+  for (const EdgeMoment& em : edge_moments_) mix(em.edge), mix3(em.moment), mix(em.follower);
   for (int z = 0; z < num_spring_zones(); ++z)
     for (int i = 0; i <= n_; ++i) mix(zone_stiffness(z) * zone_length_[z][i]);
-  mix(grasp_vertex_);
+  for (const HeldVertex& hv : held_) mix(hv.vertex), mix(static_cast<int>(hv.kind));
   hessian_digest_ = h;
 
-  const double weight = rod.linear_density * length_ * gravity_.norm();
-  force_scale_ = std::max({weight, load_case.tip_force.norm(), load_case.tip_moment.norm() / length_,
-                           point_force_sum, material.B1() / (length_ * length_),
-                           material.twist_stiffness / (length_ * length_)});
+  // The load scale (rod.h): loads, and the elastic forces of imposed shapes.
+  double imposed = 0.0;
+  for (const HeldVertex& hv : held_) {
+    const Vec3 straight = clamp_p_ + hv.s * clamp_d3_;
+    imposed = std::max(imposed, (hv.target - straight).norm() / length_);
+  }
+  if (end_clamp_) imposed = std::max(imposed, 1.0);  // an end frame imposes curvature ~ 1 / L
+  imposed = std::max(imposed, rod.rest_curvature.norm() * length_);
+  double spring_max = 0.0;
+  for (int z = 0; z < num_spring_zones(); ++z) spring_max = std::max(spring_max, zone_stiffness(z));
+  const double imposed_force = imposed * (B / (length_ * length_) + spring_max * length_ * length_);
+  force_scale_ = std::max({weight, load_case.tip_force.norm(), point_force_sum,
+                           moment_sum / length_, imposed_force});
+  // Nothing loads the rod: the straight (or rest) rod is the answer; any scale serves.
+  if (!(force_scale_ > 0)) force_scale_ = B / (length_ * length_);
+}
+
+void RodModel::BuildVertices() {
+  arc_.resize(n_ + 1);
+  if (!rod_.vertex_s.empty()) {
+    Require(static_cast<int>(rod_.vertex_s.size()) == n_ + 1,
+            "rod.vertex_s must have segments + 1 values");
+    Require(rod_.vertex_s.front() == 0.0 && std::abs(rod_.vertex_s.back() - length_) <= 1e-12 * length_,
+            "rod.vertex_s must run from 0 to rod.length");
+    for (int i = 0; i <= n_; ++i) {
+      Require(std::isfinite(rod_.vertex_s[i]), "rod.vertex_s must be finite");
+      if (i > 0)
+        Require(rod_.vertex_s[i] > rod_.vertex_s[i - 1], "rod.vertex_s must increase strictly");
+      arc_[i] = rod_.vertex_s[i];
+    }
+    arc_[n_] = length_;
+  } else {
+    for (int i = 0; i <= n_; ++i) arc_[i] = length_ * i / n_;
+  }
+}
+
+void RodModel::PlaceHeldPoints() {
+  held_.clear();
+  struct Request {
+    HeldVertex::Kind kind;
+    double s;
+    Vec3 target;
+    int index;
+  };
+  std::vector<Request> requests;
+  if (case_.grasp) {
+    const Grasp& g = *case_.grasp;
+    Require(std::isfinite(g.s) && g.s >= 0 && g.s <= length_ * (1 + 1e-12) && Finite(g.position),
+            "grasp s must lie in [0, length] and its position be finite");
+    requests.push_back({HeldVertex::Kind::kGrasp, std::min(g.s, length_), g.position, 0});
+  }
+  for (size_t k = 0; k < case_.pins.size(); ++k) {
+    const Pin& p = case_.pins[k];
+    Require(std::isfinite(p.s) && p.s > 0 && p.s < length_ && Finite(p.position),
+            "pins[" + std::to_string(k) + "].s must lie inside (0, length) and its position be "
+            "finite (use end_pin for s = L)");
+    requests.push_back({HeldVertex::Kind::kPin, p.s, p.position, static_cast<int>(k)});
+  }
+  const double uniform = length_ / n_;
+  std::vector<int> taken(n_ + 1, -1);
+  auto name_of = [&](const Request& r) {
+    HeldVertex h;
+    h.kind = r.kind, h.index = r.index;
+    return h.Label() + " (s = " + Num(r.s) + ")";
+  };
+  // The end is held at vertex n without moving anything.
+  const bool end_held = case_.end_clamp || case_.end_pin;
+  if (end_held) taken[n_] = -2;
+  for (size_t q = 0; q < requests.size(); ++q) {
+    const Request& r = requests[q];
+    int k = 0;
+    for (int i = 1; i <= n_; ++i)
+      if (std::abs(arc_[i] - r.s) < std::abs(arc_[k] - r.s)) k = i;
+    Require(k >= 1, name_of(r) + " is at the clamp (its nearest vertex is vertex 0)");
+    if (taken[k] != -1) {
+      const std::string other =
+          taken[k] == -2 ? std::string("the held end") : name_of(requests[taken[k]]);
+      throw std::invalid_argument(name_of(r) + " and " + other +
+                                  " fall on the same vertex: use more segments");
+    }
+    taken[k] = static_cast<int>(q);
+    arc_[k] = r.s;
+  }
+  rest_edge_.resize(n_);
+  for (int j = 0; j < n_; ++j) {
+    rest_edge_[j] = arc_[j + 1] - arc_[j];
+    Require(rest_edge_[j] > 0.1 * (rod_.vertex_s.empty() ? uniform : 0.0),
+            "held points at s = " + Num(arc_[j]) + " and " + Num(arc_[j + 1]) +
+                " are too close for the segment length: use more segments");
+    Require(rest_edge_[j] > 1e-12 * length_, "an edge of the rod has (nearly) zero length");
+  }
+  min_edge_ = *std::min_element(rest_edge_.begin(), rest_edge_.end());
+  voronoi_.assign(n_ + 1, 0.0);
+  voronoi_[0] = 0.5 * rest_edge_[0];  // half cell against the clamp (see the file comment)
+  for (int i = 1; i < n_; ++i) voronoi_[i] = 0.5 * (rest_edge_[i - 1] + rest_edge_[i]);
+  voronoi_[n_] = 0.5 * rest_edge_[n_ - 1];  // with an end clamp: half cell against its ghost
+
+  held_of_vertex_.assign(n_ + 1, -1);
+  for (int k = 1; k <= n_; ++k) {
+    if (taken[k] < 0) continue;
+    const Request& r = requests[taken[k]];
+    HeldVertex h;
+    h.kind = r.kind, h.vertex = k, h.s = arc_[k], h.target = r.target, h.index = r.index;
+    held_.push_back(h);
+  }
+  if (end_held) {
+    HeldVertex h;
+    h.kind = case_.end_clamp ? HeldVertex::Kind::kEndClamp : HeldVertex::Kind::kEndPin;
+    h.vertex = n_, h.s = length_;
+    h.target = case_.end_clamp ? case_.end_clamp->position : *case_.end_pin;
+    held_.push_back(h);
+  }
+  std::sort(held_.begin(), held_.end(),
+            [](const HeldVertex& a, const HeldVertex& b) { return a.vertex < b.vertex; });
+  for (size_t q = 0; q < held_.size(); ++q) {
+    held_of_vertex_[held_[q].vertex] = static_cast<int>(q);
+    if (held_[q].kind == HeldVertex::Kind::kGrasp) {
+      grasp_vertex_ = held_[q].vertex;
+      grasp_position_ = held_[q].target;
+    }
+  }
+  // Consecutive held points (the clamp first) must be reachable by the rod between them.
+  Vec3 prev_p = clamp_p_;
+  double prev_s = 0.0;
+  std::string prev_name = "the clamp (s = 0)";
+  for (const HeldVertex& h : held_) {
+    const double gap = (h.target - prev_p).norm(), rod_between = h.s - prev_s;
+    Require(gap <= kMaxHeldStretch * rod_between,
+            h.Label() + " (s = " + Num(h.s) + ") is " + Num(gap) + " m from " + prev_name +
+                ", but only " + Num(rod_between) + " m of rod lies between them");
+    prev_p = h.target, prev_s = h.s;
+    prev_name = h.Label() + " (s = " + Num(h.s) + ")";
+  }
 }
 
 double RodModel::zone_stiffness(int z) const {
@@ -181,45 +486,138 @@ double RodModel::zone_stiffness(int z) const {
   return p.empty() ? material_.spring_stiffness : material_.spring_parameters.at(p);
 }
 
+void RodModel::InitialiseFrames(RodState* s) const {
+  const int n = n_;
+  s->theta.setZero(n);
+  s->ref_u.resize(3, n);
+  s->ref_t.resize(3, n);
+  s->ref_twist.setZero(n + 1);
+  s->clamp_t = clamp_d3_;
+  s->clamp_d1 = clamp_d1_;
+  // Reference directors transported along the rod from the clamp (space-parallel): the
+  // reference twist is then zero at every vertex.
+  Vec3 t_prev = clamp_d3_, u_prev = clamp_d1_;
+  for (int j = 0; j < n; ++j) {
+    const Vec3 t = s->e.col(j).normalized();
+    Vec3 u = ParallelTransport<double, double>(t_prev, t, u_prev);
+    u = (u - u.dot(t) * t).normalized();
+    s->ref_t.col(j) = t;
+    s->ref_u.col(j) = u;
+    t_prev = t, u_prev = u;
+  }
+  for (int i = 0; i < n; ++i) {
+    const Vec3 te = i == 0 ? clamp_d3_ : Vec3(s->ref_t.col(i - 1));
+    const Vec3 ue = i == 0 ? clamp_d1_ : Vec3(s->ref_u.col(i - 1));
+    s->ref_twist[i] = SignedAngle<double>(ParallelTransport<double, double>(te, s->ref_t.col(i), ue),
+                                          s->ref_u.col(i), s->ref_t.col(i));
+  }
+  if (end_clamp_) {  // the ghost continues the last edge: no kink, no twist at vertex n
+    s->end_t = s->ref_t.col(n - 1);
+    s->end_u = s->ref_u.col(n - 1);
+    s->end_theta = 0.0;
+  } else {
+    s->end_t.setZero();
+    s->end_u.setZero();
+    s->end_theta = 0.0;
+  }
+}
+
 RodState RodModel::StraightState() const {
   RodState s;
   s.x.resize(3, n_ + 1);
-  for (int i = 0; i <= n_; ++i) s.x.col(i) = clamp_p_ + arc_[i] * clamp_d3_;
-  if (grasp_vertex_ >= 1) {
-    // Lay the rod straight from the clamp to the grasp, then on in the same direction. The
-    // first edge keeps the clamp tangent's side so the clamp turn is below pi.
-    const int k = grasp_vertex_;
-    Vec3 dir = grasp_position_ - clamp_p_;
-    const double reach = dir.norm();
-    dir = reach > 1e-12 * length_ ? Vec3(dir / reach) : clamp_d3_;
-    if (dir.dot(clamp_d3_) < -0.9) dir = (dir + 0.5 * clamp_d1_).normalized();
-    for (int i = 1; i <= k; ++i) s.x.col(i) = clamp_p_ + (grasp_position_ - clamp_p_) * (double(i) / k);
-    if (reach <= 1e-12 * length_)  // grasp at the clamp position: a small loop start
-      for (int i = 1; i < k; ++i) s.x.col(i) = clamp_p_ + arc_[i] * 1e-3 * clamp_d3_;
-    for (int i = k + 1; i <= n_; ++i) s.x.col(i) = s.x.col(k) + (arc_[i] - arc_[k]) * dir;
-  }
-  s.theta.setZero(n_);
-  s.ref_u.resize(3, n_);
-  s.ref_t.resize(3, n_);
-  for (int j = 0; j < n_; ++j) {
-    // Reference frames: the clamp frame transported onto each edge's tangent.
-    const Vec3 t = (s.x.col(j + 1) - s.x.col(j)).normalized();
-    s.ref_t.col(j) = t;
-    s.ref_u.col(j) = ParallelTransport<double, double>(clamp_d3_, t, clamp_d1_).normalized();
-  }
-  s.ref_twist.setZero(n_);
-  for (int i = 0; i < n_; ++i) {  // zero on a straight rod; the grasp's kink may twist
-    const Vec3 te = i == 0 ? clamp_d3_ : Vec3(s.ref_t.col(i - 1));
-    const Vec3 ue = i == 0 ? clamp_d1_ : Vec3(s.ref_u.col(i - 1));
-    const Vec3 tf = s.ref_t.col(i), uf = s.ref_u.col(i);
-    s.ref_twist[i] = SignedAngle<double>(ParallelTransport<double, double>(te, tf, ue), uf, tf);
-  }
+  s.e.resize(3, n_);
+  s.x.col(0) = clamp_p_;
+  for (int j = 0; j < n_; ++j) s.e.col(j) = rest_edge_[j] * clamp_d3_;
+  s.SyncVertices();
+  InitialiseFrames(&s);
   return s;
+}
+
+RodState RodModel::RestState() const {
+  RodState s;
+  s.x.resize(3, n_ + 1);
+  s.e.resize(3, n_);
+  s.x.col(0) = clamp_p_;
+  const Vec3& k = rod_.rest_curvature;
+  // Frames [d1 d2 d3] edge by edge from the ghost's, each turned by the rotation whose stencil
+  // measures are the rest curvature times the vertex's Voronoi length.
+  std::vector<Eigen::Matrix3d> frames(n_);
+  Eigen::Matrix3d F;
+  F << clamp_d1_, clamp_d3_.cross(clamp_d1_), clamp_d3_;
+  std::vector<std::pair<double, Eigen::Matrix3d>> cache;  // rotations by Voronoi length
+  for (int j = 0; j < n_; ++j) {
+    const double l = voronoi_[j];
+    auto hit = std::find_if(cache.begin(), cache.end(), [l](const auto& c) { return c.first == l; });
+    if (hit == cache.end()) {
+      cache.emplace_back(l, RestRotation(l * k));
+      hit = cache.end() - 1;
+    }
+    F = F * hit->second;
+    frames[j] = F;
+    s.e.col(j) = rest_edge_[j] * F.col(2);
+  }
+  s.SyncVertices();
+  InitialiseFrames(&s);
+  // With space-parallel reference directors the material angles carry the accumulated twist.
+  for (int j = 0; j < n_; ++j)
+    s.theta[j] = SignedAngle<double>(Vec3(s.ref_u.col(j)), Vec3(frames[j].col(0)),
+                                     Vec3(s.ref_t.col(j)));
+  return s;
+}
+
+RodState RodModel::StateFromCentreline(const std::vector<double>& s_in,
+                                       const Mat3X& points) const {
+  const int m = static_cast<int>(points.cols());
+  Require(m >= 2, "a start shape needs at least 2 points, got " + std::to_string(m));
+  Require(points.allFinite(), "a start shape's points must be finite");
+  std::vector<double> s(m, 0.0);
+  if (!s_in.empty()) {
+    Require(static_cast<int>(s_in.size()) == m, "start shape: one s per point");
+    for (int k = 0; k < m; ++k) {
+      Require(std::isfinite(s_in[k]), "start shape: s must be finite");
+      if (k > 0) Require(s_in[k] > s_in[k - 1], "start shape: s must increase strictly");
+      s[k] = s_in[k];
+    }
+    const double reach = 1.01 * *std::max_element(rest_edge_.begin(), rest_edge_.end());
+    Require(s.front() <= reach && s.back() >= length_ - reach,
+            "start shape covers s in [" + Num(s.front()) + ", " + Num(s.back()) +
+                "], not the rod's [0, " + Num(length_) + "]");
+  } else {
+    for (int k = 1; k < m; ++k) {
+      const double d = (points.col(k) - points.col(k - 1)).norm();
+      Require(d > 0, "start shape: points " + std::to_string(k) + " and " + std::to_string(k + 1) +
+                         " coincide");
+      s[k] = s[k - 1] + d;
+    }
+    for (int k = 0; k < m; ++k) s[k] *= length_ / s[m - 1];
+  }
+  auto at = [&](double t) -> Vec3 {  // piecewise linear, extended linearly past the ends
+    int k = static_cast<int>(std::upper_bound(s.begin(), s.end(), t) - s.begin()) - 1;
+    k = std::clamp(k, 0, m - 2);
+    const double a = (t - s[k]) / (s[k + 1] - s[k]);
+    return (1.0 - a) * points.col(k) + a * points.col(k + 1);
+  };
+  RodState st;
+  st.x.resize(3, n_ + 1);
+  st.e.resize(3, n_);
+  std::vector<Vec3> dirs(n_);
+  for (int j = 0; j < n_; ++j) {
+    const Vec3 d = at(arc_[j + 1]) - at(arc_[j]);
+    Require(d.norm() > 1e-9 * rest_edge_[j],
+            "start shape: the rod's edge " + std::to_string(j) + " maps to a single point");
+    dirs[j] = d.normalized();
+  }
+  const Eigen::Matrix3d R = RotationBetween(dirs[0], clamp_d3_, clamp_d1_);
+  st.x.col(0) = clamp_p_;
+  for (int j = 0; j < n_; ++j) st.e.col(j) = rest_edge_[j] * (R * dirs[j]);
+  st.SyncVertices();
+  InitialiseFrames(&st);
+  return st;
 }
 
 EdgeFrame RodModel::MaterialFrame(const RodState& state, int j) const {
   EdgeFrame f;
-  f.d3 = (state.x.col(j + 1) - state.x.col(j)).normalized();
+  f.d3 = state.e.col(j).normalized();
   const Vec3 t_old = state.ref_t.col(j);
   const Vec3 u_old = state.ref_u.col(j);
   const Vec3 u = ParallelTransport<double, double>(t_old, f.d3, u_old).normalized();

@@ -1,11 +1,22 @@
-// The discrete Cosserat rod (DESIGN.md §1; Bergou et al. 2008/2010; tissue paper eqs. 6–8):
+// The discrete Cosserat rod (Bergou et al. 2008/2010; tissue paper eqs. 6–8; docs/model.md):
 // n edges, vertices x_0..x_n, one twist angle per edge, reference frames transported in time.
 //
 // The clamp at s = 0 is a fixed ghost edge along the clamp tangent carrying the clamp frame.
 // Vertex 0 is treated as a bending vertex between the ghost edge and edge 0 with half a Voronoi
 // cell (l_0 / 2): the turning from the clamp tangent (at s = 0) to edge 0 (at s = l_0 / 2) is
 // the odd reflection of the angle about the clamp, which keeps the scheme second order and
-// makes an end moment close a circle. Free degrees of freedom: x_1..x_n and theta_0..theta_{n-1}.
+// makes an end moment close a circle. A clamp at s = L is the mirror image: a ghost edge after
+// vertex n carrying the end clamp's frame, vertex n a bending vertex with half a cell; its twist
+// angle is a degree of freedom when the end may turn about its tangent.
+//
+// Held points (an end clamp's or end pin's vertex n, interior pins, a grasp) are vertices whose
+// position is held where the state puts them; the model moves the vertex nearest to each held
+// arc length onto it, so the held point is the material point at that s. The solver moves the
+// held values from where a start state has them to the model's targets by continuation.
+//
+// Free degrees of freedom, in blocks j = [x_{j+1} (3), theta_j (1)], j = 0..n-1, and with an end
+// clamp one more block [ghost vertex (held), ghost twist]. Held vertices keep their dofs with
+// Dirichlet rows, so the band structure is the same for every scene.
 #pragma once
 
 #include <cstdint>
@@ -21,16 +32,30 @@ namespace rodfit {
 using Mat3X = Eigen::Matrix3Xd;
 using VecX = Eigen::VectorXd;
 
-/// The configuration of a rod: vertices, twist angles and the time-transported reference frame.
+/// The configuration of a rod: vertices, twist angles, the time-transported reference frame and
+/// the frames held at the ends. The edge vectors `e` are the primary record of the shape (the
+/// stretch energy reads them: strains computed from differences of vertex coordinates would
+/// carry a round-off of eps |x| / l, which against a stiff EA swamps the loads); `x` is kept equal
+/// to x_0 + the summed edges. Code that edits `x` directly calls SyncEdges().
 struct RodState {
   Mat3X x;          ///< vertices x_0..x_n [m], column i
+  Mat3X e;          ///< edges e_j = x_{j+1} - x_j [m], column j
   VecX theta;       ///< twist angle of edge j against its reference frame [rad], size n
   Mat3X ref_u;      ///< reference director u_j of edge j (unit, perpendicular to ref_t_j)
   Mat3X ref_t;      ///< tangent at which ref_u_j was last transported
-  VecX ref_twist;   ///< reference twist at vertex i = 0..n-1 [rad], kept continuous in time
+  VecX ref_twist;   ///< reference twist at vertex i = 0..n [rad] (n: with an end clamp only)
+  Vec3 clamp_t = Vec3::UnitX();   ///< unit d3 of the clamp at s = 0 (the ghost edge's tangent)
+  Vec3 clamp_d1 = Vec3::UnitZ();  ///< unit d1 of the clamp at s = 0
+  Vec3 end_t = Vec3::Zero();      ///< end clamp's ghost: unit tangent (zero without end clamp)
+  Vec3 end_u = Vec3::Zero();      ///< end clamp's ghost: reference director
+  double end_theta = 0.0;         ///< end clamp's ghost: twist angle about end_t from end_u
 
   int num_edges() const { return static_cast<int>(theta.size()); }
   Vec3 vertex(int i) const { return x.col(i); }
+  /// Recomputes e from x (after x was edited directly).
+  void SyncEdges();
+  /// Recomputes x from x_0 and e.
+  void SyncVertices();
 };
 
 /// Material frame of one edge: d3 the tangent, d1 and d2 the material directors.
@@ -38,29 +63,52 @@ struct EdgeFrame {
   Vec3 d1, d2, d3;
 };
 
+/// A vertex held in position (all three directions, or only along `normal` for a symmetry
+/// plane's middle vertex).
+struct HeldVertex {
+  enum class Kind { kEndClamp, kEndPin, kPin, kGrasp };
+  Kind kind = Kind::kPin;
+  int vertex = 0;
+  double s = 0.0;                   ///< [m] the held arc length (the vertex's)
+  Vec3 target = Vec3::Zero();       ///< [m] where the case holds it
+  int index = 0;                    ///< which pin (kPin)
+  std::string Label() const;        ///< "end_clamp", "end_pin", "pins[2]", "grasp"
+};
+
+/// A moment applied to one edge's rigid rotation: dead (fixed in space) or follower
+/// (components in the edge's d1, d2, d3). Its work is not a potential in 3-D, so it enters the
+/// equilibrium as a generalised force with its own (non-symmetric) load stiffness.
+struct EdgeMoment {
+  int edge = 0;
+  Vec3 moment = Vec3::Zero();  ///< [N m] world (dead) or material components (follower)
+  bool follower = false;
+};
+
 /// Constants of one load case on one rod: geometry, stiffness, loads (the Pinocchio "Model").
 /// Built once per case; the solver's scratch lives elsewhere.
 class RodModel {
  public:
   /// Throws std::invalid_argument with the reason when the inputs are not a valid rod
-  /// (fewer than 2 segments, non-positive length or stiffness, clamp normal parallel to tangent).
-  /// `springs`: the scene's attachment zones (none: no spring term is built). Also throws for
-  /// zones or cuts outside [0, L] or reversed, overlapping zones, a zone parameter missing from
-  /// material.spring_parameters, springs on a rod with intrinsic curvature, and a grasp at the
-  /// clamp or off the rod.
+  /// (fewer than 2 segments, non-positive length or stiffness, clamp normal parallel to tangent,
+  /// non-finite or unrepresentable values, held points that cannot be reached, ...).
+  /// `springs`: the scene's attachment zones (none: no spring term is built).
   RodModel(const RodSpec& rod, const Material& material, const Vec3& gravity,
            const LoadCase& load_case, const std::vector<SpringZone>& springs = {});
 
   int num_edges() const { return n_; }
   int num_vertices() const { return n_ + 1; }
-  int num_free_dofs() const { return 4 * n_; }
+  /// 4 per edge, and a block of 4 more for an end clamp's ghost edge.
+  int num_free_dofs() const { return 4 * n_ + (has_end_clamp() ? 4 : 0); }
 
   double length() const { return length_; }
   double rest_edge_length(int j) const { return rest_edge_[j]; }
-  /// Rest Voronoi length of the bending vertex i (0..n-1) [m]; vertex 0 has half a cell.
+  double min_rest_edge_length() const { return min_edge_; }
+  /// Rest Voronoi length of the bending vertex i (0..n-1, and n with an end clamp) [m]; the
+  /// end vertices have half a cell.
   double voronoi_length(int i) const { return voronoi_[i]; }
   /// Arc length of vertex i in the rest state [m].
   double arc_length(int i) const { return arc_[i]; }
+  const std::vector<double>& arc_lengths() const { return arc_; }
 
   const RodSpec& rod() const { return rod_; }
   const Material& material() const { return material_; }
@@ -71,20 +119,49 @@ class RodModel {
   const Vec3& clamp_tangent() const { return clamp_d3_; }   ///< unit d3 at s = 0
   const Vec3& clamp_d1() const { return clamp_d1_; }        ///< unit d1 at s = 0
 
+  // The clamp at s = L (end_clamp).
+  bool has_end_clamp() const { return end_clamp_; }
+  /// True when the end clamp holds d1 too (a normal was given): the ghost's twist is held.
+  bool end_twist_held() const { return end_twist_held_; }
+  const Vec3& end_tangent() const { return end_d3_; }   ///< unit d3 at s = L
+  const Vec3& end_d1() const { return end_d1_; }        ///< unit d1 at s = L (when held)
+  /// The ghost edge's rest length (for the stencil only: the ghost never stretches).
+  double end_ghost_length() const { return rest_edge_[n_ - 1]; }
+
   /// Lumped weight of vertex i: mass times gravity [N] (zero for a massless rod).
   Vec3 vertex_weight(int i) const { return vertex_mass_[i] * gravity_; }
   double vertex_mass(int i) const { return vertex_mass_[i]; }
 
   /// Dead external forces lumped on vertices (tip force, point forces, weights) [N].
   const Mat3X& vertex_forces() const { return vertex_forces_; }
+  /// Moments on edges (tip moment, follower moment, point moments).
+  const std::vector<EdgeMoment>& edge_moments() const { return edge_moments_; }
+  /// True when the case carries moments: the equilibrium is then not the minimum of a
+  /// potential and the solver uses the non-symmetric tangent.
+  bool nonconservative() const { return !edge_moments_.empty(); }
 
-  /// A characteristic force [N] of this case: the largest of the loads and the bending scale
-  /// B / L^2. Solver tolerances are relative to it.
+  /// The case's load scale [N]: the largest of its weight, tip, point and poke forces, moments
+  /// over L, and the elastic forces its held points and rest curvature impose (B / L^2 scaled
+  /// by the imposed displacement or curvature). Not EA or GJ: a loaded rod must never pass for
+  /// converged because its stretch stiffness is large. Solver tolerances are relative to it.
   double force_scale() const { return force_scale_; }
 
-  /// The straight rod along the clamp tangent with the clamp frame, untwisted; with a grasp, the
-  /// part up to the grasped vertex is laid straight from the clamp to the grasp position.
+  /// The straight rod along the clamp tangent with the clamp frame, untwisted. Held points are
+  /// where the straight rod has them; the solver moves them to their targets by continuation.
   RodState StraightState() const;
+  /// The unloaded rest shape: the zero-energy configuration of the discrete rod with its rest
+  /// curvature, from the clamp (straight when the rest curvature is zero).
+  RodState RestState() const;
+  /// The state for an ordered centre-line: points resampled to the vertices' arc lengths
+  /// (given `s`, or the chord lengths scaled to L), edges laid at their rest lengths along the
+  /// resampled directions from the clamp, the first edge turned onto the clamp tangent by the
+  /// smallest rotation of the whole shape. Throws std::invalid_argument for fewer than two
+  /// points, repeated points or s not increasing.
+  RodState StateFromCentreline(const std::vector<double>& s, const Mat3X& points) const;
+  /// Fills in the reference frames, twists and end frames of a state whose x (and e) are set:
+  /// reference directors transported along the rod from the clamp, untwisted; an end clamp's
+  /// ghost frame continuing the last edge's.
+  void InitialiseFrames(RodState* state) const;
 
   // Springs (tissue paper: K(s) |r - r°|^2; cut stretches have K = 0).
   bool has_springs() const { return !zones_.empty(); }
@@ -95,18 +172,22 @@ class RodModel {
   /// Length [m] of vertex i's cell that zone z covers and no cut removes: the spring of vertex
   /// i in zone z has stiffness zone_stiffness(z) * zone_cell_length(z, i) [N/m].
   double zone_cell_length(int z, int i) const { return zone_length_[z][i]; }
-  /// Rest position of vertex i, where its springs pull it (the straight rest rod).
+  /// Rest position of vertex i, where its springs pull it (the rest shape, RestState()).
   Vec3 spring_anchor(int i) const { return anchor_.col(i); }
 
-  // Grasp: the grasped vertex is held (a fixed dof block); -1 without a grasp.
+  // Held points.
+  const std::vector<HeldVertex>& held() const { return held_; }
+  /// Index into held() of the point holding vertex i, or -1.
+  int held_at_vertex(int i) const { return held_of_vertex_[i]; }
+  /// Grasp: the grasped vertex (-1 without a grasp) and its target.
   int grasp_vertex() const { return grasp_vertex_; }
   const Vec3& grasp_position() const { return grasp_position_; }
 
   /// Digest (FNV-1a) of everything the Hessian of Pi reads: stiffness, rest geometry and
-  /// curvature, clamp, tip moment, springs and cuts, grasp vertex. Two models with equal
-  /// digests differ at most in dead loads (gravity, tip and point forces, poke force), which do
-  /// not enter the Hessian, so a factorisation made at a state on one is exact for the other
-  /// at that state (the statics solver reuses it for a warm start after a load change).
+  /// curvature, clamp, springs and cuts, held vertices, moments. Two models with equal digests
+  /// differ at most in dead forces (gravity, tip and point forces, poke force), which do not
+  /// enter the Hessian, so a factorisation made at a state on one is exact for the other at
+  /// that state (the statics solver reuses it for a warm start after a load change).
   uint64_t hessian_digest() const { return hessian_digest_; }
 
   /// Material frame of edge j in a state (reference frame rotated by theta_j).
@@ -114,22 +195,30 @@ class RodModel {
 
   /// Index of a free dof in the banded ordering: block j = [x_{j+1} (3), theta_j (1)].
   static int VertexDof(int i) { return 4 * (i - 1); }   ///< first of x_i's three dofs, i >= 1
-  static int TwistDof(int j) { return 4 * j + 3; }
+  static int TwistDof(int j) { return 4 * j + 3; }      ///< j = n: an end clamp's ghost twist
 
  private:
+  void BuildVertices();
+  void PlaceHeldPoints();
+
   RodSpec rod_;
   Material material_;
   LoadCase case_;
   Vec3 gravity_;
   int n_ = 0;
-  double length_ = 0.0;
+  double length_ = 0.0, min_edge_ = 0.0;
   std::vector<double> rest_edge_, voronoi_, arc_, vertex_mass_;
   Vec3 clamp_p_, clamp_d3_, clamp_d1_;
+  bool end_clamp_ = false, end_twist_held_ = false;
+  Vec3 end_d3_ = Vec3::Zero(), end_d1_ = Vec3::Zero();
   Mat3X vertex_forces_;
+  std::vector<EdgeMoment> edge_moments_;
   double force_scale_ = 1.0;
   std::vector<SpringZone> zones_;
   std::vector<std::vector<double>> zone_length_;
   Mat3X anchor_;
+  std::vector<HeldVertex> held_;
+  std::vector<int> held_of_vertex_;
   int grasp_vertex_ = -1;
   Vec3 grasp_position_ = Vec3::Zero();
   uint64_t hessian_digest_ = 0;

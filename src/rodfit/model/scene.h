@@ -24,6 +24,9 @@ struct RodSpec {
   /// Intrinsic curvature at rest (k1°, k2°, tau°) [1/m]; [0, k, 0] with k > 0 bends the unloaded
   /// rod towards the clamp's normal.
   Vec3 rest_curvature = Vec3::Zero();
+  /// Optional arc lengths of the vertices [m], strictly increasing from 0 to `length`
+  /// (segments + 1 values); empty: `segments` equal edges.
+  std::vector<double> vertex_s;
 };
 
 /// Material parameters of DESIGN.md §1 (the `parameters:` values).
@@ -62,10 +65,50 @@ struct SpringZone {
   std::string parameter;        ///< empty: spring_stiffness
 };
 
-/// An instrument holding the material point at arc length s at `position` (a grasp).
+/// An instrument holding the material point at arc length s at `position` (a grasp). The rod
+/// model moves its nearest vertex to s, so the held point is the material point at s.
 struct Grasp {
-  double s = 0.0;                ///< [m], rounded to the nearest vertex
+  double s = 0.0;                ///< [m]
   Vec3 position = Vec3::Zero();  ///< [m]
+};
+
+/// A clamp at s = L: position and orientation held, with the conventions of Clamp (d3 =
+/// tangent, d1 = normal). Without a normal the end may turn freely about its tangent.
+struct EndClamp {
+  Vec3 position = Vec3::Zero();   ///< [m]
+  Vec3 tangent = Vec3::UnitX();
+  std::optional<Vec3> normal;
+};
+
+/// An interior point held in position only (a pin): the material point at s stays at
+/// `position`, free to turn.
+struct Pin {
+  double s = 0.0;                ///< [m], in (0, L)
+  Vec3 position = Vec3::Zero();  ///< [m]
+};
+
+/// A dead moment [N m] applied at arc length s (to the edge there; shared by the two edges
+/// around s when s lies between their midpoints).
+struct PointMoment {
+  double s = 0.0;
+  Vec3 moment = Vec3::Zero();
+};
+
+/// Where a case's solve starts: the straight rod along the clamp, the previous case's
+/// solution (a sweep follows one branch), or a given centre-line resampled to the vertices.
+struct StartShape {
+  enum class Kind { kStraight, kPrevious, kPoints };
+  Kind kind = Kind::kStraight;
+  std::string file;        ///< for kPoints: where the points came from (messages)
+  std::vector<double> s;   ///< for kPoints: arc lengths of the points, or empty (chord lengths)
+  Eigen::Matrix3Xd points; ///< for kPoints: the ordered centre-line [m]
+};
+
+/// A mirror plane of the whole case (geometry, loads and held ends): the solver then solves
+/// the half from the clamp to the plane, with the plane's conditions at the rod's middle.
+struct SymmetryPlane {
+  Vec3 point = Vec3::Zero();       ///< [m], a point of the plane
+  Vec3 normal = Vec3::UnitX();     ///< the plane's normal, need not be unit
 };
 
 /// An instrument pushing the tissue at arc length s: the force acts on the rod (a point force)
@@ -86,8 +129,17 @@ struct LoadCase {
   std::string name;
   Clamp clamp;
   Vec3 tip_force = Vec3::Zero();    ///< [N] at s = L
-  Vec3 tip_moment = Vec3::Zero();   ///< [N m] at s = L (dead moment, see model/energy.h)
+  /// [N m] at s = L, fixed in space: the end balance m(L) = M (not conservative in 3-D).
+  Vec3 tip_moment = Vec3::Zero();
+  /// [N m] at s = L, turning with the end: components along the last edge's d1, d2, d3.
+  Vec3 tip_moment_follower = Vec3::Zero();
   std::vector<PointForce> point_forces;
+  std::vector<PointMoment> point_moments;
+  std::optional<EndClamp> end_clamp;  ///< s = L held in position and orientation
+  std::optional<Vec3> end_pin;        ///< s = L held in position only [m]
+  std::vector<Pin> pins;              ///< interior points held in position
+  StartShape start;                   ///< where the solve starts
+  std::optional<SymmetryPlane> symmetry;
   std::vector<Interval> cuts;    ///< springs removed here: tissue cut free (K = 0)
   std::optional<Grasp> grasp;    ///< an instrument holding the rod
   std::optional<Poke> poke;      ///< an instrument pushing the tissue (needs Scene::section)

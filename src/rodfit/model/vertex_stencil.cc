@@ -10,12 +10,12 @@
 //                                          dKb/dtf =  (2 [te]x - kb te^T) / chi
 //   d m      = kb . (dte + dtf) / 2                                 (reference twist)
 // Every bending measure is K = kb . D for a vector D = D_e + D_f carried by the frames of e and f
-// (K1: D = d1e + d1f, K2: D = d2e + d2f) or fixed (the end moment: D = M). Its gradient is
+// (K1: D = d1e + d1f, K2: D = d2e + d2f). Its gradient is
 //   dK = [ue, uf, kb.n_e, kb.n_f],  ue = (2 tf x D - K tf) / chi,  uf = (2 D x te - K te) / chi,
 // with n = dD/dtheta, and the Jacobian of that gradient is written out in AddKbJacobian. The
 // energy E(K1, K2, Delta) then has the Jacobian
 //   B1/(4l) dK1 dK1^T + B2/(4l) dK2 dK2^T + GJ/l dDelta dDelta^T       (Gauss–Newton part)
-//   + a1/2 J(dK1) + a2/2 J(dK2) + a3 J(dDelta) + end-moment terms      (curvature part).
+//   + a1/2 J(dK1) + a2/2 J(dK2) + a3 J(dDelta)                         (curvature part).
 // The test (tests/model/vertex_stencil_test.cc) checks it entry by entry against the Jet
 // Jacobian of the closed-form gradient and against the energy's true Hessian.
 #include "rodfit/model/vertex_stencil.h"
@@ -148,41 +148,22 @@ void VertexHessianFromFrames(const VertexStencilConstants& c, const StencilFrame
   const Vec6 dK2 = KbGradient(g, g.d2e + g.d2f, -g.d1e, -g.d1f, &K2c);
   Vec6 dDelta;
   dDelta << 0.5 * g.kbE, 0.5 * g.kbF, -1.0, 1.0;
-  Vec6 grad = 0.5 * a1 * dK1 + 0.5 * a2 * dK2 + a3 * dDelta;
+  const Vec6 grad = 0.5 * a1 * dK1 + 0.5 * a2 * dK2 + a3 * dDelta;
   // Tangential components of the tangent gradients (te . g_te, tf . g_tf): projected away from
   // the edge gradient, but they enter its derivative through d P_e.
-  double g_te_t = (0.5 * a1 * K1c + 0.5 * a2 * K2c) * g.ic;
-  double g_tf_t = g_te_t;
-  // Curvature part of the Jacobian, a1/2 J(dK1) + a2/2 J(dK2) - J(dKM) in one call (linear in
-  // the data), and (a3 - Mt) J(dDelta).
+  const double g_te_t = (0.5 * a1 * K1c + 0.5 * a2 * K2c) * g.ic;
+  const double g_tf_t = g_te_t;
+  // Curvature part of the Jacobian, a1/2 J(dK1) + a2/2 J(dK2) in one call (linear in the data),
+  // and a3 J(dDelta).
   const double c1 = 0.5 * a1, c2 = 0.5 * a2;
-  Vec3d D = c1 * (g.d1e + g.d1f) + c2 * (g.d2e + g.d2f);
+  const Vec3d D = c1 * (g.d1e + g.d1f) + c2 * (g.d2e + g.d2f);
   const Vec2 Dside(c1, c2);  // E^T D_e = F^T D_f: the frames' own components
-  Vec6 dK = c1 * dK1 + c2 * dK2;
-  double K = c1 * K1c + c2 * K2c;
-  double twist_coef = a3;
+  const Vec6 dK = c1 * dK1 + c2 * dK2;
+  const double K = c1 * K1c + c2 * K2c;
+  const double twist_coef = a3;
   Mat6 J = (c.B1 / (4.0 * l)) * dK1 * dK1.transpose() + (c.B2 / (4.0 * l)) * dK2 * dK2.transpose() +
            (c.GJ / l) * dDelta * dDelta.transpose();
 
-  if (c.moment.squaredNorm() > 0.0) {
-    // E_M = -kb.M - Delta Mt, Mt = M.(te + tf) / 2: gradient -dKM - Delta dMt - Mt dDelta,
-    // Jacobian -J(dKM) - dMt dDelta^T - dDelta dMt^T - Mt J(dDelta).
-    const Vec3d& M = c.moment;
-    const double Mt = 0.5 * M.dot(g.te + g.tf);
-    double KM;
-    const Vec3d zero = Vec3d::Zero();
-    const Vec6 dKM = KbGradient(g, M, zero, zero, &KM);
-    Vec6 dMt;
-    dMt << 0.5 * g.ToE(M), 0.5 * g.ToF(M), 0.0, 0.0;
-    J -= dMt * dDelta.transpose() + dDelta * dMt.transpose();
-    D -= M;
-    dK -= dKM;
-    K -= KM;
-    twist_coef -= Mt;
-    grad -= dKM + delta * dMt + Mt * dDelta;
-    g_te_t -= KM * g.ic + 0.5 * delta * M.dot(g.te);
-    g_tf_t -= KM * g.ic + 0.5 * delta * M.dot(g.tf);
-  }
   AddKbJacobian(g, D, Dside, Dside, c1 * g.kbE[0] + c2 * g.kbE[1], c1 * g.kbF[0] + c2 * g.kbF[1],
                 c1 * g.d2e - c2 * g.d1e, c1 * g.d2f - c2 * g.d1f, dK, K, &J);
   AddTwistCurvature(g, twist_coef, &J);

@@ -1,17 +1,15 @@
-// Bend–twist energy of one vertex of the discrete elastic rod (DESIGN.md §1; Bergou et al. 2008,
-// tissue paper eqs. 6–7), with the work of a dead end moment, on the stencil
-// q = [x_prev (3), x_mid (3), x_next (3), theta_e, theta_f] of edges e = x_mid - x_prev and
-// f = x_next - x_mid.
+// Bend–twist energy of one vertex of the discrete elastic rod (docs/model.md; Bergou et al.
+// 2008, tissue paper eqs. 6–7), on the stencil q = [x_prev (3), x_mid (3), x_next (3), theta_e,
+// theta_f] of edges e = x_mid - x_prev and f = x_next - x_mid.
 //
 //   kb  = 2 te x tf / (1 + te.tf)                        curvature binormal, |kb| = 2 tan(phi/2)
 //   k1  = kb.(d1e + d1f) / (2 l),  k2 = kb.(d2e + d2f) / (2 l),  tau = (theta_f - theta_e + m) / l
-//   E   = l/2 [B1 (k1 - k1°)^2 + B2 (k2 - k2°)^2 + GJ (tau - tau°)^2]  -  M . Omega
-//   Omega = kb + (theta_f - theta_e + m) (te + tf) / 2   (the vertex's rotation, tan form)
+//   E   = l/2 [B1 (k1 - k1°)^2 + B2 (k2 - k2°)^2 + GJ (tau - tau°)^2]
 //
 // Reference directors are transported in time from (t_old, u_old) of each edge, and m is the
 // reference twist (angle from the spatial transport of u_e to u_f about tf), kept continuous.
-// With the tan-form Omega an end moment M bends every vertex by kb = M l / B, so a moment of
-// 2 pi B / L closes a circle up to (pi/N)^2/3 (DESIGN.md §7).
+// Moments on the rod are not part of the stencil: a moment fixed in space has no potential in
+// 3-D, so it enters the equilibrium as a generalised force on its edge (solve/moment_loads.h).
 //
 // VertexEnergy is the energy itself. VertexGradient is its gradient in closed form, valid where
 // the reference frames are fresh (t = t_old), which is where the solver evaluates it; its Jet
@@ -32,7 +30,6 @@ struct VertexStencilConstants {
   double voronoi_length = 1.0;        ///< rest Voronoi length l [m]
   double B1 = 0, B2 = 0, GJ = 0;      ///< [N m^2]
   Eigen::Vector3d rest_curvature = Eigen::Vector3d::Zero();  ///< k1°, k2°, tau° [1/m]
-  Eigen::Vector3d moment = Eigen::Vector3d::Zero();          ///< dead end moment [N m]
   Eigen::Vector3d t_old_e, u_old_e, t_old_f, u_old_f;        ///< transport anchors of e, f
   double ref_twist_old = 0.0;         ///< reference twist at the anchors [rad]
 };
@@ -116,15 +113,10 @@ T StencilEnergy(const VertexStencilConstants& c, const Vec3T<T>& te, const Vec3T
   const T k1 = kb.dot(D1) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[0]);
   const T k2 = kb.dot(D2) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[1]);
   const T tw = dtheta / Cst<T>(l) - Cst<T>(c.rest_curvature[2]);
-  T energy = Cst<T>(0.5 * l) * (Cst<T>(c.B1) * k1 * k1 + Cst<T>(c.B2) * k2 * k2 + Cst<T>(c.GJ) * tw * tw);
-  if (c.moment.squaredNorm() > 0.0) {
-    const Vec3T<T> M = CastVec<T>(c.moment);
-    energy -= M.dot(kb) + dtheta * M.dot(te + tf) * Cst<T>(0.5);
-  }
-  return energy;
+  return Cst<T>(0.5 * l) * (Cst<T>(c.B1) * k1 * k1 + Cst<T>(c.B2) * k2 * k2 + Cst<T>(c.GJ) * tw * tw);
 }
 
-/// Energy of the stencil [J] (bend, twist, minus the end moment's work).
+/// Energy of the stencil [J] (bend and twist).
 template <typename T>
 T VertexEnergy(const VertexStencilConstants& c, const T* q) {
   const VertexGeometry<T> g(c, q);
@@ -164,17 +156,6 @@ void StencilGradient(const VertexStencilConstants& c, const Geometry& g, const T
                   a3 * Cst<T>(0.5) * g.kb;
   T g_th_e = Cst<T>(0.5) * (a1 * g.kb.dot(g.d2e) - a2 * g.kb.dot(g.d1e)) - a3;
   T g_th_f = Cst<T>(0.5) * (a1 * g.kb.dot(g.d2f) - a2 * g.kb.dot(g.d1f)) + a3;
-  if (c.moment.squaredNorm() > 0.0) {
-    const Vec3T<T> M = CastVec<T>(c.moment);
-    const T kbM = g.kb.dot(M);
-    const T Mt = M.dot(g.te + g.tf) * Cst<T>(0.5);
-    g_te -= (g.tf.cross(M) * Cst<T>(2.0) - kbM * g.tf) * inv_chi + Mt * Cst<T>(0.5) * g.kb +
-            dtheta * Cst<T>(0.5) * M;
-    g_tf -= (M.cross(g.te) * Cst<T>(2.0) - kbM * g.te) * inv_chi + Mt * Cst<T>(0.5) * g.kb +
-            dtheta * Cst<T>(0.5) * M;
-    g_th_e += Mt;
-    g_th_f -= Mt;
-  }
   // Tangent gradients to edge gradients: d te = (I - te te^T) de / |e|.
   const Vec3T<T> g_e = (g_te - g.te * g.te.dot(g_te)) / g.len_e;
   const Vec3T<T> g_f = (g_tf - g.tf * g.tf.dot(g_tf)) / g.len_f;
@@ -216,8 +197,8 @@ void VertexGradient(const VertexStencilConstants& c, const T* q, T* grad) {
 void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double* g8,
                         double* H8);
 /// The same from the stencil's fresh frames and its twist difference
-/// dtheta = theta_f - theta_e + reference twist; reads only the stiffness, rest curvature,
-/// Voronoi length and moment of c.
+/// dtheta = theta_f - theta_e + reference twist; reads only the stiffness, rest curvature and
+/// Voronoi length of c.
 void VertexHessianFromFrames(const VertexStencilConstants& c, const StencilFrames& frames,
                              double dtheta, double* g8, double* H8);
 /// Stretch energy of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2 (per-edge stretch, DESIGN.md §1),

@@ -48,6 +48,7 @@ Eigen::MatrixXd BandedSymmetric::ToDense() const {
 bool BandedCholesky::Factor(const BandedSymmetric& A, double diagonal_shift) {
   n_ = A.size();
   valid_ = false;
+  round_off_pivots_ = false;
   block_mode_ = false;
   if (A.block_size() == 4 && A.size() % 4 == 0 && (A.bandwidth() + 1) % 4 == 0 &&
       A.bandwidth() >= 3)
@@ -60,9 +61,14 @@ bool BandedCholesky::Factor(const BandedSymmetric& A, double diagonal_shift) {
   const Eigen::MatrixXd& a = A.band();
   for (int j = 0; j < n; ++j) {
     const double a_jj = a(0, j) + diagonal_shift;
-    const double d = b(0, j) + diagonal_shift;
+    double d = b(0, j) + diagonal_shift;
     // Relative pivot test: a pivot lost to cancellation means "not positive definite".
-    if (!(d > 1e-14 * std::abs(a_jj)) || !std::isfinite(d)) return false;
+    const double floor = kPivotRoundOff * std::abs(a_jj);
+    if (!(d >= -floor) || !std::isfinite(d)) return false;
+    if (d <= floor) {  // zero to round-off: see kPivotRoundOff
+      d = floor;
+      round_off_pivots_ = true;
+    }
     const double ljj = std::sqrt(d), inv = 1.0 / ljj;
     double* col = &b(0, j);
     col[0] = ljj;
@@ -106,8 +112,12 @@ bool BandedCholesky::FactorBlocks4(const BandedSymmetric& A, double diagonal_shi
     for (int k = 0; k < 4; ++k) {
       double d = S(k, k) + diagonal_shift;
       for (int m = 0; m < k; ++m) d -= Ljj(k, m) * Ljj(k, m);
-      if (!(d > 1e-14 * std::abs(a(0, j0 + k) + diagonal_shift)) || !std::isfinite(d))
-        return false;
+      const double floor = kPivotRoundOff * std::abs(a(0, j0 + k) + diagonal_shift);
+      if (!(d >= -floor) || !std::isfinite(d)) return false;
+      if (d <= floor) {  // zero to round-off: see kPivotRoundOff
+        d = floor;
+        round_off_pivots_ = true;
+      }
       const double lkk = std::sqrt(d);
       inv_diag[k] = 1.0 / lkk;
       Ljj(k, k) = lkk;
@@ -201,6 +211,158 @@ double BandedCholesky::LogDeterminant() const {
   }
   for (int i = 0; i < L_.size(); ++i) s += 2.0 * std::log(L_.band()(0, i));
   return s;
+}
+
+void BandedMatrix::Resize(int size, int kl, int ku) {
+  n_ = size;
+  kl_ = std::min(kl, std::max(size - 1, 0));
+  ku_ = std::min(ku, std::max(size - 1, 0));
+  band_.setZero(2 * kl_ + ku_ + 1, n_);
+}
+
+void BandedMatrix::SetFromSymmetric(const BandedSymmetric& A) {
+  Resize(A.size(), A.bandwidth(), A.bandwidth());
+  const int p = A.bandwidth();
+  for (int j = 0; j < n_; ++j)
+    for (int i = j; i <= std::min(n_ - 1, j + p); ++i) {
+      const double a = A.At(i, j);
+      At(i, j) = a;
+      At(j, i) = a;
+    }
+}
+
+Eigen::VectorXd BandedMatrix::Multiply(const Eigen::VectorXd& x) const {
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(n_);
+  for (int j = 0; j < n_; ++j)
+    for (int i = std::max(0, j - ku_); i <= std::min(n_ - 1, j + kl_); ++i) y[i] += At(i, j) * x[j];
+  return y;
+}
+
+Eigen::VectorXd BandedMatrix::MultiplyTransposed(const Eigen::VectorXd& x) const {
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(n_);
+  for (int j = 0; j < n_; ++j)
+    for (int i = std::max(0, j - ku_); i <= std::min(n_ - 1, j + kl_); ++i) y[j] += At(i, j) * x[i];
+  return y;
+}
+
+BandedSymmetric BandedMatrix::SymmetricPart(int block_size) const {
+  const int p = std::max(kl_, ku_);
+  BandedSymmetric S(n_, p, block_size);
+  S.SetZero();
+  for (int j = 0; j < n_; ++j)
+    for (int i = j; i <= std::min(n_ - 1, j + p); ++i) {
+      const double a = InBand(i, j) ? At(i, j) : 0.0, b = InBand(j, i) ? At(j, i) : 0.0;
+      S.At(i, j) = 0.5 * (a + b);
+    }
+  return S;
+}
+
+Eigen::MatrixXd BandedMatrix::ToDense() const {
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n_, n_);
+  for (int j = 0; j < n_; ++j)
+    for (int i = std::max(0, j - ku_); i <= std::min(n_ - 1, j + kl_); ++i) A(i, j) = At(i, j);
+  return A;
+}
+
+void BandedMatrix::SetIdentityRow(int i) {
+  for (int j = std::max(0, i - kl_); j <= std::min(n_ - 1, i + ku_); ++j) At(i, j) = 0.0;
+  for (int r = std::max(0, i - ku_); r <= std::min(n_ - 1, i + kl_); ++r) At(r, i) = 0.0;
+  At(i, i) = 1.0;
+}
+
+// Unblocked band LU with partial pivoting, as LAPACK's dgbtf2: column j's pivot is searched
+// among rows j..j+kl; the row swap may extend U by kl diagonals, which the storage keeps room for.
+bool BandedLU::Factor(const BandedMatrix& A) {
+  n_ = A.n_, kl_ = A.kl_, ku_ = A.ku_;
+  lu_ = A.band_;
+  pivots_.assign(n_, 0);
+  valid_ = false;
+  const int kv = ku_ + kl_;  // row of the diagonal in the band storage
+  double scale = 0.0;
+  for (int j = 0; j < n_; ++j) scale = std::max(scale, lu_.col(j).cwiseAbs().maxCoeff());
+  if (!std::isfinite(scale) || scale == 0.0) return false;
+  auto a = [&](int i, int j) -> double& { return lu_(kv + i - j, j); };
+  int ju = 0;  // last column touched by U so far
+  for (int j = 0; j < n_; ++j) {
+    const int km = std::min(kl_, n_ - 1 - j);
+    int jp = 0;
+    double best = -1.0;
+    for (int r = 0; r <= km; ++r) {
+      const double v = std::abs(a(j + r, j));
+      if (v > best) best = v, jp = r;
+    }
+    pivots_[j] = j + jp;
+    if (!(best > 1e-15 * scale)) return false;
+    ju = std::max(ju, std::min(j + ku_ + jp, n_ - 1));
+    if (jp != 0)
+      for (int c = j; c <= ju; ++c) std::swap(a(j, c), a(j + jp, c));
+    const double inv = 1.0 / a(j, j);
+    for (int r = 1; r <= km; ++r) a(j + r, j) *= inv;
+    for (int c = j + 1; c <= ju; ++c) {
+      const double u = a(j, c);
+      if (u == 0.0) continue;
+      for (int r = 1; r <= km; ++r) a(j + r, c) -= a(j + r, j) * u;
+    }
+  }
+  valid_ = true;
+  return true;
+}
+
+void BandedLU::SolveInPlace(Eigen::Ref<Eigen::MatrixXd> b) const {
+  const int kv = ku_ + kl_;
+  auto a = [&](int i, int j) { return lu_(kv + i - j, j); };
+  for (int col = 0; col < b.cols(); ++col) {
+    double* x = &b(0, col);
+    for (int j = 0; j < n_; ++j) {  // L y = P b
+      const int p = pivots_[j];
+      if (p != j) std::swap(x[j], x[p]);
+      const int km = std::min(kl_, n_ - 1 - j);
+      for (int r = 1; r <= km; ++r) x[j + r] -= a(j + r, j) * x[j];
+    }
+    for (int j = n_ - 1; j >= 0; --j) {  // U x = y (U has kl + ku super-diagonals)
+      x[j] /= a(j, j);
+      for (int i = std::max(0, j - kv); i < j; ++i) x[i] -= a(i, j) * x[j];
+    }
+  }
+}
+
+Eigen::VectorXd BandedLU::Solve(const Eigen::VectorXd& rhs) const {
+  Eigen::VectorXd x = rhs;
+  SolveInPlace(x);
+  return x;
+}
+
+void BandedLU::SolveTransposedInPlace(Eigen::Ref<Eigen::MatrixXd> b) const {
+  // A^T = U^T L^T P: solve U^T z = b, L^T w = z, x = P^T w.
+  const int kv = ku_ + kl_;
+  auto a = [&](int i, int j) { return lu_(kv + i - j, j); };
+  for (int col = 0; col < b.cols(); ++col) {
+    double* x = &b(0, col);
+    for (int j = 0; j < n_; ++j) {
+      double s = x[j];
+      for (int i = std::max(0, j - kv); i < j; ++i) s -= a(i, j) * x[i];
+      x[j] = s / a(j, j);
+    }
+    for (int j = n_ - 1; j >= 0; --j) {
+      const int km = std::min(kl_, n_ - 1 - j);
+      double s = x[j];
+      for (int r = 1; r <= km; ++r) s -= a(j + r, j) * x[j + r];
+      x[j] = s;
+      const int p = pivots_[j];
+      if (p != j) std::swap(x[j], x[p]);
+    }
+  }
+}
+
+int BandedLU::DeterminantSign() const {
+  if (!valid_) return 0;
+  int sign = 1;
+  const int kv = ku_ + kl_;
+  for (int j = 0; j < n_; ++j) {
+    if (pivots_[j] != j) sign = -sign;
+    if (lu_(kv, j) < 0) sign = -sign;
+  }
+  return sign;
 }
 
 }  // namespace rodfit

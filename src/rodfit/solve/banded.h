@@ -1,6 +1,9 @@
-// Symmetric banded matrix and its Cholesky factorisation, the O(n) linear algebra of the rod
-// (each energy term couples at most three consecutive dof blocks). Storage is the lower band,
-// column major: entry (i, j) with 0 <= i - j <= bandwidth at band_(i - j, j).
+// Banded matrices and their factorisations, the O(n) linear algebra of the rod (each energy
+// term couples at most three consecutive dof blocks): a symmetric band with Cholesky (the
+// potential's Hessian), and a general band with LU and partial pivoting (the tangent of a case
+// that carries moments, which have no potential and make it non-symmetric). Symmetric storage
+// is the lower band, column major: entry (i, j) with 0 <= i - j <= bandwidth at
+// band_(i - j, j).
 #pragma once
 
 #include <vector>
@@ -45,14 +48,22 @@ class BandedSymmetric {
 };
 
 /// A = L L^T for a banded symmetric A, O(n p^2). Factor() fails (returns false) when A is not
-/// numerically positive definite, which the Newton solver uses to detect indefiniteness.
+/// positive definite beyond round-off, which the Newton solver uses to detect indefiniteness.
+/// A pivot that is zero to round-off (|d| <= kPivotRoundOff |a_jj|) is raised to that floor and
+/// the factor flagged (round_off_pivots()): a stiff, fine rod (EA L^2 / EI n ~ 1e15) has soft
+/// global modes whose Schur complements are only known to round-off, and treating them as
+/// indefinite would shift the whole matrix and stall Newton.
 /// When A declares 4 x 4 blocks that tile it and its band (BandedSymmetric::Resize), the factor
 /// is computed and kept as fixed-size blocks (the same L, several times faster to compute and
 /// to solve with); otherwise as a scalar band.
+constexpr double kPivotRoundOff = 64 * 2.220446049250313e-16;
+
 class BandedCholesky {
  public:
   bool Factor(const BandedSymmetric& A, double diagonal_shift = 0.0);
   bool valid() const { return valid_; }
+  /// True when a pivot was raised from round-off level (see above).
+  bool round_off_pivots() const { return round_off_pivots_; }
   int size() const { return n_; }
   /// Solves A x = b in place (b may have several columns).
   void SolveInPlace(Eigen::Ref<Eigen::MatrixXd> b) const;
@@ -67,6 +78,7 @@ class BandedCholesky {
 
   int n_ = 0;
   bool valid_ = false;
+  bool round_off_pivots_ = false;
   // Scalar mode: L in band storage.
   BandedSymmetric L_;
   // Block mode: for block column J, blocks_[J * (q + 1) + d] is
@@ -74,6 +86,63 @@ class BandedCholesky {
   bool block_mode_ = false;
   int block_bandwidth_ = 0;
   std::vector<Block, Eigen::aligned_allocator<Block>> blocks_;
+};
+
+/// A general (non-symmetric) band matrix with kl sub- and ku super-diagonals, stored by
+/// diagonals in column-major LAPACK band form with kl extra rows for the LU's fill-in:
+/// entry (i, j), -ku <= i - j <= kl, at band_(kl + ku + i - j, j).
+class BandedMatrix {
+ public:
+  BandedMatrix() = default;
+  /// Sets the shape and zeroes every entry.
+  void Resize(int size, int kl, int ku);
+  int size() const { return n_; }
+  int lower() const { return kl_; }
+  int upper() const { return ku_; }
+  double& At(int i, int j) { return band_(kl_ + ku_ + i - j, j); }
+  double At(int i, int j) const { return band_(kl_ + ku_ + i - j, j); }
+  bool InBand(int i, int j) const { return i - j <= kl_ && j - i <= ku_; }
+  /// Copies a symmetric band (both triangles).
+  void SetFromSymmetric(const BandedSymmetric& A);
+  /// y = A x.
+  Eigen::VectorXd Multiply(const Eigen::VectorXd& x) const;
+  /// y = A^T x.
+  Eigen::VectorXd MultiplyTransposed(const Eigen::VectorXd& x) const;
+  /// The symmetric part (A + A^T) / 2 as a symmetric band (block size `block_size`).
+  BandedSymmetric SymmetricPart(int block_size = 1) const;
+  Eigen::MatrixXd ToDense() const;
+  /// Zeroes row and column i and puts 1 on the diagonal (a Dirichlet condition).
+  void SetIdentityRow(int i);
+  bool AllFinite() const { return band_.allFinite(); }
+  /// Largest |A(i, i)|.
+  double MaxDiagonal() const { return band_.row(kl_ + ku_).cwiseAbs().maxCoeff(); }
+
+ private:
+  friend class BandedLU;
+  int n_ = 0, kl_ = 0, ku_ = 0;
+  Eigen::MatrixXd band_;
+};
+
+/// P A = L U of a general band matrix with partial pivoting (LAPACK dgbtf2's algorithm), O(n kl
+/// (kl + ku)). Factor() fails for a (numerically) singular matrix.
+class BandedLU {
+ public:
+  bool Factor(const BandedMatrix& A);
+  bool valid() const { return valid_; }
+  int size() const { return n_; }
+  /// Solves A x = b in place (b may have several columns).
+  void SolveInPlace(Eigen::Ref<Eigen::MatrixXd> b) const;
+  Eigen::VectorXd Solve(const Eigen::VectorXd& b) const;
+  /// Solves A^T x = b in place.
+  void SolveTransposedInPlace(Eigen::Ref<Eigen::MatrixXd> b) const;
+  /// Sign of det(A): +1, -1 (0 when not factored).
+  int DeterminantSign() const;
+
+ private:
+  int n_ = 0, kl_ = 0, ku_ = 0;
+  bool valid_ = false;
+  Eigen::MatrixXd lu_;
+  std::vector<int> pivots_;
 };
 
 }  // namespace rodfit

@@ -14,9 +14,7 @@ namespace rodfit {
 namespace {
 
 
-void StretchGradientHessian(double EA, double L0, const Vec3& xa, const Vec3& xb, Vec3* g,
-                            Eigen::Matrix3d* H) {
-  const Vec3 e = xb - xa;
+void StretchGradientHessian(double EA, double L0, const Vec3& e, Vec3* g, Eigen::Matrix3d* H) {
   const double len = e.norm();
   const Vec3 t = e / len;
   const double strain = len / L0 - 1.0;
@@ -82,16 +80,17 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
 
 void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames) {
   const int n = model.num_edges();
-  frames->edges.resize(n + 1);
+  const bool ghost = model.has_end_clamp();
+  frames->edges.resize(n + 1 + (ghost ? 1 : 0));
   frames->fresh = true;
-  RodFrames::Edge& ghost = frames->edges[0];
-  ghost.t = model.clamp_tangent();
-  ghost.d1 = model.clamp_d1();
-  ghost.d2 = ghost.t.cross(ghost.d1);
-  ghost.len = model.rest_edge_length(0);
+  RodFrames::Edge& clamp = frames->edges[0];
+  clamp.t = state.clamp_t;
+  clamp.d1 = state.clamp_d1;
+  clamp.d2 = clamp.t.cross(clamp.d1);
+  clamp.len = model.rest_edge_length(0);
   for (int j = 0; j < n; ++j) {
     RodFrames::Edge& f = frames->edges[j + 1];
-    const Vec3 e = state.x.col(j + 1) - state.x.col(j);
+    const Vec3 e = state.e.col(j);
     f.len = std::sqrt(e.squaredNorm());
     f.t = e / f.len;
     const Vec3 t_old = state.ref_t.col(j), u_old = state.ref_u.col(j);
@@ -103,6 +102,15 @@ void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* f
     const double c = std::cos(state.theta[j]), sn = std::sin(state.theta[j]);
     f.d1 = c * u + sn * v;
     f.d2 = -sn * u + c * v;
+  }
+  if (ghost) {  // the end clamp's ghost edge: its frame is the state's, rotated by end_theta
+    RodFrames::Edge& g = frames->edges[n + 1];
+    g.t = state.end_t;
+    g.len = model.end_ghost_length();
+    const Vec3 v = g.t.cross(state.end_u);
+    const double c = std::cos(state.end_theta), sn = std::sin(state.end_theta);
+    g.d1 = c * state.end_u + sn * v;
+    g.d2 = -sn * state.end_u + c * v;
   }
 }
 
@@ -126,11 +134,7 @@ double NonBendingEnergy(const RodModel& model, const RodState& state, const Ener
   if (terms.stretch != 0.0) {
     const double EA = terms.stretch * model.material().stretch_stiffness;
     for (int j = 0; j < n; ++j) {
-      double qs[6];
-      for (int k = 0; k < 3; ++k) {
-        qs[k] = state.x(k, j);
-        qs[3 + k] = state.x(k, j + 1);
-      }
+      double qs[6] = {0.0, 0.0, 0.0, state.e(0, j), state.e(1, j), state.e(2, j)};
       energy += StretchEnergy<double>(EA, model.rest_edge_length(j), qs);
     }
   }
@@ -148,8 +152,8 @@ double NonBendingEnergy(const RodModel& model, const RodState& state, const Ener
   return energy;
 }
 
-// Stiffness, rest curvature and moment of every vertex stencil under `terms`; the Voronoi
-// length and transport anchors are set per vertex.
+// Stiffness and rest curvature of every vertex stencil under `terms`; the Voronoi length and
+// transport anchors are set per vertex.
 VertexStencilConstants StencilStiffness(const RodModel& model, const EnergyTerms& terms) {
   VertexStencilConstants c;
   const Material& m = model.material();
@@ -157,7 +161,6 @@ VertexStencilConstants StencilStiffness(const RodModel& model, const EnergyTerms
   c.B2 = terms.bend2 * m.B2();
   c.GJ = terms.twist * m.twist_stiffness;
   c.rest_curvature = model.rod().rest_curvature;
-  c.moment = (terms.loads ? terms.load_scale : 0.0) * model.load_case().tip_moment;
   return c;
 }
 
@@ -170,29 +173,28 @@ double DeadLoadEnergy(const RodModel& model, const RodState& state, double load_
   return energy;
 }
 
-void AddDeadLoadGradient(const RodModel& model, double load_scale, bool hold_grasp,
-                         VecX* gradient) {
+void AddDeadLoadGradient(const RodModel& model, double load_scale, bool hold, VecX* gradient) {
   for (int i = 1; i <= model.num_edges(); ++i) {
-    if (hold_grasp && i == model.grasp_vertex()) continue;
+    if (hold && model.held_at_vertex(i) >= 0) continue;
     gradient->segment<3>(RodModel::VertexDof(i)) -= load_scale * model.vertex_forces().col(i);
   }
 }
 
-void GatherVertexStencil(const RodModel& model, const RodState& state, int i, double load_scale,
-                         double q[11], VertexStencilConstants* c, std::array<int, 11>* dof) {
+void GatherVertexStencil(const RodModel& model, const RodState& state, int i, double q[11],
+                         VertexStencilConstants* c, std::array<int, 11>* dof) {
   const Material& m = model.material();
+  const int n = model.num_edges();
   c->voronoi_length = model.voronoi_length(i);
   c->B1 = m.B1();
   c->B2 = m.B2();
   c->GJ = m.twist_stiffness;
   c->rest_curvature = model.rod().rest_curvature;
-  c->moment = load_scale * model.load_case().tip_moment;
   c->ref_twist_old = state.ref_twist[i];
-  Vec3 x_prev;
+  Vec3 x_prev, x_next;
   if (i == 0) {  // ghost edge behind the clamp carrying the clamp frame
-    x_prev = state.x.col(0) - model.rest_edge_length(0) * model.clamp_tangent();
-    c->t_old_e = model.clamp_tangent();
-    c->u_old_e = model.clamp_d1();
+    x_prev = state.x.col(0) - model.rest_edge_length(0) * state.clamp_t;
+    c->t_old_e = state.clamp_t;
+    c->u_old_e = state.clamp_d1;
     q[9] = 0.0;
   } else {
     x_prev = state.x.col(i - 1);
@@ -200,15 +202,25 @@ void GatherVertexStencil(const RodModel& model, const RodState& state, int i, do
     c->u_old_e = state.ref_u.col(i - 1);
     q[9] = state.theta[i - 1];
   }
-  c->t_old_f = state.ref_t.col(i);
-  c->u_old_f = state.ref_u.col(i);
-  q[10] = state.theta[i];
+  if (i == n) {  // the end clamp's ghost edge after vertex n
+    x_next = state.x.col(n) + model.end_ghost_length() * state.end_t;
+    c->t_old_f = state.end_t;
+    c->u_old_f = state.end_u;
+    q[10] = state.end_theta;
+  } else {
+    x_next = state.x.col(i + 1);
+    c->t_old_f = state.ref_t.col(i);
+    c->u_old_f = state.ref_u.col(i);
+    q[10] = state.theta[i];
+  }
   for (int k = 0; k < 3; ++k) {
     q[k] = x_prev[k];
     q[3 + k] = state.x(k, i);
-    q[6 + k] = state.x(k, i + 1);
+    q[6 + k] = x_next[k];
   }
   if (dof) {
+    // Dofs beyond the end (the ghost's far vertex and twist) exist only with an end clamp, whose
+    // block of dofs follows the last edge's.
     for (int k = 0; k < 3; ++k) {
       (*dof)[k] = (i - 1 >= 1) ? RodModel::VertexDof(i - 1) + k : -1;
       (*dof)[3 + k] = (i >= 1) ? RodModel::VertexDof(i) + k : -1;
@@ -220,36 +232,38 @@ void GatherVertexStencil(const RodModel& model, const RodState& state, int i, do
 }
 
 double PotentialEnergy(const RodModel& model, const RodState& state, const EnergyTerms& terms) {
-  const int n = model.num_edges();
+  const int nb = NumBendingVertices(model);
   double energy = 0.0;
   double q[11];
   VertexStencilConstants c;
-  for (int i = 0; i < n; ++i) {
-    GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, nullptr);
-    c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
-    if (!terms.AnyBendTwist() && c.moment.squaredNorm() == 0.0) continue;
-    energy += VertexEnergy<double>(c, q);
+  if (terms.AnyBendTwist()) {
+    for (int i = 0; i < nb; ++i) {
+      GatherVertexStencil(model, state, i, q, &c, nullptr);
+      c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
+      energy += VertexEnergy<double>(c, q);
+    }
   }
   return energy + NonBendingEnergy(model, state, terms);
 }
 
 double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
                                   const EnergyTerms& terms, const RodFrames* frames) {
-  const int n = model.num_edges();
+  const int n = model.num_edges(), nb = NumBendingVertices(model);
   double energy = 0.0;
   VertexStencilConstants c = StencilStiffness(model, terms);
-  if (terms.AnyBendTwist() || c.moment.squaredNorm() != 0.0) {
+  if (terms.AnyBendTwist()) {
     RodFrames local;
     if (!frames) ComputeRodFrames(model, state, &local);
     const RodFrames& rf = frames ? *frames : local;
     if (!rf.fresh) return PotentialEnergy(model, state, terms);
     const std::vector<RodFrames::Edge>& fr = rf.edges;
-    for (int i = 0; i < n; ++i) {
+    for (int i = 0; i < nb; ++i) {
       const FreshStencilGeometry g(fr[i], fr[i + 1]);
       c.voronoi_length = model.voronoi_length(i);
       const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
+      const double theta_f = (i == n) ? state.end_theta : state.theta[i];
       energy += StencilEnergy<double>(c, g.te, g.tf, g.kb, g.d1e + g.d1f, g.d2e + g.d2f,
-                                      state.theta[i] - theta_e + state.ref_twist[i]);
+                                      theta_f - theta_e + state.ref_twist[i]);
     }
   }
   return energy + NonBendingEnergy(model, state, terms);
@@ -260,7 +274,7 @@ namespace {
 template <bool kHessian>
 void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& terms,
               VecX* gradient, BandedSymmetric* H, const RodFrames* frames) {
-  const int n = model.num_edges();
+  const int n = model.num_edges(), nb = NumBendingVertices(model);
   gradient->setZero(model.num_free_dofs());
   if (kHessian) {
     H->Resize(model.num_free_dofs(), kRodBandwidth, 4);  // blocks [x_i, theta_{i-1}]
@@ -276,39 +290,40 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   const bool fresh = rf.fresh;
   const std::vector<RodFrames::Edge>& fr = rf.edges;
   const VertexStencilConstants stiffness = StencilStiffness(model, terms);
-  const bool bend_twist = terms.AnyBendTwist() || stiffness.moment.squaredNorm() != 0.0;
-  for (int i = 0; i < n; ++i) {
+  const bool bend_twist = terms.AnyBendTwist();
+  for (int i = 0; i < nb; ++i) {
     if (fresh) {
       c = stiffness;
       c.voronoi_length = model.voronoi_length(i);
     } else {
-      GatherVertexStencil(model, state, i, terms.loads ? terms.load_scale : 0.0, q, &c, &dof);
+      GatherVertexStencil(model, state, i, q, &c, &dof);
       c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
     }
     const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
-    const double dtheta = state.theta[i] - theta_e + state.ref_twist[i];
+    const double theta_f = (i == n) ? state.end_theta : state.theta[i];
+    const double dtheta = theta_f - theta_e + state.ref_twist[i];
+    // The stretch of edge i is added to vertex i's stencil (every edge is the f of exactly one
+    // vertex); vertex n's f is the end ghost, which does not stretch.
+    const bool stretch = EA != 0.0 && i < n;
     if (kHessian) {
-      // Vertex i's stencil in the edge variables, with the stretch of its edge f = edge i
-      // added (every edge is the f of exactly one vertex), scattered once.
-      if (!bend_twist && EA == 0.0) continue;
+      if (!bend_twist && !stretch) continue;
       double g8[8], H8[64];
       if (bend_twist && fresh) {
         const RodFrames::Edge &e = fr[i], &f = fr[i + 1];
-        StencilFrames frames;
-        frames.te = e.t, frames.d1e = e.d1, frames.d2e = e.d2, frames.len_e = e.len;
-        frames.tf = f.t, frames.d1f = f.d1, frames.d2f = f.d2, frames.len_f = f.len;
-        VertexHessianFromFrames(c, frames, dtheta, g8, H8);
+        StencilFrames sf;
+        sf.te = e.t, sf.d1e = e.d1, sf.d2e = e.d2, sf.len_e = e.len;
+        sf.tf = f.t, sf.d1f = f.d1, sf.d2f = f.d2, sf.len_f = f.len;
+        VertexHessianFromFrames(c, sf, dtheta, g8, H8);
       } else if (bend_twist) {
         VertexHessianEdges(c, q, g8, H8);
       } else {
         std::fill(g8, g8 + 8, 0.0);
         std::fill(H8, H8 + 64, 0.0);
       }
-      if (EA != 0.0) {
+      if (stretch) {
         Vec3 gs;
         Eigen::Matrix3d Hs;
-        StretchGradientHessian(EA, model.rest_edge_length(i), state.x.col(i), state.x.col(i + 1),
-                               &gs, &Hs);
+        StretchGradientHessian(EA, model.rest_edge_length(i), state.e.col(i), &gs, &Hs);
         for (int r = 0; r < 3; ++r) {
           g8[3 + r] += gs[r];
           for (int k = 0; k < 3; ++k) H8[8 * (3 + r) + 3 + k] += Hs(r, k);
@@ -332,8 +347,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   if (!kHessian && EA != 0.0) {
     Vec3 g;
     for (int j = 0; j < n; ++j) {
-      StretchGradientHessian(EA, model.rest_edge_length(j), state.x.col(j), state.x.col(j + 1),
-                             &g, nullptr);
+      StretchGradientHessian(EA, model.rest_edge_length(j), state.e.col(j), &g, nullptr);
       if (j >= 1) gradient->segment<3>(RodModel::VertexDof(j)) -= g;
       gradient->segment<3>(RodModel::VertexDof(j + 1)) += g;
     }
@@ -353,21 +367,39 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
       }
     }
   }
-  if (terms.loads) AddDeadLoadGradient(model, terms.load_scale, /*hold_grasp=*/false, gradient);
-  if (terms.fix_grasp && model.grasp_vertex() >= 1) {
-    // Dirichlet rows: the grasped vertex does not move; its gradient is the constraint force.
-    const int d = RodModel::VertexDof(model.grasp_vertex());
-    gradient->segment<3>(d).setZero();
-    if (kHessian) {
-      const int p = H->bandwidth();
-      for (int r = d; r < d + 3; ++r)
-        for (int c = std::max(0, r - p); c <= std::min(H->size() - 1, r + p); ++c)
-          H->At(std::max(r, c), std::min(r, c)) = (r == c) ? 1.0 : 0.0;
-    }
+  if (terms.loads) AddDeadLoadGradient(model, terms.load_scale, /*hold=*/false, gradient);
+  if (terms.hold) {
+    // Dirichlet rows: held vertices do not move; their gradient is the constraint force.
+    const std::vector<char> held = HeldDofs(model);
+    ApplyHeldRows(held, gradient, kHessian ? H : nullptr);
   }
 }
 
 }  // namespace
+
+std::vector<char> HeldDofs(const RodModel& model) {
+  std::vector<char> held(model.num_free_dofs(), 0);
+  for (const HeldVertex& h : model.held())
+    for (int r = 0; r < 3; ++r) held[RodModel::VertexDof(h.vertex) + r] = 1;
+  if (model.has_end_clamp()) {
+    const int n = model.num_edges();
+    for (int r = 0; r < 3; ++r) held[RodModel::VertexDof(n + 1) + r] = 1;  // ghost's far vertex
+    if (model.end_twist_held()) held[RodModel::TwistDof(n)] = 1;
+  }
+  return held;
+}
+
+void ApplyHeldRows(const std::vector<char>& held, VecX* gradient, BandedSymmetric* H) {
+  const int size = static_cast<int>(held.size());
+  for (int r = 0; r < size; ++r) {
+    if (!held[r]) continue;
+    (*gradient)[r] = 0.0;
+    if (!H) continue;
+    const int p = H->bandwidth();
+    for (int c = std::max(0, r - p); c <= std::min(size - 1, r + p); ++c)
+      H->At(std::max(r, c), std::min(r, c)) = (r == c) ? 1.0 : 0.0;
+  }
+}
 
 void AssembleGradient(const RodModel& model, const RodState& state, const EnergyTerms& terms,
                       VecX* gradient, const RodFrames* frames) {
@@ -379,62 +411,83 @@ void AssembleHessian(const RodModel& model, const RodState& state, const EnergyT
   Assemble<true>(model, state, terms, gradient, hessian, frames);
 }
 
+bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState* out) {
+  const int n = model.num_edges();
+  for (int j = 0; j < n; ++j) {
+    const Vec3 e = out->e.col(j);
+    const double len = e.norm();
+    if (!(len > 1e-9 * model.rest_edge_length(j))) return false;
+    const Vec3 t = e / len;
+    const Vec3 t_old = prev.ref_t.col(j);
+    if (t.dot(t_old) < -0.99) return false;  // transport is singular at a full reversal
+    Vec3 u = ParallelTransport<double, double>(t_old, t, Vec3(prev.ref_u.col(j)));
+    u = (u - u.dot(t) * t).normalized();  // remove round-off drift
+    out->ref_u.col(j) = u;
+    out->ref_t.col(j) = t;
+  }
+  if (out->ref_twist.size() != n + 1) out->ref_twist.conservativeResize(n + 1);
+  const int nb = NumBendingVertices(model);
+  for (int i = 0; i < nb; ++i) {
+    const Vec3 te = (i == 0) ? out->clamp_t : Vec3(out->ref_t.col(i - 1));
+    const Vec3 ue = (i == 0) ? out->clamp_d1 : Vec3(out->ref_u.col(i - 1));
+    const Vec3 tf = (i == n) ? out->end_t : Vec3(out->ref_t.col(i));
+    const Vec3 uf = (i == n) ? out->end_u : Vec3(out->ref_u.col(i));
+    if (te.dot(tf) < -0.99) return false;  // a fold back on itself: kb blows up
+    const Vec3 p = ParallelTransport<double, double>(te, tf, ue);
+    const double raw = SignedAngle<double>(p, uf, tf);
+    const double old = i < prev.ref_twist.size() ? prev.ref_twist[i] : 0.0;
+    out->ref_twist[i] = UnwrapNear(raw, raw, old);
+  }
+  return true;
+}
+
 bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, double alpha,
                RodState* out) {
   const int n = model.num_edges();
   *out = state;
   // Edge-wise retraction: each edge turns to the direction of e + de and changes its length only
-  // by the linear part t.de, then the vertices are summed from the clamp. It agrees with
-  // x + alpha step to first order (so Newton keeps its quadratic convergence), but a large
-  // rotation no longer stretches the edges by O(|de|^2), which against a stiff EA
-  // (EA L^2 / EI ~ 1e6 for a suture) would force tiny steps.
+  // by the linear part t.de. It agrees with x + alpha step to first order (so Newton keeps its
+  // quadratic convergence), but a large rotation no longer stretches the edges by O(|de|^2),
+  // which against a stiff EA (EA L^2 / EI ~ 1e6 for a suture) would force tiny steps.
   Vec3 prev_step = Vec3::Zero();
   for (int j = 0; j < n; ++j) {
     const Vec3 next_step = alpha * step.segment<3>(RodModel::VertexDof(j + 1));
-    const Vec3 e = state.x.col(j + 1) - state.x.col(j);
+    const Vec3 e = state.e.col(j);
     const Vec3 de = next_step - prev_step;
     const double len = e.norm();
     const double new_len = len + e.dot(de) / len;
     const Vec3 dir = e + de;
-    if (!(new_len > 1e-6 * model.rest_edge_length(j)) || !(dir.norm() > 0)) return false;
-    out->x.col(j + 1) = out->x.col(j) + new_len * dir.normalized();
+    const double dir_norm = dir.norm();
+    if (!(new_len > 1e-6 * model.rest_edge_length(j)) || !(dir_norm > 0)) return false;
+    out->e.col(j) = (new_len / dir_norm) * dir;
     prev_step = next_step;
   }
-  if (const int k = model.grasp_vertex(); k >= 1) {
-    // The grasped vertex must not move: spread the retraction's (second-order) closure error
-    // over the vertices between the clamp and the grasp, and shift the rest with it.
-    const Vec3 gap = out->x.col(k) - state.x.col(k);
-    for (int i = 1; i <= n; ++i) out->x.col(i) -= gap * std::min(1.0, double(i) / k);
+  // Held vertices must not move: spread the retraction's (second-order) closure error over the
+  // edges since the previous held vertex (or the clamp); the rod beyond shifts with it.
+  if (!model.held().empty()) {
+    int from = 0;
+    Vec3 pos = state.x.col(0);
+    for (const HeldVertex& h : model.held()) {
+      for (int j = from; j < h.vertex; ++j) pos += out->e.col(j);
+      const Vec3 gap = pos - state.x.col(h.vertex);
+      const double share = 1.0 / (h.vertex - from);
+      for (int j = from; j < h.vertex; ++j) out->e.col(j) -= share * gap;
+      pos = state.x.col(h.vertex);
+      from = h.vertex;
+    }
   }
+  out->SyncVertices();
+  for (const HeldVertex& h : model.held()) out->x.col(h.vertex) = state.x.col(h.vertex);
   for (int j = 0; j < n; ++j) out->theta[j] += alpha * step[RodModel::TwistDof(j)];
-  for (int j = 0; j < n; ++j) {
-    const Vec3 e = out->x.col(j + 1) - out->x.col(j);
-    const double len = e.norm();
-    if (!(len > 1e-9 * model.rest_edge_length(j))) return false;
-    const Vec3 t = e / len;
-    const Vec3 t_old = state.ref_t.col(j);
-    if (t.dot(t_old) < -0.99) return false;  // transport is singular at a full reversal
-    Vec3 u = ParallelTransport<double, double>(t_old, t, Vec3(state.ref_u.col(j)));
-    u = (u - u.dot(t) * t).normalized();  // remove round-off drift
-    out->ref_u.col(j) = u;
-    out->ref_t.col(j) = t;
-  }
-  for (int i = 0; i < n; ++i) {
-    const Vec3 te = (i == 0) ? model.clamp_tangent() : Vec3(out->ref_t.col(i - 1));
-    const Vec3 ue = (i == 0) ? model.clamp_d1() : Vec3(out->ref_u.col(i - 1));
-    const Vec3 tf = out->ref_t.col(i), uf = out->ref_u.col(i);
-    if (te.dot(tf) < -0.99) return false;  // a fold back on itself: kb blows up
-    const Vec3 p = ParallelTransport<double, double>(te, tf, ue);
-    const double raw = SignedAngle<double>(p, uf, tf);
-    out->ref_twist[i] = UnwrapNear(raw, raw, state.ref_twist[i]);
-  }
-  return true;
+  if (model.has_end_clamp() && !model.end_twist_held())
+    out->end_theta += alpha * step[RodModel::TwistDof(n)];
+  return UpdateReferenceFrames(model, state, out);
 }
 
 Vec3 GraspReaction(const RodModel& model, const RodState& state) {
   if (model.grasp_vertex() < 1) return Vec3::Zero();
   EnergyTerms terms;
-  terms.fix_grasp = false;
+  terms.hold = false;
   VecX g;
   AssembleGradient(model, state, terms, &g);
   return -g.segment<3>(RodModel::VertexDof(model.grasp_vertex()));
@@ -444,19 +497,38 @@ double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& 
   const int n = model.num_edges();
   double lowest_cos = 1.0;  // the largest turn has the smallest cosine: one acos at the end
   for (int j = 0; j < n; ++j) {
-    Vec3 e0 = state.x.col(j + 1) - state.x.col(j);
+    const Vec3 e0 = state.e.col(j);
     Vec3 e1 = e0 + step.segment<3>(RodModel::VertexDof(j + 1));
     if (j >= 1) e1 -= step.segment<3>(RodModel::VertexDof(j));
     lowest_cos = std::min(lowest_cos, e0.normalized().dot(e1.normalized()));
   }
+  if (!std::isfinite(lowest_cos)) return M_PI;
   return std::acos(std::max(-1.0, std::min(1.0, lowest_cos)));
 }
 
+VecX GradientNormWeights(const RodModel& model) {
+  const int n = model.num_edges();
+  VecX w = VecX::Zero(model.num_free_dofs());
+  const double L = model.length();
+  for (int i = 1; i <= n; ++i) {
+    const double cell =
+        0.5 * (model.rest_edge_length(i - 1) + (i < n ? model.rest_edge_length(i) : 0.0));
+    w.segment<3>(RodModel::VertexDof(i)).setConstant(L / cell);
+  }
+  for (int j = 0; j < n; ++j) w[RodModel::TwistDof(j)] = 1.0 / model.rest_edge_length(j);
+  if (model.has_end_clamp()) w[RodModel::TwistDof(n)] = 1.0 / model.end_ghost_length();
+  const std::vector<char> held = HeldDofs(model);
+  for (int k = 0; k < w.size(); ++k)
+    if (held[k]) w[k] = 0.0;
+  return w;
+}
+
 double ScaledGradientNorm(const RodModel& model, const VecX& g) {
+  const VecX w = GradientNormWeights(model);
   double worst = 0.0;
   for (int k = 0; k < g.size(); ++k) {
-    const bool twist = (k % 4) == 3;
-    worst = std::max(worst, std::abs(g[k]) / (twist ? model.length() : 1.0));
+    const double v = w[k] * std::abs(g[k]);
+    if (!(v <= worst)) worst = v;  // a NaN propagates
   }
   return worst;
 }

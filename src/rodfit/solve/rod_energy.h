@@ -1,7 +1,9 @@
-// Assembly of the rod's potential energy Pi = U - W over the free dofs (DESIGN.md §1): one
-// bend–twist stencil per vertex (model/vertex_stencil.h), one stretch term per edge, dead vertex
-// loads. Gradients and banded Hessians are assembled from the stencils; frames must be fresh
-// (see ApplyStep), which is how the solver keeps them.
+// Assembly of the rod's potential energy Pi = U - W over the free dofs (docs/model.md): one
+// bend–twist stencil per bending vertex (model/vertex_stencil.h), one stretch term per edge,
+// springs, dead vertex loads. Gradients and banded Hessians are assembled from the stencils;
+// frames must be fresh (see ApplyStep), which is how the solver keeps them. Held vertices have
+// Dirichlet rows (zero gradient, identity in the Hessian). Moments, which have no potential, are
+// added by solve/moment_loads.h.
 #pragma once
 
 #include <array>
@@ -28,9 +30,9 @@ struct EnergyTerms {
   /// With springs on: only the zones whose parameter is this name ("" = spring_stiffness);
   /// null = every zone.
   const std::string* spring_parameter = nullptr;
-  /// Hold the grasped vertex (zero its gradient, identity rows in the Hessian). Off only to read
-  /// the constraint's reaction from the gradient.
-  bool fix_grasp = true;
+  /// Hold the held vertices (zero their gradient, identity rows in the Hessian). Off only to
+  /// read the constraints' reactions from the gradient.
+  bool hold = true;
 
   bool AnyBendTwist() const { return bend1 != 0.0 || bend2 != 0.0 || twist != 0.0; }
   /// Only the springs of zones with parameter `name` ("" = spring_stiffness), no loads.
@@ -56,13 +58,14 @@ struct EnergyTerms {
   }
 };
 
-/// Per-edge frames of a state (ComputeRodFrames): the ghost edge (index 0, the clamp frame) and
-/// edges 0..n-1 (index j + 1), each with its unit tangent, length and material directors, the
-/// reference director transported by the first-order transport about its reference tangent.
-/// `fresh` says the frames are fresh (every tangent within 1e-13 of its reference tangent, as
-/// ApplyStep leaves them); only then do the energy and assembly use them, computing each edge
-/// once instead of once per vertex and no transport. The solver computes them once per state
-/// and passes them to every evaluation at that state.
+/// Per-edge frames of a state (ComputeRodFrames): the clamp's ghost edge (index 0), edges
+/// 0..n-1 (index j + 1) and, with an end clamp, its ghost edge (index n + 1), each with its unit
+/// tangent, length and material directors, the reference director transported by the
+/// first-order transport about its reference tangent. `fresh` says the frames are fresh (every
+/// tangent within 1e-13 of its reference tangent, as ApplyStep leaves them); only then do the
+/// energy and assembly use them, computing each edge once instead of once per vertex and no
+/// transport. The solver computes them once per state and passes them to every evaluation at
+/// that state.
 struct RodFrames {
   struct Edge {
     Vec3 t, d1, d2;
@@ -73,16 +76,21 @@ struct RodFrames {
 };
 void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames);
 
+/// Number of bending vertices: 0..n-1, and n with an end clamp.
+inline int NumBendingVertices(const RodModel& model) {
+  return model.num_edges() + (model.has_end_clamp() ? 1 : 0);
+}
+
 /// The dead loads' part of Pi, -load_scale sum_i f_i . x_i, and of its gradient, -load_scale f_i
-/// on x_i's dofs (added to *gradient; with hold_grasp, not on the held vertex, whose rows the
-/// assembly zeroes). Pi is linear in them, so a change of dead loads changes only these parts.
+/// on x_i's dofs (added to *gradient; with hold, not on held vertices, whose rows the assembly
+/// zeroes). Pi is linear in them, so a change of dead loads changes only these parts.
 double DeadLoadEnergy(const RodModel& model, const RodState& state, double load_scale);
-void AddDeadLoadGradient(const RodModel& model, double load_scale, bool hold_grasp,
-                         VecX* gradient);
+void AddDeadLoadGradient(const RodModel& model, double load_scale, bool hold, VecX* gradient);
 
 /// Gathers vertex i's stencil q = [x_prev, x_mid, x_next, theta_e, theta_f], its constants and
-/// the free-dof index of each entry (-1 for a fixed one: the clamp and the ghost edge).
-void GatherVertexStencil(const RodModel& model, const RodState& state, int i, double load_scale,
+/// the free-dof index of each entry (-1 for a fixed one: the clamp and its ghost edge). Vertex n
+/// (with an end clamp) has the end ghost as its edge f.
+void GatherVertexStencil(const RodModel& model, const RodState& state, int i,
                          double q[11], VertexStencilConstants* constants,
                          std::array<int, 11>* dof);
 
@@ -92,13 +100,12 @@ double PotentialEnergy(const RodModel& model, const RodState& state,
 /// The same for a state whose frames are fresh (reference tangents equal to the edges', as
 /// ApplyStep leaves them): the transports are then the identity and the reference twist the
 /// stored one, so each edge's frame is computed once and no transport is evaluated. Equal to
-/// PotentialEnergy to round-off there, and PotentialEnergy itself for any other state. The
-/// assembly takes the same shortcut; the solver uses both.
+/// PotentialEnergy to round-off there, and PotentialEnergy itself for any other state.
 double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
                                   const EnergyTerms& terms = EnergyTerms(),
                                   const RodFrames* frames = nullptr);
 
-/// Gradient of Pi over the free dofs (size 4n).
+/// Gradient of Pi over the free dofs (size num_free_dofs()).
 /// `frames`, if given, must be ComputeRodFrames of `state` (computed here otherwise).
 void AssembleGradient(const RodModel& model, const RodState& state, const EnergyTerms& terms,
                       VecX* gradient, const RodFrames* frames = nullptr);
@@ -108,11 +115,23 @@ void AssembleHessian(const RodModel& model, const RodState& state, const EnergyT
                      VecX* gradient, BandedSymmetric* hessian,
                      const RodFrames* frames = nullptr);
 
+/// Whether free dof k is held (a held vertex's coordinate, an end ghost's vertex, or a held
+/// ghost twist): such dofs have Dirichlet rows.
+std::vector<char> HeldDofs(const RodModel& model);
+
+/// Dirichlet rows and columns for the held dofs: zero gradient, identity diagonal.
+void ApplyHeldRows(const std::vector<char>& held, VecX* gradient, BandedSymmetric* H);
+
 /// state + alpha * step over the free dofs, with reference frames transported in time to the
-/// new tangents and the reference twist carried along (continuous). Returns false, leaving *out
+/// new tangents and the reference twist carried along (continuous). Edges are retracted one by
+/// one (see rod_energy.cc); held vertices stay where they are. Returns false, leaving *out
 /// unspecified, if an edge would collapse or a tangent would turn by more than ~pi.
 bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, double alpha,
                RodState* out);
+
+/// Re-transports the reference frames of `next` (whose e and x are set) from those of `prev`
+/// and recomputes the reference twists, kept continuous. False at a full reversal of a tangent.
+bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState* next);
 
 /// Largest turn [rad] of any edge tangent under state + step (used to limit Newton steps).
 double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& step);
@@ -121,7 +140,12 @@ double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& 
 /// force that holds it, -dPi/dx_k at equilibrium (zero without a grasp).
 Vec3 GraspReaction(const RodModel& model, const RodState& state);
 
-/// Largest free generalised force [N]: forces, and moments divided by the rod length.
+/// The convergence measure [N]: the largest free generalised force per length of the rod it
+/// acts on, times L: forces over their vertex's Voronoi cell and moments over their edge, so
+/// that the measure of a given load does not shrink as the segments grow finer.
 double ScaledGradientNorm(const RodModel& model, const VecX& gradient);
+
+/// Weights w_k with ScaledGradientNorm = max_k w_k |g_k| (zero on held dofs' rows).
+VecX GradientNormWeights(const RodModel& model);
 
 }  // namespace rodfit

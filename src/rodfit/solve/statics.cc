@@ -1,5 +1,7 @@
-// Newton solver for the rod's equilibrium (statics.h): banded Cholesky, diagonal shift for
-// indefinite Hessians, Armijo backtracking on Pi, tangent-turn step limit, load continuation.
+// Newton solver for the rod's equilibrium (statics.h): banded Cholesky for the potential's
+// Hessian, banded LU for the tangent of a case with moments, diagonal shift for indefinite
+// matrices, Armijo backtracking, tangent-turn step limit, saddle escapes, load continuation and
+// continuation of held points. Every loop has a cap.
 #include "rodfit/solve/statics.h"
 
 #include <algorithm>
@@ -7,7 +9,10 @@
 #include <cstdio>
 #include <limits>
 
+#include <Eigen/Geometry>
+
 #include "rodfit/model/frames.h"
+#include "rodfit/solve/moment_loads.h"
 #include "rodfit/solve/rod_energy.h"
 
 namespace rodfit {
@@ -26,17 +31,27 @@ bool StaticsOptions::Check(std::string* why) const {
   if (!(max_rotation_per_step > 0 && max_rotation_per_step < 3)) {
     return fail("max_rotation_per_step must lie in (0, 3) rad");
   }
+  if (!(continuation_move > 0 && continuation_move <= 1)) {
+    return fail("continuation_move must lie in (0, 1]");
+  }
+  if (!(continuation_turn > 0 && continuation_turn <= 3)) {
+    return fail("continuation_turn must lie in (0, 3] rad");
+  }
+  if (max_continuation_steps < 1) return fail("max_continuation_steps must be >= 1");
   return true;
 }
 
 std::string StaticsSummary::BriefReport() const {
-  char chords[48] = "";
-  if (chord_steps > 0) std::snprintf(chords, sizeof(chords), " (%d chord steps)", chord_steps);
-  char buf[320];
+  char extra[96] = "";
+  int k = 0;
+  if (chord_steps > 0) k += std::snprintf(extra + k, sizeof(extra) - k, " (%d chord steps)", chord_steps);
+  if (continuation_steps > 0)
+    k += std::snprintf(extra + k, sizeof(extra) - k, ", %d continuation steps", continuation_steps);
+  char buf[400];
   std::snprintf(buf, sizeof(buf),
                 "%s%s after %d Newton iterations%s, %d load step(s), |g| = %.3e N, Pi = %.6e J: %s",
                 converged ? "converged" : "NOT converged",
-                (converged && !stable) ? " (unstable equilibrium)" : "", iterations, chords,
+                (converged && !stable) ? " (unstable equilibrium)" : "", iterations, extra,
                 load_steps, gradient_norm, energy, reason.c_str());
   return buf;
 }
@@ -46,10 +61,72 @@ namespace {
 enum class StepResult { kConverged, kFailed, kIterationCap };
 
 bool SameState(const RodState& a, const RodState& b) {
-  return a.x.cols() == b.x.cols() && a.theta.size() == b.theta.size() &&
-         a.ref_u.cols() == b.ref_u.cols() && a.ref_t.cols() == b.ref_t.cols() &&
-         a.ref_twist.size() == b.ref_twist.size() && a.x == b.x && a.theta == b.theta &&
-         a.ref_u == b.ref_u && a.ref_t == b.ref_t && a.ref_twist == b.ref_twist;
+  return a.x.cols() == b.x.cols() && a.e.cols() == b.e.cols() &&
+         a.theta.size() == b.theta.size() && a.ref_u.cols() == b.ref_u.cols() &&
+         a.ref_t.cols() == b.ref_t.cols() && a.ref_twist.size() == b.ref_twist.size() &&
+         a.x == b.x && a.e == b.e && a.theta == b.theta && a.ref_u == b.ref_u &&
+         a.ref_t == b.ref_t && a.ref_twist == b.ref_twist && a.clamp_t == b.clamp_t &&
+         a.clamp_d1 == b.clamp_d1 && a.end_t == b.end_t && a.end_u == b.end_u &&
+         a.end_theta == b.end_theta;
+}
+
+// Constants of one solve: the convergence measure's weights and tolerances.
+struct Tolerances {
+  VecX weights;          // ScaledGradientNorm = max_k weights_k |g_k|
+  double strict = 0.0;   // [N] gradient tolerance: gradient_tolerance x the load scale
+  double force = 0.0;    // [N] the larger of `strict` and the gradient's round-off floor
+  double step_x = 0.0;   // [m] Newton step tolerance on positions
+  double step_theta = 0.0;
+  double shift_base = 0.0;  // first diagonal shift for an indefinite Hessian
+
+  double Norm(const VecX& g) const {
+    double worst = 0.0;
+    for (int k = 0; k < g.size(); ++k) {
+      const double v = weights[k] * std::abs(g[k]);
+      if (!(v <= worst)) worst = v;  // a NaN propagates
+    }
+    return worst;
+  }
+  bool SmallStep(const VecX& step, double factor = 1.0) const {
+    double dx = 0.0, dtheta = 0.0;
+    for (int k = 0; k < step.size(); ++k) {
+      if (weights[k] == 0.0) continue;  // held dofs
+      double& m = (k % 4 == 3) ? dtheta : dx;
+      m = std::max(m, std::abs(step[k]));
+    }
+    return dx <= factor * step_x && dtheta <= factor * step_theta;
+  }
+  /// Convergence at a state with gradient norm `gnorm` and unshifted Newton step `step`: the
+  /// gradient below the load tolerance; or the step below the step tolerance (1e-9 L: the state
+  /// is as exact as the iteration can tell); or the gradient at its round-off floor with a step
+  /// below 1e3 times the step tolerance (1e-6 L by default: a stiff stretch's floor may sit above
+  /// the load tolerance, and the step then tells how far the state still is).
+  bool Converged(double gnorm, const VecX& step) const {
+    return gnorm <= strict || SmallStep(step) || (gnorm <= force && SmallStep(step, 1e3));
+  }
+};
+
+Tolerances MakeTolerances(const RodModel& model, const StaticsOptions& opt) {
+  Tolerances t;
+  t.weights = GradientNormWeights(model);
+  t.strict = opt.gradient_tolerance * model.force_scale();
+  // The gradient's round-off: the stretch forces are EA (|e| / l - 1), with |e| known to ~eps
+  // (the edges are the state's primary record), so each carries ~eps EA; a vertex sums two and
+  // the scaled norm multiplies by up to L / l.
+  const double max_weight = t.weights.size() ? t.weights.maxCoeff() : 1.0;
+  const double floor = 64.0 * std::numeric_limits<double>::epsilon() *
+                       model.material().stretch_stiffness * max_weight;
+  t.force = std::max(t.strict, floor);
+  const Material& m = model.material();
+  const double l = model.min_rest_edge_length();
+  t.shift_base = 1e-6 * std::min({m.B1(), m.B2(), m.twist_stiffness}) / (l * l * l);
+  t.step_x = opt.step_tolerance * model.length();
+  t.step_theta = opt.step_tolerance;
+  return t;
+}
+
+double EnergyNoise(const RodModel& model, double energy) {
+  return 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
 }
 
 // Chord steps. A Newton step needs the Hessian at the current state; a chord step reuses the
@@ -97,8 +174,7 @@ bool ChordStep(const BandedCholesky& factor, const Eigen::Matrix3Xd& basis_tange
   return true;
 }
 
-void KeepTangents(const RodFrames& frames, Eigen::Matrix3Xd* tangents) {
-  const int n = static_cast<int>(frames.edges.size()) - 1;
+void KeepTangents(const RodFrames& frames, int n, Eigen::Matrix3Xd* tangents) {
   tangents->resize(3, n);
   for (int j = 0; j < n; ++j) tangents->col(j) = frames.edges[j + 1].t;
 }
@@ -110,41 +186,134 @@ enum class StartFactor {
   kChord,  ///< a factor at *state for another model (a fit's parameter change): chord step
 };
 
-/// Newton iterations at one load factor. Returns kConverged with *state at equilibrium.
-/// With StartFactor::kExact, ws->hessian already holds the factor of the (unshifted) Hessian at
-/// *state for this model and load, and ws the energy and gradient there without dead loads, so
-/// the first iteration assembles nothing.
-StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double load_scale,
-                        int max_iterations, RodState* state, StaticsWorkspace* ws,
-                        StaticsSummary* summary, std::string* why, StartFactor start) {
+/// Factors H + shift I with the smallest shift of 0, then `base` x 10^k, that succeeds. Returns
+/// the shift used (0: H itself), or a negative value when none does (non-finite entries, or no
+/// shift up to 1e6 times the largest diagonal entry). The base is set by the soft (bending)
+/// scale, not by the diagonal, which the stretch stiffness EA / l dominates: a shift of even 1e-10
+/// of that would swamp the bending and stall Newton on a stiff, fine rod.
+double FactorShifted(const BandedSymmetric& H, double base, BandedCholesky* factor,
+                     double* last_failed) {
+  *last_failed = -1.0;
+  const double diag_scale = H.band().row(0).cwiseAbs().maxCoeff();
+  if (!std::isfinite(diag_scale) || !H.band().allFinite()) return -1.0;
+  const double cap = 1e6 * std::max(diag_scale, 1e-300);
+  double shift = 0.0;
+  for (int k = 0; k < 80; ++k) {  // 0, then base .. cap in decades
+    if (factor->Factor(H, shift)) return shift;
+    *last_failed = shift;
+    shift = (shift == 0.0) ? std::min(base, cap) : shift * 10.0;
+    if (shift > cap) break;
+  }
+  return -1.0;
+}
+
+/// Looks for a direction of negative curvature of H (held rows excluded) at a state the shifted
+/// factorisation `shifted` (H + shift I, shift > 0) was made for: bisects the shift down to the
+/// smallest that factors, then inverse iteration with it. Returns the Rayleigh quotient of the
+/// direction found (d, scaled to max |d| = 1).
+double NegativeCurvature(const BandedSymmetric& H, double shift_ok, double shift_failed,
+                         BandedCholesky* factor, VecX* d) {
+  double lo = std::max(shift_failed, 0.0), hi = shift_ok;
+  BandedCholesky probe;
+  for (int k = 0; k < 12 && hi > 1.0001 * lo; ++k) {
+    const double mid = lo > 0.0 ? std::sqrt(lo * hi) : 0.5 * hi;
+    if (probe.Factor(H, mid)) {
+      hi = mid;
+      *factor = probe;
+    } else {
+      lo = mid;
+    }
+  }
+  if (!factor->Factor(H, hi)) return 0.0;
+  *d = VecX::Ones(H.size());
+  for (int k = 0; k < d->size(); k += 3) (*d)[k] = -0.5;  // fixed, non-symmetric start
+  double rq = 0.0;
+  for (int it = 0; it < 40; ++it) {
+    *d = factor->Solve(*d);
+    const double scale = d->cwiseAbs().maxCoeff();
+    if (!(scale > 0) || !std::isfinite(scale)) return 0.0;
+    *d /= scale;
+    const double q = d->dot(H.Multiply(*d)) / d->squaredNorm();
+    if (it > 3 && std::abs(q - rq) <= 1e-6 * std::abs(q)) {
+      rq = q;
+      break;
+    }
+    rq = q;
+  }
+  return rq;
+}
+
+struct NewtonContext {
+  const RodModel& model;
+  const StaticsOptions& opt;
+  const Tolerances& tol;
+  const std::vector<char>& held;
+};
+
+/// Tries to leave a saddle along d (negative curvature): the first step along +-d, from 0.1 L
+/// down, that lowers Pi beyond round-off. True when taken (*state, *frames and *energy moved).
+bool StepAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& terms, VecX d,
+                                RodState* state, RodFrames* frames, double* energy) {
+  for (int k = 0; k < d.size(); ++k)
+    if (ctx.held[k]) d[k] = 0.0;
+  const double dmax = d.cwiseAbs().maxCoeff();
+  if (!(dmax > 0)) return false;
+  d /= dmax;
+  const double noise = EnergyNoise(ctx.model, *energy);
+  RodState trial;
+  RodFrames trial_frames;
+  for (double a = 0.1 * ctx.model.length(); a > 1e-9 * ctx.model.length(); a *= 0.5) {
+    for (double sgn : {1.0, -1.0}) {
+      if (!ApplyStep(ctx.model, *state, d, sgn * a, &trial)) continue;
+      ComputeRodFrames(ctx.model, trial, &trial_frames);
+      const double e_trial = PotentialEnergyFreshFrames(ctx.model, trial, terms, &trial_frames);
+      if (std::isfinite(e_trial) && e_trial < *energy - 10.0 * noise) {
+        std::swap(*state, trial);
+        std::swap(*frames, trial_frames);
+        *energy = e_trial;
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+/// Newton iterations at one load factor for a conservative case. Returns kConverged with *state
+/// at equilibrium. With StartFactor::kExact, ws->hessian already holds the factor of the
+/// (unshifted) Hessian at *state for this model and load, and ws the energy and gradient there
+/// without dead loads, so the first iteration assembles nothing.
+StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_iterations,
+                        RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
+                        std::string* why, StartFactor start) {
+  const RodModel& model = ctx.model;
+  const StaticsOptions& opt = ctx.opt;
+  const Tolerances& tol = ctx.tol;
+  const int n = model.num_edges();
   EnergyTerms terms;
   terms.load_scale = load_scale;
   VecX g, step;
   BandedSymmetric H;
   RodState trial;
   const bool factor_at_start = (start == StartFactor::kExact);
-  // The gradient cannot be resolved below round-off in the stretch forces, ~ eps EA |x| / l
-  // (|x| the coordinates' size): accept that floor when it is above the requested tolerance.
-  double coord = model.length();
-  for (int i = 0; i < state->x.cols(); ++i) coord = std::max(coord, state->x.col(i).cwiseAbs().maxCoeff());
-  const double roundoff_floor = 16.0 * std::numeric_limits<double>::epsilon() *
-                                model.material().stretch_stiffness * coord /
-                                model.rest_edge_length(0);
-  const double force_tol =
-      std::max(opt.gradient_tolerance * model.force_scale(), roundoff_floor);
+  const double force_tol = tol.force;
   // Frames of the current state and of the trial, each computed once and shared by the energy
-  // and the assembly at that state.
-  // (With the kept factor the first iteration needs no frames; later states arrive with theirs.)
+  // and the assembly at that state. (With the kept factor the first iteration needs no frames;
+  // later states arrive with theirs.)
   RodFrames frames, trial_frames;
   if (!factor_at_start) ComputeRodFrames(model, *state, &frames);
   double energy = factor_at_start ? ws->factor_unloaded_energy +
                                         DeadLoadEnergy(model, *state, load_scale)
                                   : PotentialEnergyFreshFrames(model, *state, terms, &frames);
+  if (!std::isfinite(energy)) {
+    *why = "non-finite energy (the values are too large to represent)";
+    return StepResult::kFailed;
+  }
   // On convergence, keeps Pi and its gradient without the dead loads with the factor.
-  auto converged = [&]() {
+  auto converged = [&](bool stable) {
+    summary->stable = stable;
     ws->factor_unloaded_energy = energy - DeadLoadEnergy(model, *state, load_scale);
     ws->factor_unloaded_gradient = g;
-    AddDeadLoadGradient(model, -load_scale, /*hold_grasp=*/true, &ws->factor_unloaded_gradient);
+    AddDeadLoadGradient(model, -load_scale, /*hold=*/true, &ws->factor_unloaded_gradient);
     return StepResult::kConverged;
   };
   // Chord steps (see ChordStep) converge linearly, at about the rate r = |g_k| / |g_k-1| of the
@@ -156,19 +325,17 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
   // after a chord; r^2 |g| after a Newton step, which converges quadratically with an unknown
   // constant, so below ten times the tolerance), the Hessian is assembled straight away: it is
   // needed at the solution anyway, where its factor is kept. A chord step that fails any test is
-  // not taken and Newton resumes. A fixed grasp (Dirichlet rows) keeps to Newton.
+  // not taken and Newton resumes. Held points (Dirichlet rows) keep to Newton.
   constexpr double kChordRate = 0.1;
   auto chord_pays = [&](double rate, double gnorm) {
     return rate <= kChordRate && rate * gnorm <= force_tol;
   };
-  // The workspace's factor is an unshifted Hessian factor with its tangents in
-  // ws->factor_tangents.
-  bool chord_basis = opt.chord_steps && model.grasp_vertex() < 1 && start != StartFactor::kNone &&
-                     ws->factor_tangents.cols() == model.num_edges();
+  const bool chords_allowed = opt.chord_steps && model.held().empty() && !model.has_end_clamp();
+  bool chord_basis = chords_allowed && start != StartFactor::kNone &&
+                     ws->factor_tangents.cols() == n;
   bool last_step_full = false, last_step_chord = false;
   double g_last = std::numeric_limits<double>::quiet_NaN(), g_before_last = g_last;
   constexpr int kMaxSaddleEscapes = 5;
-  int escapes = 0;
   for (int it = 0; it < max_iterations; ++it) {
     const bool reuse = (it == 0 && factor_at_start);
     bool chord = false;
@@ -188,7 +355,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
     }
     if (chord) {
       AssembleGradient(model, *state, terms, &g, &frames);
-      const double gnorm = ScaledGradientNorm(model, g);
+      const double gnorm = tol.Norm(g);
       summary->gradient_norm = gnorm;
       summary->energy = energy;
       // The first chord step of a solve from the kept factor of another model has no rate yet.
@@ -197,7 +364,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       if (std::isfinite(gnorm) && gnorm > force_tol && progress &&
           ChordStep(ws->hessian, ws->factor_tangents, frames, g, &step)) {
         const double slope = g.dot(step);
-        const double noise = 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
+        const double noise = EnergyNoise(model, energy);
         if (slope < 0.0 && MaxTangentTurn(model, *state, step) <= opt.max_rotation_per_step &&
             ApplyStep(model, *state, step, 1.0, &trial)) {
           ComputeRodFrames(model, trial, &trial_frames);
@@ -223,11 +390,11 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
     }
     if (reuse) {
       g = ws->factor_unloaded_gradient;
-      AddDeadLoadGradient(model, load_scale, /*hold_grasp=*/true, &g);
+      AddDeadLoadGradient(model, load_scale, /*hold=*/true, &g);
     } else {
       AssembleHessian(model, *state, terms, &g, &H, &frames);
     }
-    const double gnorm = ScaledGradientNorm(model, g);
+    const double gnorm = tol.Norm(g);
     summary->gradient_norm = gnorm;
     summary->energy = energy;
     if (!std::isfinite(gnorm)) {
@@ -235,80 +402,50 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
       return StepResult::kFailed;
     }
     // Factor; on failure (indefinite or singular) shift the diagonal, growing the shift tenfold.
-    double shift = 0.0;
-    const double diag_scale =
-        reuse ? 0.0 : std::max(H.band().row(0).cwiseAbs().maxCoeff(), 1e-300);
-    bool shifted = false;
-    while (!reuse && !ws->hessian.Factor(H, shift)) {
-      shift = (shift == 0.0) ? 1e-10 * diag_scale : shift * 10.0;
-      shifted = true;
-      if (shift > 1e6 * diag_scale) {
-        *why = "Hessian could not be made positive definite";
+    double shift = 0.0, shift_failed = -1.0;
+    if (!reuse) {
+      shift = FactorShifted(H, tol.shift_base, &ws->hessian, &shift_failed);
+      if (shift < 0.0) {
+        *why = H.band().allFinite() ? "Hessian could not be made positive definite"
+                                    : "non-finite Hessian";
         return StepResult::kFailed;
       }
     }
+    const bool shifted = shift > 0.0;
     if (!reuse) {
       // The new factor is the chord basis from here on, if it is the Hessian's own.
-      KeepTangents(frames, &ws->factor_tangents);
-      chord_basis = opt.chord_steps && model.grasp_vertex() < 1 && !shifted;
-    }
-    if (gnorm <= force_tol && shifted && escapes < kMaxSaddleEscapes) {
-      // A stationary point with negative curvature is a saddle (a column past its buckling
-      // load, kept straight by symmetry): step along the most negative curvature direction,
-      // found by inverse iteration on the shifted factor, if that lowers Pi.
-      ++escapes;
-      VecX d = VecX::Ones(g.size());
-      for (int k = 0; k < d.size(); k += 3) d[k] = -0.5;  // fixed, non-symmetric start
-      for (int k = 0; k < 4; ++k) {
-        d = ws->hessian.Solve(d);
-        d /= d.cwiseAbs().maxCoeff();
-      }
-      const double scale = 0.1 * model.rest_edge_length(0);
-      bool escaped = false;
-      for (double sgn : {1.0, -1.0}) {
-        for (double a = scale; a > 1e-6 * scale && !escaped; a *= 0.5) {
-          if (!ApplyStep(model, *state, d, sgn * a, &trial)) continue;
-          ComputeRodFrames(model, trial, &trial_frames);
-          const double e_trial = PotentialEnergyFreshFrames(model, trial, terms, &trial_frames);
-          const double noise = 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
-          if (e_trial < energy - 10.0 * noise) {
-            escaped = true;
-            energy = e_trial;
-          }
-        }
-        if (escaped) break;
-      }
-      if (escaped) {
-        std::swap(*state, trial);
-        std::swap(frames, trial_frames);
-        ++summary->iterations;
-        last_step_full = false;
-        continue;
-      }
-      // No step along the most negative curvature lowers Pi beyond round-off: that curvature is
-      // round-off around a neutral direction (e.g. an isotropic buckled column turning about its
-      // load axis), not a saddle. Stable, but the shifted factor is not the Hessian's own.
-      if (gnorm <= force_tol) {
-        ws->factor_valid = false;
-        summary->stable = true;
-        return converged();
-      }
-    }
-    if (gnorm <= force_tol) {
-      ws->factor_valid = !shifted;
-      summary->stable = !shifted;
-      return converged();
+      KeepTangents(frames, n, &ws->factor_tangents);
+      chord_basis = chords_allowed && !shifted;
     }
     step = -ws->hessian.Solve(g);
-    if (gnorm <= 1e-5 * model.force_scale()) {
-      double dx = 0.0, dtheta = 0.0;
-      for (int k = 0; k < step.size(); ++k)
-        ((k % 4 == 3) ? dtheta : dx) = std::max((k % 4 == 3) ? dtheta : dx, std::abs(step[k]));
-      if (dx <= opt.step_tolerance * model.rest_edge_length(0) && dtheta <= opt.step_tolerance) {
-        ws->factor_valid = !shifted;
-        summary->stable = !shifted;
-        return converged();
+    if (!shifted && tol.Converged(gnorm, step)) {
+      ws->factor_valid = true;
+      return converged(true);
+    }
+    // With a shift the step is nearly Newton's except along the negative directions.
+    if (shifted && tol.Converged(gnorm, step)) {
+      // A stationary point with negative curvature is a saddle (a column past its buckling
+      // load, kept straight by symmetry): find the most negative curvature direction and, if
+      // asked, step along it. No step that lowers Pi beyond round-off means the curvature is
+      // round-off around a neutral direction (e.g. an isotropic buckled column turning about
+      // its load axis): stable, though the factor is then not the Hessian's own.
+      VecX d;
+      BandedCholesky probe;
+      const double rq = NegativeCurvature(H, shift, shift_failed, &probe, &d);
+      const double amplitude = 0.01 * model.length() / std::max(d.cwiseAbs().maxCoeff(), 1e-300);
+      const bool clearly_negative =
+          rq < 0.0 && 0.5 * -rq * d.squaredNorm() * amplitude * amplitude >
+                          100.0 * EnergyNoise(model, energy);
+      if (opt.escape_saddles && summary->saddle_escapes < kMaxSaddleEscapes &&
+          StepAlongNegativeCurvature(ctx, terms, d, state, &frames, &energy)) {
+        ++summary->saddle_escapes;
+        ++summary->iterations;
+        last_step_full = false;
+        chord_basis = false;
+        continue;
       }
+      ws->factor_valid = false;
+      return converged(!clearly_negative);
     }
     const double slope = g.dot(step);
     double alpha = 1.0;
@@ -316,7 +453,7 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
     if (turn > opt.max_rotation_per_step) alpha = opt.max_rotation_per_step / turn;
     // Near convergence Pi changes by round-off only; allow that much so that Newton's final
     // quadratically convergent steps are not rejected by noise.
-    const double noise = 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
+    const double noise = EnergyNoise(model, energy);
     bool accepted = false;
     for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
       if (!ApplyStep(model, *state, step, alpha, &trial)) continue;
@@ -330,11 +467,11 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
     }
     ++summary->iterations;
     if (!accepted) {
-      // A converged-looking state whose step cannot lower Pi further is at round-off level.
-      if (gnorm <= 1e3 * force_tol) {
-        ws->factor_valid = !shifted;
-        summary->stable = !shifted;
-        return converged();
+      // A state whose unshifted Newton step is within 1e3 of the step tolerance and cannot
+      // lower Pi further is at round-off level.
+      if (!shifted && tol.SmallStep(step, 1e3)) {
+        ws->factor_valid = true;
+        return converged(true);
       }
       *why = "line search failed";
       return StepResult::kFailed;
@@ -350,11 +487,289 @@ StepResult NewtonAtLoad(const RodModel& model, const StaticsOptions& opt, double
   return StepResult::kIterationCap;
 }
 
+/// Newton on the balance of a case with moments: the tangent is not symmetric (banded LU), and
+/// the line search is on the weighted residual 1/2 |W r|^2, for which the Newton step is a
+/// descent direction with slope -|W r|^2.
+StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, int max_iterations,
+                                 RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
+                                 std::string* why) {
+  const RodModel& model = ctx.model;
+  const StaticsOptions& opt = ctx.opt;
+  const Tolerances& tol = ctx.tol;
+  EnergyTerms terms;
+  terms.load_scale = load_scale;
+  VecX g, g_trial, step;
+  BandedSymmetric H;
+  BandedMatrix J;
+  RodState trial;
+  RodFrames frames, trial_frames;
+  ComputeRodFrames(model, *state, &frames);
+  auto merit = [&](const VecX& r) {
+    double m = 0.0;
+    for (int k = 0; k < r.size(); ++k) m += 0.5 * std::pow(tol.weights[k] * r[k], 2);
+    return m;
+  };
+  for (int it = 0; it < max_iterations; ++it) {
+    AssembleBalance(model, *state, frames, load_scale, &g, &J, &H);
+    const double gnorm = tol.Norm(g);
+    summary->gradient_norm = gnorm;
+    summary->energy = PotentialEnergyFreshFrames(model, *state, terms, &frames);
+    if (!std::isfinite(gnorm) || !J.AllFinite()) {
+      *why = "non-finite residual or tangent";
+      return StepResult::kFailed;
+    }
+    // LU of J, shifted towards the identity where it is singular.
+    const double diag = J.MaxDiagonal();
+    double shift = 0.0;
+    bool factored = false;
+    for (int k = 0; k < 40 && !factored; ++k) {
+      BandedMatrix Js = J;
+      if (shift > 0.0)
+        for (int r = 0; r < Js.size(); ++r) Js.At(r, r) += shift;
+      factored = ws->tangent.Factor(Js);
+      if (!factored) {
+        shift = shift == 0.0 ? std::min(tol.shift_base, std::max(diag, 1e-300)) : 10.0 * shift;
+        if (shift > 1e6 * std::max(diag, 1e-300)) break;
+      }
+    }
+    if (!factored) {
+      *why = "the tangent could not be factored";
+      return StepResult::kFailed;
+    }
+    const bool shifted = shift > 0.0;
+    auto finish = [&]() {
+      // Stable when the symmetric part of the tangent is positive definite (all eigenvalues of
+      // the tangent then have positive real parts).
+      BandedCholesky sym;
+      summary->stable = !shifted && sym.Factor(J.SymmetricPart(1));
+      ws->tangent_valid = !shifted;
+      return StepResult::kConverged;
+    };
+    step = -ws->tangent.Solve(g);
+    if (!shifted && tol.Converged(gnorm, step)) return finish();
+    if (gnorm <= tol.strict) return finish();  // shifted: a singular tangent at a solution
+    double alpha = 1.0;
+    const double turn = MaxTangentTurn(model, *state, step);
+    if (turn > opt.max_rotation_per_step) alpha = opt.max_rotation_per_step / turn;
+    const double m0 = merit(g);
+    bool accepted = false;
+    for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
+      if (!ApplyStep(model, *state, step, alpha, &trial)) continue;
+      ComputeRodFrames(model, trial, &trial_frames);
+      AssembleBalance(model, trial, trial_frames, load_scale, &g_trial, nullptr, nullptr);
+      const double m1 = merit(g_trial);
+      if (std::isfinite(m1) && m1 <= (1.0 - 2.0 * opt.armijo * alpha) * m0 + 1e-24 * m0) {
+        accepted = true;
+        break;
+      }
+    }
+    ++summary->iterations;
+    if (!accepted) {
+      if (!shifted && tol.SmallStep(step, 1e3)) return finish();
+      *why = "line search failed";
+      return StepResult::kFailed;
+    }
+    std::swap(*state, trial);
+    std::swap(frames, trial_frames);
+  }
+  *why = "iteration limit reached";
+  return StepResult::kIterationCap;
+}
+
+StepResult NewtonAny(const NewtonContext& ctx, double load_scale, int max_iterations,
+                     RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
+                     std::string* why, StartFactor start) {
+  if (ctx.model.nonconservative())
+    return NewtonNonconservative(ctx, load_scale, max_iterations, state, ws, summary, why);
+  return NewtonAtLoad(ctx, load_scale, max_iterations, state, ws, summary, why, start);
+}
+
+/// Full load first; on failure, load continuation from the unloaded equilibrium.
+StepResult SolveAtBoundary(const NewtonContext& ctx, RodState* state, StaticsWorkspace* ws,
+                           StaticsSummary* summary, std::string* why, StartFactor start,
+                           int* budget_used) {
+  const StaticsOptions& opt = ctx.opt;
+  const RodState initial = *state;
+  const int first_iterations = summary->iterations;
+  auto budget = [&]() { return opt.max_iterations - (summary->iterations - first_iterations) - *budget_used; };
+  StepResult r = NewtonAny(ctx, 1.0, std::max(1, budget()), state, ws, summary, why, start);
+  if (r == StepResult::kConverged) return r;
+  *state = initial;
+  int load_steps = 0;
+  double done = 0.0, increment = 0.25;
+  bool have_base = false;
+  while (load_steps < opt.max_load_steps) {
+    if (budget() <= 0) break;
+    const double target = have_base ? std::min(1.0, done + increment) : 0.0;
+    RodState saved = *state;
+    const int per_step = std::min(budget(), 50);
+    r = NewtonAny(ctx, target, per_step, state, ws, summary, why, StartFactor::kNone);
+    ++load_steps;
+    summary->load_steps = load_steps;
+    if (r == StepResult::kConverged) {
+      if (!have_base) {
+        have_base = true;
+        continue;
+      }
+      done = target;
+      if (done >= 1.0) return r;
+      increment = std::min(0.5, increment * 1.5);
+    } else {
+      *state = saved;
+      if (!have_base) break;  // cannot even find the unloaded equilibrium
+      increment *= 0.25;
+      if (increment < 1e-6) break;
+    }
+  }
+  if (summary->iterations - first_iterations >= opt.max_iterations) *why += " (iteration cap)";
+  return StepResult::kFailed;
+}
+
+// The held boundary: the clamp's position and frame, the held vertices' positions and the end
+// clamp's frame (d3, d1; for a free-turning end only d3 matters).
+struct Boundary {
+  Vec3 clamp_p;
+  Eigen::Matrix3d clamp_R;  // [d1 d2 d3]
+  std::vector<Vec3> held;
+  Eigen::Matrix3d end_R = Eigen::Matrix3d::Identity();
+};
+
+Eigen::Matrix3d FrameOf(const Vec3& d1, const Vec3& d3) {
+  Eigen::Matrix3d R;
+  R << d1, d3.cross(d1), d3;
+  return R;
+}
+
+Boundary StateBoundary(const RodModel& model, const RodState& s) {
+  Boundary b;
+  b.clamp_p = s.x.col(0);
+  b.clamp_R = FrameOf(s.clamp_d1, s.clamp_t);
+  for (const HeldVertex& h : model.held()) b.held.push_back(s.x.col(h.vertex));
+  if (model.has_end_clamp()) {
+    const Vec3 d1 = std::cos(s.end_theta) * s.end_u + std::sin(s.end_theta) * s.end_t.cross(s.end_u);
+    b.end_R = FrameOf(d1, s.end_t);
+  }
+  return b;
+}
+
+Boundary TargetBoundary(const RodModel& model, const RodState& s) {
+  Boundary b;
+  b.clamp_p = model.clamp_position();
+  b.clamp_R = FrameOf(model.clamp_d1(), model.clamp_tangent());
+  for (const HeldVertex& h : model.held()) b.held.push_back(h.target);
+  if (model.has_end_clamp()) {
+    if (model.end_twist_held()) {
+      b.end_R = FrameOf(model.end_d1(), model.end_tangent());
+    } else {
+      // Only the tangent is held: turn the state's end frame by the smallest rotation.
+      const Boundary now = StateBoundary(model, s);
+      const Eigen::Matrix3d turn =
+          Eigen::Quaterniond::FromTwoVectors(Vec3(now.end_R.col(2)), model.end_tangent())
+              .toRotationMatrix();
+      b.end_R = turn * now.end_R;
+    }
+  }
+  return b;
+}
+
+double RotationAngle(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
+  return Eigen::AngleAxisd(B * A.transpose()).angle();
+}
+
+// A = the largest move [m] and B = the largest turn [rad] between two boundaries.
+void BoundaryDistance(const Boundary& a, const Boundary& b, double* move, double* turn) {
+  *move = (a.clamp_p - b.clamp_p).norm();
+  for (size_t k = 0; k < a.held.size(); ++k) *move = std::max(*move, (a.held[k] - b.held[k]).norm());
+  *turn = std::max(RotationAngle(a.clamp_R, b.clamp_R), RotationAngle(a.end_R, b.end_R));
+}
+
+Eigen::Matrix3d Slerp(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B, double t) {
+  const Eigen::Quaterniond qa(A), qb(B);
+  return qa.slerp(t, qb).toRotationMatrix();
+}
+
+/// Moves *state's boundary from `from` to the interpolation of from -> to at t: the clamp's
+/// motion moves the whole rod rigidly, and each held vertex's displacement is spread linearly
+/// in arc length over the free vertices since the previous held point (the rod beyond the last
+/// one moves with it). Reference frames are transported in time.
+bool MoveBoundary(const RodModel& model, const Boundary& from, const Boundary& to, double t,
+                  RodState* state) {
+  const int n = model.num_edges();
+  const RodState before = *state;
+  const Vec3 p = (1 - t) * from.clamp_p + t * to.clamp_p;
+  const Eigen::Matrix3d R = Slerp(from.clamp_R, to.clamp_R, t);
+  const Eigen::Matrix3d rigid = R * from.clamp_R.transpose();
+  const Vec3 p_now = state->x.col(0);
+  for (int i = 0; i <= n; ++i) state->x.col(i) = p + rigid * (state->x.col(i) - p_now);
+  state->clamp_t = R.col(2);
+  state->clamp_d1 = R.col(0);
+  // Held vertices: displacement spread by arc length since the previous anchor.
+  int prev_vertex = 0;
+  Vec3 prev_disp = Vec3::Zero();
+  const auto& held = model.held();
+  for (size_t k = 0; k < held.size(); ++k) {
+    const int v = held[k].vertex;
+    const Vec3 target = (1 - t) * from.held[k] + t * to.held[k];
+    const Vec3 disp = target - state->x.col(v);
+    const double s0 = model.arc_length(prev_vertex), s1 = model.arc_length(v);
+    for (int i = prev_vertex + 1; i <= v; ++i) {
+      const double a = (model.arc_length(i) - s0) / (s1 - s0);
+      state->x.col(i) += (1 - a) * prev_disp + a * disp;
+    }
+    state->x.col(v) = target;
+    prev_vertex = v;
+    prev_disp = disp;
+  }
+  for (int i = prev_vertex + 1; i <= n; ++i) state->x.col(i) += prev_disp;
+  state->SyncEdges();
+  if (model.has_end_clamp()) {
+    const Eigen::Matrix3d E = Slerp(from.end_R, to.end_R, t);
+    // The ghost's reference director is transported in time; its twist angle keeps the frame.
+    const Vec3 t_new = E.col(2);
+    Vec3 u = ParallelTransport<double, double>(state->end_t, t_new, state->end_u);
+    u = (u - u.dot(t_new) * t_new).normalized();
+    state->end_t = t_new;
+    state->end_u = u;
+    state->end_theta = SignedAngle<double>(u, Vec3(E.col(0)), t_new);
+  }
+  // The reference frames follow the rigid motion, then the edges' own turns.
+  RodState rotated = before;
+  for (int j = 0; j < n; ++j) {
+    rotated.ref_t.col(j) = rigid * before.ref_t.col(j);
+    rotated.ref_u.col(j) = rigid * before.ref_u.col(j);
+  }
+  return UpdateReferenceFrames(model, rotated, state);
+}
+
+/// Makes a state from an older layout usable (edges, end frames, twist sizes).
+void PrepareState(const RodModel& model, RodState* s) {
+  const int n = model.num_edges();
+  if (s->e.cols() != n) s->SyncEdges();
+  if (s->ref_twist.size() != n + 1) {
+    const VecX old = s->ref_twist;
+    s->ref_twist.setZero(n + 1);
+    s->ref_twist.head(std::min<int>(n, old.size())) = old.head(std::min<int>(n, old.size()));
+  }
+  if (model.has_end_clamp() && s->end_t.squaredNorm() == 0.0) {
+    s->end_t = s->ref_t.col(n - 1);
+    s->end_u = s->ref_u.col(n - 1);
+    s->end_theta = s->theta[n - 1];
+    UpdateReferenceFrames(model, *s, s);
+  }
+}
+
 }  // namespace
+
+void BalanceResidual(const RodModel& model, const RodState& state, VecX* residual) {
+  RodFrames frames;
+  ComputeRodFrames(model, state, &frames);
+  AssembleBalance(model, state, frames, 1.0, residual, nullptr, nullptr);
+}
 
 StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options, RodState* state,
                             StaticsWorkspace* workspace) {
   StaticsSummary summary;
+  summary.nonconservative = model.nonconservative();
   std::string why;
   if (!options.Check(&why)) {
     summary.reason = "invalid options: " + why;
@@ -364,16 +779,24 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     summary.reason = "state does not match the model's segment count";
     return summary;
   }
+  if (!state->x.allFinite() || !state->theta.allFinite()) {
+    summary.reason = "the start state has non-finite values";
+    return summary;
+  }
+  PrepareState(model, state);
   StaticsWorkspace local;
   StaticsWorkspace* ws = workspace ? workspace : &local;
+  const Tolerances tol = MakeTolerances(model, options);
+  const std::vector<char> held = HeldDofs(model);
+  const NewtonContext ctx{model, options, tol, held};
   // The kept factor belongs to factor_state: from exactly that state it is the Hessian there
   // (same digest) or a chord basis (a model with other stiffnesses).
   StartFactor start_factor = StartFactor::kNone;
-  if (ws->factor_valid && SameState(ws->factor_state, *state))
+  if (ws->factor_valid && !model.nonconservative() && SameState(ws->factor_state, *state))
     start_factor = (ws->factor_digest == model.hessian_digest()) ? StartFactor::kExact
                                                                  : StartFactor::kChord;
   ws->factor_valid = false;
-  // Keeps the factor's provenance with it: the state and model it was made for.
+  ws->tangent_valid = false;
   auto converged = [&](const char* reason) {
     summary.converged = true;
     summary.reason = reason;
@@ -383,46 +806,65 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     }
     return summary;
   };
+  auto failed = [&](const std::string& reason) {
+    summary.converged = false;
+    summary.reason = reason;
+    ws->factor_valid = false;
+    ws->tangent_valid = false;
+    return summary;
+  };
 
-  // Full load first; on failure, continuation from the unloaded equilibrium.
-  const RodState start = *state;
-  int budget = options.max_iterations;
-  StepResult r =
-      NewtonAtLoad(model, options, 1.0, budget, state, ws, &summary, &why, start_factor);
-  if (r == StepResult::kConverged) return converged("gradient below tolerance");
-  *state = start;
-  summary.load_steps = 0;
-  double done = 0.0, increment = 0.25;
-  bool have_base = false;
-  while (summary.load_steps < options.max_load_steps) {
-    budget = options.max_iterations - summary.iterations;
-    if (budget <= 0) break;
-    const double target = have_base ? std::min(1.0, done + increment) : 0.0;
-    RodState saved = *state;
-    const int per_step = std::min(budget, 50);
-    r = NewtonAtLoad(model, options, target, per_step, state, ws, &summary, &why,
-                     StartFactor::kNone);
-    ++summary.load_steps;
-    if (r == StepResult::kConverged) {
-      if (!have_base) {
-        have_base = true;
-        continue;
+  // Continuation of the held boundary from the state's to the model's.
+  const Boundary start = StateBoundary(model, *state), target = TargetBoundary(model, *state);
+  double move = 0.0, turn = 0.0;
+  BoundaryDistance(start, target, &move, &turn);
+  int budget_used = 0;
+  if (move > 1e-12 * model.length() || turn > 1e-12) {
+    start_factor = StartFactor::kNone;
+    double done = 0.0;
+    const int planned = static_cast<int>(std::ceil(std::max(
+        move / (options.continuation_move * model.length()), turn / options.continuation_turn)));
+    double step = 1.0 / std::max(1, planned);
+    while (done < 1.0) {
+      if (summary.continuation_steps >= options.max_continuation_steps)
+        return failed("the held points did not reach their targets within " +
+                      std::to_string(options.max_continuation_steps) + " continuation steps");
+      const double next = std::min(1.0, done + step);
+      RodState trial = *state;
+      // Interpolate from the start boundary: the boundary at `done` is the state's own.
+      const Boundary now = StateBoundary(model, *state);
+      const double t_rel = (next - done) / (1.0 - done);
+      bool ok = MoveBoundary(model, now, target, t_rel, &trial);
+      StepResult r = StepResult::kFailed;
+      StaticsSummary attempt = summary;
+      if (ok) r = SolveAtBoundary(ctx, &trial, ws, &attempt, &why, StartFactor::kNone, &budget_used);
+      ++summary.continuation_steps;
+      if (r == StepResult::kConverged) {
+        attempt.continuation_steps = summary.continuation_steps;
+        summary = attempt;
+        *state = trial;
+        done = next;
+        step = std::min(2.0 * step, 1.0);
+      } else {
+        summary.iterations = attempt.iterations;
+        step *= 0.5;
+        if (step < 1e-5)
+          return failed("the held points could not be moved to their targets (continuation "
+                        "stalled at " + std::to_string(static_cast<int>(100 * done)) +
+                        " %: " + why + ")");
       }
-      done = target;
-      if (done >= 1.0) return converged("gradient below tolerance (load continuation)");
-      increment = std::min(0.5, increment * 1.5);
-    } else {
-      *state = saved;
-      if (!have_base) break;  // cannot even find the unloaded equilibrium
-      increment *= 0.25;
-      if (increment < 1e-6) break;
+      if (summary.iterations >= options.max_iterations * 20)
+        return failed("iteration cap reached while moving the held points to their targets");
     }
+    if (!summary.stable) why = "unstable";
+    return converged("gradient below tolerance (after continuation of the held points)");
   }
-  summary.converged = false;
-  summary.reason = "no equilibrium found: " + why +
-                   (summary.iterations >= options.max_iterations ? " (iteration cap)" : "");
-  ws->factor_valid = false;
-  return summary;
+
+  const StepResult r = SolveAtBoundary(ctx, state, ws, &summary, &why, start_factor, &budget_used);
+  if (r == StepResult::kConverged)
+    return converged(summary.load_steps > 1 ? "gradient below tolerance (load continuation)"
+                                            : "gradient below tolerance");
+  return failed("no equilibrium found: " + why);
 }
 
 }  // namespace rodfit

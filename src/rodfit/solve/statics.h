@@ -1,8 +1,11 @@
-// Quasi-static equilibrium of a RodModel: Newton on the free dofs with a banded Cholesky
-// factorisation (O(n) per iteration), Armijo line search on the potential energy, a diagonal
-// shift when the Hessian is indefinite, load continuation when a full-load step fails, and a
-// hard iteration cap (DESIGN.md §2). The factorisation at the solution is kept in the workspace
-// for sensitivities dx/dp = -H^{-1} dg/dp.
+// Quasi-static equilibrium of a RodModel (docs/solvers.md): Newton on the free dofs with a
+// banded Cholesky factorisation (O(n) per iteration), Armijo line search on the potential
+// energy, a diagonal shift when the Hessian is indefinite, an escape from saddles along their
+// negative curvature, load continuation when a full-load step fails, continuation of held
+// points from where the start state has them, and a hard cap on every loop. A case that carries
+// moments has no potential: its balance is solved with the non-symmetric tangent (banded LU) and
+// a line search on the residual. The factorisation at the solution is kept in the workspace for
+// sensitivities dx/dp = -K^{-1} dg/dp.
 #pragma once
 
 #include <string>
@@ -14,18 +17,27 @@ namespace rodfit {
 
 struct StaticsOptions {
   int max_iterations = 300;            ///< Newton iterations in all, over every load step
-  /// Converged when the largest free generalised force is below this times the case's
-  /// force scale (moments divided by the rod length). Relative, dimensionless.
+  /// Converged when ScaledGradientNorm (the largest free generalised force per length, times L)
+  /// is below this times the case's load scale (RodModel::force_scale). Relative.
   double gradient_tolerance = 1e-9;
-  /// Also converged when the Newton step (the distance to the solution once Newton converges
-  /// quadratically) is below this times the edge length on positions and this in radians on
-  /// twist, and the gradient is below 1e-5 of the force scale. Stiff stretch (EA L^2 / EI >> 1)
-  /// puts a round-off floor of ~ eps EA |x| / l on the gradient that the first test cannot pass.
+  /// Also converged when an unshifted Newton step (the distance to the solution once Newton
+  /// converges quadratically) is below this times the rod length on positions and this in
+  /// radians on twist, or below 1e3 times that where the gradient is at its round-off floor: a
+  /// stiff stretch (EA L^2 / EI >> 1) leaves a floor of ~eps EA on each force that the first test
+  /// may not pass, while the state is as exact as doubles allow.
   double step_tolerance = 1e-9;
   int max_line_search_steps = 30;      ///< halvings before a step counts as failed
   double armijo = 1e-4;                ///< sufficient-decrease constant
   int max_load_steps = 64;             ///< load increments before giving up on continuation
   double max_rotation_per_step = 0.5;  ///< [rad] cap on any tangent's turn in one Newton step
+  /// Continuation of held points and clamp frames from the start state to their targets: the
+  /// largest move per step, as a fraction of the rod length and in radians, and the cap on steps.
+  double continuation_move = 0.1;
+  double continuation_turn = 0.3;
+  int max_continuation_steps = 2000;
+  /// Leave a saddle (a converged state with a negative curvature direction, such as a straight
+  /// column past its buckling load) along that direction. Off: report it as unstable.
+  bool escape_saddles = true;
   /// Between Newton steps, take chord steps with the last factor (carried to the current edge
   /// directions, see statics.cc) while they converge fast; the Hessian is always assembled and
   /// factored at the solution, so the result and the kept factor do not depend on this.
@@ -37,23 +49,30 @@ struct StaticsSummary {
   bool converged = false;
   int iterations = 0;            ///< Newton iterations (chord steps included)
   int chord_steps = 0;           ///< of which chord steps (StaticsOptions::chord_steps)
-  /// False when the equilibrium found is not a minimum (the Hessian there is indefinite, e.g. a
-  /// column loaded past its buckling load and kept perfectly straight). Such a state is an
-  /// equilibrium, but an experiment would not show it.
+  /// False when the equilibrium found is not a minimum: the Hessian (for a case with moments,
+  /// the symmetric part of the tangent) has a negative direction, e.g. a column loaded past its
+  /// buckling load and held straight. Such a state is an equilibrium, but an experiment would not
+  /// show it.
   bool stable = true;
+  bool nonconservative = false;  ///< the case carries moments (non-symmetric tangent)
   int load_steps = 1;            ///< load increments used (1 = solved at full load directly)
-  double gradient_norm = 0.0;    ///< [N] largest free generalised force at exit (moments / L)
-  double energy = 0.0;           ///< [J] potential energy at exit
+  int continuation_steps = 0;    ///< steps that moved held points / clamps to their targets
+  int saddle_escapes = 0;        ///< steps taken along a negative curvature
+  double gradient_norm = 0.0;    ///< [N] ScaledGradientNorm at exit
+  double energy = 0.0;           ///< [J] potential energy at exit (conservative part)
   std::string reason;            ///< why the solver stopped
   bool IsUsable() const { return converged; }
   std::string BriefReport() const;
 };
 
-/// Scratch kept between solves; after a converged solve `hessian` holds the Cholesky factor of
-/// the (unshifted) Hessian at the solution when `factor_valid` is true (a stable equilibrium).
+/// Scratch kept between solves; after a converged, stable solve `hessian` holds the Cholesky
+/// factor of the (unshifted) Hessian at the solution when `factor_valid` is true, or, for a case
+/// with moments, `tangent` the LU factor of its tangent when `tangent_valid` is true.
 struct StaticsWorkspace {
   BandedCholesky hessian;
   bool factor_valid = false;
+  BandedLU tangent;
+  bool tangent_valid = false;
   /// The state and model (RodModel::hessian_digest) the kept factor belongs to. A solve that
   /// starts from exactly this state on a model with the same digest (a warm start after a
   /// change of dead loads only) takes its first Newton step with the kept factor, which is the
@@ -69,9 +88,15 @@ struct StaticsWorkspace {
   Eigen::Matrix3Xd factor_tangents;
 };
 
-/// Solves for equilibrium starting from *state (a warm start, or model.StraightState()).
-/// On failure *state is left at the last accepted iterate and the summary says why.
+/// Solves for equilibrium starting from *state (a warm start, model.StraightState(), or a start
+/// shape). Held points, the clamp and an end clamp's frame are moved from where *state has them
+/// to the model's targets by continuation. On failure *state is left at the last accepted
+/// iterate and the summary says why.
 StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options,
                             RodState* state, StaticsWorkspace* workspace = nullptr);
+
+/// The residual of the balance at a state (the gradient of Pi minus the moments' generalised
+/// forces), with held rows zeroed: zero at equilibrium.
+void BalanceResidual(const RodModel& model, const RodState& state, VecX* residual);
 
 }  // namespace rodfit
