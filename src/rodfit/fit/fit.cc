@@ -14,7 +14,9 @@
 #include <ceres/ceres.h>
 #include <nlopt.hpp>
 
+#include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/poke.h"
+#include "rodfit/solve/reactions.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/sensitivity.h"
 #include "rodfit/solve/statics.h"
@@ -166,10 +168,19 @@ class CaseEvaluator {
  public:
   CaseEvaluator(const FitInput& in, int case_index, std::vector<Fitted> fitted,
                 const ceres::LossFunction* loss)
-      : in_(in), case_(in.cases[case_index]), fitted_(std::move(fitted)), loss_(loss) {
+      : in_(in), case_(in.cases[case_index]), fitted_(std::move(fitted)), loss_(loss),
+        statics_(in.statics) {
     for (const auto& obs : case_.observations) num_residuals_ += obs->num_residuals();
-    num_residuals_ += 3 * static_cast<int>(case_.grasp_forces.size());
+    for (const ForceMeasurement& f : case_.grasp_forces) num_residuals_ += f.num_residuals();
     num_residuals_ += 3 * NumSurfacePoints(case_);
+  }
+
+  /// The warm start: the state to start from before the first evaluation (the case's start,
+  /// e.g. the previous case's solution at the start values).
+  void SetWarmStart(const RodState& state) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    warm_ = state;
+    has_warm_ = true;
   }
 
   int num_residuals() const { return num_residuals_; }
@@ -192,25 +203,36 @@ class CaseEvaluator {
   /// residuals: num_residuals(); jacobian (row major num_residuals x m) optional.
   bool Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape) const {
     const Material material = MaterialAt(in_, fitted_, logp);
-    std::unique_ptr<RodModel> model;
+    std::shared_ptr<const RodModel> model;
     try {
-      model = std::make_unique<RodModel>(in_.rod, material, in_.gravity, case_.load_case,
-                                         in_.springs);
+      model = std::make_shared<const RodModel>(in_.rod, material, in_.gravity, case_.load_case,
+                                               in_.springs);
     } catch (const std::invalid_argument&) {
       return false;
     }
+    // The warm state and the kept factor of this case's last solve (one workspace per case: a
+    // parameter change reuses the factor for chord steps, a repeat evaluation converges at once).
     RodState state;
     StaticsWorkspace ws;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      state = has_warm_ ? warm_ : model->StraightState();
+      state = has_warm_ ? warm_ : StartState(*model, nullptr);
+      ws = workspace_;
     }
     Clock::time_point t0 = Clock::now();
-    StaticsSummary summary = SolveStatics(*model, StaticsOptions(), &state, &ws);
-    if (!(summary.converged && summary.stable)) {  // a warm start can mislead: retry cold
-      state = model->StraightState();
-      summary = SolveStatics(*model, StaticsOptions(), &state, &ws);
+    Scene scene;
+    scene.rod = in_.rod;
+    scene.material = material;
+    scene.gravity = in_.gravity;
+    scene.springs = in_.springs;
+    CaseSolution solved = SolveModel(model, scene, nullptr, statics_, &ws, &state);
+    if (!(solved.ok() && solved.summary.stable)) {  // a warm start can mislead: retry from the start
+      RodState start = StartState(*model, nullptr);
+      ws = StaticsWorkspace();
+      solved = SolveModel(model, scene, nullptr, statics_, &ws, &start);
     }
+    state = solved.state;
+    const StaticsSummary& summary = solved.summary;
     Charge(&timing_.solve, &t0);
     ++timing_.solves;
     if (!(summary.converged && summary.stable)) {
@@ -221,7 +243,8 @@ class CaseEvaluator {
     }
     const int m = num_parameters();
     Eigen::MatrixXd dx;
-    Eigen::MatrixXd d_reaction;  // 3 x m: d(force on the instrument) / d log p
+    // Per measured holder: d(reaction) / d log p, 6 x m (force rows, then moment rows).
+    std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
     if (jacobian) {
       // One unit-term gradient per driven stiffness; a parameter's column sums its terms.
       std::vector<EnergyTerms> terms;
@@ -236,37 +259,30 @@ class CaseEvaluator {
           owner.push_back(k);
         }
       }
-      Eigen::MatrixXd dq;
-      dx.setZero(3 * model->num_vertices(), m);
+      Eigen::MatrixXd dq_terms;
+      Eigen::MatrixXd dq = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
       if (!terms.empty()) {  // ring parameters alone leave the rod unchanged
-        if (!TermSensitivities(*model, state, ws, terms, &dq)) return false;
-        const Eigen::MatrixXd dx_all = VertexSensitivities(*model, dq);
-        for (size_t t = 0; t < terms.size(); ++t)
-          dx.col(owner[t]) += dx_all.col(static_cast<int>(t));
+        if (!TermSensitivities(*model, state, ws, terms, &dq_terms)) return false;
+        for (size_t t = 0; t < terms.size(); ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
       }
+      dx = VertexSensitivities(*model, dq);
       if (!case_.grasp_forces.empty()) {
-        // R = -g_k(q, p) at the grasped vertex's (held) dofs, with g the unconstrained gradient:
-        // dR/dlog p = -(d g_k / dlog p at fixed q + H_k. dq/dlog p), H_k. its unconstrained rows.
-        const int d = RodModel::VertexDof(model->grasp_vertex());
-        EnergyTerms all;
-        all.hold = false;
-        VecX g_full;
-        BandedSymmetric H_full;
-        AssembleHessian(*model, state, all, &g_full, &H_full);
-        d_reaction.setZero(3, m);
-        const int p = H_full.bandwidth(), nd = H_full.size();
+        // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
+        // included), the equilibrium's dq, and which spring zones each parameter stiffens.
+        Eigen::MatrixXd dr = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
         for (size_t t = 0; t < terms.size(); ++t) {
           EnergyTerms unit = terms[t];
           unit.hold = false;
           VecX gu;
           AssembleGradient(*model, state, unit, &gu);
-          for (int r = 0; r < 3; ++r) {
-            double hq = 0.0;
-            for (int j = std::max(0, d + r - p); j <= std::min(nd - 1, d + r + p); ++j)
-              hq += H_full.Get(d + r, j) * dq(j, static_cast<int>(t));
-            d_reaction(r, owner[t]) -= gu[d + r] + hq;
-          }
+          dr.col(owner[t]) += gu;
         }
+        std::vector<std::vector<int>> zones(m);
+        for (int k = 0; k < m; ++k)
+          if (fitted_[k].spring)
+            for (int z = 0; z < model->num_spring_zones(); ++z)
+              if (model->spring_zone(z).parameter == fitted_[k].spring_zone_name) zones[k].push_back(z);
+        d_reactions = HeldReactionDerivatives(*model, state, dq, dr, zones);
       }
       Charge(&timing_.jacobian, &t0);
     }
@@ -291,16 +307,24 @@ class CaseEvaluator {
       row += obs->num_residuals();
     }
     if (!case_.grasp_forces.empty()) {
-      const Vec3 reaction = GraspReaction(*model, state);
       for (const ForceMeasurement& f : case_.grasp_forces) {
+        int which = -1;
+        for (size_t h = 0; h < solved.reactions.size(); ++h)
+          if (solved.reactions[h].point == f.point) which = static_cast<int>(h);
+        if (which < 0) return false;  // CheckReactions refuses this up front
+        const HeldReaction& reaction = solved.reactions[which];
+        const int dim = f.num_residuals();
         double* rk = residuals + row;
-        for (int i = 0; i < 3; ++i) rk[i] = (reaction[i] - f.force[i]) / f.sigma;
+        for (int i = 0; i < 3; ++i) rk[i] = (reaction.force[i] - f.force[i]) / f.sigma;
+        if (f.moment)
+          for (int i = 0; i < 3; ++i) rk[3 + i] = (reaction.moment[i] - (*f.moment)[i]) / f.sigma_moment;
         double* Jk = jacobian ? jacobian + row * m : nullptr;
         if (Jk)
-          for (int i = 0; i < 3; ++i)
-            for (int c = 0; c < m; ++c) Jk[i * m + c] = d_reaction(i, c) / f.sigma;
-        ApplyLoss(loss_, 3, rk, Jk, m);
-        row += 3;
+          for (int i = 0; i < dim; ++i)
+            for (int c = 0; c < m; ++c)
+              Jk[i * m + c] = d_reactions[which](i, c) / (i < 3 ? f.sigma : f.sigma_moment);
+        ApplyLoss(loss_, dim, rk, Jk, m);
+        row += dim;
       }
     }
     if (!case_.surface_points.empty() &&
@@ -313,6 +337,7 @@ class CaseEvaluator {
       std::lock_guard<std::mutex> lock(mutex_);
       warm_ = state;
       has_warm_ = true;
+      workspace_ = ws;
     }
     if (shape) *shape = state.x;
     return true;
@@ -407,6 +432,8 @@ class CaseEvaluator {
   mutable std::mutex mutex_;  // guards the warm start only; evaluation is otherwise pure
   mutable RodState warm_;
   mutable bool has_warm_ = false;
+  mutable StaticsWorkspace workspace_;  // the kept factor of the warm state
+  StaticsOptions statics_;
   mutable Timing timing_;  // accumulated under mutex_ by Charge
   mutable std::string last_failure_;
 
@@ -464,6 +491,52 @@ class ProgressCallback final : public ceres::IterationCallback {
   const FitOptions& o_;
   Clock::time_point start_;
 };
+
+// Every measured reaction names a point the case holds.
+void CheckHeldPoints(const FitInput& in, const FitCase& c) {
+  if (c.grasp_forces.empty()) return;
+  std::vector<std::string> points = {"clamp"};
+  try {
+    const RodModel model(in.rod, in.material, in.gravity, c.load_case, in.springs);
+    for (const HeldVertex& h : model.held()) points.push_back(h.Label());
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("case " + c.load_case.name + ": " + e.what());
+  }
+  for (const ForceMeasurement& f : c.grasp_forces) {
+    if (std::find(points.begin(), points.end(), f.point) == points.end())
+      throw std::invalid_argument("case " + c.load_case.name + ": " + f.label + ": the case holds no " +
+                                  f.point);
+    if (f.moment && f.point != "clamp" && f.point != "end_clamp")
+      throw std::invalid_argument("case " + c.load_case.name + ": " + f.label +
+                                  ": a moment is measured only at a clamp");
+  }
+}
+
+// Solves every case once at the start values, in order, so that a case may start from the
+// previous one's solution (`start: previous`) as `simulate` solves it; the solutions become
+// the evaluators' warm starts. A case that fails here is left cold (its evaluation reports why).
+void WarmStartsAtTheStart(const FitInput& in, const std::vector<Fitted>& fitted,
+                          const std::vector<double>& logp,
+                          const std::vector<std::unique_ptr<CaseEvaluator>>& evals) {
+  Scene scene;
+  scene.rod = in.rod;
+  scene.material = MaterialAt(in, fitted, logp.data());
+  scene.gravity = in.gravity;
+  scene.springs = in.springs;
+  std::optional<CaseSolution> previous;
+  for (size_t c = 0; c < in.cases.size(); ++c) {
+    std::optional<CaseSolution> solved;
+    try {
+      auto model = std::make_shared<const RodModel>(scene.rod, scene.material, scene.gravity,
+                                                    in.cases[c].load_case, scene.springs);
+      solved = SolveModel(model, scene, previous ? &*previous : nullptr, in.statics, nullptr,
+                          nullptr);
+    } catch (const std::invalid_argument&) {
+    }
+    if (solved && solved->ok()) evals[c]->SetWarmStart(solved->state);
+    previous = std::move(solved);
+  }
+}
 
 // Log-space search box of a fitted parameter: its bounds, or three decades around the start.
 void SearchBox(const FitParameter& p, double* lo, double* hi) {
@@ -548,11 +621,11 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
                          dynamic_cast<const ImageCurveObservation*>(o.get());
       effective_residuals += o->num_residuals() - (curve ? o->num_measurements() : 0);
     }
-    effective_residuals += 3 * static_cast<int>(c.grasp_forces.size()) + 2 * NumSurfacePoints(c);
-    if (!c.grasp_forces.empty() && !c.load_case.grasp)
-      throw std::invalid_argument("case " + c.load_case.name + ": grasp forces without a grasp");
-    total_residuals += 3 * static_cast<int>(c.grasp_forces.size());
-    total_residuals += 3 * NumSurfacePoints(c);
+    int force_residuals = 0;
+    for (const ForceMeasurement& f : c.grasp_forces) force_residuals += f.num_residuals();
+    effective_residuals += force_residuals + 2 * NumSurfacePoints(c);
+    total_residuals += force_residuals + 3 * NumSurfacePoints(c);
+    CheckHeldPoints(input, c);
   }
   if (total_residuals == 0) throw std::invalid_argument("cases: no observations to fit");
   if (total_residuals <= m)
@@ -563,6 +636,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   for (size_t c = 0; c < input.cases.size(); ++c)
     evals.push_back(
         std::make_unique<CaseEvaluator>(input, static_cast<int>(c), fitted, loss.get()));
+  WarmStartsAtTheStart(input, fitted, logp, evals);
 
   FitResult result;
   auto total_cost = [&](const double* lp, bool* ok) {
@@ -802,12 +876,13 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     // The case's residual vector: observations, then grasp forces, then surface points.
     int offset = 0;
     for (const auto& o : fc.observations) offset += o->num_residuals();
-    if (!fc.grasp_forces.empty()) {
+    if (!fc.grasp_forces.empty()) {  // the force part, in N
       const int nf = static_cast<int>(fc.grasp_forces.size());
       double sum = 0.0;
-      for (int f = 0; f < nf; ++f)
-        sum += (rr.segment<3>(offset + 3 * f) * fc.grasp_forces[f].sigma).squaredNorm();
-      offset += 3 * nf;
+      for (int f = 0; f < nf; ++f) {
+        sum += (rr.segment<3>(offset) * fc.grasp_forces[f].sigma).squaredNorm();
+        offset += fc.grasp_forces[f].num_residuals();
+      }
       ObservationFit of;
       of.case_index = static_cast<int>(c);
       of.case_name = fc.load_case.name;

@@ -18,6 +18,7 @@
 
 #include "rodfit/model/scene.h"
 #include "rodfit/observe/observations.h"
+#include "rodfit/solve/statics.h"
 
 namespace rodfit {
 
@@ -29,11 +30,16 @@ struct FitParameter {
   std::optional<double> min, max;
 };
 
-/// A measured force on the instrument at the case's grasp [N] (a quasi-static haptic sample).
+/// A measured force (and optionally moment) on a holder of the case: the instrument at its
+/// grasp (a quasi-static haptic sample), a pin, an end clamp or end pin, or the clamp.
 struct ForceMeasurement {
-  Vec3 force = Vec3::Zero();  ///< the force the tissue exerts on the instrument [N]
+  Vec3 force = Vec3::Zero();  ///< the force the rod exerts on the holder [N]
   double sigma = 1.0;         ///< [N]
   std::string label;          ///< e.g. "grasp_force drag_log.csv t=1.25"
+  std::string point = "grasp";  ///< HeldReaction::point: clamp, end_clamp, end_pin, pins[k], grasp
+  std::optional<Vec3> moment;   ///< [N m] about the held point, for clamps
+  double sigma_moment = 1.0;    ///< [N m]
+  int num_residuals() const { return moment ? 6 : 3; }
 };
 
 /// Points tracked on the tissue surface around a poke, in the poked cross-section's plane (a
@@ -51,7 +57,7 @@ struct FitCase {
   LoadCase load_case;
   std::vector<std::shared_ptr<const Observation>> observations;
   std::vector<std::string> labels;  ///< one per observation, e.g. "markers3d flat_markers.csv"
-  std::vector<ForceMeasurement> grasp_forces;  ///< needs load_case.grasp
+  std::vector<ForceMeasurement> grasp_forces;  ///< forces on the case's held points
   /// Surface point sets (`surface_points`); need load_case.poke and FitInput::section.
   std::vector<SurfacePoints> surface_points;
 };
@@ -64,6 +70,7 @@ struct FitInput {
   std::optional<SectionSpec> section;  ///< the cross-section model, for surface_points
   std::vector<FitParameter> parameters;
   std::vector<FitCase> cases;
+  StaticsOptions statics;  ///< solver settings of every forward solve
 };
 
 enum class RobustLoss { kNone, kHuber, kCauchy, kSoftL1 };

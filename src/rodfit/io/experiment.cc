@@ -30,9 +30,9 @@ constexpr int kMaxSegments = 1000000;  // far beyond any thread; guards against 
 const std::vector<std::string> kParameterNames = {
     "bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",       "stretch_stiffness",
     "spring_stiffness", "ring_bend_stiffness", "ring_stretch_stiffness"};
-const std::vector<std::string> kObservationTypes = {"markers3d", "points3d", "image_points",
-                                                    "images", "grasp_force",
-                                                    "surface_points"};
+const std::vector<std::string> kObservationTypes = {"markers3d",   "points3d", "image_points",
+                                                    "images",      "grasp_force",
+                                                    "surface_points", "reaction"};
 
 std::string Join(const std::vector<std::string>& words) {
   std::string out;
@@ -291,9 +291,10 @@ Clamp ReadClamp(const Reader& r, const Field& f) {
 }
 
 ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex,
-                                bool case_has_poke) {
-  const std::vector<std::string> all = {"type",  "file",     "camera", "sigma", "s",
-                                        "count", "outliers", "blur",   "noise", "max_speed"};
+                                bool case_has_poke, const std::vector<std::string>& case_points) {
+  const std::vector<std::string> all = {"type",     "file",  "camera", "sigma",
+                                        "s",        "count", "outliers", "blur",
+                                        "noise",    "max_speed", "point", "sigma_moment"};
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
@@ -317,6 +318,10 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   if (o.type != "images" && !force && !surface) allowed.push_back("outliers");
   if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise"});
   if (force) allowed.push_back("max_speed");
+  const bool reaction = o.type == "reaction";
+  if (reaction) {
+    allowed = {"type", "file", "sigma", "point", "sigma_moment", "count"};
+  }
   for (const auto& [name, field] : m) {
     if (!Contains(allowed, name)) {
       r.Fail(field.key_line, field.key,
@@ -327,6 +332,23 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   o.file = r.Path(r.Require(m, f, "file"), ex.directory);
   if (image) o.camera = r.Path(r.Require(m, f, "camera"), ex.directory);
   o.sigma = r.Positive(r.Require(m, f, "sigma"));
+  if (reaction) {
+    const Field& point = r.Require(m, f, "point");
+    o.point = r.Text(point);
+    if (std::find(case_points.begin(), case_points.end(), o.point) == case_points.end())
+      r.Fail(point, "this case holds no '" + o.point + "' (it holds: " + Join(case_points) + ")");
+    if (const Field* sm = Reader::Find(m, "sigma_moment")) {
+      o.sigma_moment = r.Positive(*sm);
+      if (o.point != "clamp" && o.point != "end_clamp")
+        r.Fail(*sm, "a moment is measured only at a clamp (clamp or end_clamp), not at " + o.point);
+    }
+    if (const Field* count = Reader::Find(m, "count")) {
+      o.count = r.Integer(*count);
+      if (o.count < 1 || o.count > 100000)
+        r.Fail(*count, "must be in [1, 100000], got " + std::to_string(o.count));
+    }
+    return o;
+  }
   const Field* s = Reader::Find(m, "s");
   const Field* count = Reader::Find(m, "count");
   if (force) {  // one grasped arc length; count caps the quasi-static samples used
@@ -595,9 +617,15 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   }
   CaseSpec spec;
   spec.line = f.line;
+  // The case's held points, as forces.csv and `reaction` observations name them.
+  std::vector<std::string> points = {"clamp"};
+  if (c.end_clamp) points.push_back("end_clamp");
+  if (c.end_pin) points.push_back("end_pin");
+  for (size_t k = 0; k < c.pins.size(); ++k) points.push_back("pins[" + std::to_string(k) + "]");
+  if (c.grasp) points.push_back("grasp");
   if (const Field* obs = Reader::Find(m, "observations")) {
     for (const Field& item : r.Sequence(*obs)) {
-      spec.observations.push_back(ReadObservation(r, item, *ex, c.poke.has_value()));
+      spec.observations.push_back(ReadObservation(r, item, *ex, c.poke.has_value(), points));
     }
   }
   ex->scene.cases.push_back(c);

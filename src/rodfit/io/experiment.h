@@ -36,6 +36,10 @@ struct ParameterSpec {
 ///   surface_points: file (x,y,z: points on the tissue surface in the poked section's plane),
 ///                 sigma [m], count (synth: points, default the section's nodes); only in a case
 ///                 with a `poke`
+///   reaction:     file (fx,fy,fz[,mx,my,mz]: repeated readings of the force [N] and moment
+///                 [N m] the rod exerts on a holder), point (clamp, end_clamp, end_pin, pins[k],
+///                 grasp), sigma [N], sigma_moment [N m] (with moment columns; clamps only),
+///                 count (synth: readings, default 1)
 struct ObservationSpec {
   std::string type;       ///< markers3d | points3d | image_points | images | grasp_force |
                           ///< surface_points
@@ -49,6 +53,8 @@ struct ObservationSpec {
   double max_speed = 1e-3;
   double blur = 0.0;      ///< [px] `images`: Gaussian blur sigma of synthesized images, >= 0
   double noise = 0.0;     ///< [grey levels] `images`: pixel noise sigma of synthesized images
+  std::string point;      ///< `reaction`: the held point (HeldReaction::point)
+  double sigma_moment = 0.0;  ///< [N m] `reaction`: moment sigma; 0: no moment
   int line = 0;           ///< 1-based line of the entry
 };
 

@@ -98,9 +98,7 @@ FitInput BuildFitInput(const Experiment& e) {
   in.springs = e.scene.springs;
   in.section = e.scene.section;
   in.parameters = FitParametersOf(e);
-  const RodModel reference(e.scene.rod, e.scene.material, e.scene.gravity,
-                           e.scene.cases.empty() ? LoadCase() : e.scene.cases[0]);
-  const std::vector<double> arc = VertexArcLengths(reference);
+  in.statics = e.statics;
   const int nv = e.scene.rod.segments + 1;
   const double L = e.scene.rod.length;
   std::map<std::string, Camera> cameras;
@@ -115,6 +113,14 @@ FitInput BuildFitInput(const Experiment& e) {
   for (size_t c = 0; c < e.scene.cases.size(); ++c) {
     FitCase fc;
     fc.load_case = e.scene.cases[c];
+    // The case's own vertex arc lengths: held points move the vertex nearest to them.
+    std::vector<double> arc;
+    try {
+      arc = VertexArcLengths(RodModel(e.scene.rod, e.scene.material, e.scene.gravity,
+                                      fc.load_case, e.scene.springs));
+    } catch (const std::invalid_argument& err) {
+      throw InputError(e.path, e.cases[c].line, "cases[" + std::to_string(c) + "]", err.what());
+    }
     for (const ObservationSpec& spec : e.cases[c].observations) {
       if (spec.type == "grasp_force") {
         for (const HapticSample& h : QuasiStaticSamples(spec)) {
@@ -122,8 +128,35 @@ FitInput BuildFitInput(const Experiment& e) {
           gc.load_case = e.scene.cases[c];
           gc.load_case.name += "@t=" + FormatDouble(h.t);
           gc.load_case.grasp = Grasp{spec.s.at(0), h.tool};
-          gc.grasp_forces.push_back({h.force, spec.sigma, Label(spec) + " t=" + FormatDouble(h.t)});
+          ForceMeasurement f;
+          f.force = h.force;
+          f.sigma = spec.sigma;
+          f.label = Label(spec) + " t=" + FormatDouble(h.t);
+          gc.grasp_forces.push_back(f);
           force_cases.push_back(std::move(gc));
+        }
+        continue;
+      }
+      if (spec.type == "reaction") {  // readings of the force (and moment) on a holder
+        const CsvTable t = CsvTable::Read(spec.file);
+        const auto fx = ColumnOf(t, "fx"), fy = ColumnOf(t, "fy"), fz = ColumnOf(t, "fz");
+        const bool moments = t.HasColumn("mx") || t.HasColumn("my") || t.HasColumn("mz");
+        if (moments && !(spec.sigma_moment > 0))
+          throw InputError(spec.file, 0, "mx", "moment columns need sigma_moment in the entry");
+        std::vector<double> mx, my, mz;
+        if (moments) mx = ColumnOf(t, "mx"), my = ColumnOf(t, "my"), mz = ColumnOf(t, "mz");
+        if (t.num_rows() == 0) throw InputError(spec.file, 0, "", "no rows");
+        for (int r = 0; r < t.num_rows(); ++r) {
+          ForceMeasurement f;
+          f.force = Vec3(fx[r], fy[r], fz[r]);
+          f.sigma = spec.sigma;
+          f.point = spec.point;
+          f.label = Label(spec) + " row " + std::to_string(r + 1);
+          if (moments) {
+            f.moment = Vec3(mx[r], my[r], mz[r]);
+            f.sigma_moment = spec.sigma_moment;
+          }
+          fc.grasp_forces.push_back(f);
         }
         continue;
       }

@@ -474,6 +474,33 @@ std::string SynthGraspForce(const EntryContext& ctx, const std::string& file, st
   return FormatHapticLogCsv(rows);
 }
 
+// `reaction`: `count` (default 1) readings of the force (and, with sigma_moment, the moment) the
+// rod exerts on the entry's held point, with Gaussian noise of sigma and sigma_moment.
+std::string SynthReaction(const EntryContext& ctx, const std::string& file, std::string* report) {
+  const ObservationSpec& spec = *ctx.spec;
+  const HeldReaction* found = nullptr;
+  for (const HeldReaction& r : ctx.solution->reactions)
+    if (r.point == spec.point) found = &r;
+  if (!found) ctx.Fail("case " + ctx.CaseName() + " holds no " + spec.point);
+  const bool moment = spec.sigma_moment > 0;
+  const int count = spec.count > 0 ? spec.count : 1;
+  std::string out = moment ? "fx,fy,fz,mx,my,mz\n" : "fx,fy,fz\n";
+  for (int k = 0; k < count; ++k) {
+    Eigen::Vector3d f = found->force, m = found->moment;
+    if (ctx.options->add_noise) {
+      for (int d = 0; d < 3; ++d) f(d) += spec.sigma * ctx.random->Normal();
+      if (moment)
+        for (int d = 0; d < 3; ++d) m(d) += spec.sigma_moment * ctx.random->Normal();
+    }
+    out += FormatDouble(f.x()) + "," + FormatDouble(f.y()) + "," + FormatDouble(f.z());
+    if (moment) out += "," + FormatDouble(m.x()) + "," + FormatDouble(m.y()) + "," + FormatDouble(m.z());
+    out += "\n";
+  }
+  *report = "case " + ctx.shape->name + ": " + file + ": reaction at " + spec.point + ", " +
+            std::to_string(count) + " reading(s)";
+  return out;
+}
+
 // `surface_points`: the case's poke solved on its equilibrium, and `count` (default the section's
 // nodes) points on the deformed ring at angles 2 pi (k + 1/2) / count about the section's centre
 // (where the ray from the centre crosses the ring's polygon, in the section's plane), mapped to
@@ -764,6 +791,8 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
         contents = SynthGraspForce(ctx, file, &report);
       } else if (spec.type == "surface_points") {
         contents = SynthSurfacePoints(ctx, file, &report);
+      } else if (spec.type == "reaction") {
+        contents = SynthReaction(ctx, file, &report);
       } else {
         ctx.Fail("synth cannot make observations of type " + spec.type);
       }

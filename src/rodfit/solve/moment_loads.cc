@@ -26,7 +26,8 @@ Vec3 WorldMoment(const EdgeMoment& em, const RodFrames& frames) {
 }
 
 void AssembleBalance(const RodModel& model, const RodState& state, const RodFrames& frames,
-                     double load_scale, VecX* g, BandedMatrix* J, BandedSymmetric* H) {
+                     double load_scale, VecX* g, BandedMatrix* J, BandedSymmetric* H, bool hold,
+                     double moment_scale) {
   EnergyTerms terms;
   terms.load_scale = load_scale;
   terms.hold = false;  // held rows are applied after the moments
@@ -57,7 +58,8 @@ void AssembleBalance(const RodModel& model, const RodState& state, const RodFram
   } else {
     AssembleGradient(model, state, terms, g, &frames);
   }
-  AddMomentLoads(model, state, frames, load_scale, g, J);
+  AddMomentLoads(model, state, frames, load_scale * moment_scale, g, J);
+  if (!hold) return;
   const std::vector<char> held = HeldDofs(model);
   for (int k = 0; k < g->size(); ++k) {
     if (!held[k]) continue;

@@ -27,7 +27,11 @@ Vec3 WorldMoment(const EdgeMoment& em, const RodFrames& frames);
 /// the solver's retraction: the Hessian of Pi, the holonomy of the twist angles' reference
 /// directors (antisymmetric, proportional to the twist gradient, see moment_loads.cc), minus
 /// dQ/dq; held rows and columns identity. `H` is scratch for the symmetric assembly.
+/// With hold = false the held rows are left as they are (the constraint forces and their
+/// derivatives, for reactions).
+/// `moment_scale` scales the moments on top of load_scale (moment continuation).
 void AssembleBalance(const RodModel& model, const RodState& state, const RodFrames& frames,
-                     double load_scale, VecX* residual, BandedMatrix* J, BandedSymmetric* H);
+                     double load_scale, VecX* residual, BandedMatrix* J, BandedSymmetric* H,
+                     bool hold = true, double moment_scale = 1.0);
 
 }  // namespace rodfit

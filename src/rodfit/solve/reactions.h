@@ -25,4 +25,13 @@ struct HeldReaction {
 /// Every held point's reaction: the clamp first, then held vertices by arc length.
 std::vector<HeldReaction> HeldReactions(const RodModel& model, const RodState& state);
 
+/// Derivatives of HeldReactions at an equilibrium with respect to m parameters: for each held
+/// point (same order) a 6 x m matrix, rows d force (3) and d moment (3). Given dq/dlog p (free
+/// dofs x m) and dr (free dofs x m): the derivative of the unconstrained balance residual at
+/// fixed q (the unit terms' gradients with hold off), and for each parameter the spring zones
+/// whose stiffness it is (their forces change with it; empty for others).
+std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> HeldReactionDerivatives(
+    const RodModel& model, const RodState& state, const Eigen::MatrixXd& dq,
+    const Eigen::MatrixXd& dr, const std::vector<std::vector<int>>& zones_of_parameter);
+
 }  // namespace rodfit

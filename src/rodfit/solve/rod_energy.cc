@@ -462,16 +462,34 @@ bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, d
     out->e.col(j) = (new_len / dir_norm) * dir;
     prev_step = next_step;
   }
-  // Held vertices must not move: spread the retraction's (second-order) closure error over the
-  // edges since the previous held vertex (or the clamp); the rod beyond shifts with it.
+  // Held vertices must not move: the retraction's (second-order) closure error is taken up by
+  // the edges since the previous held vertex (or the clamp), each by its compliance: turning is
+  // cheap (bending, B / l^3) and stretching dear (EA / l), so the correction c_j = -C_j w with
+  // C_j = P_j + r_j t_j t_j^T, r_j = B / (EA l_j^2), sum_j c_j = -gap, mostly turns the edges. A
+  // correction spread evenly would change their lengths, and against a stiff EA that costs more
+  // energy than the step gains. The rod beyond the held vertex shifts with it.
   if (!model.held().empty()) {
+    const Material& m = model.material();
+    const double B = std::min(m.B1(), m.B2()), EA = m.stretch_stiffness;
     int from = 0;
     Vec3 pos = state.x.col(0);
     for (const HeldVertex& h : model.held()) {
-      for (int j = from; j < h.vertex; ++j) pos += out->e.col(j);
+      Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+      for (int j = from; j < h.vertex; ++j) {
+        pos += out->e.col(j);
+        const Vec3 t = out->e.col(j).normalized();
+        const double lj = model.rest_edge_length(j);
+        const double r = std::min(1.0, B / (EA * lj * lj));
+        sum += Eigen::Matrix3d::Identity() - (1.0 - r) * t * t.transpose();
+      }
       const Vec3 gap = pos - state.x.col(h.vertex);
-      const double share = 1.0 / (h.vertex - from);
-      for (int j = from; j < h.vertex; ++j) out->e.col(j) -= share * gap;
+      const Vec3 w = sum.ldlt().solve(gap);
+      for (int j = from; j < h.vertex; ++j) {
+        const Vec3 t = out->e.col(j).normalized();
+        const double lj = model.rest_edge_length(j);
+        const double r = std::min(1.0, B / (EA * lj * lj));
+        out->e.col(j) -= w - (1.0 - r) * t * t.dot(w);
+      }
       pos = state.x.col(h.vertex);
       from = h.vertex;
     }

@@ -212,10 +212,10 @@ double FactorShifted(const BandedSymmetric& H, double base, BandedCholesky* fact
 /// smallest that factors, then inverse iteration with it. Returns the Rayleigh quotient of the
 /// direction found (d, scaled to max |d| = 1).
 double NegativeCurvature(const BandedSymmetric& H, double shift_ok, double shift_failed,
-                         BandedCholesky* factor, VecX* d) {
+                         BandedCholesky* factor, VecX* d, int bisections = 12) {
   double lo = std::max(shift_failed, 0.0), hi = shift_ok;
   BandedCholesky probe;
-  for (int k = 0; k < 12 && hi > 1.0001 * lo; ++k) {
+  for (int k = 0; k < bisections && hi > 1.0001 * lo; ++k) {
     const double mid = lo > 0.0 ? std::sqrt(lo * hi) : 0.5 * hi;
     if (probe.Factor(H, mid)) {
       hi = mid;
@@ -276,6 +276,44 @@ bool StepAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& ter
     }
   }
   return false;
+}
+
+/// The lowest Pi along +-d (negative curvature), scanning amplitudes from 0.2 L down by halves
+/// and keeping the best; true when it lowers Pi below *energy (*state, *frames, *energy moved).
+/// Far from equilibrium an indefinite Hessian (a straight segment compressed between held
+/// points, a column past buckling) makes the shifted Newton step tiny, while the buckling mode
+/// lowers Pi by orders of magnitude.
+bool BestAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& terms, VecX d,
+                                RodState* state, RodFrames* frames, double* energy) {
+  for (int k = 0; k < d.size(); ++k)
+    if (ctx.held[k]) d[k] = 0.0;
+  const double dmax = d.cwiseAbs().maxCoeff();
+  if (!(dmax > 0)) return false;
+  d /= dmax;
+  RodState trial, best;
+  RodFrames trial_frames, best_frames;
+  double best_energy = *energy;
+  for (double sgn : {1.0, -1.0}) {
+    double previous = std::numeric_limits<double>::infinity();
+    for (double a = 0.2 * ctx.model.length(); a > 1e-6 * ctx.model.length(); a *= 0.5) {
+      if (!ApplyStep(ctx.model, *state, d, sgn * a, &trial)) continue;
+      ComputeRodFrames(ctx.model, trial, &trial_frames);
+      const double e = PotentialEnergyFreshFrames(ctx.model, trial, terms, &trial_frames);
+      if (!std::isfinite(e)) continue;
+      if (e < best_energy) {
+        best_energy = e;
+        best = trial;
+        best_frames = trial_frames;
+      }
+      if (e > previous && previous < *energy) break;  // past the best amplitude on this side
+      previous = e;
+    }
+  }
+  if (!(best_energy < *energy - 10.0 * EnergyNoise(ctx.model, *energy))) return false;
+  *state = std::move(best);
+  *frames = std::move(best_frames);
+  *energy = best_energy;
+  return true;
 }
 
 /// Newton iterations at one load factor for a conservative case. Returns kConverged with *state
@@ -465,6 +503,27 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
         break;
       }
     }
+    if (shifted) {
+      // Compare with the best step along the negative curvature (BestAlongNegativeCurvature).
+      VecX d;
+      BandedCholesky probe;
+      if (NegativeCurvature(H, shift, shift_failed, &probe, &d, 5) < 0.0) {
+        RodState nc_state = *state;
+        RodFrames nc_frames = frames;
+        double nc_energy = energy;
+        const double newton_energy = accepted ? energy : std::numeric_limits<double>::infinity();
+        const double base_energy = PotentialEnergyFreshFrames(model, *state, terms, &frames);
+        nc_energy = base_energy;
+        if (BestAlongNegativeCurvature(ctx, terms, d, &nc_state, &nc_frames, &nc_energy) &&
+            nc_energy < newton_energy) {
+          trial = std::move(nc_state);
+          trial_frames = std::move(nc_frames);
+          energy = nc_energy;
+          accepted = true;
+          alpha = 0.0;  // not a full Newton step
+        }
+      }
+    }
     ++summary->iterations;
     if (!accepted) {
       // A state whose unshifted Newton step is within 1e3 of the step tolerance and cannot
@@ -490,9 +549,9 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
 /// Newton on the balance of a case with moments: the tangent is not symmetric (banded LU), and
 /// the line search is on the weighted residual 1/2 |W r|^2, for which the Newton step is a
 /// descent direction with slope -|W r|^2.
-StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, int max_iterations,
-                                 RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
-                                 std::string* why) {
+StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, double moment_scale,
+                                 int max_iterations, RodState* state, StaticsWorkspace* ws,
+                                 StaticsSummary* summary, std::string* why) {
   const RodModel& model = ctx.model;
   const StaticsOptions& opt = ctx.opt;
   const Tolerances& tol = ctx.tol;
@@ -510,7 +569,7 @@ StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, in
     return m;
   };
   for (int it = 0; it < max_iterations; ++it) {
-    AssembleBalance(model, *state, frames, load_scale, &g, &J, &H);
+    AssembleBalance(model, *state, frames, load_scale, &g, &J, &H, true, moment_scale);
     const double gnorm = tol.Norm(g);
     summary->gradient_norm = gnorm;
     summary->energy = PotentialEnergyFreshFrames(model, *state, terms, &frames);
@@ -556,7 +615,8 @@ StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, in
     for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
       if (!ApplyStep(model, *state, step, alpha, &trial)) continue;
       ComputeRodFrames(model, trial, &trial_frames);
-      AssembleBalance(model, trial, trial_frames, load_scale, &g_trial, nullptr, nullptr);
+      AssembleBalance(model, trial, trial_frames, load_scale, &g_trial, nullptr, nullptr, true,
+                      moment_scale);
       const double m1 = merit(g_trial);
       if (std::isfinite(m1) && m1 <= (1.0 - 2.0 * opt.armijo * alpha) * m0 + 1e-24 * m0) {
         accepted = true;
@@ -576,12 +636,58 @@ StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, in
   return StepResult::kIterationCap;
 }
 
+// The largest distance [m] any vertex moved between two states.
+double LargestMove(const RodState& a, const RodState& b) {
+  return (a.x - b.x).colwise().norm().maxCoeff();
+}
+
 StepResult NewtonAny(const NewtonContext& ctx, double load_scale, int max_iterations,
                      RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
                      std::string* why, StartFactor start) {
-  if (ctx.model.nonconservative())
-    return NewtonNonconservative(ctx, load_scale, max_iterations, state, ws, summary, why);
-  return NewtonAtLoad(ctx, load_scale, max_iterations, state, ws, summary, why, start);
+  if (!ctx.model.nonconservative())
+    return NewtonAtLoad(ctx, load_scale, max_iterations, state, ws, summary, why, start);
+  // With moments the balance has no potential to descend, and Newton on the residual may land
+  // on any equilibrium. A warm start near the solution (a fit's or a haptic loop's re-solve)
+  // converges straight there: taken when it stays close (0.05 L) and is stable. Otherwise the
+  // moments are ramped up from the equilibrium without them (found on the potential, with its
+  // line search and saddle escapes), so the solution is the one the loading path reaches.
+  const RodState initial = *state;
+  const StaticsSummary before = *summary;
+  const double L = ctx.model.length();
+  StepResult r = NewtonNonconservative(ctx, load_scale, 1.0, std::min(max_iterations, 12), state,
+                                       ws, summary, why);
+  if (r == StepResult::kConverged && summary->stable && LargestMove(initial, *state) <= 0.05 * L)
+    return r;
+  const int used = summary->iterations - before.iterations;
+  *state = initial;
+  *summary = before;
+  summary->iterations += used;
+  r = NewtonAtLoad(ctx, load_scale, max_iterations, state, ws, summary, why, StartFactor::kNone);
+  if (r != StepResult::kConverged) {
+    *why = "without its moments: " + *why;
+    return r;
+  }
+  ws->factor_valid = false;
+  double done = 0.0, step = 0.25;
+  for (int k = 0; k < 400 && done < 1.0; ++k) {
+    const double target = std::min(1.0, done + step);
+    RodState trial = *state;
+    r = NewtonNonconservative(ctx, load_scale, target, 40, &trial, ws, summary, why);
+    if (r == StepResult::kConverged) {
+      *state = trial;
+      done = target;
+      step = std::min(2.0 * step, 0.5);
+    } else {
+      step *= 0.5;
+      if (step < 1e-4) break;
+    }
+    if (summary->iterations - before.iterations >= 10 * max_iterations) break;
+  }
+  if (done < 1.0) {
+    *why = "the moments could not be ramped up to their full value (" + *why + ")";
+    return StepResult::kFailed;
+  }
+  return StepResult::kConverged;
 }
 
 /// Full load first; on failure, load continuation from the unloaded equilibrium.

@@ -1,0 +1,138 @@
+// Reactions at held points as fit observations (fit.h ForceMeasurement): the forward map's
+// Jacobian (forces and moments at the clamp, an end clamp, a pin and a grasp; a case with dead
+// and follower moments, whose tangent is not symmetric) against central differences, and
+// recovery of the stiffness from reactions.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "rodfit/fit/fit.h"
+#include "rodfit/solve/case_solve.h"
+
+namespace rodfit {
+namespace {
+
+FitInput Wire() {
+  FitInput in;
+  in.rod.length = 0.3;
+  in.rod.segments = 30;
+  in.rod.radius = 5e-4;
+  in.rod.linear_density = 2e-3;
+  in.material.bend_stiffness = 2e-5;
+  in.material.bend_stiffness_2 = 3e-5;
+  in.material.twist_stiffness = 1.5e-5;
+  in.material.stretch_stiffness = 2e3;
+  in.gravity = Vec3(0, 0, -9.81);
+  return in;
+}
+
+LoadCase Bridge() {
+  LoadCase c;
+  c.name = "bridge";
+  c.clamp.tangent = Vec3(1, 0, 0);
+  c.clamp.normal = Vec3(0, 0, 1);
+  EndClamp ec;
+  ec.position = Vec3(0.25, 0.02, 0.0);
+  ec.tangent = Vec3(1, 0.2, 0);
+  ec.normal = Vec3(0, 0, 1);
+  c.end_clamp = ec;
+  c.pins.push_back({0.1, Vec3(0.09, 0.0, -0.01)});
+  return c;
+}
+
+LoadCase Twisted() {
+  LoadCase c;
+  c.name = "twisted";
+  c.clamp.tangent = Vec3(1, 0, 0.3);
+  c.clamp.normal = Vec3(0, 1, 0);
+  c.tip_moment = Vec3(1e-5, 2e-6, 0);
+  c.tip_moment_follower = Vec3(0, 0, 2e-6);
+  c.grasp = Grasp{0.2, Vec3(0.15, 0.03, 0.05)};
+  return c;
+}
+
+// The truth's reactions as noise-free measurements.
+FitCase Measured(const FitInput& truth, const LoadCase& c, const std::vector<std::string>& points) {
+  Scene scene;
+  scene.rod = truth.rod;
+  scene.material = truth.material;
+  scene.gravity = truth.gravity;
+  scene.cases = {c};
+  const CaseSolution s = SolveCase(scene, 0, nullptr);
+  EXPECT_TRUE(s.ok()) << s.summary.BriefReport();
+  FitCase fc;
+  fc.load_case = c;
+  for (const HeldReaction& r : s.reactions) {
+    if (std::find(points.begin(), points.end(), r.point) == points.end()) continue;
+    ForceMeasurement f;
+    f.point = r.point;
+    f.force = r.force;
+    f.sigma = 1e-4;
+    f.label = "reaction " + r.point;
+    if (r.holds_moment) {
+      f.moment = r.moment;
+      f.sigma_moment = 1e-5;
+    }
+    fc.grasp_forces.push_back(f);
+  }
+  return fc;
+}
+
+void AddParameters(FitInput* in, double factor) {
+  const Material& m = in->material;
+  in->parameters = {{"bend_stiffness", m.bend_stiffness * factor, true, {}, {}},
+                    {"bend_stiffness_2", *m.bend_stiffness_2 * factor, true, {}, {}},
+                    {"twist_stiffness", m.twist_stiffness * factor, true, {}, {}},
+                    {"stretch_stiffness", m.stretch_stiffness, false, {}, {}}};
+}
+
+TEST(ReactionFit, JacobianMatchesCentralDifferencesOfTheForwardMap) {
+  const FitInput truth = Wire();
+  FitInput in = truth;
+  in.cases.push_back(Measured(truth, Bridge(), {"clamp", "pins[0]", "end_clamp"}));
+  in.cases.push_back(Measured(truth, Twisted(), {"clamp", "grasp"}));
+  AddParameters(&in, 1.3);
+  std::vector<double> lp;
+  for (const FitParameter& p : in.parameters)
+    if (p.fit) lp.push_back(std::log(p.value));
+  VecX r;
+  Eigen::MatrixXd J;
+  ASSERT_TRUE(EvaluateForwardMap(in, lp, &r, &J));
+  ASSERT_EQ(r.size(), 2 * 6 + 3 + 6 + 3);  // clamp, pin, end clamp; clamp, grasp
+  for (size_t k = 0; k < lp.size(); ++k) {
+    // h = 1e-4 in log space: truncation ~1e-8 of the column, well above the solves' noise.
+    const double h = 1e-4;
+    std::vector<double> a = lp, b = lp;
+    a[k] += h;
+    b[k] -= h;
+    VecX ra, rb;
+    ASSERT_TRUE(EvaluateForwardMap(in, a, &ra, nullptr));
+    ASSERT_TRUE(EvaluateForwardMap(in, b, &rb, nullptr));
+    const VecX fd = (ra - rb) / (2 * h);
+    const double scale = fd.cwiseAbs().maxCoeff();
+    EXPECT_LT((J.col(k) - fd).cwiseAbs().maxCoeff(), 1e-5 * scale)
+        << in.parameters[k].name << "\nJ  " << J.col(k).transpose() << "\nfd " << fd.transpose();
+  }
+}
+
+TEST(ReactionFit, RecoversBendingAndTwistFromReactionsAlone) {
+  const FitInput truth = Wire();
+  FitInput in = truth;
+  in.cases.push_back(Measured(truth, Bridge(), {"clamp", "pins[0]", "end_clamp"}));
+  in.cases.push_back(Measured(truth, Twisted(), {"clamp", "grasp"}));
+  AddParameters(&in, 1.8);
+  FitOptions options;
+  options.trusted_sigmas = true;  // noise-free data
+  const FitResult r = Fit(in, options);
+  ASSERT_TRUE(r.success) << r.message;
+  for (const ParameterEstimate& e : r.parameters) {
+    if (!e.fitted) continue;
+    const double t = e.name == "bend_stiffness"     ? truth.material.bend_stiffness
+                     : e.name == "bend_stiffness_2" ? *truth.material.bend_stiffness_2
+                                                    : truth.material.twist_stiffness;
+    EXPECT_NEAR(e.value, t, 1e-6 * t) << e.name;
+  }
+}
+
+}  // namespace
+}  // namespace rodfit
