@@ -235,7 +235,21 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     edge_moments_.push_back({edge, M, follower});
   };
   add_moment(n_ - 1, load_case.tip_moment, false);
-  add_moment(n_ - 1, load_case.tip_moment_follower, true);
+  // A follower moment turns with the end's frame at s = L; the last edge's frame sits half an
+  // edge before it. The two differ by the rotation (l/2) u_tip, u_tip = K^-1 m + rest curvature
+  // the body curvature that the moment itself sets at the free end (m(L) = R(L) m_b), so the
+  // moment on the edge has the components exp((l/2) [u_tip]x) m_b: second order in l, where the
+  // edge's own frame would be first order.
+  if (load_case.tip_moment_follower.squaredNorm() > 0) {
+    const Vec3& mb = load_case.tip_moment_follower;
+    const Vec3 u_tip = Vec3(mb[0] / m.B1(), mb[1] / m.B2(), mb[2] / m.twist_stiffness) +
+                       rod.rest_curvature;
+    const Vec3 w = 0.5 * rest_edge_[n_ - 1] * u_tip;
+    const double angle = w.norm();
+    const Vec3 mb_tip =
+        angle > 0 ? Vec3(Eigen::AngleAxisd(angle, w / angle) * mb) : mb;
+    add_moment(n_ - 1, mb_tip, true);
+  }
   moment_sum += load_case.tip_moment.stableNorm() + load_case.tip_moment_follower.stableNorm();
   for (const PointMoment& pm : load_case.point_moments) {
     Require(std::isfinite(pm.s) && pm.s >= 0 && pm.s <= length_ * (1 + 1e-12) && Finite(pm.moment),
