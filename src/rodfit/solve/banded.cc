@@ -292,7 +292,9 @@ bool BandedLU::Factor(const BandedMatrix& A) {
       if (v > best) best = v, jp = r;
     }
     pivots_[j] = j + jp;
-    if (!(best > 1e-15 * scale)) return false;
+    // A zero pivot is singular. (A pivot small against the whole matrix is not: the rod's rows
+    // span EA / l to GJ / l, ten orders of magnitude on a stiff, fine rod.)
+    if (!(best > 1e-300 * scale) || !std::isfinite(best)) return false;
     ju = std::max(ju, std::min(j + ku_ + jp, n_ - 1));
     if (jp != 0)
       for (int c = j; c <= ju; ++c) std::swap(a(j, c), a(j + jp, c));
@@ -363,6 +365,50 @@ int BandedLU::DeterminantSign() const {
     if (lu_(kv, j) < 0) sign = -sign;
   }
   return sign;
+}
+
+bool BandedLDLT::Factor(const BandedSymmetric& A, double diagonal_shift) {
+  n_ = A.size();
+  p_ = A.bandwidth();
+  band_ = A.band();
+  negative_ = 0;
+  for (int j = 0; j < n_; ++j) band_(0, j) += diagonal_shift;
+  double scale = 0.0;
+  for (int j = 0; j < n_; ++j) scale = std::max(scale, std::abs(band_(0, j)));
+  // Right-looking: column j's pivot d and multipliers l = a / d update the trailing columns.
+  std::vector<double> w(p_ + 1);
+  for (int j = 0; j < n_; ++j) {
+    const double d = band_(0, j);
+    if (!std::isfinite(d) || std::abs(d) <= 1e-300 * std::max(scale, 1e-300)) return false;
+    if (d < 0) ++negative_;
+    const int m = std::min(p_, n_ - 1 - j);
+    for (int r = 1; r <= m; ++r) {
+      w[r] = band_(r, j);        // a(j + r, j)
+      band_(r, j) = w[r] / d;    // l(j + r, j)
+    }
+    for (int c = 1; c <= m; ++c) {
+      double* target = &band_(0, j + c);
+      for (int r = c; r <= m; ++r) target[r - c] -= band_(r, j) * w[c];  // l_r d l_c
+    }
+  }
+  return true;
+}
+
+void BandedLDLT::SolveInPlace(Eigen::Ref<Eigen::MatrixXd> b) const {
+  for (int col = 0; col < b.cols(); ++col) {
+    double* x = &b(0, col);
+    for (int j = 0; j < n_; ++j) {  // L y = b
+      const int m = std::min(p_, n_ - 1 - j);
+      for (int r = 1; r <= m; ++r) x[j + r] -= band_(r, j) * x[j];
+    }
+    for (int j = 0; j < n_; ++j) x[j] /= band_(0, j);  // D
+    for (int j = n_ - 1; j >= 0; --j) {  // L^T z = y
+      const int m = std::min(p_, n_ - 1 - j);
+      double s = x[j];
+      for (int r = 1; r <= m; ++r) s -= band_(r, j) * x[j + r];
+      x[j] = s;
+    }
+  }
 }
 
 }  // namespace rodfit

@@ -88,6 +88,22 @@ class BandedCholesky {
   std::vector<Block, Eigen::aligned_allocator<Block>> blocks_;
 };
 
+/// A = L D L^T of a symmetric band matrix without pivoting (scalar band), for symmetric
+/// indefinite matrices whose inertia is wanted: by Sylvester's law the signs of D are those of
+/// A's eigenvalues. Factor() fails on a zero or non-finite pivot (an unpivoted LDL^T can break
+/// down where a pivoted one would not; the solver then shifts the diagonal).
+class BandedLDLT {
+ public:
+  bool Factor(const BandedSymmetric& A, double diagonal_shift = 0.0);
+  int negative_pivots() const { return negative_; }
+  int size() const { return n_; }
+  void SolveInPlace(Eigen::Ref<Eigen::MatrixXd> b) const;
+
+ private:
+  int n_ = 0, p_ = 0, negative_ = 0;
+  Eigen::MatrixXd band_;  // L below the diagonal (unit diagonal implied), D on the diagonal
+};
+
 /// A general (non-symmetric) band matrix with kl sub- and ku super-diagonals, stored by
 /// diagonals in column-major LAPACK band form with kl extra rows for the LU's fill-in:
 /// entry (i, j), -ku <= i - j <= kl, at band_(kl + ku + i - j, j).

@@ -5,14 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 
 #include "rodfit/model/frames.h"
 
 namespace rodfit {
-namespace {
-
 
 void StretchGradientHessian(double EA, double L0, const Vec3& e, Vec3* g, Eigen::Matrix3d* H) {
   const double len = e.norm();
@@ -23,6 +22,8 @@ void StretchGradientHessian(double EA, double L0, const Vec3& e, Vec3* g, Eigen:
     *H = (EA / L0) * t * t.transpose() +
          (EA * strain / len) * (Eigen::Matrix3d::Identity() - t * t.transpose());
 }
+
+namespace {
 
 // Adds vertex i's stencil gradient and Hessian, given in the edge variables (e, f, theta_e,
 // theta_f), to the free dofs. With e = x_i - x_{i-1} and f = x_{i+1} - x_i the stencil covers
@@ -522,6 +523,18 @@ double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& 
   }
   if (!std::isfinite(lowest_cos)) return M_PI;
   return std::acos(std::max(-1.0, std::min(1.0, lowest_cos)));
+}
+
+double MaxStrainChange(const RodModel& model, const RodState& state, const VecX& step) {
+  const int n = model.num_edges();
+  double worst = 0.0;
+  for (int j = 0; j < n; ++j) {
+    Vec3 de = step.segment<3>(RodModel::VertexDof(j + 1));
+    if (j >= 1) de -= step.segment<3>(RodModel::VertexDof(j));
+    const Vec3 e = state.e.col(j);
+    worst = std::max(worst, std::abs(e.dot(de)) / (e.norm() * model.rest_edge_length(j)));
+  }
+  return std::isfinite(worst) ? worst : std::numeric_limits<double>::infinity();
 }
 
 VecX GradientNormWeights(const RodModel& model) {

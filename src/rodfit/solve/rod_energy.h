@@ -76,6 +76,10 @@ struct RodFrames {
 };
 void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames);
 
+/// Stretch of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2: its gradient dE/de and (optionally)
+/// Hessian with respect to the edge vector e.
+void StretchGradientHessian(double EA, double L0, const Vec3& e, Vec3* g, Eigen::Matrix3d* H);
+
 /// Number of bending vertices: 0..n-1, and n with an end clamp.
 inline int NumBendingVertices(const RodModel& model) {
   return model.num_edges() + (model.has_end_clamp() ? 1 : 0);
@@ -135,6 +139,10 @@ bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState
 
 /// Largest turn [rad] of any edge tangent under state + step (used to limit Newton steps).
 double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& step);
+
+/// Largest change of any edge's strain, |t . de| / l0, under state + step (the retraction changes
+/// lengths by the linear part only).
+double MaxStrainChange(const RodModel& model, const RodState& state, const VecX& step);
 
 /// The force [N] the rod exerts on the instrument at the grasped vertex: minus the constraint
 /// force that holds it, -dPi/dx_k at equilibrium (zero without a grasp).

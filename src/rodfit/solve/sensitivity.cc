@@ -21,16 +21,19 @@ bool TermSensitivities(const RodModel& model, const RodState& state,
   // A conservative case keeps the Cholesky factor of its Hessian; a case with moments the LU
   // factor of its (non-symmetric) tangent. The moments do not depend on the stiffnesses, so
   // dg/dlog p is the unit term's gradient either way.
+  const bool edge = workspace.edge_valid;
   const bool lu = workspace.tangent_valid && workspace.tangent.size() == model.num_free_dofs();
   const bool chol = workspace.factor_valid && workspace.hessian.size() == model.num_free_dofs();
-  if (!lu && !chol) return false;
+  if (!edge && !lu && !chol) return false;
   dq_dlogp->resize(model.num_free_dofs(), static_cast<int>(terms.size()));
   VecX g;
   for (size_t k = 0; k < terms.size(); ++k) {
     AssembleGradient(model, state, terms[k], &g);
     dq_dlogp->col(static_cast<int>(k)) = -g;
   }
-  if (lu) {
+  if (edge) {
+    workspace.edge.SolveInPlace(*dq_dlogp);
+  } else if (lu) {
     workspace.tangent.SolveInPlace(*dq_dlogp);
   } else {
     workspace.hessian.SolveInPlace(*dq_dlogp);

@@ -38,6 +38,7 @@ bool StaticsOptions::Check(std::string* why) const {
     return fail("continuation_turn must lie in (0, 3] rad");
   }
   if (max_continuation_steps < 1) return fail("max_continuation_steps must be >= 1");
+  if (edge_solver_segments < 2) return fail("edge_solver_segments must be >= 2");
   return true;
 }
 
@@ -78,6 +79,7 @@ struct Tolerances {
   double step_x = 0.0;   // [m] Newton step tolerance on positions
   double step_theta = 0.0;
   double shift_base = 0.0;  // first diagonal shift for an indefinite Hessian
+  double shift_cap = 0.0;   // beyond this the Hessian is taken as hopeless
 
   double Norm(const VecX& g) const {
     double worst = 0.0;
@@ -101,8 +103,11 @@ struct Tolerances {
   /// is as exact as the iteration can tell); or the gradient at its round-off floor with a step
   /// below 1e3 times the step tolerance (1e-6 L by default: a stiff stretch's floor may sit above
   /// the load tolerance, and the step then tells how far the state still is).
+  /// A small step counts only with a gradient near its floor (within 1e3): a factor that lost
+  /// the soft modes to round-off gives small steps far from the solution.
   bool Converged(double gnorm, const VecX& step) const {
-    return gnorm <= strict || SmallStep(step) || (gnorm <= force && SmallStep(step, 1e3));
+    return gnorm <= strict || (gnorm <= 1e3 * force && SmallStep(step)) ||
+           (gnorm <= force && SmallStep(step, 1e3));
   }
 };
 
@@ -120,6 +125,8 @@ Tolerances MakeTolerances(const RodModel& model, const StaticsOptions& opt) {
   const Material& m = model.material();
   const double l = model.min_rest_edge_length();
   t.shift_base = 1e-6 * std::min({m.B1(), m.B2(), m.twist_stiffness}) / (l * l * l);
+  t.shift_cap = 1e6 * std::max({m.stretch_stiffness / l, std::max(m.B1(), m.B2()) / (l * l * l),
+                                m.twist_stiffness / l});
   t.step_x = opt.step_tolerance * model.length();
   t.step_theta = opt.step_tolerance;
   return t;
@@ -178,6 +185,14 @@ void KeepTangents(const RodFrames& frames, int n, Eigen::Matrix3Xd* tangents) {
   tangents->resize(3, n);
   for (int j = 0; j < n; ++j) tangents->col(j) = frames.edges[j + 1].t;
 }
+
+constexpr double kMaxStrainStep = 0.1;
+
+// The largest distance [m] any vertex moved between two states.
+double LargestMove(const RodState& a, const RodState& b) {
+  return (a.x - b.x).colwise().norm().maxCoeff();
+}
+
 
 /// How NewtonAtLoad may start from the workspace's factor.
 enum class StartFactor {
@@ -368,12 +383,18 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
   auto chord_pays = [&](double rate, double gnorm) {
     return rate <= kChordRate && rate * gnorm <= force_tol;
   };
-  const bool chords_allowed = opt.chord_steps && model.held().empty() && !model.has_end_clamp();
+  // A fine rod's steps come from the edge-coordinate factor (edge_solver.h); the vertex factor
+  // still tells definiteness. Chord steps and the kept factor's reuse are for the vertex path.
+  const bool use_edge = n >= opt.edge_solver_segments && EdgeSolver::Applies(model);
+  const bool chords_allowed =
+      opt.chord_steps && model.held().empty() && !model.has_end_clamp() && !use_edge;
   bool chord_basis = chords_allowed && start != StartFactor::kNone &&
                      ws->factor_tangents.cols() == n;
   bool last_step_full = false, last_step_chord = false;
   double g_last = std::numeric_limits<double>::quiet_NaN(), g_before_last = g_last;
   constexpr int kMaxSaddleEscapes = 5;
+  int stagnant = 0;
+  double previous_energy = energy;
   for (int it = 0; it < max_iterations; ++it) {
     const bool reuse = (it == 0 && factor_at_start);
     bool chord = false;
@@ -429,6 +450,8 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
     if (reuse) {
       g = ws->factor_unloaded_gradient;
       AddDeadLoadGradient(model, load_scale, /*hold=*/true, &g);
+    } else if (use_edge) {
+      AssembleGradient(model, *state, terms, &g, &frames);
     } else {
       AssembleHessian(model, *state, terms, &g, &H, &frames);
     }
@@ -441,7 +464,24 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
     }
     // Factor; on failure (indefinite or singular) shift the diagonal, growing the shift tenfold.
     double shift = 0.0, shift_failed = -1.0;
-    if (!reuse) {
+    if (use_edge) {
+      // Fine rod: the edge-coordinate tangent, its definiteness on the held points' constraint
+      // space from its inertia (edge_solver.h); the vertex factor is not formed at all.
+      bool ok = false;
+      for (int k = 0; k < 80 && !ok; ++k) {
+        ok = ws->edge.Factor(model, *state, frames, terms, 0.0, shift) &&
+             ws->edge.positive_definite();
+        if (!ok) {
+          shift_failed = shift;
+          shift = shift == 0.0 ? tol.shift_base : 10.0 * shift;
+          if (shift > tol.shift_cap) break;
+        }
+      }
+      if (!ok) {
+        *why = "Hessian could not be made positive definite";
+        return StepResult::kFailed;
+      }
+    } else if (!reuse) {
       shift = FactorShifted(H, tol.shift_base, &ws->hessian, &shift_failed);
       if (shift < 0.0) {
         *why = H.band().allFinite() ? "Hessian could not be made positive definite"
@@ -450,18 +490,29 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       }
     }
     const bool shifted = shift > 0.0;
-    if (!reuse) {
+    if (!reuse && !use_edge) {
       // The new factor is the chord basis from here on, if it is the Hessian's own.
       KeepTangents(frames, n, &ws->factor_tangents);
       chord_basis = chords_allowed && !shifted;
     }
-    step = -ws->hessian.Solve(g);
+    ws->edge_valid = use_edge && !shifted;
+    if (use_edge) {
+      step = -g;
+      ws->edge.SolveInPlace(step);
+      if (tol.Converged(gnorm, step)) {
+        // Shifted: an equilibrium with a negative direction (no escape on this path).
+        ws->factor_valid = false;
+        return converged(!shifted);
+      }
+    } else {
+      step = -ws->hessian.Solve(g);
+    }
     if (!shifted && tol.Converged(gnorm, step)) {
       ws->factor_valid = true;
       return converged(true);
     }
     // With a shift the step is nearly Newton's except along the negative directions.
-    if (shifted && tol.Converged(gnorm, step)) {
+    if (shifted && !use_edge && tol.Converged(gnorm, step)) {
       // A stationary point with negative curvature is a saddle (a column past its buckling
       // load, kept straight by symmetry): find the most negative curvature direction and, if
       // asked, step along it. No step that lowers Pi beyond round-off means the curvature is
@@ -489,6 +540,10 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
     double alpha = 1.0;
     const double turn = MaxTangentTurn(model, *state, step);
     if (turn > opt.max_rotation_per_step) alpha = opt.max_rotation_per_step / turn;
+    // Nor may an edge's strain change by more than 10 % in one step: on a fine rod whose edges
+    // are soft in stretch against their bending (EA l^2 / EI << 1) a full step would crumple them.
+    const double strain = MaxStrainChange(model, *state, step);
+    if (alpha * strain > kMaxStrainStep) alpha = kMaxStrainStep / strain;
     // Near convergence Pi changes by round-off only; allow that much so that Newton's final
     // quadratically convergent steps are not rejected by noise.
     const double noise = EnergyNoise(model, energy);
@@ -503,7 +558,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
         break;
       }
     }
-    if (shifted) {
+    if (shifted && !use_edge) {
       // Compare with the best step along the negative curvature (BestAlongNegativeCurvature).
       VecX d;
       BandedCholesky probe;
@@ -526,10 +581,11 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
     }
     ++summary->iterations;
     if (!accepted) {
-      // A state whose unshifted Newton step is within 1e3 of the step tolerance and cannot
-      // lower Pi further is at round-off level.
-      if (!shifted && tol.SmallStep(step, 1e3)) {
-        ws->factor_valid = true;
+      // A state at the gradient's round-off floor whose unshifted Newton step is within 1e3 of
+      // the step tolerance and cannot lower Pi further is at round-off level. (A small step with
+      // a large gradient is not: the factor has lost the soft modes.)
+      if (!shifted && gnorm <= 1e3 * force_tol && tol.SmallStep(step, 1e3)) {
+        ws->factor_valid = !use_edge;
         return converged(true);
       }
       *why = "line search failed";
@@ -539,8 +595,24 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
     last_step_chord = false;
     g_before_last = g_last;
     g_last = gnorm;
+    // Stagnation at round-off: full unshifted Newton steps that move no vertex by more than
+    // 1e3 times the step tolerance (1e-6 L) and change Pi by no more than its round-off, three
+    // times running. The gradient's floor is then above the tolerance (fine rods: the bending
+    // forces' round-off grows as eps B / l^2), and the state is as good as doubles make it.
+    const double moved = LargestMove(*state, trial);
+    const double change = std::abs(energy - previous_energy);
+    stagnant = (!shifted && alpha == 1.0 && moved <= 1e3 * tol.step_x &&
+                change <= 10.0 * EnergyNoise(model, energy))
+                   ? stagnant + 1
+                   : 0;
+    previous_energy = energy;
     std::swap(*state, trial);
     std::swap(frames, trial_frames);
+    if (stagnant >= 3) {
+      ws->factor_valid = false;
+      summary->reason_detail = "stagnated at round-off";
+      return converged(true);
+    }
   }
   *why = "iteration limit reached";
   return StepResult::kIterationCap;
@@ -568,24 +640,32 @@ StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, do
     for (int k = 0; k < r.size(); ++k) m += 0.5 * std::pow(tol.weights[k] * r[k], 2);
     return m;
   };
+  const bool use_edge =
+      model.num_edges() >= opt.edge_solver_segments && EdgeSolver::Applies(model);
   for (int it = 0; it < max_iterations; ++it) {
-    AssembleBalance(model, *state, frames, load_scale, &g, &J, &H, true, moment_scale);
+    AssembleBalance(model, *state, frames, load_scale, &g, use_edge ? nullptr : &J, &H, true,
+                    moment_scale);
     const double gnorm = tol.Norm(g);
     summary->gradient_norm = gnorm;
     summary->energy = PotentialEnergyFreshFrames(model, *state, terms, &frames);
-    if (!std::isfinite(gnorm) || !J.AllFinite()) {
+    if (!std::isfinite(gnorm) || (!use_edge && !J.AllFinite())) {
       *why = "non-finite residual or tangent";
       return StepResult::kFailed;
     }
-    // LU of J, shifted towards the identity where it is singular.
-    const double diag = J.MaxDiagonal();
+    // LU of the tangent, shifted towards the identity where it is singular (a fine rod's in edge
+    // coordinates, edge_solver.h).
+    const double diag = use_edge ? tol.shift_cap * 1e-6 : J.MaxDiagonal();
     double shift = 0.0;
     bool factored = false;
-    for (int k = 0; k < 40 && !factored; ++k) {
-      BandedMatrix Js = J;
-      if (shift > 0.0)
-        for (int r = 0; r < Js.size(); ++r) Js.At(r, r) += shift;
-      factored = ws->tangent.Factor(Js);
+    for (int k = 0; k < 80 && !factored; ++k) {
+      if (use_edge) {
+        factored = ws->edge.Factor(model, *state, frames, terms, moment_scale, shift);
+      } else {
+        BandedMatrix Js = J;
+        if (shift > 0.0)
+          for (int r = 0; r < Js.size(); ++r) Js.At(r, r) += shift;
+        factored = ws->tangent.Factor(Js);
+      }
       if (!factored) {
         shift = shift == 0.0 ? std::min(tol.shift_base, std::max(diag, 1e-300)) : 10.0 * shift;
         if (shift > 1e6 * std::max(diag, 1e-300)) break;
@@ -596,20 +676,34 @@ StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, do
       return StepResult::kFailed;
     }
     const bool shifted = shift > 0.0;
+    ws->edge_valid = use_edge && !shifted;
     auto finish = [&]() {
       // Stable when the symmetric part of the tangent is positive definite (all eigenvalues of
-      // the tangent then have positive real parts).
-      BandedCholesky sym;
-      summary->stable = !shifted && sym.Factor(J.SymmetricPart(1));
-      ws->tangent_valid = !shifted;
+      // the tangent then have positive real parts), on the held points' constraint space.
+      if (use_edge) {
+        summary->stable = !shifted && ws->edge.positive_definite();
+      } else {
+        BandedCholesky sym;
+        summary->stable = !shifted && sym.Factor(J.SymmetricPart(1));
+      }
+      ws->tangent_valid = !shifted && !use_edge;
       return StepResult::kConverged;
     };
-    step = -ws->tangent.Solve(g);
+    if (use_edge) {
+      step = -g;
+      ws->edge.SolveInPlace(step);
+    } else {
+      step = -ws->tangent.Solve(g);
+    }
     if (!shifted && tol.Converged(gnorm, step)) return finish();
     if (gnorm <= tol.strict) return finish();  // shifted: a singular tangent at a solution
     double alpha = 1.0;
     const double turn = MaxTangentTurn(model, *state, step);
     if (turn > opt.max_rotation_per_step) alpha = opt.max_rotation_per_step / turn;
+    // Nor may an edge's strain change by more than 10 % in one step: on a fine rod whose edges
+    // are soft in stretch against their bending (EA l^2 / EI << 1) a full step would crumple them.
+    const double strain = MaxStrainChange(model, *state, step);
+    if (alpha * strain > kMaxStrainStep) alpha = kMaxStrainStep / strain;
     const double m0 = merit(g);
     bool accepted = false;
     for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
@@ -625,7 +719,7 @@ StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, do
     }
     ++summary->iterations;
     if (!accepted) {
-      if (!shifted && tol.SmallStep(step, 1e3)) return finish();
+      if (!shifted && gnorm <= 1e3 * tol.force && tol.SmallStep(step, 1e3)) return finish();
       *why = "line search failed";
       return StepResult::kFailed;
     }
@@ -634,11 +728,6 @@ StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, do
   }
   *why = "iteration limit reached";
   return StepResult::kIterationCap;
-}
-
-// The largest distance [m] any vertex moved between two states.
-double LargestMove(const RodState& a, const RodState& b) {
-  return (a.x - b.x).colwise().norm().maxCoeff();
 }
 
 StepResult NewtonAny(const NewtonContext& ctx, double load_scale, int max_iterations,
@@ -898,14 +987,18 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
   // The kept factor belongs to factor_state: from exactly that state it is the Hessian there
   // (same digest) or a chord basis (a model with other stiffnesses).
   StartFactor start_factor = StartFactor::kNone;
-  if (ws->factor_valid && !model.nonconservative() && SameState(ws->factor_state, *state))
+  const bool fine = model.num_edges() >= options.edge_solver_segments;
+  if (!fine && ws->factor_valid && !model.nonconservative() &&
+      SameState(ws->factor_state, *state))
     start_factor = (ws->factor_digest == model.hessian_digest()) ? StartFactor::kExact
                                                                  : StartFactor::kChord;
   ws->factor_valid = false;
   ws->tangent_valid = false;
+  ws->edge_valid = false;
   auto converged = [&](const char* reason) {
     summary.converged = true;
     summary.reason = reason;
+    if (!summary.reason_detail.empty()) summary.reason += " (" + summary.reason_detail + ")";
     if (ws->factor_valid) {
       ws->factor_state = *state;
       ws->factor_digest = model.hessian_digest();
@@ -917,6 +1010,7 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     summary.reason = reason;
     ws->factor_valid = false;
     ws->tangent_valid = false;
+    ws->edge_valid = false;
     return summary;
   };
 
@@ -962,14 +1056,12 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
       if (summary.iterations >= options.max_iterations * 20)
         return failed("iteration cap reached while moving the held points to their targets");
     }
-    if (!summary.stable) why = "unstable";
-    return converged("gradient below tolerance (after continuation of the held points)");
+    return converged("converged after continuation of the held points");
   }
 
   const StepResult r = SolveAtBoundary(ctx, state, ws, &summary, &why, start_factor, &budget_used);
   if (r == StepResult::kConverged)
-    return converged(summary.load_steps > 1 ? "gradient below tolerance (load continuation)"
-                                            : "gradient below tolerance");
+    return converged(summary.load_steps > 1 ? "converged (load continuation)" : "converged");
   return failed("no equilibrium found: " + why);
 }
 

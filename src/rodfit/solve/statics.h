@@ -12,6 +12,7 @@
 
 #include "rodfit/model/rod.h"
 #include "rodfit/solve/banded.h"
+#include "rodfit/solve/edge_solver.h"
 
 namespace rodfit {
 
@@ -42,6 +43,10 @@ struct StaticsOptions {
   /// directions, see statics.cc) while they converge fast; the Hessian is always assembled and
   /// factored at the solution, so the result and the kept factor do not depend on this.
   bool chord_steps = true;
+  /// From this many segments on (and without springs), Newton steps and sensitivities are solved
+  /// in edge coordinates (edge_solver.h): the vertex-coordinate bending operator's condition
+  /// number, ~(2n/pi)^4, leaves too few digits beyond ~10^3 segments.
+  int edge_solver_segments = 1000;
   bool Check(std::string* why) const;
 };
 
@@ -61,6 +66,7 @@ struct StaticsSummary {
   double gradient_norm = 0.0;    ///< [N] ScaledGradientNorm at exit
   double energy = 0.0;           ///< [J] potential energy at exit (conservative part)
   std::string reason;            ///< why the solver stopped
+  std::string reason_detail;     ///< how a converged solve ended, when not by its tolerance
   bool IsUsable() const { return converged; }
   std::string BriefReport() const;
 };
@@ -73,6 +79,10 @@ struct StaticsWorkspace {
   bool factor_valid = false;
   BandedLU tangent;
   bool tangent_valid = false;
+  /// A fine rod's factor in edge coordinates (StaticsOptions::edge_solver_segments): when valid,
+  /// sensitivities solve with it instead of `hessian` or `tangent`.
+  EdgeSolver edge;
+  bool edge_valid = false;
   /// The state and model (RodModel::hessian_digest) the kept factor belongs to. A solve that
   /// starts from exactly this state on a model with the same digest (a warm start after a
   /// change of dead loads only) takes its first Newton step with the kept factor, which is the
