@@ -338,6 +338,14 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
             "spring stiffness K L^2 is more than 1e3 x stretch_stiffness: the springs would "
             "crush the rod; check the units");
 
+  held_dofs_.assign(num_free_dofs(), 0);
+  for (const HeldVertex& hv : held_)
+    for (int r = 0; r < 3; ++r) held_dofs_[VertexDof(hv.vertex) + r] = 1;
+  if (end_clamp_) {
+    for (int r = 0; r < 3; ++r) held_dofs_[VertexDof(n_ + 1) + r] = 1;  // ghost's far vertex
+    if (end_twist_held_) held_dofs_[TwistDof(n_)] = 1;
+  }
+
   // Hessian digest over the bytes of every number the Hessian reads (see rod.h).
   uint64_t h = 1469598103934665603ULL;
   auto mix = [&h](double v) {

@@ -179,6 +179,8 @@ class RodModel {
   const std::vector<HeldVertex>& held() const { return held_; }
   /// Index into held() of the point holding vertex i, or -1.
   int held_at_vertex(int i) const { return held_of_vertex_[i]; }
+  /// Per free dof: held (a held vertex's coordinate, an end ghost's vertex, a held ghost twist).
+  const std::vector<char>& held_dofs() const { return held_dofs_; }
   /// Grasp: the grasped vertex (-1 without a grasp) and its target.
   int grasp_vertex() const { return grasp_vertex_; }
   const Vec3& grasp_position() const { return grasp_position_; }
@@ -219,6 +221,7 @@ class RodModel {
   Mat3X anchor_;
   std::vector<HeldVertex> held_;
   std::vector<int> held_of_vertex_;
+  std::vector<char> held_dofs_;
   int grasp_vertex_ = -1;
   Vec3 grasp_position_ = Vec3::Zero();
   uint64_t hessian_digest_ = 0;

@@ -29,8 +29,13 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
   held_vertices_.clear();
   for (const HeldVertex& h : model.held()) held_vertices_.push_back(h.vertex);
 
-  BandedMatrix K;
-  K.Resize(size_, kEdgeBandwidth, kEdgeBandwidth);
+  // The symmetric part in a symmetric band (lower storage, kept between calls: a fine rod's band
+  // is tens of megabytes); the moments' non-symmetric part is added to a general copy.
+  Ks_.Resize(size_, kEdgeBandwidth, 1);
+  Ks_.SetZero();
+  auto add = [&](int a, int b, double v) {
+    if (a >= b) Ks_.At(a, b) += v;
+  };
   const Material& m = model.material();
   VertexStencilConstants c;
   c.B1 = terms.bend1 * m.B1();
@@ -63,7 +68,7 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
       if (dof[a] < 0) continue;
       if (a >= 6) theta_gradient[dof[a]] += g8[a];
       for (int b = 0; b < 8; ++b)
-        if (dof[b] >= 0) K.At(dof[a], dof[b]) += H8[8 * a + b];
+        if (dof[b] >= 0) add(dof[a], dof[b], H8[8 * a + b]);
     }
   }
   const double EA = terms.stretch * m.stretch_stiffness;
@@ -73,23 +78,34 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
       Eigen::Matrix3d Hs;
       StretchGradientHessian(EA, model.rest_edge_length(j), state.e.col(j), &g, &Hs);
       for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 3; ++k) K.At(4 * j + r, 4 * j + k) += Hs(r, k);
+        for (int k = 0; k < 3; ++k) add(4 * j + r, 4 * j + k, Hs(r, k));
     }
   }
-  if (moment_scale > 0.0 && model.nonconservative()) {
+  if (shift != 0.0)
+    for (int k = 0; k < 4 * n_ + (ghost_ ? 4 : 0); ++k) Ks_.At(k, k) += shift;
+  // The end ghost's unused vertex dofs and a held ghost twist: identity rows.
+  auto identity_row = [](BandedSymmetric* A, int r) {
+    const int p = A->bandwidth();
+    for (int c = std::max(0, r - p); c <= std::min(A->size() - 1, r + p); ++c)
+      A->At(std::max(r, c), std::min(r, c)) = (r == c) ? 1.0 : 0.0;
+  };
+  symmetric_ = !(moment_scale > 0.0 && model.nonconservative());
+  BandedMatrix K;
+  if (!symmetric_) K.SetFromSymmetric(Ks_);
+  if (!symmetric_) {
     // The moments' load stiffness and the twist holonomy act on each edge's own block (their
     // vertex-coordinate forms are equal and opposite pairs on the edge's two vertices).
-    VecX residual = VecX::Zero(model.num_free_dofs());
-    BandedMatrix Jv;
-    Jv.Resize(model.num_free_dofs(), kRodBandwidth, kRodBandwidth);
-    AddMomentLoads(model, state, frames, terms.load_scale * moment_scale, &residual, &Jv);
-    for (int j = 0; j < n_; ++j) {
-      const int ev = RodModel::VertexDof(j + 1), tw = RodModel::TwistDof(j);
+    for (const EdgeMoment& em : model.edge_moments()) {
+      const int j = em.edge, tw = RodModel::TwistDof(j);
+      const EdgeMomentForce q = EdgeMomentLoad(em, frames, terms.load_scale * moment_scale);
       for (int r = 0; r < 3; ++r) {
-        for (int k = 0; k < 3; ++k) K.At(4 * j + r, 4 * j + k) += Jv.At(ev + r, ev + k);
-        K.At(4 * j + r, tw) += Jv.At(ev + r, tw);
-        K.At(tw, 4 * j + r) += Jv.At(tw, ev + r);
+        for (int k = 0; k < 3; ++k) K.At(4 * j + r, 4 * j + k) -= q.dQe_de(r, k);
+        K.At(4 * j + r, tw) -= q.dQe_dtheta[r];
+        K.At(tw, 4 * j + r) -= q.dQt_de[r];
       }
+    }
+    for (int j = 0; j < n_; ++j) {
+      const int tw = RodModel::TwistDof(j);
       const RodFrames::Edge& f = fr[j + 1];
       // The holonomy uses the conservative twist gradient (moment_loads.cc): dPi/dtheta_j.
       const Eigen::Matrix3d A = (0.5 * theta_gradient[tw] / (f.len * f.len)) * Skew(f.t);
@@ -97,16 +113,20 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
         for (int k = 0; k < 3; ++k) K.At(4 * j + r, 4 * j + k) += A(r, k);
     }
   }
-  if (shift != 0.0)
-    for (int k = 0; k < 4 * n_ + (ghost_ ? 4 : 0); ++k) K.At(k, k) += shift;
-  // The end ghost's unused vertex dofs and a held ghost twist: identity rows.
+  std::vector<int> identity_rows;
   if (ghost_) {
-    for (int r = 0; r < 3; ++r) K.SetIdentityRow(4 * n_ + r);
-    if (ghost_twist_held_) K.SetIdentityRow(RodModel::TwistDof(n_));
+    for (int r = 0; r < 3; ++r) identity_rows.push_back(4 * n_ + r);
+    if (ghost_twist_held_) identity_rows.push_back(RodModel::TwistDof(n_));
   }
-  symmetric_ = !(moment_scale > 0.0 && model.nonconservative());
-  if (!ldlt_.Factor(K.SymmetricPart(1))) return false;
-  if (!symmetric_ && !lu_.Factor(K)) return false;
+  if (symmetric_) {
+    for (int r : identity_rows) identity_row(&Ks_, r);
+    if (!ldlt_.Factor(Ks_)) return false;
+  } else {
+    for (int r : identity_rows) K.SetIdentityRow(r);
+    BandedSymmetric sym = K.SymmetricPart(1);
+    if (!ldlt_.Factor(sym)) return false;
+    if (!lu_.Factor(K)) return false;
+  }
   // Constraints: C de = sum_{j<k} de_j = 0 for each held vertex k.
   const int m3 = 3 * static_cast<int>(held_vertices_.size());
   Eigen::MatrixXd Ct = Eigen::MatrixXd::Zero(size_, m3);

@@ -53,6 +53,7 @@ class EdgeSolver {
   std::vector<int> held_vertices_;
   std::vector<char> held_dofs_;
   bool ghost_ = false, ghost_twist_held_ = false;
+  BandedSymmetric Ks_;                // the tangent's symmetric part (assembly scratch)
   BandedLDLT ldlt_;                   // the symmetric part: solves (conservative) and inertia
   BandedLU lu_;                       // the tangent itself, with moments
   Eigen::MatrixXd Y_;                 // K^-1 C^T

@@ -60,12 +60,33 @@ void AssembleBalance(const RodModel& model, const RodState& state, const RodFram
   }
   AddMomentLoads(model, state, frames, load_scale * moment_scale, g, J);
   if (!hold) return;
-  const std::vector<char> held = HeldDofs(model);
+  const std::vector<char>& held = HeldDofs(model);
   for (int k = 0; k < g->size(); ++k) {
     if (!held[k]) continue;
     (*g)[k] = 0.0;
     if (J) J->SetIdentityRow(k);
   }
+}
+
+EdgeMomentForce EdgeMomentLoad(const EdgeMoment& em, const RodFrames& frames, double scale) {
+  EdgeMomentForce q;
+  const RodFrames::Edge& f = frames.edges[em.edge + 1];
+  const double l = f.len;
+  const Vec3& t = f.t;
+  const Vec3 M = scale * WorldMoment(em, frames);
+  q.Qe = M.cross(t) / l;
+  q.Qt = M.dot(t);
+  q.dQe_dtheta.setZero();
+  if (!em.follower) {
+    q.dQe_de = Skew(M) * (Eigen::Matrix3d::Identity() - 2.0 * t * t.transpose()) / (l * l);
+    q.dQt_de = (M - t * t.dot(M)) / l;
+  } else {
+    const Vec3 m = scale * em.moment;
+    q.dQe_de = -(t * q.Qe.transpose() + q.Qe * t.transpose()) / l;
+    q.dQt_de.setZero();
+    q.dQe_dtheta = (m[0] * f.d1 + m[1] * f.d2) / l;
+  }
+  return q;
 }
 
 void AddMomentLoads(const RodModel& model, const RodState& state, const RodFrames& frames,
@@ -74,30 +95,14 @@ void AddMomentLoads(const RodModel& model, const RodState& state, const RodFrame
   if (load_scale == 0.0) return;
   for (const EdgeMoment& em : model.edge_moments()) {
     const int j = em.edge;
-    const RodFrames::Edge& f = frames.edges[j + 1];
-    const double l = f.len;
-    const Vec3& t = f.t;
-    const Vec3 M = load_scale * WorldMoment(em, frames);
-    const Vec3 Qe = M.cross(t) / l;
-    const double Qt = M.dot(t);
+    const EdgeMomentForce q = EdgeMomentLoad(em, frames, load_scale);
     const int end = RodModel::VertexDof(j + 1);
     const int start = j >= 1 ? RodModel::VertexDof(j) : -1;  // x_0 is clamped
     const int twist = RodModel::TwistDof(j);
-    residual->segment<3>(end) -= Qe;
-    if (start >= 0) residual->segment<3>(start) += Qe;
-    (*residual)[twist] -= Qt;
+    residual->segment<3>(end) -= q.Qe;
+    if (start >= 0) residual->segment<3>(start) += q.Qe;
+    (*residual)[twist] -= q.Qt;
     if (!J) continue;
-    Eigen::Matrix3d dQe_de;
-    Vec3 dQt_de, dQe_dtheta = Vec3::Zero();
-    if (!em.follower) {
-      dQe_de = Skew(M) * (Eigen::Matrix3d::Identity() - 2.0 * t * t.transpose()) / (l * l);
-      dQt_de = (M - t * t.dot(M)) / l;
-    } else {
-      const Vec3 m = load_scale * em.moment;
-      dQe_de = -(t * Qe.transpose() + Qe * t.transpose()) / l;
-      dQt_de.setZero();
-      dQe_dtheta = (m[0] * f.d1 + m[1] * f.d2) / l;
-    }
     // J -= dQ/dq with e = x_{j+1} - x_j: signs +1 for x_{j+1}, -1 for x_j.
     const int rows[2] = {end, start};
     const double sign[2] = {1.0, -1.0};
@@ -106,10 +111,11 @@ void AddMomentLoads(const RodModel& model, const RodState& state, const RodFrame
       for (int b = 0; b < 2; ++b) {
         if (rows[b] < 0) continue;
         for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) J->At(rows[a] + r, rows[b] + c) -= sign[a] * sign[b] * dQe_de(r, c);
+          for (int c = 0; c < 3; ++c)
+            J->At(rows[a] + r, rows[b] + c) -= sign[a] * sign[b] * q.dQe_de(r, c);
       }
-      for (int r = 0; r < 3; ++r) J->At(rows[a] + r, twist) -= sign[a] * dQe_dtheta[r];
-      for (int c = 0; c < 3; ++c) J->At(twist, rows[a] + c) -= sign[a] * dQt_de[c];
+      for (int r = 0; r < 3; ++r) J->At(rows[a] + r, twist) -= sign[a] * q.dQe_dtheta[r];
+      for (int c = 0; c < 3; ++c) J->At(twist, rows[a] + c) -= sign[a] * q.dQt_de[c];
     }
   }
 }

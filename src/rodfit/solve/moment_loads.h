@@ -20,6 +20,16 @@ namespace rodfit {
 void AddMomentLoads(const RodModel& model, const RodState& state, const RodFrames& frames,
                     double load_scale, VecX* residual, BandedMatrix* J);
 
+/// One edge moment's generalised force on its edge (Q_e on x_{j+1}, -Q_e on x_j, Q_theta on
+/// theta_j) at `scale` times its value, and its derivatives with respect to the edge vector and
+/// the twist angle.
+struct EdgeMomentForce {
+  Vec3 Qe, dQe_dtheta, dQt_de;
+  double Qt = 0.0;
+  Eigen::Matrix3d dQe_de;
+};
+EdgeMomentForce EdgeMomentLoad(const EdgeMoment& em, const RodFrames& frames, double scale);
+
 /// The world moment of an EdgeMoment in `state` (the follower's components turned to world).
 Vec3 WorldMoment(const EdgeMoment& em, const RodFrames& frames);
 

@@ -371,24 +371,13 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   if (terms.loads) AddDeadLoadGradient(model, terms.load_scale, /*hold=*/false, gradient);
   if (terms.hold) {
     // Dirichlet rows: held vertices do not move; their gradient is the constraint force.
-    const std::vector<char> held = HeldDofs(model);
-    ApplyHeldRows(held, gradient, kHessian ? H : nullptr);
+    ApplyHeldRows(HeldDofs(model), gradient, kHessian ? H : nullptr);
   }
 }
 
 }  // namespace
 
-std::vector<char> HeldDofs(const RodModel& model) {
-  std::vector<char> held(model.num_free_dofs(), 0);
-  for (const HeldVertex& h : model.held())
-    for (int r = 0; r < 3; ++r) held[RodModel::VertexDof(h.vertex) + r] = 1;
-  if (model.has_end_clamp()) {
-    const int n = model.num_edges();
-    for (int r = 0; r < 3; ++r) held[RodModel::VertexDof(n + 1) + r] = 1;  // ghost's far vertex
-    if (model.end_twist_held()) held[RodModel::TwistDof(n)] = 1;
-  }
-  return held;
-}
+const std::vector<char>& HeldDofs(const RodModel& model) { return model.held_dofs(); }
 
 void ApplyHeldRows(const std::vector<char>& held, VecX* gradient, BandedSymmetric* H) {
   const int size = static_cast<int>(held.size());
@@ -548,7 +537,7 @@ VecX GradientNormWeights(const RodModel& model) {
   }
   for (int j = 0; j < n; ++j) w[RodModel::TwistDof(j)] = 1.0 / model.rest_edge_length(j);
   if (model.has_end_clamp()) w[RodModel::TwistDof(n)] = 1.0 / model.end_ghost_length();
-  const std::vector<char> held = HeldDofs(model);
+  const std::vector<char>& held = HeldDofs(model);
   for (int k = 0; k < w.size(); ++k)
     if (held[k]) w[k] = 0.0;
   return w;

@@ -121,7 +121,7 @@ void AssembleHessian(const RodModel& model, const RodState& state, const EnergyT
 
 /// Whether free dof k is held (a held vertex's coordinate, an end ghost's vertex, or a held
 /// ghost twist): such dofs have Dirichlet rows.
-std::vector<char> HeldDofs(const RodModel& model);
+const std::vector<char>& HeldDofs(const RodModel& model);
 
 /// Dirichlet rows and columns for the held dofs: zero gradient, identity diagonal.
 void ApplyHeldRows(const std::vector<char>& held, VecX* gradient, BandedSymmetric* H);

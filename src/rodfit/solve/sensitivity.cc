@@ -21,10 +21,20 @@ bool TermSensitivities(const RodModel& model, const RodState& state,
   // A conservative case keeps the Cholesky factor of its Hessian; a case with moments the LU
   // factor of its (non-symmetric) tangent. The moments do not depend on the stiffnesses, so
   // dg/dlog p is the unit term's gradient either way.
-  const bool edge = workspace.edge_valid;
   const bool lu = workspace.tangent_valid && workspace.tangent.size() == model.num_free_dofs();
   const bool chol = workspace.factor_valid && workspace.hessian.size() == model.num_free_dofs();
-  if (!edge && !lu && !chol) return false;
+  if (!workspace.edge_valid && !lu && !chol) return false;
+  // A fine rod's sensitivities in edge coordinates: the solve's own edge factor, or one made
+  // here at the (stable) solution.
+  EdgeSolver fine;
+  const EdgeSolver* edge = workspace.edge_valid ? &workspace.edge : nullptr;
+  if (!edge && model.num_edges() >= kEdgeSensitivitySegments && EdgeSolver::Applies(model)) {
+    RodFrames frames;
+    ComputeRodFrames(model, state, &frames);
+    if (fine.Factor(model, state, frames, EnergyTerms(), lu ? 1.0 : 0.0) &&
+        fine.positive_definite())
+      edge = &fine;
+  }
   dq_dlogp->resize(model.num_free_dofs(), static_cast<int>(terms.size()));
   VecX g;
   for (size_t k = 0; k < terms.size(); ++k) {
@@ -32,7 +42,7 @@ bool TermSensitivities(const RodModel& model, const RodState& state,
     dq_dlogp->col(static_cast<int>(k)) = -g;
   }
   if (edge) {
-    workspace.edge.SolveInPlace(*dq_dlogp);
+    edge->SolveInPlace(*dq_dlogp);
   } else if (lu) {
     workspace.tangent.SolveInPlace(*dq_dlogp);
   } else {

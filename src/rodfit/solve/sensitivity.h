@@ -12,6 +12,11 @@
 
 namespace rodfit {
 
+/// From this many segments on (without springs) sensitivities are solved in edge coordinates
+/// (edge_solver.h): the vertex factor's condition number ~(2n/pi)^4 costs them ~eps (2n/pi)^4 of
+/// relative accuracy, 2e-5 at 1000 segments.
+constexpr int kEdgeSensitivitySegments = 1000;
+
 /// The stiffness parameters of the rod model, in EnergyTerms::Only's numbering.
 enum class Stiffness { kBend1 = 0, kBend2 = 1, kTwist = 2, kStretch = 3 };
 

@@ -395,6 +395,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
   constexpr int kMaxSaddleEscapes = 5;
   int stagnant = 0;
   double previous_energy = energy;
+  double last_move = std::numeric_limits<double>::infinity();  // [m] of the last step taken
   for (int it = 0; it < max_iterations; ++it) {
     const bool reuse = (it == 0 && factor_at_start);
     bool chord = false;
@@ -431,6 +432,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
           if (std::isfinite(e_trial) && e_trial <= energy + opt.armijo * slope + noise) {
             taken = true;
             energy = e_trial;
+            last_move = LargestMove(*state, trial);
             std::swap(*state, trial);
             std::swap(frames, trial_frames);
           }
@@ -504,6 +506,13 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
         ws->factor_valid = false;
         return converged(!shifted);
       }
+    } else if (!shifted && gnorm <= force_tol && last_step_full &&
+               last_move <= 1e3 * tol.step_x) {
+      // At the gradient's floor after a full step that moved no vertex by more than 1e-6 L: the
+      // state is that close to the solution (the Converged() test's last clause, without the
+      // back-substitution for a step that would be no longer).
+      ws->factor_valid = true;
+      return converged(true);
     } else {
       step = -ws->hessian.Solve(g);
     }
@@ -600,6 +609,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
     // times running. The gradient's floor is then above the tolerance (fine rods: the bending
     // forces' round-off grows as eps B / l^2), and the state is as good as doubles make it.
     const double moved = LargestMove(*state, trial);
+    last_move = moved;
     const double change = std::abs(energy - previous_energy);
     stagnant = (!shifted && alpha == 1.0 && moved <= 1e3 * tol.step_x &&
                 change <= 10.0 * EnergyNoise(model, energy))
@@ -982,7 +992,7 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
   StaticsWorkspace local;
   StaticsWorkspace* ws = workspace ? workspace : &local;
   const Tolerances tol = MakeTolerances(model, options);
-  const std::vector<char> held = HeldDofs(model);
+  const std::vector<char>& held = HeldDofs(model);
   const NewtonContext ctx{model, options, tol, held};
   // The kept factor belongs to factor_state: from exactly that state it is the Hessian there
   // (same digest) or a chord basis (a model with other stiffnesses).

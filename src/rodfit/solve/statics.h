@@ -43,10 +43,13 @@ struct StaticsOptions {
   /// directions, see statics.cc) while they converge fast; the Hessian is always assembled and
   /// factored at the solution, so the result and the kept factor do not depend on this.
   bool chord_steps = true;
-  /// From this many segments on (and without springs), Newton steps and sensitivities are solved
-  /// in edge coordinates (edge_solver.h): the vertex-coordinate bending operator's condition
-  /// number, ~(2n/pi)^4, leaves too few digits beyond ~10^3 segments.
-  int edge_solver_segments = 1000;
+  /// From this many segments on (and without springs), Newton steps are solved in edge
+  /// coordinates (edge_solver.h): the vertex-coordinate bending operator's condition number,
+  /// ~(2n/pi)^4, is 1e17 at 2e4 segments, where the vertex factor's steps lose the soft modes.
+  /// Below it the vertex factor's steps, inexact in their last digits, still converge (and keep
+  /// the kept factor and chord steps of warm re-solves); sensitivities, which need every digit,
+  /// switch to edge coordinates from kEdgeSensitivitySegments (sensitivity.h).
+  int edge_solver_segments = 20000;
   bool Check(std::string* why) const;
 };
 
