@@ -148,7 +148,11 @@ FitInput ForceOnly(double noise, std::mt19937* rng) {
     fc.load_case = c;
     Vec3 f = GraspReaction(*model, state);
     if (noise > 0) f += noise * Vec3(N(*rng), N(*rng), N(*rng));
-    fc.grasp_forces.push_back({f, 0.01, "grasp_force log " + c.name});
+    ForceMeasurement m;
+    m.force = f;
+    m.sigma = 0.01;
+    m.label = "grasp_force log " + c.name;
+    fc.grasp_forces.push_back(m);
     in.cases.push_back(fc);
   }
   return in;

@@ -165,7 +165,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
 
   if (load_case.end_clamp && load_case.end_pin)
     throw std::invalid_argument("end_clamp and end_pin both hold s = L: give one");
-  if (const auto& ec = load_case.end_clamp) {
+  if (const auto& ec = load_case.end_clamp; ec && !load_case.symmetry) {
     Require(Finite(ec->position) && Finite(ec->tangent) && (!ec->normal || Finite(*ec->normal)),
             "end_clamp vectors must be finite");
     Require(ec->tangent.norm() > 0, "end_clamp.tangent must not be zero");
@@ -187,6 +187,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
                                     load_case.tip_moment_follower.squaredNorm() > 0)),
           "a tip moment acts on the clamped end s = L, which the end_clamp takes: remove it");
 
+  if (load_case.symmetry) SetUpSymmetry();
   BuildVertices();
   PlaceHeldPoints();
 
@@ -205,6 +206,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     vertex_mass_[j] += 0.5 * rod.linear_density * rest_edge_[j];
     vertex_mass_[j + 1] += 0.5 * rod.linear_density * rest_edge_[j];
   }
+  if (symmetric_) vertex_mass_[n_] += 0.5 * rod.linear_density * crossing_length_;
   vertex_forces_.setZero(3, n_ + 1);
   for (int i = 0; i <= n_; ++i) vertex_forces_.col(i) = vertex_mass_[i] * gravity_;
   vertex_forces_.col(n_) += load_case.tip_force;
@@ -341,7 +343,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   held_dofs_.assign(num_free_dofs(), 0);
   for (const HeldVertex& hv : held_)
     for (int r = 0; r < 3; ++r) held_dofs_[VertexDof(hv.vertex) + r] = 1;
-  if (end_clamp_) {
+  if (has_end_ghost()) {
     for (int r = 0; r < 3; ++r) held_dofs_[VertexDof(n_ + 1) + r] = 1;  // ghost's far vertex
     if (end_twist_held_) held_dofs_[TwistDof(n_)] = 1;
   }
@@ -362,6 +364,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   mix3(rod_.rest_curvature);
   mix3(clamp_p_), mix3(clamp_d3_), mix3(clamp_d1_);
   mix(end_clamp_), mix(end_twist_held_), mix3(end_d3_), mix3(end_d1_);
+  mix(symmetric_), mix3(sym_point_), mix3(sym_normal_), mix(crossing_length_);
   for (const EdgeMoment& em : edge_moments_) mix(em.edge), mix3(em.moment), mix(em.follower);
   for (int z = 0; z < num_spring_zones(); ++z)
     for (int i = 0; i <= n_; ++i) mix(zone_stiffness(z) * zone_length_[z][i]);
@@ -374,7 +377,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     const Vec3 straight = clamp_p_ + hv.s * clamp_d3_;
     imposed = std::max(imposed, (hv.target - straight).norm() / length_);
   }
-  if (end_clamp_) imposed = std::max(imposed, 1.0);  // an end frame imposes curvature ~ 1 / L
+  if (end_clamp_ || symmetric_) imposed = std::max(imposed, 1.0);  // an end frame: ~1 / L
   imposed = std::max(imposed, rod.rest_curvature.norm() * length_);
   double spring_max = 0.0;
   for (int z = 0; z < num_spring_zones(); ++z) spring_max = std::max(spring_max, zone_stiffness(z));
@@ -383,6 +386,57 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
                            moment_sum / length_, imposed_force});
   // Nothing loads the rod: the straight (or rest) rod is the answer; any scale serves.
   if (!(force_scale_ > 0)) force_scale_ = B / (length_ * length_);
+}
+
+void RodModel::SetUpSymmetry() {
+  const SymmetryPlane& sp = *case_.symmetry;
+  const int n = rod_.segments;
+  Require(Finite(sp.point) && Finite(sp.normal) && sp.normal.norm() > 0,
+          "symmetry: point and normal must be finite, the normal not zero");
+  Require(n % 2 == 1, "symmetry needs an odd number of segments (an edge crossing the plane at "
+                      "the rod's middle), got " + std::to_string(n) + ": use " +
+                          std::to_string(n - 1) + " or " + std::to_string(n + 1));
+  Require(rod_.vertex_s.empty(), "symmetry needs evenly spaced vertices (no rod.vertex_s)");
+  const LoadCase& c = case_;
+  Require(c.end_clamp.has_value(),
+          "symmetry: the rod's end must be held by an end_clamp, the mirror image of the clamp");
+  Require(!c.end_pin && c.pins.empty() && !c.grasp && c.point_forces.empty() &&
+              c.point_moments.empty() && !c.poke && c.tip_force.squaredNorm() == 0 &&
+              c.tip_moment.squaredNorm() == 0 && c.tip_moment_follower.squaredNorm() == 0,
+          "symmetry: a symmetric case holds the rod by its two clamps under gravity only (no "
+          "pins, grasp, point or tip loads, poke)");
+  Require(zones_.empty(), "symmetry: not with springs");
+  Require(rod_.rest_curvature.squaredNorm() == 0,
+          "symmetry: not with rest_curvature (a curved rod's mirror image is another rod)");
+  sym_point_ = sp.point;
+  sym_normal_ = sp.normal.normalized();
+  const double side = (clamp_p_ - sym_point_).dot(sym_normal_);
+  Require(std::abs(side) > 1e-9 * rod_.length, "symmetry: the clamp lies on the plane");
+  if (side > 0) sym_normal_ = -sym_normal_;  // from the clamp's half towards the plane
+  const EndClamp& ec = *c.end_clamp;
+  const double tol = 1e-9;
+  Require(Finite(ec.position) && Finite(ec.tangent) && ec.tangent.norm() > 0,
+          "end_clamp vectors must be finite, the tangent not zero");
+  Require((ec.position - Mirror(clamp_p_)).norm() <= tol * rod_.length,
+          "symmetry: the end_clamp's position is not the mirror image of the clamp's");
+  // r(L - s) = mirror(r(s)): d3(L) = -mirror(d3(0)), d1(L) = mirror(d1(0)).
+  auto reflect = [&](const Vec3& v) { return Vec3(v - 2.0 * v.dot(sym_normal_) * sym_normal_); };
+  Require((ec.tangent.normalized() + reflect(clamp_d3_)).norm() <= tol,
+          "symmetry: the end_clamp's tangent is not the mirror image of the clamp's (reversed)");
+  if (ec.normal) {
+    const Vec3 t = ec.tangent.normalized();
+    const Vec3 d1 = (*ec.normal - ec.normal->dot(t) * t).normalized();
+    Require((d1 - reflect(clamp_d1_)).norm() <= 1e-6,
+            "symmetry: the end_clamp's normal is not the mirror image of the clamp's");
+  }
+  Require(std::abs(gravity_.dot(sym_normal_)) <= 1e-12 * gravity_.norm(),
+          "symmetry: gravity crosses the plane (it must lie in it)");
+  symmetric_ = true;
+  crossing_length_ = rod_.length / n;
+  n_ = (n - 1) / 2;
+  length_ = rod_.length * n_ / n;
+  end_d3_ = sym_normal_;
+  end_twist_held_ = false;
 }
 
 void RodModel::BuildVertices() {
@@ -433,8 +487,9 @@ void RodModel::PlaceHeldPoints() {
     h.kind = r.kind, h.index = r.index;
     return h.Label() + " (s = " + Num(r.s) + ")";
   };
-  // The end is held at vertex n without moving anything.
-  const bool end_held = case_.end_clamp || case_.end_pin;
+  // The end is held at vertex n without moving anything (a symmetric half's end clamp belongs
+  // to the other half).
+  const bool end_held = !symmetric_ && (case_.end_clamp || case_.end_pin);
   if (end_held) taken[n_] = -2;
   for (size_t q = 0; q < requests.size(); ++q) {
     const Request& r = requests[q];
@@ -463,7 +518,9 @@ void RodModel::PlaceHeldPoints() {
   voronoi_.assign(n_ + 1, 0.0);
   voronoi_[0] = 0.5 * rest_edge_[0];  // half cell against the clamp (see the file comment)
   for (int i = 1; i < n_; ++i) voronoi_[i] = 0.5 * (rest_edge_[i - 1] + rest_edge_[i]);
-  voronoi_[n_] = 0.5 * rest_edge_[n_ - 1];  // with an end clamp: half cell against its ghost
+  // With an end clamp: half a cell against its ghost. A symmetric half's last vertex has the
+  // full cell it has in the whole rod, up to the middle of the crossing edge.
+  voronoi_[n_] = 0.5 * (rest_edge_[n_ - 1] + (symmetric_ ? crossing_length_ : 0.0));
 
   held_of_vertex_.assign(n_ + 1, -1);
   for (int k = 1; k <= n_; ++k) {
@@ -533,10 +590,13 @@ void RodModel::InitialiseFrames(RodState* s) const {
     s->ref_twist[i] = SignedAngle<double>(ParallelTransport<double, double>(te, s->ref_t.col(i), ue),
                                           s->ref_u.col(i), s->ref_t.col(i));
   }
-  if (end_clamp_) {  // the ghost continues the last edge: no kink, no twist at vertex n
+  if (has_end_ghost()) {  // the ghost continues the last edge: no kink, no twist at vertex n
     s->end_t = s->ref_t.col(n - 1);
     s->end_u = s->ref_u.col(n - 1);
     s->end_theta = 0.0;
+    // A symmetric half's plane: perpendicular to the last edge half a crossing edge beyond it
+    // (where the whole rod, as the state has it, would be mirror symmetric).
+    if (symmetric_) s->plane_point = s->x.col(n) + 0.5 * crossing_length_ * s->end_t;
   } else {
     s->end_t.setZero();
     s->end_u.setZero();

@@ -49,6 +49,9 @@ struct RodState {
   Vec3 end_t = Vec3::Zero();      ///< end clamp's ghost: unit tangent (zero without end clamp)
   Vec3 end_u = Vec3::Zero();      ///< end clamp's ghost: reference director
   double end_theta = 0.0;         ///< end clamp's ghost: twist angle about end_t from end_u
+  /// A symmetric half's mirror plane: a point of it [m] (its normal is end_t). Moved from the
+  /// start state's own plane to the case's by continuation, like a held point.
+  Vec3 plane_point = Vec3::Zero();
 
   int num_edges() const { return static_cast<int>(theta.size()); }
   Vec3 vertex(int i) const { return x.col(i); }
@@ -97,8 +100,9 @@ class RodModel {
 
   int num_edges() const { return n_; }
   int num_vertices() const { return n_ + 1; }
-  /// 4 per edge, and a block of 4 more for an end clamp's ghost edge.
-  int num_free_dofs() const { return 4 * n_ + (has_end_clamp() ? 4 : 0); }
+  /// 4 per edge, and a block of 4 more for the end's ghost edge (an end clamp, or a symmetric
+  /// case's edge crossing its plane).
+  int num_free_dofs() const { return 4 * n_ + (has_end_ghost() ? 4 : 0); }
 
   double length() const { return length_; }
   double rest_edge_length(int j) const { return rest_edge_[j]; }
@@ -119,14 +123,31 @@ class RodModel {
   const Vec3& clamp_tangent() const { return clamp_d3_; }   ///< unit d3 at s = 0
   const Vec3& clamp_d1() const { return clamp_d1_; }        ///< unit d1 at s = 0
 
-  // The clamp at s = L (end_clamp).
+  // The clamp at s = L (end_clamp), or a symmetric case's plane: a ghost edge after vertex n.
   bool has_end_clamp() const { return end_clamp_; }
+  bool has_end_ghost() const { return end_clamp_ || symmetric_; }
   /// True when the end clamp holds d1 too (a normal was given): the ghost's twist is held.
   bool end_twist_held() const { return end_twist_held_; }
-  const Vec3& end_tangent() const { return end_d3_; }   ///< unit d3 at s = L
+  const Vec3& end_tangent() const { return end_d3_; }   ///< unit d3 of the ghost
   const Vec3& end_d1() const { return end_d1_; }        ///< unit d1 at s = L (when held)
-  /// The ghost edge's rest length (for the stencil only: the ghost never stretches).
-  double end_ghost_length() const { return rest_edge_[n_ - 1]; }
+  /// The ghost edge's rest length: the last edge's for an end clamp (the ghost never stretches),
+  /// the crossing edge's for a symmetric half.
+  double end_ghost_length() const { return symmetric_ ? crossing_length_ : rest_edge_[n_ - 1]; }
+
+  // Symmetry (LoadCase::symmetry): this model is the half of the case's rod from the clamp to
+  // the mirror plane. The full rod has 2n + 1 edges; its middle edge crosses the plane at a
+  // right angle, and the half holds the vertex before it, the bending and twist there (a full
+  // Voronoi cell, against the crossing edge as its ghost, free to twist) and half the crossing
+  // edge's stretch. Its equilibrium is the full rod's mirror-symmetric one.
+  bool symmetric() const { return symmetric_; }
+  const Vec3& symmetry_point() const { return sym_point_; }
+  const Vec3& symmetry_normal() const { return sym_normal_; }  ///< unit, from the half to the plane
+  double crossing_length() const { return crossing_length_; }  ///< rest length of the middle edge
+  int full_segments() const { return symmetric_ ? 2 * n_ + 1 : n_; }
+  /// The mirror image of a point.
+  Vec3 Mirror(const Vec3& p) const {
+    return p - 2.0 * (p - sym_point_).dot(sym_normal_) * sym_normal_;
+  }
 
   /// Lumped weight of vertex i: mass times gravity [N] (zero for a massless rod).
   Vec3 vertex_weight(int i) const { return vertex_mass_[i] * gravity_; }
@@ -202,6 +223,7 @@ class RodModel {
  private:
   void BuildVertices();
   void PlaceHeldPoints();
+  void SetUpSymmetry();
 
   RodSpec rod_;
   Material material_;
@@ -212,6 +234,9 @@ class RodModel {
   std::vector<double> rest_edge_, voronoi_, arc_, vertex_mass_;
   Vec3 clamp_p_, clamp_d3_, clamp_d1_;
   bool end_clamp_ = false, end_twist_held_ = false;
+  bool symmetric_ = false;
+  Vec3 sym_point_ = Vec3::Zero(), sym_normal_ = Vec3::UnitX();
+  double crossing_length_ = 0.0;
   Vec3 end_d3_ = Vec3::Zero(), end_d1_ = Vec3::Zero();
   Mat3X vertex_forces_;
   std::vector<EdgeMoment> edge_moments_;

@@ -44,6 +44,13 @@ CaseSolution SolveModel(std::shared_ptr<const RodModel> model, const Scene& scen
                         const CaseSolution* previous, const StaticsOptions& options,
                         StaticsWorkspace* workspace, const RodState* warm);
 
+/// The whole rod of a symmetric case (RodModel::symmetric()): the half state `h` of model `half`
+/// and its mirror image, as a state of `full`, the case's model without the symmetry.
+RodState MirroredState(const RodModel& half, const RodState& h, const RodModel& full);
+
+/// The first half of a whole rod's state `whole` (model `full`) as a state of its symmetric half.
+RodState HalfState(const RodModel& half, const RodModel& full, const RodState& whole);
+
 /// The state a case starts from (before continuation): see StartShape.
 RodState StartState(const RodModel& model, const CaseSolution* previous);
 

@@ -22,7 +22,7 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
   positive_definite_ = false;
   if (!Applies(model) || !frames.fresh) return false;
   n_ = model.num_edges();
-  ghost_ = model.has_end_clamp();
+  ghost_ = model.has_end_ghost();
   ghost_twist_held_ = ghost_ && model.end_twist_held();
   size_ = model.num_free_dofs();
   held_dofs_ = HeldDofs(model);

@@ -22,8 +22,11 @@ namespace rodfit {
 
 class EdgeSolver {
  public:
-  /// Whether a model can use it: no springs.
-  static bool Applies(const RodModel& model) { return !model.has_springs(); }
+  /// Whether a model can use it: no springs (nor a symmetric half's crossing edge, whose stretch
+  /// ties its last vertex to the plane).
+  static bool Applies(const RodModel& model) {
+    return !model.has_springs() && !model.symmetric();
+  }
 
   /// Factors the tangent at a state with fresh frames, plus `shift` on its diagonal: the Hessian
   /// of Pi under `terms` (hold and springs ignored) and, when `moment_scale` > 0 and the model

@@ -13,6 +13,19 @@
 
 namespace rodfit {
 
+double CrossingStretch(const RodModel& model, const RodState& state, double stretch_factor,
+                       double* dE_dd, double* d2E_dd2) {
+  // Half the stretch of the edge that crosses a symmetric case's plane: its length is twice the
+  // distance d of the half's last vertex to the plane.
+  const double EA = stretch_factor * model.material().stretch_stiffness;
+  const double lc = model.crossing_length();
+  const double d = (state.plane_point - state.x.col(model.num_edges())).dot(state.end_t);
+  const double strain = 2.0 * d / lc - 1.0;
+  if (dE_dd) *dE_dd = EA * strain;
+  if (d2E_dd2) *d2E_dd2 = 2.0 * EA / lc;
+  return 0.25 * EA * lc * strain * strain;
+}
+
 void StretchGradientHessian(double EA, double L0, const Vec3& e, Vec3* g, Eigen::Matrix3d* H) {
   const double len = e.norm();
   const Vec3 t = e / len;
@@ -24,6 +37,19 @@ void StretchGradientHessian(double EA, double L0, const Vec3& e, Vec3* g, Eigen:
 }
 
 namespace {
+
+// A symmetric half's crossing edge (f of vertex n) keeps its direction, the plane's normal, and
+// the bending energy reads edge directions only, so no dof moves it: its rows and columns of the
+// stencil's edge-variable gradient and Hessian are dropped (otherwise x_n would carry -dE/df).
+// Its twist (local 7) stays. (An end clamp's ghost keeps them: its far vertex is a held dof
+// whose gradient is the clamp's reaction, and x_n is held.)
+void DropGhostEdge(double g8[8], double H8[64]) {
+  for (int a = 3; a < 6; ++a) {
+    g8[a] = 0.0;
+    if (!H8) continue;
+    for (int b = 0; b < 8; ++b) H8[8 * a + b] = H8[8 * b + a] = 0.0;
+  }
+}
 
 // Adds vertex i's stencil gradient and Hessian, given in the edge variables (e, f, theta_e,
 // theta_f), to the free dofs. With e = x_i - x_{i-1} and f = x_{i+1} - x_i the stencil covers
@@ -81,7 +107,7 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
 
 void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames) {
   const int n = model.num_edges();
-  const bool ghost = model.has_end_clamp();
+  const bool ghost = model.has_end_ghost();
   frames->edges.resize(n + 1 + (ghost ? 1 : 0));
   frames->fresh = true;
   RodFrames::Edge& clamp = frames->edges[0];
@@ -148,6 +174,10 @@ double NonBendingEnergy(const RodModel& model, const RodState& state, const Ener
         energy += 0.5 * K * model.zone_cell_length(z, i) *
                   (state.x.col(i) - model.spring_anchor(i)).squaredNorm();
     }
+  }
+  if (model.symmetric() && terms.stretch != 0.0) {
+    double g;
+    energy += CrossingStretch(model, state, terms.stretch, &g, nullptr);
   }
   if (terms.loads) energy += DeadLoadEnergy(model, state, terms.load_scale);
   return energy;
@@ -330,6 +360,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
           for (int k = 0; k < 3; ++k) H8[8 * (3 + r) + 3 + k] += Hs(r, k);
         }
       }
+      if (i == n && model.symmetric()) DropGhostEdge(g8, H8);
       AddStencilHessian(i, g8, H8, gradient, H);
       continue;
     }
@@ -337,10 +368,16 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
     if (fresh) {
       double g8[8];
       StencilGradient<double>(c, FreshStencilGeometry(fr[i], fr[i + 1]), dtheta, g8);
+      if (i == n && model.symmetric()) DropGhostEdge(g8, nullptr);
       AddStencilGradient(i, g8, gradient);
     } else {
       double g[11];
       VertexGradient<double>(c, q, g);
+      if (i == n && model.symmetric()) {
+        // The crossing edge (dofs 6..8 here) neither moves nor stretches with x_n: undo the -g_f the
+        // stencil's x_mid row carries for it.
+        for (int k = 0; k < 3; ++k) g[3 + k] += g[6 + k], g[6 + k] = 0.0;
+      }
       for (int a = 0; a < 11; ++a)
         if (dof[a] >= 0) (*gradient)[dof[a]] += g[a];
     }
@@ -367,6 +404,17 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
           for (int r = 0; r < 3; ++r) H->At(d + r, d + r) += k;
       }
     }
+  }
+  if (model.symmetric() && terms.stretch != 0.0) {
+    // The crossing edge's half stretch, a function of d = (c - x_n) . normal.
+    double dE, d2E;
+    CrossingStretch(model, state, terms.stretch, &dE, &d2E);
+    const Vec3 nrm = state.end_t;  // the plane's normal as the state has it
+    const int d = RodModel::VertexDof(n);
+    gradient->segment<3>(d) -= dE * nrm;
+    if (kHessian)
+      for (int r = 0; r < 3; ++r)
+        for (int k = 0; k <= r; ++k) H->At(d + r, d + k) += d2E * nrm[r] * nrm[k];
   }
   if (terms.loads) AddDeadLoadGradient(model, terms.load_scale, /*hold=*/false, gradient);
   if (terms.hold) {
@@ -487,7 +535,7 @@ bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, d
   out->SyncVertices();
   for (const HeldVertex& h : model.held()) out->x.col(h.vertex) = state.x.col(h.vertex);
   for (int j = 0; j < n; ++j) out->theta[j] += alpha * step[RodModel::TwistDof(j)];
-  if (model.has_end_clamp() && !model.end_twist_held())
+  if (model.has_end_ghost() && !model.end_twist_held())
     out->end_theta += alpha * step[RodModel::TwistDof(n)];
   return UpdateReferenceFrames(model, state, out);
 }
@@ -536,7 +584,7 @@ VecX GradientNormWeights(const RodModel& model) {
     w.segment<3>(RodModel::VertexDof(i)).setConstant(L / cell);
   }
   for (int j = 0; j < n; ++j) w[RodModel::TwistDof(j)] = 1.0 / model.rest_edge_length(j);
-  if (model.has_end_clamp()) w[RodModel::TwistDof(n)] = 1.0 / model.end_ghost_length();
+  if (model.has_end_ghost()) w[RodModel::TwistDof(n)] = 1.0 / model.end_ghost_length();
   const std::vector<char>& held = HeldDofs(model);
   for (int k = 0; k < w.size(); ++k)
     if (held[k]) w[k] = 0.0;

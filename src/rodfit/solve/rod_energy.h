@@ -80,9 +80,14 @@ void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* f
 /// Hessian with respect to the edge vector e.
 void StretchGradientHessian(double EA, double L0, const Vec3& e, Vec3* g, Eigen::Matrix3d* H);
 
-/// Number of bending vertices: 0..n-1, and n with an end clamp.
+/// A symmetric half's share of its crossing edge's stretch (rod.h, symmetric()), with its first
+/// and second derivatives with respect to d, the last vertex's distance to the plane.
+double CrossingStretch(const RodModel& model, const RodState& state, double stretch_factor,
+                       double* dE_dd, double* d2E_dd2);
+
+/// Number of bending vertices: 0..n-1, and n with an end clamp or a symmetry plane.
 inline int NumBendingVertices(const RodModel& model) {
-  return model.num_edges() + (model.has_end_clamp() ? 1 : 0);
+  return model.num_edges() + (model.has_end_ghost() ? 1 : 0);
 }
 
 /// The dead loads' part of Pi, -load_scale sum_i f_i . x_i, and of its gradient, -load_scale f_i

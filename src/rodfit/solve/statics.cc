@@ -227,7 +227,7 @@ double FactorShifted(const BandedSymmetric& H, double base, BandedCholesky* fact
 /// smallest that factors, then inverse iteration with it. Returns the Rayleigh quotient of the
 /// direction found (d, scaled to max |d| = 1).
 double NegativeCurvature(const BandedSymmetric& H, double shift_ok, double shift_failed,
-                         BandedCholesky* factor, VecX* d, int bisections = 12) {
+                         BandedCholesky* factor, VecX* d, int bisections, const VecX& g) {
   double lo = std::max(shift_failed, 0.0), hi = shift_ok;
   BandedCholesky probe;
   for (int k = 0; k < bisections && hi > 1.0001 * lo; ++k) {
@@ -240,8 +240,14 @@ double NegativeCurvature(const BandedSymmetric& H, double shift_ok, double shift
     }
   }
   if (!factor->Factor(H, hi)) return 0.0;
+  // Inverse iteration from the descent direction -g (plus a fixed, non-symmetric vector so that
+  // no mode is missed): within a degenerate eigenspace (an isotropic column buckles alike in
+  // every direction about its axis) it converges to the mode the loads push, so a heavy rod
+  // buckles down, not sideways.
   *d = VecX::Ones(H.size());
-  for (int k = 0; k < d->size(); k += 3) (*d)[k] = -0.5;  // fixed, non-symmetric start
+  for (int k = 0; k < d->size(); k += 3) (*d)[k] = -0.5;
+  const double gmax = g.cwiseAbs().maxCoeff();
+  if (gmax > 0) *d = 1e-3 * *d - g / gmax;
   double rq = 0.0;
   for (int it = 0; it < 40; ++it) {
     *d = factor->Solve(*d);
@@ -387,7 +393,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
   // still tells definiteness. Chord steps and the kept factor's reuse are for the vertex path.
   const bool use_edge = n >= opt.edge_solver_segments && EdgeSolver::Applies(model);
   const bool chords_allowed =
-      opt.chord_steps && model.held().empty() && !model.has_end_clamp() && !use_edge;
+      opt.chord_steps && model.held().empty() && !model.has_end_ghost() && !use_edge;
   bool chord_basis = chords_allowed && start != StartFactor::kNone &&
                      ws->factor_tangents.cols() == n;
   bool last_step_full = false, last_step_chord = false;
@@ -529,7 +535,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       // its load axis): stable, though the factor is then not the Hessian's own.
       VecX d;
       BandedCholesky probe;
-      const double rq = NegativeCurvature(H, shift, shift_failed, &probe, &d);
+      const double rq = NegativeCurvature(H, shift, shift_failed, &probe, &d, 12, g);
       const double amplitude = 0.01 * model.length() / std::max(d.cwiseAbs().maxCoeff(), 1e-300);
       const bool clearly_negative =
           rq < 0.0 && 0.5 * -rq * d.squaredNorm() * amplitude * amplitude >
@@ -571,7 +577,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       // Compare with the best step along the negative curvature (BestAlongNegativeCurvature).
       VecX d;
       BandedCholesky probe;
-      if (NegativeCurvature(H, shift, shift_failed, &probe, &d, 5) < 0.0) {
+      if (NegativeCurvature(H, shift, shift_failed, &probe, &d, 5, g) < 0.0) {
         RodState nc_state = *state;
         RodFrames nc_frames = frames;
         double nc_energy = energy;
@@ -834,6 +840,7 @@ StepResult SolveAtBoundary(const NewtonContext& ctx, RodState* state, StaticsWor
 // clamp's frame (d3, d1; for a free-turning end only d3 matters).
 struct Boundary {
   Vec3 clamp_p;
+  Vec3 plane_point = Vec3::Zero();  // a symmetric half's plane (its normal is end_R's d3)
   Eigen::Matrix3d clamp_R;  // [d1 d2 d3]
   std::vector<Vec3> held;
   Eigen::Matrix3d end_R = Eigen::Matrix3d::Identity();
@@ -848,9 +855,10 @@ Eigen::Matrix3d FrameOf(const Vec3& d1, const Vec3& d3) {
 Boundary StateBoundary(const RodModel& model, const RodState& s) {
   Boundary b;
   b.clamp_p = s.x.col(0);
+  b.plane_point = s.plane_point;
   b.clamp_R = FrameOf(s.clamp_d1, s.clamp_t);
   for (const HeldVertex& h : model.held()) b.held.push_back(s.x.col(h.vertex));
-  if (model.has_end_clamp()) {
+  if (model.has_end_ghost()) {
     const Vec3 d1 = std::cos(s.end_theta) * s.end_u + std::sin(s.end_theta) * s.end_t.cross(s.end_u);
     b.end_R = FrameOf(d1, s.end_t);
   }
@@ -860,9 +868,15 @@ Boundary StateBoundary(const RodModel& model, const RodState& s) {
 Boundary TargetBoundary(const RodModel& model, const RodState& s) {
   Boundary b;
   b.clamp_p = model.clamp_position();
+  if (model.symmetric()) {
+    // The point of the case's plane nearest to the state's plane point: the plane moves the
+    // least.
+    const Vec3& n = model.symmetry_normal();
+    b.plane_point = s.plane_point - (s.plane_point - model.symmetry_point()).dot(n) * n;
+  }
   b.clamp_R = FrameOf(model.clamp_d1(), model.clamp_tangent());
   for (const HeldVertex& h : model.held()) b.held.push_back(h.target);
-  if (model.has_end_clamp()) {
+  if (model.has_end_ghost()) {
     if (model.end_twist_held()) {
       b.end_R = FrameOf(model.end_d1(), model.end_tangent());
     } else {
@@ -883,7 +897,7 @@ double RotationAngle(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
 
 // A = the largest move [m] and B = the largest turn [rad] between two boundaries.
 void BoundaryDistance(const Boundary& a, const Boundary& b, double* move, double* turn) {
-  *move = (a.clamp_p - b.clamp_p).norm();
+  *move = std::max((a.clamp_p - b.clamp_p).norm(), (a.plane_point - b.plane_point).norm());
   for (size_t k = 0; k < a.held.size(); ++k) *move = std::max(*move, (a.held[k] - b.held[k]).norm());
   *turn = std::max(RotationAngle(a.clamp_R, b.clamp_R), RotationAngle(a.end_R, b.end_R));
 }
@@ -927,8 +941,20 @@ bool MoveBoundary(const RodModel& model, const Boundary& from, const Boundary& t
   }
   for (int i = prev_vertex + 1; i <= n; ++i) state->x.col(i) += prev_disp;
   state->SyncEdges();
-  if (model.has_end_clamp()) {
-    const Eigen::Matrix3d E = Slerp(from.end_R, to.end_R, t);
+  const Eigen::Matrix3d E = Slerp(from.end_R, to.end_R, t);
+  if (model.symmetric()) {
+    // A symmetric half's last vertex follows its plane, half a crossing edge before it (the
+    // crossing edge unstrained), the displacement spread over the half like a held point's.
+    state->plane_point = (1 - t) * from.plane_point + t * to.plane_point;
+    const Vec3 normal = E.col(2);
+    const double d = (state->plane_point - state->x.col(n)).dot(normal);
+    const Vec3 disp = (d - 0.5 * model.crossing_length()) * normal;
+    const double s0 = model.arc_length(prev_vertex), s1 = model.arc_length(n);
+    for (int i = prev_vertex + 1; i <= n; ++i)
+      state->x.col(i) += ((model.arc_length(i) - s0) / (s1 - s0)) * disp;
+    state->SyncEdges();
+  }
+  if (model.has_end_ghost()) {
     // The ghost's reference director is transported in time; its twist angle keeps the frame.
     const Vec3 t_new = E.col(2);
     Vec3 u = ParallelTransport<double, double>(state->end_t, t_new, state->end_u);
@@ -955,10 +981,11 @@ void PrepareState(const RodModel& model, RodState* s) {
     s->ref_twist.setZero(n + 1);
     s->ref_twist.head(std::min<int>(n, old.size())) = old.head(std::min<int>(n, old.size()));
   }
-  if (model.has_end_clamp() && s->end_t.squaredNorm() == 0.0) {
+  if (model.has_end_ghost() && s->end_t.squaredNorm() == 0.0) {
     s->end_t = s->ref_t.col(n - 1);
     s->end_u = s->ref_u.col(n - 1);
     s->end_theta = s->theta[n - 1];
+    if (model.symmetric()) s->plane_point = s->x.col(n) + 0.5 * model.crossing_length() * s->end_t;
     UpdateReferenceFrames(model, *s, s);
   }
 }
@@ -1031,6 +1058,19 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
   int budget_used = 0;
   if (move > 1e-12 * model.length() || turn > 1e-12) {
     start_factor = StartFactor::kNone;
+    // The loading path starts from the equilibrium at the start's own held points (a straight
+    // rod sags under its loads before its end is moved): moving the held points then deforms a
+    // loaded rod gradually, and a compressed rod bends the way its loads already bend it instead
+    // of buckling from a perfectly straight state in an arbitrary direction.
+    {
+      RodState at_start = *state;
+      StaticsSummary attempt = summary;
+      if (SolveAtBoundary(ctx, &at_start, ws, &attempt, &why, StartFactor::kNone, &budget_used) ==
+          StepResult::kConverged) {
+        *state = at_start;
+        summary.iterations = attempt.iterations;
+      }
+    }
     double done = 0.0;
     const int planned = static_cast<int>(std::ceil(std::max(
         move / (options.continuation_move * model.length()), turn / options.continuation_turn)));
