@@ -183,6 +183,13 @@ class CaseEvaluator {
     has_warm_ = true;
   }
 
+  /// The state of the last accepted iterate (or the start), if any.
+  std::optional<RodState> WarmState() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!has_warm_) return std::nullopt;
+    return warm_;
+  }
+
   int num_residuals() const { return num_residuals_; }
   int num_parameters() const { return static_cast<int>(fitted_.size()); }
 
@@ -333,7 +340,11 @@ class CaseEvaluator {
     Charge(&timing_.observation, &t0);
     for (int i = 0; i < num_residuals_; ++i)
       if (!std::isfinite(residuals[i])) return false;
-    {
+    // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
+    // the start): trial steps start from the last iterate's state but do not replace it, so a
+    // rejected trial that slipped onto another equilibrium (an extra twist turn, a flipped
+    // loop) cannot carry the fit onto that branch.
+    if (jacobian) {
       std::lock_guard<std::mutex> lock(mutex_);
       warm_ = state;
       has_warm_ = true;
@@ -858,7 +869,10 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   for (size_t c = 0; c < evals.size(); ++c) {
     Mat3X shape;
     // Without the robust loss, so that the reported misfit is in measurement units.
-    const CaseEvaluator plain(input, static_cast<int>(c), fitted, nullptr);
+    // From the fit's own last state: the equilibrium the fit followed, not one a cold start
+    // might find instead.
+    CaseEvaluator plain(input, static_cast<int>(c), fitted, nullptr);
+    if (const std::optional<RodState> warm = evals[c]->WarmState()) plain.SetWarmStart(*warm);
     VecX rr(std::max(1, plain.num_residuals()));
     if (!plain.Evaluate(logp.data(), rr.data(), nullptr, &shape)) continue;
     result.shapes.push_back(shape);
@@ -869,6 +883,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       of.case_name = fc.load_case.name;
       of.label = o < fc.labels.size() ? fc.labels[o] : fc.observations[o]->type();
       of.type = fc.observations[o]->type();
+      of.unit = of.type == "image_points" || of.type == "images" ? "px" : "m";
       of.num_measurements = fc.observations[o]->num_measurements();
       fc.observations[o]->RmsError(shape, &of.rms);
       result.observations.push_back(of);
@@ -876,20 +891,34 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     // The case's residual vector: observations, then grasp forces, then surface points.
     int offset = 0;
     for (const auto& o : fc.observations) offset += o->num_residuals();
-    if (!fc.grasp_forces.empty()) {  // the force part, in N
-      const int nf = static_cast<int>(fc.grasp_forces.size());
-      double sum = 0.0;
-      for (int f = 0; f < nf; ++f) {
-        sum += (rr.segment<3>(offset) * fc.grasp_forces[f].sigma).squaredNorm();
-        offset += fc.grasp_forces[f].num_residuals();
+    // The force readings, one entry per observation (its consecutive readings): forces in N,
+    // moments in N m apart.
+    const int nf = static_cast<int>(fc.grasp_forces.size());
+    for (int f = 0; f < nf;) {
+      const ForceMeasurement& first = fc.grasp_forces[f];
+      const std::string& name = first.observation.empty() ? first.label : first.observation;
+      double force_sum = 0.0, moment_sum = 0.0;
+      int count = 0, with_moment = 0;
+      for (; f < nf; ++f) {
+        const ForceMeasurement& m = fc.grasp_forces[f];
+        if ((m.observation.empty() ? m.label : m.observation) != name || m.type != first.type) break;
+        force_sum += (rr.segment<3>(offset) * m.sigma).squaredNorm();
+        if (m.moment) {
+          moment_sum += (rr.segment<3>(offset + 3) * m.sigma_moment).squaredNorm();
+          ++with_moment;
+        }
+        offset += m.num_residuals();
+        ++count;
       }
       ObservationFit of;
       of.case_index = static_cast<int>(c);
       of.case_name = fc.load_case.name;
-      of.label = fc.grasp_forces[0].label;
-      of.type = "grasp_force";
-      of.num_measurements = nf;
-      of.rms = std::sqrt(sum / nf);
+      of.label = name;
+      of.type = first.type;
+      of.unit = "N";
+      of.num_measurements = count;
+      of.rms = std::sqrt(force_sum / count);
+      if (with_moment > 0) of.rms_moment = std::sqrt(moment_sum / with_moment);
       result.observations.push_back(of);
     }
     for (const SurfacePoints& sp : fc.surface_points) {  // [m]: the distance to the ring
@@ -901,6 +930,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       of.case_name = fc.load_case.name;
       of.label = sp.label;
       of.type = "surface_points";
+      of.unit = "m";
       of.num_measurements = np;
       of.rms = std::sqrt(sum / np);
       result.observations.push_back(of);

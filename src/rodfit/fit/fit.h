@@ -9,6 +9,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -36,6 +37,10 @@ struct ForceMeasurement {
   Vec3 force = Vec3::Zero();  ///< the force the rod exerts on the holder [N]
   double sigma = 1.0;         ///< [N]
   std::string label;          ///< e.g. "grasp_force drag_log.csv t=1.25"
+  /// The observation the reading belongs to, e.g. "reaction end.csv": the RMS table has one
+  /// entry per observation, over its readings (consecutive readings with the same name).
+  std::string observation;
+  std::string type = "grasp_force";  ///< the observation's type: grasp_force or reaction
   std::string point = "grasp";  ///< HeldReaction::point: clamp, end_clamp, end_pin, pins[k], grasp
   std::optional<Vec3> moment;   ///< [N m] about the held point, for clamps
   double sigma_moment = 1.0;    ///< [N m]
@@ -114,7 +119,10 @@ struct ObservationFit {
   std::string label;
   std::string type;
   int num_measurements = 0;
-  double rms = 0.0;  ///< [m], [px] or [N]
+  double rms = 0.0;  ///< [m], [px] or [N]: the RMS of the residual vector's norm
+  std::string unit;  ///< of rms: m, px or N
+  /// Reactions with moments: the RMS of the moment residual's norm [N m] (NaN without).
+  double rms_moment = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct FitResult {

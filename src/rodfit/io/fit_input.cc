@@ -132,6 +132,8 @@ FitInput BuildFitInput(const Experiment& e) {
           f.force = h.force;
           f.sigma = spec.sigma;
           f.label = Label(spec) + " t=" + FormatDouble(h.t);
+          f.observation = Label(spec);
+          f.type = spec.type;
           gc.grasp_forces.push_back(f);
           force_cases.push_back(std::move(gc));
         }
@@ -152,6 +154,8 @@ FitInput BuildFitInput(const Experiment& e) {
           f.sigma = spec.sigma;
           f.point = spec.point;
           f.label = Label(spec) + " row " + std::to_string(r + 1);
+          f.observation = Label(spec);
+          f.type = spec.type;
           if (moments) {
             f.moment = Vec3(mx[r], my[r], mz[r]);
             f.sigma_moment = spec.sigma_moment;

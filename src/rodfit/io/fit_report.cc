@@ -28,14 +28,13 @@ void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput&
                     const FitResult& result) {
   CreateDirectories(dir);
   std::ostringstream summary, residuals;
-  summary << "case,observation,type,count,rms,unit\n";
+  summary << "case,observation,type,count,rms,unit,rms_moment\n";
   residuals << "case,observation,unit,measurement,e1,e2,e3,norm,norm_sigma\n";
   std::vector<std::vector<double>> sigma_norms;  // per case
   for (const ObservationFit& o : result.observations) {
-    const bool px = o.type == "image_points" || o.type == "images";
     summary << o.case_name << "," << o.label << "," << o.type << "," << o.num_measurements << ","
-            << FormatDouble(o.rms) << "," << (o.type == "grasp_force" ? "N" : px ? "px" : "m")
-            << "\n";
+            << FormatDouble(o.rms) << "," << o.unit << ","
+            << (std::isfinite(o.rms_moment) ? FormatDouble(o.rms_moment) : "") << "\n";
   }
   for (size_t c = 0; c < input.cases.size() && c < result.shapes.size(); ++c) {
     const FitCase& fc = input.cases[c];

@@ -101,14 +101,13 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   }
   json rms = json::array();
   for (const ObservationFit& o : r.observations) {
-    const bool pixels = o.type == "image_points" || o.type == "images";
-    const char* unit = o.type == "grasp_force" ? "N" : pixels ? "px" : "m";
-    rms.push_back({{"case", o.case_name},
-                   {"observation", o.label},
-                   {"type", o.type},
-                   {"count", o.num_measurements},
-                   {"rms", o.rms},
-                   {"unit", unit}});
+    json entry = {{"case", o.case_name},  {"observation", o.label}, {"type", o.type},
+                  {"count", o.num_measurements}, {"rms", o.rms}, {"unit", o.unit}};
+    if (std::isfinite(o.rms_moment)) {
+      entry["rms_moment"] = o.rms_moment;
+      entry["unit_moment"] = "N m";
+    }
+    rms.push_back(entry);
   }
   fit["rms"] = rms;
   // Digest of every input file: the experiment, the data files and the cameras.

@@ -193,6 +193,15 @@ double LargestMove(const RodState& a, const RodState& b) {
   return (a.x - b.x).colwise().norm().maxCoeff();
 }
 
+// The rod's total twist [rad]: the material frame's turn about the tangent from the clamp to the
+// last edge (or the end clamp's ghost), summed vertex by vertex. Reference twists unwrap near
+// their previous values, so a state reached by small steps keeps count of whole turns.
+double TotalTwist(const RodModel& model, const RodState& s) {
+  const int n = model.num_edges();
+  const double last = model.has_end_ghost() ? s.end_theta : s.theta[n - 1];
+  return last - s.theta[0] + s.ref_twist.sum();
+}
+
 
 /// How NewtonAtLoad may start from the workspace's factor.
 enum class StartFactor {
@@ -1074,7 +1083,15 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     double done = 0.0;
     const int planned = static_cast<int>(std::ceil(std::max(
         move / (options.continuation_move * model.length()), turn / options.continuation_turn)));
-    double step = 1.0 / std::max(1, planned);
+    // Steps grow back to the planned size, never beyond it: a large step lets Newton land on
+    // another equilibrium (a loop flipped, a whole extra turn of twist), and which one could
+    // then hinge on round-off. A step whose solution jumps (vertices moving much more than the
+    // boundary, the twist changing by more than a quarter turn beyond the ends' own turn) is
+    // retried at half the size, until the step is so small that the jump is the rod's own (a
+    // snap at a limit point).
+    const double planned_step = 1.0 / std::max(1, planned);
+    const double smallest_jump_step = planned_step / 64.0;
+    double step = planned_step;
     while (done < 1.0) {
       if (summary.continuation_steps >= options.max_continuation_steps)
         return failed("the held points did not reach their targets within " +
@@ -1089,12 +1106,23 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
       StaticsSummary attempt = summary;
       if (ok) r = SolveAtBoundary(ctx, &trial, ws, &attempt, &why, StartFactor::kNone, &budget_used);
       ++summary.continuation_steps;
+      if (r == StepResult::kConverged && step > smallest_jump_step) {
+        double step_move = 0.0, step_turn = 0.0;
+        BoundaryDistance(now, StateBoundary(model, trial), &step_move, &step_turn);
+        const double allowed_move = 4.0 * (step_move + step_turn * model.length()) +
+                                    0.01 * model.length();
+        const double twist_change = std::abs(TotalTwist(model, trial) - TotalTwist(model, *state));
+        if (LargestMove(*state, trial) > allowed_move || twist_change > 0.5 * M_PI + 2.0 * step_turn) {
+          r = StepResult::kFailed;
+          why = "the equilibrium jumped";
+        }
+      }
       if (r == StepResult::kConverged) {
         attempt.continuation_steps = summary.continuation_steps;
         summary = attempt;
         *state = trial;
         done = next;
-        step = std::min(2.0 * step, 1.0);
+        step = std::min(2.0 * step, planned_step);
       } else {
         summary.iterations = attempt.iterations;
         step *= 0.5;
