@@ -506,30 +506,60 @@ bool ApplyStep(const RodModel& model, const RodState& state, const VecX& step, d
   // C_j = P_j + r_j t_j t_j^T, r_j = B / (EA l_j^2), sum_j c_j = -gap, mostly turns the edges. A
   // correction spread evenly would change their lengths, and against a stiff EA that costs more
   // energy than the step gains. The rod beyond the held vertex shifts with it.
-  if (!model.held().empty()) {
+  // A symmetric half's last vertex is free, but its distance to the plane is the crossing edge's
+  // stretch (stiffness 2 EA / l_c): its normal coordinate is closed the same way onto the linear
+  // step's, or the retraction's second-order shortening would all go into that stiff edge. The
+  // crossing edge is one more compliance in that closure (its half stretch, l_c / 2 EA), so the
+  // shortening left to stretch is shared as an even tension, which the half then balances.
+  const bool close_plane = model.symmetric();
+  if (!model.held().empty() || close_plane) {
     const Material& m = model.material();
     const double B = std::min(m.B1(), m.B2()), EA = m.stretch_stiffness;
-    int from = 0;
-    Vec3 pos = state.x.col(0);
-    for (const HeldVertex& h : model.held()) {
+    // Moves edges from..to-1 so that their sum changes by -(sum_j C_j) w, each by its
+    // compliance C_j: w closes `gap` at a held vertex. At a symmetric half's plane only the normal
+    // component is closed, with w along the normal as the mirrored whole rod has it (its
+    // compliance is block diagonal in normal and plane), the crossing edge taking its share.
+    auto compliance = [&](int j, Vec3* t, double* r) {
+      *t = out->e.col(j).normalized();
+      const double lj = model.rest_edge_length(j);
+      *r = std::min(1.0, B / (EA * lj * lj));
+    };
+    auto close = [&](int from, int to, const Vec3& gap, const Vec3* plane_normal,
+                     double crossing_compliance) {
       Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
-      for (int j = from; j < h.vertex; ++j) {
-        pos += out->e.col(j);
-        const Vec3 t = out->e.col(j).normalized();
-        const double lj = model.rest_edge_length(j);
-        const double r = std::min(1.0, B / (EA * lj * lj));
+      Vec3 t;
+      double r;
+      for (int j = from; j < to; ++j) {
+        compliance(j, &t, &r);
         sum += Eigen::Matrix3d::Identity() - (1.0 - r) * t * t.transpose();
       }
-      const Vec3 gap = pos - state.x.col(h.vertex);
-      const Vec3 w = sum.ldlt().solve(gap);
-      for (int j = from; j < h.vertex; ++j) {
-        const Vec3 t = out->e.col(j).normalized();
-        const double lj = model.rest_edge_length(j);
-        const double r = std::min(1.0, B / (EA * lj * lj));
+      Vec3 w;
+      if (plane_normal) {
+        const Vec3& nrm = *plane_normal;
+        w = (nrm.dot(gap) / (nrm.dot(sum * nrm) + crossing_compliance)) * nrm;
+      } else {
+        w = sum.ldlt().solve(gap);
+      }
+      for (int j = from; j < to; ++j) {
+        compliance(j, &t, &r);
         out->e.col(j) -= w - (1.0 - r) * t * t.dot(w);
       }
-      pos = state.x.col(h.vertex);
+    };
+    int from = 0;
+    for (const HeldVertex& h : model.held()) {
+      Vec3 pos = state.x.col(from);
+      for (int j = from; j < h.vertex; ++j) pos += out->e.col(j);
+      close(from, h.vertex, pos - state.x.col(h.vertex), nullptr, 0.0);
       from = h.vertex;
+    }
+    if (close_plane && from < n) {
+      Vec3 pos = state.x.col(from);
+      for (int j = from; j < n; ++j) pos += out->e.col(j);
+      const Vec3 linear = state.x.col(n) + alpha * step.segment<3>(RodModel::VertexDof(n));
+      const Vec3& normal = state.end_t;
+      // The half of the crossing edge: half its r = B / (EA l_c^2), as in the whole rod.
+      const double lc = model.crossing_length();
+      close(from, n, pos - linear, &normal, 0.5 * std::min(1.0, B / (EA * lc * lc)));
     }
   }
   out->SyncVertices();
