@@ -16,6 +16,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/model/rod.h"
 
 namespace rodfit {
 namespace {
@@ -503,7 +504,7 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   const Entries m =
       r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "tip_moment_follower", "point_forces",
                 "point_moments", "cut", "grasp", "poke", "end_clamp", "end_pin", "pins", "start",
-                "observations"});
+                "symmetry", "observations"});
   LoadCase c;
   c.name = "case" + std::to_string(index);
   if (const Field* name = Reader::Find(m, "name")) {
@@ -614,6 +615,16 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     p.s = r.InRange(r.Require(pm, *poke, "s"), 0.0, ex->scene.rod.length);
     p.force = r.Vector3(r.Require(pm, *poke, "force"));
     c.poke = p;
+  }
+  if (const Field* sym = Reader::Find(m, "symmetry")) {
+    const Entries sm = r.Map(*sym, {"point", "normal"});
+    SymmetryPlane plane;
+    plane.point = r.Vector3(r.Require(sm, *sym, "point"));
+    plane.normal = Direction(r, r.Require(sm, *sym, "normal"));
+    c.symmetry = plane;
+    const std::string problem =
+        SymmetryProblem(ex->scene.rod, ex->scene.gravity, c, !ex->scene.springs.empty());
+    if (!problem.empty()) r.Fail(*sym, problem);
   }
   CaseSpec spec;
   spec.line = f.line;

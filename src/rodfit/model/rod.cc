@@ -388,49 +388,67 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   if (!(force_scale_ > 0)) force_scale_ = B / (length_ * length_);
 }
 
-void RodModel::SetUpSymmetry() {
-  const SymmetryPlane& sp = *case_.symmetry;
-  const int n = rod_.segments;
-  Require(Finite(sp.point) && Finite(sp.normal) && sp.normal.norm() > 0,
-          "symmetry: point and normal must be finite, the normal not zero");
-  Require(n % 2 == 1, "symmetry needs an odd number of segments (an edge crossing the plane at "
-                      "the rod's middle), got " + std::to_string(n) + ": use " +
-                          std::to_string(n - 1) + " or " + std::to_string(n + 1));
-  Require(rod_.vertex_s.empty(), "symmetry needs evenly spaced vertices (no rod.vertex_s)");
-  const LoadCase& c = case_;
-  Require(c.end_clamp.has_value(),
-          "symmetry: the rod's end must be held by an end_clamp, the mirror image of the clamp");
-  Require(!c.end_pin && c.pins.empty() && !c.grasp && c.point_forces.empty() &&
-              c.point_moments.empty() && !c.poke && c.tip_force.squaredNorm() == 0 &&
-              c.tip_moment.squaredNorm() == 0 && c.tip_moment_follower.squaredNorm() == 0,
-          "symmetry: a symmetric case holds the rod by its two clamps under gravity only (no "
-          "pins, grasp, point or tip loads, poke)");
-  Require(zones_.empty(), "symmetry: not with springs");
-  Require(rod_.rest_curvature.squaredNorm() == 0,
-          "symmetry: not with rest_curvature (a curved rod's mirror image is another rod)");
-  sym_point_ = sp.point;
-  sym_normal_ = sp.normal.normalized();
-  const double side = (clamp_p_ - sym_point_).dot(sym_normal_);
-  Require(std::abs(side) > 1e-9 * rod_.length, "symmetry: the clamp lies on the plane");
-  if (side > 0) sym_normal_ = -sym_normal_;  // from the clamp's half towards the plane
+std::string SymmetryProblem(const RodSpec& rod, const Vec3& gravity, const LoadCase& c,
+                            bool has_springs) {
+  if (!c.symmetry) return "";
+  const SymmetryPlane& sp = *c.symmetry;
+  const int n = rod.segments;
+  if (!(Finite(sp.point) && Finite(sp.normal) && sp.normal.norm() > 0))
+    return "symmetry: point and normal must be finite, the normal not zero";
+  if (n % 2 != 1)
+    return "symmetry needs an odd number of segments (an edge crossing the plane at the rod's "
+           "middle), got " + std::to_string(n) + ": use " + std::to_string(n - 1) + " or " +
+           std::to_string(n + 1);
+  if (!rod.vertex_s.empty()) return "symmetry needs evenly spaced vertices (no rod.vertex_s)";
+  if (!c.end_clamp)
+    return "symmetry: the rod's end must be held by an end_clamp, the mirror image of the clamp";
+  if (c.end_pin || !c.pins.empty() || c.grasp || !c.point_forces.empty() ||
+      !c.point_moments.empty() || c.poke || c.tip_force.squaredNorm() != 0 ||
+      c.tip_moment.squaredNorm() != 0 || c.tip_moment_follower.squaredNorm() != 0)
+    return "symmetry: a symmetric case holds the rod by its two clamps under gravity only (no "
+           "pins, grasp, point or tip loads, poke)";
+  if (has_springs) return "symmetry: not with springs";
+  if (rod.rest_curvature.squaredNorm() != 0)
+    return "symmetry: not with rest_curvature (a curved rod's mirror image is another rod)";
+  const Clamp& clamp = c.clamp;
+  if (!(Finite(clamp.position) && Finite(clamp.tangent) && Finite(clamp.normal)) ||
+      clamp.tangent.norm() == 0)
+    return "clamp vectors must be finite, the tangent not zero";
+  Vec3 normal = sp.normal.normalized();
+  const double side = (clamp.position - sp.point).dot(normal);
+  if (!(std::abs(side) > 1e-9 * rod.length)) return "symmetry: the clamp lies on the plane";
+  if (side > 0) normal = -normal;  // from the clamp's half towards the plane
+  auto reflect = [&](const Vec3& v) { return Vec3(v - 2.0 * v.dot(normal) * normal); };
   const EndClamp& ec = *c.end_clamp;
   const double tol = 1e-9;
-  Require(Finite(ec.position) && Finite(ec.tangent) && ec.tangent.norm() > 0,
-          "end_clamp vectors must be finite, the tangent not zero");
-  Require((ec.position - Mirror(clamp_p_)).norm() <= tol * rod_.length,
-          "symmetry: the end_clamp's position is not the mirror image of the clamp's");
+  if (!(Finite(ec.position) && Finite(ec.tangent) && ec.tangent.norm() > 0))
+    return "end_clamp vectors must be finite, the tangent not zero";
+  const Vec3 mirrored = clamp.position - 2.0 * (clamp.position - sp.point).dot(normal) * normal;
+  if (!((ec.position - mirrored).norm() <= tol * rod.length))
+    return "symmetry: the end_clamp's position is not the mirror image of the clamp's";
   // r(L - s) = mirror(r(s)): d3(L) = -mirror(d3(0)), d1(L) = mirror(d1(0)).
-  auto reflect = [&](const Vec3& v) { return Vec3(v - 2.0 * v.dot(sym_normal_) * sym_normal_); };
-  Require((ec.tangent.normalized() + reflect(clamp_d3_)).norm() <= tol,
-          "symmetry: the end_clamp's tangent is not the mirror image of the clamp's (reversed)");
+  const Vec3 d3 = clamp.tangent.normalized();
+  if (!((ec.tangent.normalized() + reflect(d3)).norm() <= tol))
+    return "symmetry: the end_clamp's tangent is not the mirror image of the clamp's (reversed)";
   if (ec.normal) {
     const Vec3 t = ec.tangent.normalized();
     const Vec3 d1 = (*ec.normal - ec.normal->dot(t) * t).normalized();
-    Require((d1 - reflect(clamp_d1_)).norm() <= 1e-6,
-            "symmetry: the end_clamp's normal is not the mirror image of the clamp's");
+    const Vec3 d1_clamp = (clamp.normal - clamp.normal.dot(d3) * d3).normalized();
+    if (!((d1 - reflect(d1_clamp)).norm() <= 1e-6))
+      return "symmetry: the end_clamp's normal is not the mirror image of the clamp's";
   }
-  Require(std::abs(gravity_.dot(sym_normal_)) <= 1e-12 * gravity_.norm(),
-          "symmetry: gravity crosses the plane (it must lie in it)");
+  if (!(std::abs(gravity.dot(normal)) <= 1e-12 * gravity.norm()))
+    return "symmetry: gravity crosses the plane (it must lie in it)";
+  return "";
+}
+
+void RodModel::SetUpSymmetry() {
+  const std::string problem = SymmetryProblem(rod_, gravity_, case_, !zones_.empty());
+  Require(problem.empty(), problem);
+  const int n = rod_.segments;
+  sym_point_ = case_.symmetry->point;
+  sym_normal_ = case_.symmetry->normal.normalized();
+  if ((clamp_p_ - sym_point_).dot(sym_normal_) > 0) sym_normal_ = -sym_normal_;
   symmetric_ = true;
   crossing_length_ = rod_.length / n;
   n_ = (n - 1) / 2;

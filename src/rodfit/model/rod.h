@@ -87,6 +87,12 @@ struct EdgeMoment {
   bool follower = false;
 };
 
+/// Why a case's `symmetry` plane cannot be used (empty when it can, or when the case declares
+/// none): the whole case must be its own mirror image, held by a clamp and its mirror-image
+/// end_clamp under gravity in the plane, with an odd number of even segments.
+std::string SymmetryProblem(const RodSpec& rod, const Vec3& gravity, const LoadCase& load_case,
+                            bool has_springs);
+
 /// Constants of one load case on one rod: geometry, stiffness, loads (the Pinocchio "Model").
 /// Built once per case; the solver's scratch lives elsewhere.
 class RodModel {

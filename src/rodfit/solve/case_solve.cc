@@ -91,30 +91,24 @@ CaseSolution SolveModel(std::shared_ptr<const RodModel> model, const Scene& scen
   const auto t0 = std::chrono::steady_clock::now();
   CaseSolution out;
   out.model = model;
-  if (model->symmetric() && !warm) {
-    // From a cold start the half rod is reached through the whole rod: the whole rod's
-    // continuation (its end clamp moved from where the start has it) finds the mirror-symmetric
-    // equilibrium as reliably as any case, while the half's plane, moved into a straight rod,
-    // crushes it against its crossing edge. The half then starts from the whole rod's first half
-    // and converges at once; its re-solves (warm starts, sweeps, fits) are the ones that save.
+  out.state = warm ? *warm : StartState(*model, previous);
+  out.summary = SolveStatics(*model, options, &out.state, workspace);
+  if (model->symmetric() && !warm && !out.summary.converged) {
+    // The half's plane is moved from where the start has it like any held end. Should that fail,
+    // the whole rod's continuation (its end clamp moved) is tried, and the half started from the
+    // whole rod's first half converges at once.
     LoadCase full_case = model->load_case();
     full_case.symmetry.reset();
     const RodModel full(scene.rod, scene.material, scene.gravity, full_case, scene.springs);
     RodState whole = StartState(full, previous);
     const StaticsSummary first = SolveStatics(full, options, &whole);
-    if (!first.converged) {
-      out.summary = first;
-      out.summary.reason = "the whole rod: " + first.reason;
-      out.state = model->StraightState();
-    } else {
+    if (first.converged) {
+      const int tried = out.summary.iterations;
       out.state = HalfState(*model, full, whole);
       out.summary = SolveStatics(*model, options, &out.state, workspace);
-      out.summary.iterations += first.iterations;
+      out.summary.iterations += first.iterations + tried;
       out.summary.continuation_steps += first.continuation_steps;
     }
-  } else {
-    out.state = warm ? *warm : StartState(*model, previous);
-    out.summary = SolveStatics(*model, options, &out.state, workspace);
   }
   if (out.summary.converged) {
     out.reactions = HeldReactions(*model, out.state);

@@ -920,8 +920,112 @@ Eigen::Matrix3d Slerp(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B, double
 /// motion moves the whole rod rigidly, and each held vertex's displacement is spread linearly
 /// in arc length over the free vertices since the previous held point (the rod beyond the last
 /// one moves with it). Reference frames are transported in time.
+/// A held point moved towards its neighbour anchor shortens the chord of the rod between them.
+/// Spread along that rod as a displacement, the shortening would compress every edge, and a
+/// compressed straight rod is a saddle with many falling directions: Newton then creeps along
+/// heavily shifted steps. The rod takes the shortening by bending out of its chord, so the trial
+/// is given that bend: the vertices strictly between anchors v0 and v1 move by a * phi(s) * d,
+/// phi = sin^2(pi (s - s0) / (s1 - s0)) (zero, with zero slope, at both anchors: the clamped
+/// buckling mode), with a >= 0 such that the edges between the anchors regain their rest length.
+/// d is the way the rod already bows off its chord, else gravity's part across the chord, else
+/// `clamp_d1` across it (zero when saddles are not to be escaped: an unloaded straight column
+/// then stays the straight saddle it is).
+void BowToRestLength(const RodModel& model, int v0, int v1, const Vec3& clamp_d1,
+                     const Vec3* plane_normal, RodState* state) {
+  if (v1 - v0 < 2) return;
+  // At a symmetric half's plane (v1 = n, free in the plane) the bow is a quarter wave,
+  // sin^2(pi/2 (s - s0) / (s1 - s0)): the end keeps its tangent along the plane's normal and
+  // moves in the plane.
+  const double period = plane_normal ? 0.5 * M_PI : M_PI;
+  const int last_moved = plane_normal ? v1 : v1 - 1;
+  double rest = 0.0;
+  for (int j = v0; j < v1; ++j) rest += model.rest_edge_length(j);
+  auto length_at = [&](double a, const Vec3& d) {
+    double total = 0.0;
+    const double s0 = model.arc_length(v0), s1 = model.arc_length(v1);
+    Vec3 prev = state->x.col(v0);
+    for (int i = v0 + 1; i <= v1; ++i) {
+      const double phase = period * (model.arc_length(i) - s0) / (s1 - s0);
+      const Vec3 now = state->x.col(i) + a * std::pow(std::sin(phase), 2) * d;
+      total += (now - prev).norm();
+      prev = now;
+    }
+    return total;
+  };
+  const double now = length_at(0.0, Vec3::Zero());
+  if (!(now < (1.0 - 1e-6) * rest)) return;
+  const Vec3 chord = state->x.col(v1) - state->x.col(v0);
+  const double chord_len = chord.norm();
+  if (!(chord_len > 0.0)) return;
+  const Vec3 c = chord / chord_len;
+  auto across = [&](const Vec3& v) { return Vec3(v - v.dot(c) * c); };
+  Vec3 bow = Vec3::Zero();
+  for (int i = v0 + 1; i < v1; ++i) bow += across(state->x.col(i) - state->x.col(v0));
+  Vec3 d;
+  const double scale = rest;
+  if (bow.norm() / (v1 - v0 - 1) > 1e-3 * scale) {
+    d = bow.normalized();
+  } else if (across(model.gravity()).norm() > 1e-3 * model.gravity().norm() &&
+             model.gravity().norm() > 0.0) {
+    d = across(model.gravity()).normalized();
+  } else if (across(clamp_d1).norm() > 1e-3) {
+    d = across(clamp_d1).normalized();
+  } else {
+    return;
+  }
+  // Bisection on a in [0, hi]: the bowed length grows without bound in a.
+  double lo = 0.0, hi = 0.1 * rest;
+  for (int k = 0; k < 60 && length_at(hi, d) < rest; ++k) hi *= 2.0;
+  if (!(length_at(hi, d) >= rest)) return;
+  for (int k = 0; k < 60; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (length_at(mid, d) < rest ? lo : hi) = mid;
+  }
+  const double s0 = model.arc_length(v0), s1 = model.arc_length(v1);
+  for (int i = v0 + 1; i <= last_moved; ++i) {
+    const double phase = period * (model.arc_length(i) - s0) / (s1 - s0);
+    state->x.col(i) += hi * std::pow(std::sin(phase), 2) * d;
+  }
+  // The bow restores the total length, not each edge's: edges near the anchors stay short and
+  // those mid-way grow. Each edge is given its rest length along its own direction, and the
+  // anchor missed by that is closed by turning the edges, each by its compliance (as ApplyStep
+  // closes a held vertex), which changes lengths only to second order; a few rounds.
+  const Material& m = model.material();
+  const double B = std::min(m.B1(), m.B2()), EA = m.stretch_stiffness;
+  const Vec3 anchor = state->x.col(v1);
+  for (int round = 0; round < 4; ++round) {
+    Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+    Vec3 end = state->x.col(v0);
+    std::vector<Vec3> edges(v1 - v0);
+    for (int j = v0; j < v1; ++j) {
+      const Vec3 e = state->x.col(j + 1) - state->x.col(j);
+      if (!(e.norm() > 0.0)) return;
+      const Vec3 t = e.normalized();
+      edges[j - v0] = model.rest_edge_length(j) * t;
+      end += edges[j - v0];
+      const double lj = model.rest_edge_length(j);
+      const double r = std::min(1.0, B / (EA * lj * lj));
+      sum += Eigen::Matrix3d::Identity() - (1.0 - r) * t * t.transpose();
+    }
+    const Vec3 gap = end - anchor;
+    const Vec3 w = plane_normal
+                       ? Vec3((plane_normal->dot(gap) / plane_normal->dot(sum * *plane_normal)) *
+                              *plane_normal)
+                       : Vec3(sum.ldlt().solve(gap));
+    if (!w.allFinite()) return;
+    for (int j = v0; j < v1; ++j) {
+      const Vec3 t = edges[j - v0].normalized();
+      const double lj = model.rest_edge_length(j);
+      const double r = std::min(1.0, B / (EA * lj * lj));
+      edges[j - v0] -= w - (1.0 - r) * t * t.dot(w);
+      state->x.col(j + 1) = state->x.col(j) + edges[j - v0];
+    }
+  }
+  if (!plane_normal) state->x.col(v1) = anchor;
+}
+
 bool MoveBoundary(const RodModel& model, const Boundary& from, const Boundary& to, double t,
-                  RodState* state) {
+                  bool bow_unloaded, RodState* state) {
   const int n = model.num_edges();
   const RodState before = *state;
   const Vec3 p = (1 - t) * from.clamp_p + t * to.clamp_p;
@@ -949,6 +1053,13 @@ bool MoveBoundary(const RodModel& model, const Boundary& from, const Boundary& t
     prev_disp = disp;
   }
   for (int i = prev_vertex + 1; i <= n; ++i) state->x.col(i) += prev_disp;
+  {
+    int v0 = 0;
+    for (const HeldVertex& h : held) {
+      BowToRestLength(model, v0, h.vertex, bow_unloaded ? Vec3(R.col(0)) : Vec3(Vec3::Zero()), nullptr, state);
+      v0 = h.vertex;
+    }
+  }
   state->SyncEdges();
   const Eigen::Matrix3d E = Slerp(from.end_R, to.end_R, t);
   if (model.symmetric()) {
@@ -961,6 +1072,7 @@ bool MoveBoundary(const RodModel& model, const Boundary& from, const Boundary& t
     const double s0 = model.arc_length(prev_vertex), s1 = model.arc_length(n);
     for (int i = prev_vertex + 1; i <= n; ++i)
       state->x.col(i) += ((model.arc_length(i) - s0) / (s1 - s0)) * disp;
+    BowToRestLength(model, prev_vertex, n, bow_unloaded ? Vec3(R.col(0)) : Vec3(Vec3::Zero()), &normal, state);
     state->SyncEdges();
   }
   if (model.has_end_ghost()) {
@@ -1101,7 +1213,7 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
       // Interpolate from the start boundary: the boundary at `done` is the state's own.
       const Boundary now = StateBoundary(model, *state);
       const double t_rel = (next - done) / (1.0 - done);
-      bool ok = MoveBoundary(model, now, target, t_rel, &trial);
+      bool ok = MoveBoundary(model, now, target, t_rel, options.escape_saddles, &trial);
       StepResult r = StepResult::kFailed;
       StaticsSummary attempt = summary;
       if (ok) r = SolveAtBoundary(ctx, &trial, ws, &attempt, &why, StartFactor::kNone, &budget_used);
@@ -1109,7 +1221,10 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
       if (r == StepResult::kConverged && step > smallest_jump_step) {
         double step_move = 0.0, step_turn = 0.0;
         BoundaryDistance(now, StateBoundary(model, trial), &step_move, &step_turn);
+        // A rod whose held points close in bows out by ~ sqrt(shortening x length) (the
+        // length it must put somewhere): that is the rod's own response, not a jump.
         const double allowed_move = 4.0 * (step_move + step_turn * model.length()) +
+                                    2.0 * std::sqrt(step_move * model.length()) +
                                     0.01 * model.length();
         const double twist_change = std::abs(TotalTwist(model, trial) - TotalTwist(model, *state));
         if (LargestMove(*state, trial) > allowed_move || twist_change > 0.5 * M_PI + 2.0 * step_turn) {
