@@ -1,11 +1,14 @@
 // Statics benchmark: solve time against segment count (50 to 100,000) for a 3-D heavy suture
-// with a tip load, solved from straight, and a warm-started re-solve after a small load change.
+// with a tip load, solved from straight, and a warm-started re-solve after a small load change;
+// a wire held by two clamps (its end clamp reached by continuation from the straight rod), whole
+// and as a symmetric half.
 // From 20,000 segments Newton runs in edge coordinates (solve/edge_solver.h).
 // Run: build/bench_statics [--benchmark_filter=...]; one core, Release build.
 #include <algorithm>
 
 #include <benchmark/benchmark.h>
 
+#include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/statics.h"
 #include "../solve/test_util.h"
 
@@ -76,6 +79,68 @@ void BM_WarmResolveStiffness(benchmark::State& st) {
   AlternatingResolves(st, model, RodModel(s.rod, s.material, s.gravity, s.cases[0]));
 }
 BENCHMARK(BM_WarmResolveStiffness)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond);
+
+
+// A heavy wire 1.5 m long between two clamps 1 m apart, tilted out of the plane of gravity
+// (a 3-D, twisted sag), mirror images in the plane x = 0.5 m: the whole rod (`symmetric` 0) or
+// the half (1). Segments odd (an edge crosses the plane).
+Scene TwoClampWire(int segments, bool symmetric) {
+  Scene s;
+  s.rod.length = 1.5;
+  s.rod.segments = segments;
+  s.rod.radius = 1e-3;
+  s.rod.linear_density = 0.05;
+  s.material.bend_stiffness = 1e-3;
+  s.material.twist_stiffness = 8e-4;
+  s.material.stretch_stiffness = 1e5;
+  s.gravity = Vec3(0, 0, -9.81);
+  LoadCase c;
+  c.name = "bridge";
+  c.clamp.tangent = Vec3(1, 0.5, 0.3);
+  c.clamp.normal = Vec3(0, 0, 1);
+  EndClamp ec;
+  ec.position = Vec3(1.0, 0, 0);
+  ec.tangent = Vec3(1, -0.5, -0.3);
+  const Vec3 d3 = c.clamp.tangent.normalized();
+  Vec3 d1 = (c.clamp.normal - c.clamp.normal.dot(d3) * d3).normalized();
+  d1.x() = -d1.x();
+  ec.normal = d1;
+  c.end_clamp = ec;
+  if (symmetric) c.symmetry = SymmetryPlane{Vec3(0.5, 0, 0), Vec3(1, 0, 0)};
+  s.cases.push_back(c);
+  return s;
+}
+
+// From the straight rod: the end clamp (or the half's plane) moved in by continuation.
+void BM_TwoClampsFromStraight(benchmark::State& st) {
+  const Scene s = TwoClampWire(static_cast<int>(st.range(0)), st.range(1) != 0);
+  CaseSolution solution;
+  for (auto _ : st) {
+    solution = SolveCase(s, 0, nullptr);
+    benchmark::DoNotOptimize(solution.state.x.data());
+  }
+  if (!solution.ok()) st.SkipWithError(solution.summary.BriefReport().c_str());
+  st.counters["newton_iterations"] = solution.summary.iterations;
+  st.counters["continuation_steps"] = solution.summary.continuation_steps;
+}
+BENCHMARK(BM_TwoClampsFromStraight)->ArgsProduct({{101, 1001, 10001}, {0, 1}})
+    ->ArgNames({"segments", "symmetric"})->Unit(benchmark::kMillisecond);
+
+// Warm re-solves after a 1 % change of gravity, whole rod against half.
+void BM_TwoClampsWarmResolve(benchmark::State& st) {
+  Scene s = TwoClampWire(static_cast<int>(st.range(0)), st.range(1) != 0);
+  const CaseSolution base = SolveCase(s, 0, nullptr);
+  if (!base.ok()) {
+    st.SkipWithError(base.summary.BriefReport().c_str());
+    return;
+  }
+  const RodModel& model = *base.model;
+  s.gravity *= 1.01;
+  const RodModel heavier(s.rod, s.material, s.gravity, s.cases[0]);
+  AlternatingResolves(st, model, heavier);
+}
+BENCHMARK(BM_TwoClampsWarmResolve)->ArgsProduct({{101, 1001, 10001}, {0, 1}})
+    ->ArgNames({"segments", "symmetric"})->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace rodfit
