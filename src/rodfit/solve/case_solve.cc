@@ -91,12 +91,15 @@ CaseSolution SolveModel(std::shared_ptr<const RodModel> model, const Scene& scen
   const auto t0 = std::chrono::steady_clock::now();
   CaseSolution out;
   out.model = model;
+  // The half's plane is moved from where the start has it like any held end. A fine half (its
+  // plane has no edge-coordinate form, statics.h kEdgeContinuationSegments), or one whose
+  // continuation fails, is reached through the whole rod's continuation (its end clamp moved):
+  // the half started from the whole rod's first half converges at once.
+  const bool through_whole =
+      model->symmetric() && !warm && model->full_segments() >= kEdgeContinuationSegments;
   out.state = warm ? *warm : StartState(*model, previous);
-  out.summary = SolveStatics(*model, options, &out.state, workspace);
+  if (!through_whole) out.summary = SolveStatics(*model, options, &out.state, workspace);
   if (model->symmetric() && !warm && !out.summary.converged) {
-    // The half's plane is moved from where the start has it like any held end. Should that fail,
-    // the whole rod's continuation (its end clamp moved) is tried, and the half started from the
-    // whole rod's first half converges at once.
     LoadCase full_case = model->load_case();
     full_case.symmetry.reset();
     const RodModel full(scene.rod, scene.material, scene.gravity, full_case, scene.springs);

@@ -1188,10 +1188,19 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     // rod sags under its loads before its end is moved): moving the held points then deforms a
     // loaded rod gradually, and a compressed rod bends the way its loads already bend it instead
     // of buckling from a perfectly straight state in an arbitrary direction.
+    // While held points move, the states are far from equilibrium and often indefinite, where
+    // the vertex factor's lost soft modes cost many shifted steps and saddle searches long
+    // before 20,000 segments (a wire between two clamps at 10,000 segments: 12 s against 2 s in
+    // edge coordinates); from kEdgeContinuationSegments the continuation runs in edge
+    // coordinates.
+    StaticsOptions moving_options = options;
+    moving_options.edge_solver_segments =
+        std::min(options.edge_solver_segments, kEdgeContinuationSegments);
+    const NewtonContext moving{model, moving_options, tol, held};
     {
       RodState at_start = *state;
       StaticsSummary attempt = summary;
-      if (SolveAtBoundary(ctx, &at_start, ws, &attempt, &why, StartFactor::kNone, &budget_used) ==
+      if (SolveAtBoundary(moving, &at_start, ws, &attempt, &why, StartFactor::kNone, &budget_used) ==
           StepResult::kConverged) {
         *state = at_start;
         summary.iterations = attempt.iterations;
@@ -1221,7 +1230,7 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
       bool ok = MoveBoundary(model, now, target, t_rel, options.escape_saddles, &trial);
       StepResult r = StepResult::kFailed;
       StaticsSummary attempt = summary;
-      if (ok) r = SolveAtBoundary(ctx, &trial, ws, &attempt, &why, StartFactor::kNone, &budget_used);
+      if (ok) r = SolveAtBoundary(moving, &trial, ws, &attempt, &why, StartFactor::kNone, &budget_used);
       ++summary.continuation_steps;
       if (r == StepResult::kConverged && step > smallest_jump_step) {
         double step_move = 0.0, step_turn = 0.0;

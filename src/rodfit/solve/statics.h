@@ -16,6 +16,10 @@
 
 namespace rodfit {
 
+/// From this many segments on, the continuation of held points (StaticsOptions::
+/// edge_solver_segments) runs in edge coordinates.
+inline constexpr int kEdgeContinuationSegments = 5000;
+
 struct StaticsOptions {
   int max_iterations = 300;            ///< Newton iterations in all, over every load step
   /// Converged when ScaledGradientNorm (the largest free generalised force per length, times L)
