@@ -20,6 +20,11 @@
 
 namespace {
 
+// The exit status of a fit that wrote its profile but could not determine every fitted parameter
+// from the data (README "Exit codes"): distinct from an error (1, nothing written), so a script
+// cannot take a profile with null values for a complete one.
+constexpr int kNotAllDetermined = 4;
+
 rodfit::RobustLoss LossOf(rodfit::LossType t) {
   switch (t) {
     case rodfit::LossType::kNone: return rodfit::RobustLoss::kNone;
@@ -34,7 +39,9 @@ rodfit::RobustLoss LossOf(rodfit::LossType t) {
 
 int RunFit(int argc, char** argv) {
   CLI::App app("Fit the experiment's `fit: true` parameters to its observations and write the "
-               "profile JSON.",
+               "profile JSON. Exit 0 when every fitted parameter is determined by the data, 4 "
+               "when the profile was written but some are not (written with value null), 1 on "
+               "an error (nothing written).",
                "rodfit fit");
   std::string experiment_path, profile_path, report_dir;
   bool quiet = false;
@@ -132,5 +139,7 @@ int RunFit(int argc, char** argv) {
                  result.iterations, result.seconds, result.residual_variance,
                  profile_path.c_str());
   }
+  for (const rodfit::ParameterEstimate& p : result.parameters)
+    if (p.fitted && !p.identifiable) return kNotAllDetermined;
   return EXIT_SUCCESS;
 }

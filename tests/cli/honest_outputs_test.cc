@@ -1,9 +1,9 @@
 // Tests that rodfit's outputs do not mislead (issue 14, "honest outputs"), run as a user would:
 // `rodfit --version` prints the project's version, which the profile and truth.json carry; a
-// fitted parameter the data do not determine is written with no value (null, its start apart);
-// `fit.trusted_sigmas: true` still checks the residual variance and warns when the stated sigmas
-// do not match the residuals; and 3-D observations given in millimetres are an error naming the
-// file.
+// fitted parameter the data do not determine is written with no value (null, its start apart)
+// and the fit exits 4; `fit.trusted_sigmas: true` still checks the residual variance and warns
+// when the stated sigmas do not match the residuals; and 3-D observations given in millimetres
+// are an error naming the file.
 #include <algorithm>
 #include <filesystem>
 #include <regex>
@@ -119,6 +119,8 @@ TEST_F(HonestOutputsTest, UnidentifiableParameterIsWrittenWithoutAValue) {
   const RunResult run =
       Fit("planar", Experiment(kFitBend, "{value: 2.0e-6, fit: true, min: 1.0e-7, max: 1.0e-4}",
                                "3.0e-4"));
+  // The profile is written, and the status says that not every fitted parameter is determined.
+  EXPECT_EQ(run.status, 4) << run.err;
   ASSERT_TRUE(fs::exists(Profile("planar"))) << run.err;
   EXPECT_THAT(run.err, HasSubstr("twist_stiffness"));
   EXPECT_THAT(run.err, HasSubstr("NOT IDENTIFIABLE"));
