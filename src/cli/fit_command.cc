@@ -20,6 +20,11 @@
 
 namespace {
 
+// The exit status of a fit that wrote its profile but could not determine every fitted parameter
+// from the data (README "Exit codes"): distinct from an error (1, nothing written), so a script
+// cannot take a profile with null values for a complete one.
+constexpr int kNotAllDetermined = 4;
+
 rodfit::RobustLoss LossOf(rodfit::LossType t) {
   switch (t) {
     case rodfit::LossType::kNone: return rodfit::RobustLoss::kNone;
@@ -34,7 +39,9 @@ rodfit::RobustLoss LossOf(rodfit::LossType t) {
 
 int RunFit(int argc, char** argv) {
   CLI::App app("Fit the experiment's `fit: true` parameters to its observations and write the "
-               "profile JSON.",
+               "profile JSON. Exit 0 when every fitted parameter is determined by the data, 4 "
+               "when the profile was written but some are not (written with value null), 1 on "
+               "an error (nothing written).",
                "rodfit fit");
   std::string experiment_path, profile_path, report_dir;
   bool quiet = false;
@@ -92,6 +99,26 @@ int RunFit(int argc, char** argv) {
   const std::filesystem::path parent = std::filesystem::path(profile_path).parent_path();
   if (!parent.empty()) rodfit::CreateDirectories(parent.string());
   rodfit::WriteProfile(profile_path, rodfit::ProfileJson(experiment, options, result));
+  // Trusted sigmas keep the std as the sigmas state them, so nothing else would show that the
+  // residuals are not what those sigmas predict: warned about (even with --quiet) when the
+  // residual variance lies outside the 0.1 %-99.9 % quantiles of chi-square(dof) / dof. Under a
+  // robust loss the cost understates the squared residuals, so only too large a variance counts.
+  if (options.trusted_sigmas) {
+    const rodfit::VarianceBand band = rodfit::ResidualVarianceBand(result.residual_dof);
+    const double v = result.residual_variance;
+    if (v > band.high)
+      std::fprintf(stderr,
+                   "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
+                   "to %.2g for %d degrees of freedom): the model does not explain the data "
+                   "(cameras swapped? wrong units? sigmas too small?)\n",
+                   v, band.low, band.high, result.residual_dof);
+    else if (v < band.low && options.loss == rodfit::RobustLoss::kNone)
+      std::fprintf(stderr,
+                   "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
+                   "to %.2g for %d degrees of freedom): the data scatter less than the sigmas "
+                   "say, so the std are too large (sigmas too large?)\n",
+                   v, band.low, band.high, result.residual_dof);
+  }
   if (!quiet) {
     for (const rodfit::ParameterEstimate& p : result.parameters) {
       if (!p.fitted) continue;
@@ -112,5 +139,7 @@ int RunFit(int argc, char** argv) {
                  result.iterations, result.seconds, result.residual_variance,
                  profile_path.c_str());
   }
+  for (const rodfit::ParameterEstimate& p : result.parameters)
+    if (p.fitted && !p.identifiable) return kNotAllDetermined;
   return EXIT_SUCCESS;
 }

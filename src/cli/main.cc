@@ -20,6 +20,7 @@
 #include "rodfit/io/synth.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/solve/case_solve.h"
+#include "rodfit/version.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/centreline.h"
 
@@ -274,7 +275,8 @@ const std::vector<Command>& Commands() {
 }
 
 void PrintUsage(std::ostream& out) {
-  out << "Usage: rodfit COMMAND [OPTIONS]   (rodfit COMMAND --help for its options)\n\n"
+  out << "Usage: rodfit COMMAND [OPTIONS]   (rodfit COMMAND --help for its options)\n"
+      << "       rodfit --version\n\n"
       << "Commands:\n";
   for (const Command& c : Commands()) out << "  " << c.name << "    " << c.help << "\n";
 }
@@ -289,6 +291,10 @@ int main(int argc, char** argv) {
   const std::string name = argv[1];
   if (name == "-h" || name == "--help" || name == "help") {
     PrintUsage(std::cout);
+    return EXIT_SUCCESS;
+  }
+  if (name == "--version") {
+    std::cout << "rodfit " << RODFIT_VERSION << "\n";
     return EXIT_SUCCESS;
   }
   for (const Command& c : Commands()) {

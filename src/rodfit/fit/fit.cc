@@ -570,6 +570,15 @@ bool FitOptions::Check(std::string* why) const {
   return true;
 }
 
+VarianceBand ResidualVarianceBand(int dof) {
+  // Wilson–Hilferty: (chi2 / dof)^(1/3) is nearly normal with mean 1 - 2/(9 dof) and variance
+  // 2/(9 dof). z = 3.0902 is the normal's 99.9 % quantile.
+  const double nu = std::max(1, dof), z = 3.090232306167813;
+  const double mean = 1.0 - 2.0 / (9.0 * nu), sd = std::sqrt(2.0 / (9.0 * nu));
+  const double low = std::max(0.0, mean - z * sd), high = mean + z * sd;
+  return {low * low * low, high * high * high};
+}
+
 const char* ParameterUnit(const std::string& name) {
   if (name == "stretch_stiffness" || name == "ring_stretch_stiffness") return "N";
   if (name == "bend_stiffness" || name == "bend_stiffness_2" || name == "twist_stiffness" ||
@@ -760,7 +769,11 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     }
   }
   const int dof = std::max(1, effective_residuals - m);
-  result.residual_variance = options.trusted_sigmas ? 1.0 : 2.0 * result.final_cost / dof;
+  result.residual_dof = dof;
+  result.residual_variance = 2.0 * result.final_cost / dof;
+  // Trusted sigmas leave the covariance as the sigmas state it; the variance is still reported,
+  // so that a model that does not explain the data is not passed silently.
+  const double covariance_scale = options.trusted_sigmas ? 1.0 : result.residual_variance;
 
   // Identifiability: columns the residuals do not depend on, directions of J's null space, and
   // parameters whose log is determined only within max_log_std.
@@ -818,7 +831,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
         for (int i = 0; i < q; ++i) Js.col(i) = J.col(keep[i]);
         cov_sub = (Js.transpose() * Js).inverse();
       }
-      cov_sub *= result.residual_variance;
+      cov_sub *= covariance_scale;
       for (int i = 0; i < q; ++i)
         for (int j = 0; j < q; ++j) cov_log(keep[i], keep[j]) = cov_sub(i, j);
       for (int i = 0; i < q; ++i) {
@@ -849,6 +862,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     e.name = p.name;
     e.unit = ParameterUnit(p.name);
     e.value = p.value;
+    e.start = p.value;
     e.fitted = p.fit;
     for (int f = 0; f < m; ++f) {
       if (fitted[f].input_index != static_cast<int>(k)) continue;

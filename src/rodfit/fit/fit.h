@@ -105,7 +105,9 @@ struct FitOptions {
 struct ParameterEstimate {
   std::string name;
   std::string unit;
-  double value = 0.0;
+  double value = 0.0;            ///< the estimate; for a parameter not identifiable, where the
+                                 ///< fit stopped: not determined by the data (see reason)
+  double start = 0.0;            ///< the value the fit started from (the experiment's value)
   bool fitted = false;
   std::optional<double> std;     ///< present only for a fitted, identifiable parameter
   bool identifiable = true;
@@ -133,7 +135,11 @@ struct FitResult {
   double initial_cost = 0.0;     ///< 1/2 sum of squared weighted residuals (after the loss)
   double final_cost = 0.0;
   int num_residuals = 0;
-  double residual_variance = 1.0;  ///< 2 cost / (N - m): 1 when the sigmas are right
+  /// 2 cost / (N - m), the chi-square per degree of freedom: about 1 when the model explains the
+  /// data and the sigmas are right. Computed with trusted sigmas too (it then does not scale
+  /// the covariance, but still says whether the model fits; see ResidualVarianceBand).
+  double residual_variance = 1.0;
+  int residual_dof = 1;          ///< N - m (at least 1): the degrees of freedom of that ratio
   double seconds = 0.0;          ///< wall time of the whole fit
   /// Summed over all case evaluations (threads add up): forward solves, sensitivities and the
   /// observation models; the rest of `seconds` is Ceres and the covariance.
@@ -145,6 +151,16 @@ struct FitResult {
   std::vector<ObservationFit> observations;
   std::vector<Mat3X> shapes;     ///< fitted centre-lines, one per case
 };
+
+/// The range a residual variance (chi-square / dof) of a correct model with correct sigmas lies
+/// in with probability 99.8 %: the 0.1 % and 99.9 % quantiles of chi-square(dof) / dof, from
+/// the Wilson–Hilferty cube-root normal approximation (within 1 % of the exact quantiles for
+/// dof >= 30, 7 % at dof = 10; the lower end is clamped at 0). Outside it, either the model does
+/// not explain the data or the stated sigmas are wrong.
+struct VarianceBand {
+  double low = 0.0, high = 0.0;
+};
+VarianceBand ResidualVarianceBand(int dof);
 
 /// Unit of a parameter by name ("N m^2", "N", "N/m^2").
 const char* ParameterUnit(const std::string& name);

@@ -28,6 +28,26 @@ void CheckArcLength(const CsvTable& t, int row, double s, double length) {
                      "marker arc length " + Short(s) + " m is outside [0, " + Short(length) + "]");
 }
 
+// 3-D observations are in metres. Points spread (bounding-box diagonal) over more than 100 rod
+// lengths cannot all lie on the rod, even with outliers inside the rod's reach: almost always
+// millimetres written as metres (a spread of ~1000 lengths), caught here rather than as a fit
+// that fails or converges to nonsense.
+void CheckSpread(const std::string& file, const std::string& what,
+                 const std::vector<Eigen::Vector3d>& points, double length) {
+  if (points.empty()) return;
+  Eigen::Vector3d low = points[0], high = points[0];
+  for (const Eigen::Vector3d& p : points) low = low.cwiseMin(p), high = high.cwiseMax(p);
+  const double spread = (high - low).norm();
+  if (spread > 100.0 * length) {
+    char b[96];
+    std::snprintf(b, sizeof(b), " spread over %.3g m, %.0f x the rod length ", spread,
+                  spread / length);
+    throw InputError(file, 0, "",
+                     what + b + Short(length) +
+                         " m: millimetres given as metres? (x, y, z are in m)");
+  }
+}
+
 // A haptic log (t, tool position, force on the instrument): the samples where the tool is at
 // rest, i.e. its speed (central differences) is below max_speed, thinned evenly to `count`.
 struct HapticSample {
@@ -182,11 +202,14 @@ FitInput BuildFitInput(const Experiment& e) {
           const auto s = ColumnOf(t, "s"), x = ColumnOf(t, "x"), y = ColumnOf(t, "y"),
                      z = ColumnOf(t, "z");
           std::vector<Marker3d> markers;
+          std::vector<Eigen::Vector3d> positions;
           for (int r = 0; r < t.num_rows(); ++r) {
             CheckArcLength(t, r, s[r], L);
             markers.push_back({std::min(std::max(s[r], 0.0), L), Vec3(x[r], y[r], z[r])});
+            positions.emplace_back(x[r], y[r], z[r]);
           }
           if (markers.empty()) throw InputError(spec.file, 0, "", "no rows");
+          CheckSpread(spec.file, "the markers", positions, L);
           obs = std::make_shared<Markers3dObservation>(arc, markers, spec.sigma);
         } else if (spec.type == "points3d") {
           const CsvTable t = CsvTable::Read(spec.file);
@@ -194,6 +217,7 @@ FitInput BuildFitInput(const Experiment& e) {
           std::vector<Eigen::Vector3d> pts;
           for (int r = 0; r < t.num_rows(); ++r) pts.emplace_back(x[r], y[r], z[r]);
           if (pts.empty()) throw InputError(spec.file, 0, "", "no rows");
+          CheckSpread(spec.file, "the points", pts, L);
           obs = std::make_shared<Points3dObservation>(nv, pts, spec.sigma);
         } else if (spec.type == "image_points") {
           const CsvTable t = CsvTable::Read(spec.file);

@@ -9,6 +9,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/version.h"
 
 namespace rodfit {
 namespace {
@@ -48,6 +49,7 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   json p;
   p["format"] = "rodfit-profile";
   p["version"] = 1;
+  p["rodfit_version"] = RODFIT_VERSION;
   const RodSpec& rod = e.scene.rod;
   p["rod"] = {{"length", rod.length},
               {"segments", rod.segments},
@@ -57,11 +59,15 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   p["gravity"] = Vec(e.scene.gravity);
   json params = json::object();
   for (const ParameterEstimate& est : r.parameters) {
-    json q = {{"value", est.value},
+    // A parameter the data do not determine has no value: where the fit stopped (often a bound)
+    // would be imported as if measured. Its start is kept apart, under "start".
+    const bool determined = !est.fitted || est.identifiable;
+    json q = {{"value", determined ? json(est.value) : json(nullptr)},
               {"std", est.std ? json(*est.std) : json(nullptr)},
               {"fitted", est.fitted},
               {"unit", est.unit}};
     if (est.fitted) {
+      q["start"] = est.start;
       q["identifiable"] = est.identifiable;
       if (!est.identifiable) q["reason"] = est.reason;
       if (est.at_bound) q["at_bound"] = true;
@@ -73,6 +79,7 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
     json q = params["bend_stiffness"];
     q["fitted"] = false;
     q["tied_to"] = "bend_stiffness";
+    q.erase("start");
     q.erase("identifiable");
     q.erase("reason");
     q.erase("at_bound");

@@ -26,6 +26,7 @@
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/solve/case_solve.h"
+#include "rodfit/version.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/render.h"
 
@@ -704,7 +705,8 @@ std::string FormatTruthJson(const Experiment& experiment, const std::vector<Case
                             std::uint32_t seed) {
   // Written by hand for one vertex per line; names escaped by nlohmann::json, numbers at
   // round-trip precision (always finite, so always valid JSON).
-  std::string out = "{\n  \"format\": \"rodfit-truth\",\n  \"version\": 1,\n  \"seed\": " +
+  std::string out = "{\n  \"format\": \"rodfit-truth\",\n  \"version\": 1,\n"
+                    "  \"rodfit_version\": \"" RODFIT_VERSION "\",\n  \"seed\": " +
                     std::to_string(seed) + ",\n  \"parameters\": {";
   bool first = true;
   for (const auto& [name, spec] : experiment.parameters) {
