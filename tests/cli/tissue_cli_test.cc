@@ -220,12 +220,13 @@ TEST_F(TissueCliTest, GraspAtTheClamp) {
 }
 
 TEST_F(TissueCliTest, TheStillLogIsReadByTheFit) {
-  // The force logs below each break one thing in a log the fit reads: non-zero exit here would
-  // make the error tests meaningless.
+  // The force logs below each break one thing in a log the fit reads: were this one refused
+  // (exit 1), the error tests would be meaningless. A tool that never moves tells nothing about
+  // the stiffness, so the fit writes the profile and says so with exit 4 (not determined).
   const std::string scene = dir_.Write("scene.yaml", kScene);
   dir_.Write("log.csv", StillLog(20));
   const RunResult run = Rodfit("fit " + Q(scene) + " -o " + Q(dir_.File("profile.json")) + " -q");
-  ASSERT_EQ(run.status, 0) << run.err;
+  ASSERT_EQ(run.status, 4) << run.err;
   EXPECT_TRUE(fs::is_regular_file(dir_.File("profile.json")));
 }
 
