@@ -1,5 +1,5 @@
 // `rodfit fit EXPERIMENT.yaml -o PROFILE.json [--report DIR] [--quiet]`: reads the experiment and
-// its observation files, runs the identification and writes the profile (DESIGN.md §3, §6).
+// its observation files, runs the identification and writes the profile (docs/cli.md, "fit").
 #include <unistd.h>
 
 #include <cmath>

@@ -1,4 +1,4 @@
-// The rodfit command (DESIGN.md §6): a thin table of subcommands in the manner of COLMAP's
+// The rodfit command (docs/cli.md): a thin table of subcommands in the manner of COLMAP's
 // `commands.emplace_back("name", &RunName)`. Each Run* parses its options with CLI11, calls the
 // library and turns a failure into one line on stderr and a non-zero exit. No physics here.
 #include <cstdint>
@@ -146,7 +146,7 @@ int RunSynth(int argc, char** argv) {
   std::string experiment_path, output_dir;
   std::uint32_t seed = 1;
   bool noise_free = false;
-  app.add_option("experiment", experiment_path, "experiment YAML (DESIGN.md §6)")->required();
+  app.add_option("experiment", experiment_path, "experiment YAML (docs/formats.md)")->required();
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
   app.add_option("--seed", seed, "random seed; the same seed gives the same bytes")
       ->default_val(1);
@@ -187,7 +187,7 @@ int RunExtract(int argc, char** argv) {
   app.add_option("images", images, "one image, or two images of two cameras")
       ->required()
       ->expected(1, 2);
-  app.add_option("--camera", camera_paths, "camera file, one per image (DESIGN.md §6)");
+  app.add_option("--camera", camera_paths, "camera file, one per image (docs/formats.md)");
   app.add_option("--stereo", stereo_path, "stereo calibration file holding both cameras");
   app.add_option("-o,--output", output_path, "output CSV: u,v (one image) or x,y,z (two)")
       ->required();
@@ -261,7 +261,7 @@ struct Command {
   int (*run)(int argc, char** argv);
 };
 
-// bench joins this table when its issue lands.
+// A `bench` command is not in the table yet.
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
       {"simulate", "solve every case of a scene; write DIR/shapes.csv", &RunSimulate},

@@ -1,4 +1,4 @@
-// Fit benchmark (issue: fit CLI): wall time of the identification of B1 and B2 from the suture
+// Fit benchmark: wall time of the identification of B1 and B2 from the suture
 // cantilever protocol (calibration/suture_cantilever) against the number of load cases and of
 // markers per case, 50 segments, starts three times too soft. The synthetic markers are solved
 // and noised once in the setup, outside the timed loop; every timed iteration is a complete Fit()

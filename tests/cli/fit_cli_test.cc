@@ -1,4 +1,4 @@
-// Tests of `rodfit fit` run as a user would (DESIGN.md §3, §6): an experiment synthesized with
+// Tests of `rodfit fit` run as a user would (docs/cli.md, "fit"): an experiment synthesized with
 // `rodfit synth` and fitted from starts three times too soft recovers the truth within 3 std, the
 // profile JSON carries every field of the contract, `--report DIR` writes its tables and plots;
 // the suture cantilever recipe recovers its truth.json; a parameter the cases cannot determine is

@@ -1,4 +1,4 @@
-// `surface_points` through the command line (issue 5, ring_bend_stiffness): an entry in a case
+// `surface_points` through the command line (ring_bend_stiffness): an entry in a case
 // without a poke is a one-line error naming the file, the line and the key; `rodfit synth` then
 // `rodfit fit` recovers the ring's bending stiffness from noisy points around the dent; and the
 // tissue_poke recipe recovers its truth.json.

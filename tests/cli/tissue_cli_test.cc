@@ -1,10 +1,10 @@
-// Tests of the tissue side of the rodfit command run as a user would (DESIGN.md §1 springs and
-// grasps, §3 grasp_force, §6): `rodfit simulate` on the bundled bowel scene writes forces.csv with
-// one row per grasped case; spring zones, cuts, zone parameters, grasps and haptic force logs that
-// are wrong exit non-zero with one line on stderr naming the file, the line and the key (or the
-// log's row line and column) and write nothing; and a spring stiffness is recovered from a haptic
-// force log alone, synthesized by `rodfit synth` and fitted by `rodfit fit`; and the tissue_drag
-// recipe recovers its truth.json.
+// Tests of the tissue side of the rodfit command run as a user would (docs/model.md,
+// "Tissue springs" and "Held points"; docs/formats.md, `grasp_force`): `rodfit simulate` on the
+// bundled bowel scene writes forces.csv with one row per grasped case; spring zones, cuts, zone
+// parameters, grasps and haptic force logs that are wrong exit non-zero with one line on stderr
+// naming the file, the line and the key (or the log's row line and column) and write nothing; and a
+// spring stiffness is recovered from a haptic force log alone, synthesized by `rodfit synth` and
+// fitted by `rodfit fit`; and the tissue_drag recipe recovers its truth.json.
 #include <sys/wait.h>
 
 #include <algorithm>

@@ -1,4 +1,4 @@
-// Identification tests (issue 4): the forward map's Jacobian against central differences,
+// Identification tests: the forward map's Jacobian against central differences,
 // parameter recovery on synthetic experiments (noise-free within 0.5 %, noisy within 3 std),
 // calibrated uncertainty over seeds, identifiability verdicts and bad requests.
 #include <cmath>
@@ -270,7 +270,7 @@ TEST(Fit, NoisyEstimatesLieWithinThreeStd) {
 
 TEST(Fit, ReportedStdMatchesTheSpreadOverSeeds) {
   // 20 noisy replicates of one experiment: the spread of the estimates agrees with the std the
-  // fit reports within a factor of 1.5 (the issue's calibration criterion).
+  // fit reports within a factor of 1.5 (docs/solvers.md, "Covariance").
   FitInput truth = Suture(30);
   std::vector<double> estimates, stds;
   for (int seed = 0; seed < 20; ++seed) {

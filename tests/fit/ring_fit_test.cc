@@ -1,4 +1,4 @@
-// Identification of the cross-section ring's stiffness from `surface_points` (issue 5): the
+// Identification of the cross-section ring's stiffness from `surface_points`: the
 // surface residuals' Jacobian against central differences of the forward map, recovery of
 // ring_bend_stiffness from noisy points around the dent, and the refused combinations.
 #include <cmath>

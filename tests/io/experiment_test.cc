@@ -1,5 +1,5 @@
-// Tests of the experiment / scene YAML reader (io/experiment.h, DESIGN.md §6): every class of bad
-// input is an InputError naming the file, the 1-based line and the key; good files parse to the
+// Tests of the experiment / scene YAML reader (io/experiment.h, docs/formats.md): every class of
+// bad input is an InputError naming the file, the 1-based line and the key; good files parse to the
 // right values, with paths resolved against the YAML file's folder.
 #include "rodfit/io/experiment.h"
 
@@ -302,7 +302,8 @@ TEST_F(ExperimentTest, BundledSampleScene) {
   EXPECT_FALSE(ex.parameters.at("bend_stiffness").fit);
 }
 
-// The example of DESIGN.md §6, verbatim, in a sub-folder so that paths must be resolved.
+// The example of docs/formats.md, "Example", verbatim, in a sub-folder so that paths must be
+// resolved.
 TEST_F(ExperimentTest, DesignExampleParsesToTheRightValues) {
   const std::string yaml = R"(rod:
   length: 0.2               # [m]

@@ -1,4 +1,4 @@
-// `surface_points` in the experiment YAML, BuildFitInput and synth (issue 5): the entry needs a
+// `surface_points` in the experiment YAML, BuildFitInput and synth: the entry needs a
 // poke in its case (else a one-line InputError naming the file, the line and the key), allows
 // only file, sigma and count, loads into FitCase::surface_points with the scene's section, and
 // synth writes `count` points on the deformed ring.

@@ -209,7 +209,8 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(VertexStencil, CurvatureSignConvention) {
   // A rod turning from d3 = x towards d1 = z is a rotation about -y... with d1 = z, d2 = d3 x d1
   // = x cross z = -y: the rotation axis te x tf = x cross z = -y = d2, so k2 > 0 and k1 = 0
-  // (DESIGN.md: rest curvature [0, k, 0], k > 0 bends towards the clamp normal d1).
+  // (docs/model.md, "Conventions": rest curvature [0, k, 0], k > 0 bends towards the clamp normal
+  // d1).
   VertexStencilConstants c;
   c.voronoi_length = 0.1;
   c.t_old_e = Eigen::Vector3d::UnitX();

@@ -126,12 +126,12 @@ double Seconds(std::chrono::steady_clock::time_point t0) {
 // W = |M| / B, whatever GJ is. Integrating r' = d3:
 //   r(s) = r0 + (a.d30) a s + sin(W s) / W (d30 - (a.d30) a) + (1 - cos(W s)) / W a x d30,
 // a helix of axis a. (GJ sets only the spin of d1, d2 about d3, not the centre-line.)
-// Tolerance 1e-4 L at 200 segments (the issue's). Expected discrete error: the discrete bending
+// Tolerance 1e-4 L at 200 segments. Expected discrete error: the discrete bending
 // moment conjugate to a vertex's turning phi is (2B/l) tan(phi/2) / cos^2(phi/2) (tan-form
 // curvature), so each vertex turns by W l (1 - (W l)^2 / 3 + ...): a relative turning error of
 // (W l)^2 / 3 = 5.2e-5 for W L = 2.5, l = L / 200, i.e. a tip rotation error of ~1.3e-4 rad and a
 // centre-line error below ~1e-4 L. W L = 2.5 rad (143 degrees of precession) is chosen so that
-// this second-order error sits below the issue's tolerance at 200 segments.
+// this second-order error sits below the 1e-4 L tolerance at 200 segments.
 TEST(ExactReferences, IsotropicDeadMomentHelixIndependentOfGJ) {
   RodParams p;
   p.L = 1.2;
@@ -182,7 +182,7 @@ TEST(ExactReferences, IsotropicDeadMomentHelixIndependentOfGJ) {
 // b. Anisotropic (B2 = 2 B1), rest-curved (k1, k2, tau all nonzero), general 3-D clamp, dead tip
 // moment; in the second case also a tip force and gravity. Reference: SolveKirchhoff kFree
 // (dead F, M) with the same B1, B2, GJ, EA and rest curvature.
-// Tolerance 2e-3 L on every vertex at 100 segments (the issue's; the discrete rod is second
+// Tolerance 2e-3 L on every vertex at 100 segments (the discrete rod is second
 // order, so the expected error is O((L / 100)^2 |u|^2 L); measured ~1e-5 L).
 // Reactions: the clamp force is the total load in both models (exact statics), so it must agree
 // to round-off (1e-9 of the load). The clamp moment is m(0) = M + int_0^L (r(s) - r0) x f ds +
@@ -310,10 +310,10 @@ TEST(ExactReferences, RestCurvedRodWithTipMomentSolvesFromStraightStart) {
 // which is second order like the positions; we allow 2e-3 of the force scale rho g L (= 20 N)
 // and of the moment scale rho g L^2, and check that the errors fall ~4x (> 3x) from 50 to 100
 // segments.
-// Two starts: (1) the straight rod, as the issue asks (the solver moves the end clamp from
-// (L, 0, 0) to (D, 0, 0) by continuation); (2) a sag-shaped guess (a cosine dip of 0.25 L,
-// independent of the reference) which selects the sagging branch, so that the discretisation
-// accuracy is tested whatever branch (1) lands on.
+// Two starts: (1) the straight rod, as `rodfit simulate` starts (the solver moves the end
+// clamp from (L, 0, 0) to (D, 0, 0) by continuation); (2) a sag-shaped guess (a cosine dip of
+// 0.25 L, independent of the reference) which selects the sagging branch, so that the
+// discretisation accuracy is tested whatever branch (1) lands on.
 RodParams ClampedClampedParams() {
   RodParams p;
   p.L = 1.0;
@@ -443,7 +443,7 @@ TEST(ExactReferences, HeavyClampedClampedFromStraightStartSags) {
 // end_pin) at a shortened position x_n = (1 - eps) L e_x is an equilibrium at every eps (all
 // edges compressed equally, no bending); its axial force is P = EA eps. It is stable while the
 // Hessian with the held rows (AssembleHessian at that state) is positive definite; bisect the
-// eps at which BandedCholesky::Factor starts to fail. Tolerance 1 % (the issue's; the discrete
+// eps at which BandedCholesky::Factor starts to fail. Tolerance 1 % (the discrete
 // critical load is second order in l: measured 3e-4 relative at 100 segments).
 double CriticalLoad(bool end_clamp, int n) {
   RodParams p;  // L = 1, B1 = B2 = 1, GJ = 1/1.3 like test_util's Cantilever; EA = 1e6
@@ -640,7 +640,7 @@ TEST(ExactReferences, FollowerMoment3DConvergesAtSecondOrder) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// f. The hanging loop (the issue's example): L = 1.5 m, B1 = B2 = 1e-3 N m^2, GJ = 8e-4,
+// f. The hanging loop: L = 1.5 m, B1 = B2 = 1e-3 N m^2, GJ = 8e-4,
 // rho = 0.05 kg/m, g = -9.81 z; clamped at the origin heading +x (normal +z), end-clamped at
 // (-0.12, 0, 0) heading +x, normal +z. The straight start cannot reach the planar loop: both
 // ends keep their frames while they are brought together, so the rod's link (twist + writhe)
@@ -654,7 +654,7 @@ TEST(ExactReferences, FollowerMoment3DConvergesAtSecondOrder) {
 // shooting ill-conditioned), continuation in gravity from the circle m0 = 2 pi B / L about +y,
 // as in the reference self-test (which checks its mirror symmetry and 1e-10 L RK4 accuracy);
 // 2000 RK4 steps here (RK4 error ~ 16x the 4000-step error, still < 1e-10 L).
-// Tolerance: 2e-3 L at 150 segments (the issue's suggestion). The discretisation error is
+// Tolerance: 2e-3 L at 150 segments. The discretisation error is
 // second order, so it must fall ~4x (accept > 3x) from 75 to 150 segments. EA = 1e4 N
 // (EA L^2 / B = 2.25e7), given to the reference too.
 ref::ShootingResult HangingLoopReference(const RodParams& p) {

@@ -1,4 +1,4 @@
-// Validation of the statics against published solutions (DESIGN.md §7).
+// Validation of the statics against published solutions (docs/model.md, "Validation").
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -36,9 +36,9 @@ TipResult SolveTipLoad(double alpha, int segments) {
 
 // Mattiasson (1981), "Numerical results from large deflection beam and frame problems analysed
 // by means of elliptic integrals", Int. J. Numer. Meth. Eng. 17, Table 1 (also Bisshopp &
-// Drucker 1945), as quoted in DESIGN.md §7: tip deflection w/L, shortening u/L and tip rotation
-// for alpha = P L^2 / EI. The last edge's direction is the tangent at s = L - l/2, so the
-// rotation is compared with a tolerance that covers that half cell (curvature at the tip is 0).
+// Drucker 1945), as quoted in docs/model.md, "Validation": tip deflection w/L, shortening u/L and
+// tip rotation for alpha = P L^2 / EI. The last edge's direction is the tangent at s = L - l/2, so
+// the rotation is compared with a tolerance that covers that half cell (curvature at the tip is 0).
 struct MattiassonRow {
   double alpha, w, u, rotation;
 };
@@ -52,7 +52,7 @@ TEST(Mattiasson, TipWithin1e3LengthAt100Segments) {
   for (const MattiassonRow& row : kMattiasson) {
     const TipResult r = SolveTipLoad(row.alpha, 100);
     ASSERT_TRUE(r.summary.converged) << r.summary.BriefReport();
-    // The issue's tolerance: tip within 1e-3 L.
+    // Tolerance: tip within 1e-3 L.
     EXPECT_NEAR(r.w, row.w, 1e-3) << "alpha " << row.alpha;
     EXPECT_NEAR(r.u, row.u, 1e-3) << "alpha " << row.alpha;
     EXPECT_NEAR(r.rotation, row.rotation, 2e-3) << "alpha " << row.alpha;

@@ -8,8 +8,8 @@
 
 namespace rodfit::testing {
 
-/// A nearly inextensible cantilever (EA L^2 / EI = 1e6, DESIGN.md §7 asks >= 1e5), clamped at
-/// the origin along +x with d1 = +z, massless unless `density` is given.
+/// A nearly inextensible cantilever (EA L^2 / EI = 1e6, docs/model.md, "Validation", asks >= 1e5),
+/// clamped at the origin along +x with d1 = +z, massless unless `density` is given.
 inline Scene Cantilever(int segments, double density = 0.0) {
   Scene s;
   s.rod.length = 1.0;

@@ -25,8 +25,8 @@ StaticsSummary Solve(const RodModel& m, RodState* state, StaticsWorkspace* ws = 
 
 // Hetenyi, "Beams on Elastic Foundation" (1946), infinite beam under a point load P on a
 // Winkler foundation of modulus k: w(x) = P beta / (2k) exp(-beta x)(cos beta x + sin beta x),
-// beta = (k / 4 EI)^(1/4) (DESIGN.md §7). A long rod (L = 30 / beta each side of the load)
-// approximates the infinite beam; the peak deflection must be within 2 %.
+// beta = (k / 4 EI)^(1/4) (docs/model.md, "Validation"). A long rod (L = 30 / beta each side of the
+// load) approximates the infinite beam; the peak deflection must be within 2 %.
 TEST(Springs, WinklerFoundationPointLoad) {
   const double EI = 1.0, k = 1e4, P = 1.0;
   const double beta = std::pow(k / (4 * EI), 0.25);

@@ -1,5 +1,5 @@
-// Identification of the rod's stiffness parameters from observations (DESIGN.md §3): a Ceres
-// problem with one residual block per load case whose Evaluate runs the warm-started static
+// Identification of the rod's stiffness parameters from observations (docs/solvers.md, "The fit"):
+// a Ceres problem with one residual block per load case whose Evaluate runs the warm-started static
 // solve and returns the weighted residuals with their exact Jacobian (dx/dlog p from the
 // implicit-function theorem, solve/sensitivity.h, chained with the observation models'
 // closed-form d r / d x). Parameters live in log space with optional bounds; fixed ones stay out

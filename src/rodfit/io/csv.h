@@ -1,5 +1,5 @@
-// CSV tables as DESIGN.md §6 defines them (a header row, columns by name, extra columns
-// ignored), atomic file output (STYLE.md: never leave a half-written file) and the one number
+// CSV tables as docs/formats.md defines them (a header row, columns by name, extra columns
+// ignored), atomic file output (never leave a half-written file) and the one number
 // format every rodfit output uses. Errors are InputErrors naming the file, line and column.
 #pragma once
 

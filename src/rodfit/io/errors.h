@@ -1,5 +1,5 @@
 // The one exception type of the io layer: a user's mistake in an input file (or an output path),
-// carrying where it is. what() is a single line `FILE:LINE: KEY: message` (STYLE.md "Errors"),
+// carrying where it is. what() is a single line `FILE:LINE: KEY: message`,
 // with `:LINE` left out when the line is unknown and `KEY: ` when no key applies, so the CLI can
 // print it as is.
 #pragma once

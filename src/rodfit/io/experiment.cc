@@ -1,4 +1,4 @@
-// Reading and validating the experiment / scene YAML (see experiment.h, DESIGN.md §6).
+// Reading and validating the experiment / scene YAML (see experiment.h, docs/formats.md).
 // yaml-cpp gives the tree and the marks; every check and message is here. A Field carries a
 // value with its dotted key path and 1-based line, so each error names where it is.
 #include "rodfit/io/experiment.h"
@@ -187,7 +187,7 @@ class Reader {
     return v;
   }
 
-  // A path inside the YAML file, relative to the file's folder (DESIGN.md §6).
+  // A path inside the YAML file, relative to the file's folder (docs/formats.md).
   std::string Path(const Field& f, const std::string& directory) const {
     fs::path p(Text(f));
     if (p.is_relative() && !directory.empty()) p = fs::path(directory) / p;
@@ -220,7 +220,8 @@ ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& 
   ParameterSpec p;
   p.line = f.key_line;
   const Field& value = r.Require(m, f, "value");
-  // spring_stiffness = 0 means no springs (DESIGN.md §4); every stiffness of the rod is > 0.
+  // spring_stiffness = 0 means no springs (docs/model.md, "What a scene builds"); every stiffness
+  // of the rod is > 0.
   p.value = name == "spring_stiffness" ? r.NonNegative(value) : r.Positive(value);
   if (const Field* fit = Reader::Find(m, "fit")) p.fit = r.Bool(*fit);
   if (p.fit && !(p.value > 0.0)) {
@@ -415,7 +416,7 @@ SectionSpec ReadSection(const Reader& r, const Field& f) {
   return spec;
 }
 
-// Top-level `springs:` (issue 5): attachment zones, each with spring_stiffness or its own
+// Top-level `springs:`: attachment zones, each with spring_stiffness or its own
 // parameter. Returns the zone parameters' names (they become allowed parameter keys).
 std::vector<std::string> ReadSprings(const Reader& r, const Field& f, Experiment* ex) {
   std::vector<std::string> names;

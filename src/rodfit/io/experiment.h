@@ -1,4 +1,4 @@
-// The experiment / scene YAML of DESIGN.md §6, read into a Scene (what model/ and solve/ need)
+// The experiment / scene YAML (docs/formats.md), read into a Scene (what model/ and solve/ need)
 // plus what identification needs on top: per-parameter fit settings, per-case observation specs
 // and the optional `fit:` block. Everything is validated here, so a mistake in the file is an
 // InputError naming the file, the 1-based line and the key (e.g. `cases[1].clamp.normal`),
@@ -15,8 +15,8 @@
 
 namespace rodfit {
 
-/// One entry of `parameters:`. Parameters are fitted in log space (DESIGN.md §3), so a fitted
-/// value and any bound are > 0.
+/// One entry of `parameters:`. Parameters are fitted in log space (docs/solvers.md, "The fit"), so
+/// a fitted value and any bound are > 0.
 struct ParameterSpec {
   double value = 0.0;         ///< in the parameter's SI unit (see Material)
   bool fit = false;           ///< fitted, or held at value
@@ -25,7 +25,8 @@ struct ParameterSpec {
   int line = 0;               ///< 1-based line of the parameter's key
 };
 
-/// One entry of a case's `observations:` (DESIGN.md §3). Which keys a type allows:
+/// One entry of a case's `observations:` (docs/formats.md, "Observation entries"). Which keys a
+/// type allows:
 ///   markers3d:    file, sigma [m],  s | count, outliers
 ///   points3d:     file, sigma [m],  count, outliers
 ///   image_points: file, sigma [px], camera, s | count, outliers

@@ -1,6 +1,6 @@
-// From an experiment file to the fit's input (DESIGN.md §3, §6): reads every observation's data
-// file (CSV, image) and camera, checks it against the rod, and builds the observation models.
-// Errors name the file, the row's line and the column or key.
+// From an experiment file to the fit's input (docs/formats.md, "Observation entries"): reads every
+// observation's data file (CSV, image) and camera, checks it against the rod, and builds the
+// observation models. Errors name the file, the row's line and the column or key.
 #pragma once
 
 #include "rodfit/fit/fit.h"

@@ -1,4 +1,4 @@
-// Camera images -> observations the fit uses (DESIGN.md §3 `images`): one image becomes
+// Camera images -> observations the fit uses (docs/solvers.md, "Observations"): one image becomes
 // `image_points` without s (the ordered centre-line pixels from ExtractCentreline, started at the
 // clamped end by hinting the projected clamp position); two images of one case from two
 // calibrated cameras become `points3d` by matching the two centre-lines along epipolar lines and

@@ -75,7 +75,7 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
     params[est.name] = q;
   }
   if (!params.contains("bend_stiffness_2") && params.contains("bend_stiffness")) {
-    // Absent in the experiment: isotropic, tied to bend_stiffness (DESIGN.md §3).
+    // Absent in the experiment: isotropic, tied to bend_stiffness (docs/model.md, "Stiffnesses").
     json q = params["bend_stiffness"];
     q["fitted"] = false;
     q["tied_to"] = "bend_stiffness";

@@ -1,6 +1,6 @@
-// The profile JSON of DESIGN.md §6, what a simulator imports: the rod, every parameter the model
-// used (value, std, fitted flag, unit, identifiability), correlations and the fit summary with
-// a digest of the input files.
+// The profile JSON (docs/formats.md, "Profile JSON"), what a simulator imports: the rod, every
+// parameter the model used (value, std, fitted flag, unit, identifiability), correlations and the
+// fit summary with a digest of the input files.
 #pragma once
 
 #include <string>

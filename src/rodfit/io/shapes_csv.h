@@ -1,6 +1,7 @@
-// shapes.csv, the output of `rodfit simulate` (DESIGN.md §6): one row per vertex of every case,
-// columns `case,vertex,s,x,y,z`, numbers at full precision so the file round-trips exactly.
-// Plain data in, so io/ needs no solver; the CLI fills CaseShape from a RodModel and RodState.
+// shapes.csv, the output of `rodfit simulate` (docs/formats.md, "CSV files"): one row per vertex of
+// every case, columns `case,vertex,s,x,y,z`, numbers at full precision so the file round-trips
+// exactly. Plain data in, so io/ needs no solver; the CLI fills CaseShape from a RodModel and
+// RodState.
 #pragma once
 
 #include <string>

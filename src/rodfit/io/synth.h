@@ -1,5 +1,5 @@
 // `rodfit synth`: synthetic observations of an experiment whose parameter values are taken as
-// the truth (DESIGN.md §3, §6). Every case is solved to equilibrium; every observation entry of
+// the truth (docs/cli.md, "synth"). Every case is solved to equilibrium; every observation entry of
 // every case gets the file it names: `markers3d` (s,x,y,z at the entry's `s` or `count` arc
 // lengths), `points3d` (x,y,z centre-line samples), `image_points` (s,u,v at given arc lengths, or
 // u,v evenly spaced along the projected centre-line) and `images` (a PNG of the tube of the rod's
@@ -118,7 +118,7 @@ std::string EmitExperimentYaml(const std::string& yaml_text, const Experiment& e
 std::string FormatTruthJson(const Experiment& experiment, const std::vector<CaseShape>& truth,
                             std::uint32_t seed);
 
-/// Observation CSV text with DESIGN.md §6 columns, numbers at round-trip precision.
+/// Observation CSV text with the columns of docs/formats.md, numbers at round-trip precision.
 std::string FormatMarkersCsv(const std::vector<double>& s, const std::vector<Eigen::Vector3d>& p);
 std::string FormatPoints3dCsv(const std::vector<Eigen::Vector3d>& p);
 /// One row of a haptic log: time, instrument position, force the tissue exerts on it.

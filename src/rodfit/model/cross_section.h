@@ -1,4 +1,4 @@
-// The cross-section model of the tissue paper §4 (DESIGN.md §1 "Cross-section"): the section of
+// The cross-section model of the tissue paper §4 (docs/model.md, "Cross-section"): the section of
 // a tube-like tissue at the instrument's arc length is a closed curve C that deforms in its own
 // plane. C is a closed polyline of N nodes X_k (section coordinates: x along the rod's d1, y
 // along d2), at rest the regular N-gon inscribed in the circle of radius R, numbered
@@ -41,7 +41,8 @@ namespace rodfit {
 class RodModel;
 struct RodState;
 
-/// The `section:` block: geometry of the ring and of the mesh propagation (DESIGN.md §1).
+/// The `section:` block: geometry of the ring and of the mesh propagation (docs/formats.md,
+/// `section`).
 struct SectionSpec {
   double radius = 0.0;        ///< rest radius R of the curve C [m]
   int nodes = 32;             ///< N, nodes of C (>= 8)
@@ -54,7 +55,8 @@ struct SectionSpec {
   bool Check(std::string* why) const;
 };
 
-/// Stiffness of the ring (DESIGN.md §1: `ring_bend_stiffness`, `ring_stretch_stiffness`).
+/// Stiffness of the ring (docs/model.md, "Cross-section": `ring_bend_stiffness`,
+/// `ring_stretch_stiffness`).
 struct RingStiffness {
   double bend = 0.0;     ///< kb [N m^2]
   double stretch = 0.0;  ///< ks [N]

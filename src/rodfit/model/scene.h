@@ -1,5 +1,6 @@
-// What a scene declares: the rod, its material, gravity and the load cases (DESIGN.md §1, §6).
-// Plain data with SI units; io/ fills it from YAML, model/ and solve/ build only what it needs.
+// What a scene declares: the rod, its material, gravity and the load cases (docs/model.md,
+// docs/formats.md). Plain data with SI units; io/ fills it from YAML, model/ and solve/ build only
+// what it needs.
 #pragma once
 
 #include <map>
@@ -29,7 +30,7 @@ struct RodSpec {
   std::vector<double> vertex_s;
 };
 
-/// Material parameters of DESIGN.md §1 (the `parameters:` values).
+/// Material parameters (docs/model.md, "Stiffnesses"; the `parameters:` values).
 struct Material {
   double bend_stiffness = 0.0;                 ///< B1 [N m^2], resists k1 (rotation about d1)
   std::optional<double> bend_stiffness_2;      ///< B2 [N m^2], resists k2; absent = B1
@@ -112,7 +113,7 @@ struct SymmetryPlane {
 };
 
 /// An instrument pushing the tissue at arc length s: the force acts on the rod (a point force)
-/// and, in the section plane, on the cross-section ring (DESIGN.md §1, tissue paper §4).
+/// and, in the section plane, on the cross-section ring (docs/model.md, "Cross-section").
 struct Poke {
   double s = 0.0;              ///< [m]
   Vec3 force = Vec3::Zero();   ///< [N]

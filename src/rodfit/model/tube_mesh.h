@@ -1,6 +1,6 @@
 // The tissue's surface: a tube swept along the (deformed) rod with its material frames, and the
 // local deformation of the cross-section model propagated onto it (tissue paper §4, eqs. 12–13;
-// DESIGN.md §1 "Cross-section"). The global rod deformation carries the mesh; the ring's
+// docs/model.md, "Cross-section"). The global rod deformation carries the mesh; the ring's
 // deformation is added on top:
 //
 //  - eq. 12: the mesh edges that the rest curve C comes across (edges crossing the section plane,

@@ -201,7 +201,7 @@ void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double
 /// Voronoi length of c.
 void VertexHessianFromFrames(const VertexStencilConstants& c, const StencilFrames& frames,
                              double dtheta, double* g8, double* H8);
-/// Stretch energy of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2 (per-edge stretch, DESIGN.md §1),
+/// Stretch energy of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2 (per-edge stretch, docs/model.md),
 /// with its gradient and Hessian with respect to q = [x_a (3), x_b (3)].
 template <typename T>
 T StretchEnergy(double EA, double rest_length, const T* q) {

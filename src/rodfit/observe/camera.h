@@ -1,4 +1,4 @@
-// A calibrated pinhole camera with OpenCV's lens distortion (DESIGN.md §3 `image_points`, §6).
+// A calibrated pinhole camera with OpenCV's lens distortion (docs/formats.md, "Camera files").
 // The model is exactly cv::projectPoints with the five coefficients (k1, k2, p1, p2, k3):
 // x_cam = R x_world + t, (x, y) = (X/Z, Y/Z), r2 = x^2 + y^2,
 // x'' = x (1 + k1 r2 + k2 r2^2 + k3 r2^3) + 2 p1 x y + p2 (r2 + 2 x^2),

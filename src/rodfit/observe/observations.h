@@ -1,7 +1,7 @@
-// Observation models of DESIGN.md §3: they map the vertices x_0..x_n of a rod to weighted
-// residuals r = (model - measured) / sigma for `markers3d`, `points3d` and `image_points` (with
-// an arc length s per pixel: markers; without: samples of the thread's image). Each model is a
-// const object holding only its measurements (and camera). It offers one templated
+// Observation models (docs/solvers.md, "Observations"): they map the vertices x_0..x_n of a rod to
+// weighted residuals r = (model - measured) / sigma for `markers3d`, `points3d` and `image_points`
+// (with an arc length s per pixel: markers; without: samples of the thread's image). Each model is
+// a const object holding only its measurements (and camera). It offers one templated
 // Residuals<T>(x_flat, residuals) for double and ceres::Jet, and a double Evaluate that adds the
 // closed-form Jacobian d r / d x. That Jacobian is sparse: the residuals of one measurement
 // depend on the two vertices of one edge at most, so VertexJacobian stores one dim x 6 block per

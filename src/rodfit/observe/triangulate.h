@@ -1,6 +1,6 @@
-// Triangulation of centre-line pixels from calibrated cameras (DESIGN.md §3 `points3d` from
-// `images`). A point is triangulated by the linear DLT (Hartley & Zisserman §12.2) in
-// undistorted normalised coordinates, then refined by capped Gauss–Newton on the pixel
+// Triangulation of centre-line pixels from calibrated cameras (docs/solvers.md, "Observations":
+// `points3d` from `images`). A point is triangulated by the linear DLT (Hartley & Zisserman §12.2)
+// in undistorted normalised coordinates, then refined by capped Gauss–Newton on the pixel
 // reprojection error. Two ordered centre-line polylines seen by two cameras are matched along
 // epipolar lines: each pixel of polyline A gives the line E x_a in camera B's undistorted image
 // plane (for a rectified pair, the same row); its crossings with polyline B are triangulated,

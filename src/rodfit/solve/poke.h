@@ -1,4 +1,4 @@
-// The local deformation of a poked tissue (DESIGN.md §1, tissue paper §4): the cross-section
+// The local deformation of a poked tissue (docs/model.md, "Cross-section"): the cross-section
 // ring at the poke's arc length, placed on the solved rod with its material frame, deformed by
 // the in-plane part of the instrument force; and the tube surface mesh swept along the rod with
 // that deformation propagated by eqs. 12–13.

@@ -1,8 +1,8 @@
-// Exact sensitivities of the equilibrium to the stiffness parameters (DESIGN.md §2): at
-// equilibrium g(q, p) = 0, so dq/dp = -H^{-1} dg/dp, with the factorisation the statics solver
-// kept. U is linear in each stiffness, so dg/dlog(p) is the gradient of that term alone
-// (EnergyTerms::Only). Costs one gradient assembly and one banded back-substitution per
-// parameter.
+// Exact sensitivities of the equilibrium to the stiffness parameters (docs/solvers.md,
+// "Sensitivities"): at equilibrium g(q, p) = 0, so dq/dp = -H^{-1} dg/dp, with the factorisation
+// the statics solver kept. U is linear in each stiffness, so dg/dlog(p) is the gradient of that
+// term alone (EnergyTerms::Only). Costs one gradient assembly and one banded back-substitution
+// per parameter.
 #pragma once
 
 #include <vector>

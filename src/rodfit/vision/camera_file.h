@@ -1,5 +1,5 @@
-// Reading calibrated cameras from OpenCV FileStorage files (DESIGN.md §6 "Cameras"): YAML with or
-// without the %YAML:1.0 header, JSON and XML, in the key spellings labs have:
+// Reading calibrated cameras from OpenCV FileStorage files (docs/formats.md, "Camera files"): YAML
+// with or without the %YAML:1.0 header, JSON and XML, in the key spellings labs have:
 //  - rodfit / OpenCV calibration sample: camera_matrix, distortion_coefficients, image_width,
 //    image_height (also cameraMatrix, distCoeffs / dist_coeffs, image_size: [w, h]);
 //  - OpenCV tutorial: Camera_Matrix, Distortion_Coefficients, image_Width, image_Height;
@@ -10,8 +10,9 @@
 // rows. The world-to-camera pose is rvec/tvec (x_cam = R(rvec) x_world + tvec, Rodrigues) or R/T;
 // no pose means the camera frame is the world frame. Distortion is OpenCV's (k1, k2, p1, p2[, k3])
 // as in observe/camera.h; 8-, 12- and 14-vectors are accepted when the rational, thin-prism and
-// tilt terms are zero. Translations are taken in metres (SI, DESIGN.md §1) without conversion.
-// Unknown keys are ignored: calibration tools write many (reprojection errors, per-view poses).
+// tilt terms are zero. Translations are taken in metres (SI, docs/model.md, "Conventions") without
+// conversion. Unknown keys are ignored: calibration tools write many (reprojection errors, per-view
+// poses).
 #pragma once
 
 #include <stdexcept>

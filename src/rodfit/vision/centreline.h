@@ -1,4 +1,4 @@
-// Camera image of a thread -> ordered centre-line pixels (DESIGN.md §3: `images` observations
+// Camera image of a thread -> ordered centre-line pixels (docs/solvers.md, "Observations": `images`
 // are reduced to `image_points`). Pipeline: segment (dark-on-light or light-on-dark by Otsu or a
 // fixed threshold, or an HSV colour range) -> morphological closing -> keep components of a
 // minimum area and fill pin-holes -> Guo–Hall parallel thinning (Guo & Hall, CACM 32(3), 1989,

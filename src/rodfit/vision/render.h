@@ -1,4 +1,4 @@
-// Synthetic camera images of a thread (DESIGN.md §3, `images` observations): the projected
+// Synthetic camera images of a thread (docs/solvers.md, "Observations": `images`): the projected
 // centre-line, a 2-D polyline in pixels with a per-vertex half-width (the projected tube radius),
 // is drawn as a union of tapered capsules with round joints and caps. Each pixel's coverage comes
 // from its signed distance d to the tube, clamp(0.5 - d, 0, 1) — the area of a pixel that a
