@@ -57,8 +57,11 @@ TEST(HostileInput, CaseNamesThatArePathsAreRefused) {
     EXPECT_THAT(message, HasSubstr("file name"));
     EXPECT_EQ(message.find('\n'), std::string::npos);
   }
-  // Empty: no name at all is no file name either.
+  // Empty: no name at all is no file name either; nor is one too long for a file system.
   EXPECT_THAT(CaseNameError(dir, "\"\""), StartsWith(prefix));
+  const std::string long_name = CaseNameError(dir, std::string(300, 'n'));
+  EXPECT_THAT(long_name, HasSubstr("must have at most 100 characters"));
+  EXPECT_LE(long_name.size(), 300u);
   // Ordinary names still pass, dots inside included.
   std::string text = kScene;
   text.replace(text.find("NAME"), 4, "pulled.2-up_x");

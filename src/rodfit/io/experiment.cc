@@ -27,6 +27,7 @@ namespace fs = std::filesystem;
 // fewer than three significant digits; such an input is taken to be a mistake.
 constexpr double kMinClampSine = 1e-3;
 constexpr int kMaxSegments = 1000000;  // far beyond any thread; guards against typos like 5e7
+constexpr size_t kMaxCaseNameLength = 100;
 
 const std::vector<std::string> kParameterNames = {
     "bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",       "stretch_stiffness",
@@ -526,6 +527,13 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     if (c.name.find_first_of(std::string("/\\\0", 3)) != std::string::npos) {
       r.Fail(*name, "must not contain '/', '\\' or NUL (it is used as a file name), got '" +
                         ClipForMessage(c.name) + "'");
+    }
+    // A file name has at most 255 bytes (with ".obj" and the report's suffixes), and a name is
+    // echoed in messages of at most a line.
+    if (c.name.size() > kMaxCaseNameLength) {
+      r.Fail(*name, "must have at most " + std::to_string(kMaxCaseNameLength) +
+                        " characters (it is used as a file name), got " +
+                        std::to_string(c.name.size()) + ": '" + ClipForMessage(c.name) + "'");
     }
     if (c.name[0] == '.') {
       r.Fail(*name, "must not start with '.' (it is used as a file name), got '" +

@@ -116,15 +116,21 @@ StagedDirectory::StagedDirectory(const std::string& target) : target_(target) {
     created_parents_.push_back(it->string());
   }
   // A name no other run uses: mkdir fails rather than sharing a directory with another process.
+  // Beside the target; inside an existing target when its parent is not writable (`-o .` in a
+  // folder of a read-only tree), which keeps the final renames on one file system all the same.
   static std::atomic<unsigned> counter{0};
   const std::string base = path.filename().string();
+  fs::path where = path.parent_path();
   for (int attempt = 0; attempt < 100 && staging_.empty(); ++attempt) {
     const std::string candidate =
-        (path.parent_path() / ("." + base + ".tmp." + std::to_string(::getpid()) + "." +
-                               std::to_string(counter++)))
+        (where / ("." + base + ".tmp." + std::to_string(::getpid()) + "." +
+                  std::to_string(counter++)))
             .string();
     if (::mkdir(candidate.c_str(), 0777) == 0) {
       staging_ = candidate;
+    } else if ((errno == EACCES || errno == EPERM || errno == EROFS) &&
+               where != path && fs::is_directory(status)) {
+      where = path;
     } else if (errno != EEXIST) {
       const int err = errno;
       RemoveStaging();

@@ -33,7 +33,8 @@ std::vector<InputFile> ExperimentInputs(const Experiment& experiment, bool with_
 void RefuseOverwritingInput(const std::string& output, const std::vector<InputFile>& inputs);
 
 /// A run's output directory, written all at once. Files are written into a fresh hidden
-/// directory beside `target` (`.NAME.tmp.PID.N`, so the final renames stay on one file system);
+/// directory beside `target` (`.NAME.tmp.PID.N`, so the final renames stay on one file system;
+/// inside an existing `target` when its parent is not writable);
 /// Commit() moves them into place: a target that does not exist is the staged directory renamed,
 /// one that exists gets each file renamed over its old one (other files stay), and a failure on
 /// the way puts back every file it had replaced. Without Commit(), or when it fails, the
