@@ -7,6 +7,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <string>
+#include <system_error>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <glog/logging.h>
@@ -14,8 +17,10 @@
 #include "commands.h"
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/csv.h"
+#include "rodfit/io/errors.h"
 #include "rodfit/io/fit_input.h"
 #include "rodfit/io/fit_report.h"
+#include "rodfit/io/output_dir.h"
 #include "rodfit/io/profile.h"
 
 namespace {
@@ -35,6 +40,21 @@ rodfit::RobustLoss LossOf(rodfit::LossType t) {
   return rodfit::RobustLoss::kNone;
 }
 
+// Ceres runs one thread per requested thread; far more than the cases (or the cores) gains
+// nothing, and 2^31 of them end in std::bad_alloc.
+constexpr int kMaxThreads = 256;
+
+// "--threads N": an integer in [1, kMaxThreads], checked on the text so that 0, 1e300 or 300
+// digits get the same short message with the range.
+std::string CheckThreads(const std::string& text) {
+  const std::string range = "must be an integer in [1, " + std::to_string(kMaxThreads) + "]";
+  if (text.empty() || text.size() > 4 || text.find_first_not_of("0123456789") != std::string::npos)
+    return range + ", got '" + (text.size() > 20 ? text.substr(0, 17) + "..." : text) + "'";
+  const int n = std::stoi(text);
+  if (n < 1 || n > kMaxThreads) return range + ", got " + text;
+  return "";
+}
+
 }  // namespace
 
 int RunFit(int argc, char** argv) {
@@ -49,7 +69,9 @@ int RunFit(int argc, char** argv) {
   app.add_option("experiment", experiment_path, "experiment YAML")->required();
   app.add_option("-o,--output", profile_path, "profile JSON to write")->required();
   app.add_option("--report", report_dir, "also write a report (tables and plots) into DIR");
-  app.add_option("--threads", threads, "cases evaluated in parallel")->check(CLI::PositiveNumber);
+  app.add_option("--threads", threads, "cases evaluated in parallel, 1 to " +
+                                           std::to_string(kMaxThreads))
+      ->check(CLI::Validator(CheckThreads, "INT", "threads"));
   app.add_flag("-q,--quiet", quiet, "no progress line");
   try {
     app.parse(argc, argv);
@@ -65,6 +87,21 @@ int RunFit(int argc, char** argv) {
   if (!google::IsGoogleLoggingInitialized()) google::InitGoogleLogging("rodfit");
 
   const rodfit::Experiment experiment = rodfit::LoadExperiment(experiment_path);
+  // Before the fit, so that no run ends by overwriting its own data (`-o experiment.yaml`).
+  {
+    std::error_code ec;
+    if (std::filesystem::is_directory(profile_path, ec)) {
+      throw rodfit::InputError(profile_path, 0, "",
+                               "is a directory; -o takes the profile's file name");
+    }
+    const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
+    rodfit::RefuseOverwritingInput(profile_path, inputs);
+    if (!report_dir.empty()) {
+      for (const char* name : {"summary.csv", "residuals.csv", "residuals.png"})
+        rodfit::RefuseOverwritingInput((std::filesystem::path(report_dir) / name).string(),
+                                       inputs);
+    }
+  }
   const rodfit::FitInput input = rodfit::BuildFitInput(experiment);
   rodfit::FitOptions options;
   options.loss = LossOf(experiment.fit.loss);

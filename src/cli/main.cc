@@ -16,6 +16,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/image_observations.h"
+#include "rodfit/io/output_dir.h"
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/io/synth.h"
 #include "rodfit/io/errors.h"
@@ -119,17 +120,22 @@ int RunSimulate(int argc, char** argv) {
     std::cerr << "rodfit simulate: " << first_failure << "\n";
     return EXIT_FAILURE;
   }
-  // Only now, so a failed run leaves nothing behind.
-  namespace fs = std::filesystem;
-  rodfit::CreateDirectories(output_dir);
-  rodfit::WriteShapesCsv((fs::path(output_dir) / "shapes.csv").string(), shapes);
-  rodfit::WriteForcesCsv((fs::path(output_dir) / "forces.csv").string(), forces);
-  rodfit::WriteFileAtomically((fs::path(output_dir) / "summary.csv").string(),
-                              rodfit::FormatSummaryCsv(summary));
-  if (!sections.empty())
-    rodfit::WriteSectionsCsv((fs::path(output_dir) / "sections.csv").string(), sections);
-  for (const auto& [name, obj] : meshes)
-    rodfit::WriteFileAtomically((fs::path(output_dir) / (name + ".obj")).string(), obj);
+  // Only now, and all files at once: a run that fails while writing (a full disk, a directory
+  // where a file goes) leaves the output directory as it was.
+  std::vector<std::pair<std::string, std::string>> files = {
+      {"shapes.csv", rodfit::FormatShapesCsv(shapes)},
+      {"forces.csv", rodfit::FormatForcesCsv(forces)},
+      {"summary.csv", rodfit::FormatSummaryCsv(summary)}};
+  if (!sections.empty()) files.emplace_back("sections.csv", rodfit::FormatSectionsCsv(sections));
+  for (const auto& [name, obj] : meshes) files.emplace_back(name + ".obj", obj);
+  rodfit::StagedDirectory out(output_dir);
+  const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
+  for (const auto& [name, text] : files) {
+    // Case names become file names: the reader refuses paths, and Write keeps any name in DIR.
+    out.Write(name, text, "case file name");
+    rodfit::RefuseOverwritingInput(out.FinalPath(name), inputs);
+  }
+  out.Commit();
   for (const std::string& w : warnings) std::cerr << w << "\n";
   if (!first_failure.empty()) {
     std::cerr << "rodfit simulate: " << first_failure << " (other cases written)\n";
@@ -201,6 +207,14 @@ int RunExtract(int argc, char** argv) {
     std::cerr << "rodfit extract: " << why << " (see --help)\n";
     return EXIT_FAILURE;
   };
+  // No output may be one of the inputs (an overlay written over its own image).
+  std::vector<rodfit::InputFile> inputs;
+  for (const std::string& image : images) inputs.emplace_back(image, "an input image");
+  for (const std::string& camera : camera_paths) inputs.emplace_back(camera, "a camera file");
+  if (!stereo_path.empty()) inputs.emplace_back(stereo_path, "the stereo file");
+  rodfit::RefuseOverwritingInput(output_path, inputs);
+  for (const std::string& overlay : overlays) rodfit::RefuseOverwritingInput(overlay, inputs);
+
   std::vector<rodfit::Camera> cameras;
   if (!stereo_path.empty()) {
     if (n != 2 || !camera_paths.empty()) return fail("--stereo needs two images and no --camera");

@@ -105,7 +105,8 @@ CsvTable CsvTable::Parse(const std::string& text, const std::string& name) {
         }
         for (size_t d = 0; d < c; ++d) {
           if (fields[d] == fields[c]) {
-            throw InputError(name, line_number, fields[c], "duplicate column name");
+            throw InputError(name, line_number, ClipForMessage(fields[c]),
+                             "duplicate column name");
           }
         }
       }
@@ -144,7 +145,9 @@ std::vector<double> CsvTable::Column(const std::string& column) const {
   for (size_t r = 0; r < rows_.size(); ++r) {
     const std::string& field = rows_[r][c];
     if (!ParseDouble(field, &values[r])) {
-      throw InputError(name_, lines_[r], column, "expected a finite number, got '" + field + "'");
+      // A field may be a megabyte of garbage: echoed cut short, so the message stays one line.
+      throw InputError(name_, lines_[r], column,
+                       "expected a finite number, got '" + ClipForMessage(field) + "'");
     }
   }
   return values;

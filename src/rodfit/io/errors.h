@@ -9,6 +9,21 @@
 
 namespace rodfit {
 
+/// An input value as an error message may echo it: at most `max_chars` characters, longer ones
+/// cut with "...", line breaks and other control characters as '?', so that a 1 MiB field or a
+/// binary file never makes a message longer than a line (issue 15: at most ~300 characters).
+inline std::string ClipForMessage(const std::string& value, size_t max_chars = 80) {
+  std::string out;
+  const size_t n = value.size() > max_chars ? max_chars - 3 : value.size();
+  out.reserve(n + 3);
+  for (size_t i = 0; i < n; ++i) {
+    const unsigned char c = static_cast<unsigned char>(value[i]);
+    out += (c < 0x20 || c == 0x7f) ? '?' : value[i];
+  }
+  if (value.size() > max_chars) out += "...";
+  return out;
+}
+
 struct InputError : std::runtime_error {
   /// line is 1-based; line <= 0 means unknown. key is a dotted path such as `rod.length` or
   /// `cases[1].clamp.normal` (YAML) or a column name (CSV); empty when none applies.

@@ -27,6 +27,7 @@ namespace fs = std::filesystem;
 // fewer than three significant digits; such an input is taken to be a mistake.
 constexpr double kMinClampSine = 1e-3;
 constexpr int kMaxSegments = 1000000;  // far beyond any thread; guards against typos like 5e7
+constexpr size_t kMaxCaseNameLength = 100;
 
 const std::vector<std::string> kParameterNames = {
     "bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",       "stretch_stiffness",
@@ -88,7 +89,10 @@ class Reader {
       const std::string name = it->first.Scalar();
       const std::string key = f.key.empty() ? name : f.key + "." + name;
       if (!Contains(allowed, name)) {
-        Fail(key_line, key, "unknown key (allowed: " + Join(allowed) + ")");
+        // The key as written may be anything, of any length: it is echoed cut short.
+        const std::string shown = ClipForMessage(name);
+        Fail(key_line, f.key.empty() ? shown : f.key + "." + shown,
+             "unknown key (allowed: " + Join(allowed) + ")");
       }
       if (entries.count(name)) Fail(key_line, key, "duplicate key");
       // A null value's mark points at the next token, often on a later line.
@@ -129,9 +133,11 @@ class Reader {
     try {
       value = f.node.as<double>();
     } catch (const YAML::Exception&) {
-      Fail(f, "expected a number, got '" + f.node.Scalar() + "'");
+      Fail(f, "expected a number, got '" + ClipForMessage(f.node.Scalar()) + "'");
     }
-    if (!std::isfinite(value)) Fail(f, "must be finite, got '" + f.node.Scalar() + "'");
+    if (!std::isfinite(value)) {
+      Fail(f, "must be finite, got '" + ClipForMessage(f.node.Scalar()) + "'");
+    }
     return value;
   }
 
@@ -140,7 +146,7 @@ class Reader {
     try {
       return f.node.as<int>();
     } catch (const YAML::Exception&) {
-      Fail(f, "expected an integer, got '" + f.node.Scalar() + "'");
+      Fail(f, "expected an integer, got '" + ClipForMessage(f.node.Scalar()) + "'");
     }
   }
 
@@ -149,7 +155,7 @@ class Reader {
     try {
       return f.node.as<bool>();
     } catch (const YAML::Exception&) {
-      Fail(f, "expected true or false, got '" + f.node.Scalar() + "'");
+      Fail(f, "expected true or false, got '" + ClipForMessage(f.node.Scalar()) + "'");
     }
   }
 
@@ -304,7 +310,8 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   o.type = r.Text(type);
   if (!Contains(kObservationTypes, o.type)) {
     r.Fail(type,
-           "unknown observation type '" + o.type + "' (allowed: " + Join(kObservationTypes) + ")");
+           "unknown observation type '" + ClipForMessage(o.type) +
+               "' (allowed: " + Join(kObservationTypes) + ")");
   }
   const bool image = o.type == "image_points" || o.type == "images";
   std::vector<std::string> allowed = {"type", "file", "sigma"};
@@ -338,7 +345,8 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
     const Field& point = r.Require(m, f, "point");
     o.point = r.Text(point);
     if (std::find(case_points.begin(), case_points.end(), o.point) == case_points.end())
-      r.Fail(point, "this case holds no '" + o.point + "' (it holds: " + Join(case_points) + ")");
+      r.Fail(point, "this case holds no '" + ClipForMessage(o.point) +
+                        "' (it holds: " + Join(case_points) + ")");
     if (const Field* sm = Reader::Find(m, "sigma_moment")) {
       o.sigma_moment = r.Positive(*sm);
       if (o.point != "clamp" && o.point != "end_clamp")
@@ -436,7 +444,8 @@ std::vector<std::string> ReadSprings(const Reader& r, const Field& f, Experiment
       if (zone.parameter == "spring_stiffness") {
         zone.parameter.clear();
       } else if (Contains(kParameterNames, zone.parameter)) {
-        r.Fail(*p, "'" + zone.parameter + "' is a rod parameter, not a spring stiffness");
+        r.Fail(*p, "'" + ClipForMessage(zone.parameter) +
+                       "' is a rod parameter, not a spring stiffness");
       } else if (!Contains(names, zone.parameter)) {
         names.push_back(zone.parameter);
       }
@@ -514,9 +523,26 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     if (c.name.find_first_of(",\"\n\r") != std::string::npos) {
       r.Fail(*name, "must not contain commas, quotes or line breaks");
     }
+    // Names become file names (simulate's CASE.obj, the report's plots): never a path, never a
+    // hidden file, never '.' or '..'.
+    if (c.name.find_first_of(std::string("/\\\0", 3)) != std::string::npos) {
+      r.Fail(*name, "must not contain '/', '\\' or NUL (it is used as a file name), got '" +
+                        ClipForMessage(c.name) + "'");
+    }
+    // A file name has at most 255 bytes (with ".obj" and the report's suffixes), and a name is
+    // echoed in messages of at most a line.
+    if (c.name.size() > kMaxCaseNameLength) {
+      r.Fail(*name, "must have at most " + std::to_string(kMaxCaseNameLength) +
+                        " characters (it is used as a file name), got " +
+                        std::to_string(c.name.size()) + ": '" + ClipForMessage(c.name) + "'");
+    }
+    if (c.name[0] == '.') {
+      r.Fail(*name, "must not start with '.' (it is used as a file name), got '" +
+                        ClipForMessage(c.name) + "'");
+    }
     const auto seen = name_lines->find(c.name);
     if (seen != name_lines->end()) {
-      r.Fail(*name, "duplicate case name '" + c.name + "' (first at line " +
+      r.Fail(*name, "duplicate case name '" + ClipForMessage(c.name) + "' (first at line " +
                         std::to_string(seen->second) + ")");
     }
     (*name_lines)[c.name] = name->line;
@@ -677,7 +703,8 @@ FitSpec ReadFit(const Reader& r, const Field& f) {
       }
     }
     if (!known) {
-      r.Fail(*loss, "unknown loss '" + name + "' (allowed: none, huber, cauchy, soft_l1)");
+      r.Fail(*loss, "unknown loss '" + ClipForMessage(name) +
+                        "' (allowed: none, huber, cauchy, soft_l1)");
     }
   }
   if (const Field* scale = Reader::Find(m, "loss_scale")) fit.loss_scale = r.Positive(*scale);

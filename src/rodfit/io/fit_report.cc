@@ -10,6 +10,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/image_observations.h"
+#include "rodfit/io/output_dir.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/centreline.h"
 
@@ -90,7 +91,8 @@ void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput&
       const std::string name = Safe(e.scene.cases[c].name) + "_" +
                                Safe(std::filesystem::path(spec.camera).stem().string()) + "_" +
                                std::to_string(k) + ".png";
-      WriteImageFile((d / name).string(), out);
+      // Safe() leaves no separator; PathInside holds every name-built output to DIR regardless.
+      WriteImageFile(PathInside(dir, name, "plot name"), out);
     }
   }
 

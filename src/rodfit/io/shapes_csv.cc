@@ -44,7 +44,7 @@ std::vector<CaseShape> ReadShapesCsv(const std::string& path) {
     int end = r;
     while (end < table.num_rows() && names[end] == names[r]) ++end;
     if (!seen.insert(names[r]).second) {
-      throw InputError(path, table.line(r), "case", "rows of case " + names[r] + " are split");
+      throw InputError(path, table.line(r), "case", "rows of case " + ClipForMessage(names[r]) + " are split");
     }
     CaseShape shape;
     shape.name = names[r];
@@ -52,7 +52,8 @@ std::vector<CaseShape> ReadShapesCsv(const std::string& path) {
     for (int i = r; i < end; ++i) {
       if (vertex[i] != i - r) {
         throw InputError(path, table.line(i), "vertex",
-                         "expected vertex " + std::to_string(i - r) + " of case " + shape.name);
+                         "expected vertex " + std::to_string(i - r) + " of case " +
+                             ClipForMessage(shape.name));
       }
       shape.s.push_back(s[i]);
       shape.x.col(i - r) << x[i], y[i], z[i];

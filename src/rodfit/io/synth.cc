@@ -23,6 +23,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/io/output_dir.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/solve/case_solve.h"
@@ -821,7 +822,7 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
 }
 
 void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
-                      const std::string& experiment_path) {
+                      const std::string& experiment_path, const std::vector<InputFile>& inputs) {
   const fs::path dir(output_dir);
   std::error_code ec;
   if (!experiment_path.empty() && fs::exists(dir / kExperimentFile, ec) &&
@@ -829,18 +830,22 @@ void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
     throw InputError(output_dir, 0, "",
                      "would overwrite the input experiment; write to another directory");
   }
-  CreateDirectories(output_dir);
+  // Every file into a staging directory first: a run that cannot write its last file (truth.json)
+  // leaves none of the others behind.
+  StagedDirectory out(output_dir);
   for (const auto& [rel, contents] : bundle.files) {
-    const fs::path path = dir / rel;
-    CreateDirectories(path.parent_path().string());
-    WriteFileAtomically(path.string(), contents);
+    out.Write(rel, contents);
+    RefuseOverwritingInput(out.FinalPath(rel), inputs);
   }
+  out.Commit();
 }
 
 SynthBundle Synthesize(const Experiment& experiment, const std::string& output_dir,
                        const SynthOptions& options) {
   SynthBundle bundle = MakeSynthBundle(experiment, options);
-  WriteSynthBundle(bundle, output_dir, experiment.path);
+  // Observation files are synth's outputs; the experiment, cameras and start shapes its inputs.
+  WriteSynthBundle(bundle, output_dir, experiment.path,
+                   ExperimentInputs(experiment, /*with_data_files=*/false));
   return bundle;
 }
 

@@ -24,6 +24,7 @@
 #include <Eigen/Core>
 
 #include "rodfit/io/experiment.h"
+#include "rodfit/io/output_dir.h"
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/solve/statics.h"
 
@@ -93,10 +94,13 @@ struct SynthBundle {
 /// writing the same file, or an `images` file not ending in .png. Nothing is written.
 SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& options = {});
 
-/// Writes a bundle into `output_dir` (created if missing), each file atomically. Throws
-/// InputError if `output_dir`/experiment.yaml is the input experiment itself (`experiment_path`).
+/// Writes a bundle into `output_dir` (created if missing), all files at once (StagedDirectory):
+/// a failure leaves `output_dir` as it was. Throws InputError if `output_dir`/experiment.yaml is
+/// the input experiment itself (`experiment_path`), or any file would overwrite one of `inputs`
+/// (a camera copied onto itself when DIR is the experiment's folder), before anything is written.
 void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
-                      const std::string& experiment_path = "");
+                      const std::string& experiment_path = "",
+                      const std::vector<InputFile>& inputs = {});
 
 /// MakeSynthBundle then WriteSynthBundle; on an error nothing is written.
 SynthBundle Synthesize(const Experiment& experiment, const std::string& output_dir,

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
@@ -31,6 +32,83 @@ std::string Join(const std::string& file, const std::string& key, const std::str
   return key.empty() ? file + ": " + message : file + ": " + key + ": " + message;
 }
 
+// Bounds on what reaches cv::FileStorage, whose recursive-descent parsers overflow the stack on
+// deep nesting (50,000 levels crash it): a camera file is a few kilobytes and three levels deep.
+constexpr std::uintmax_t kMaxFileBytes = 1u << 20;
+constexpr int kMaxNesting = 64;
+// Beyond these a value is a typo or garbage, not a lens: the projection would overflow or lose
+// every digit (a 1e6 px image at a 1e-2 degree field of view still has f < 1e8 px).
+constexpr double kMaxDistortion = 1e6;
+constexpr double kMaxFocalPx = 1e8;
+constexpr double kMaxPrincipalPointPx = 1e8;
+
+// A value from the file as a message may show it: short, one line.
+std::string Clip(const std::string& text) {
+  constexpr size_t kMax = 80;
+  std::string out = text.size() > kMax ? text.substr(0, kMax - 3) + "..." : text;
+  for (char& c : out) {
+    if (static_cast<unsigned char>(c) < 0x20) c = '?';
+  }
+  return out;
+}
+
+// The deepest nesting of a YAML, JSON or XML text, as a bound (not a parse): brackets and braces
+// outside quotes; for XML, open elements; for YAML, indentation levels and "- " entries too. It
+// may overestimate odd but valid files, never underestimate the nesting a parser recurses into.
+int NestingDepth(const std::string& text, char first) {
+  int deepest = 0;
+  if (first == '<') {
+    int depth = 0;
+    for (size_t i = text.find('<'); i != std::string::npos; i = text.find('<', i + 1)) {
+      const size_t close = text.find('>', i);
+      if (close == std::string::npos) break;
+      const char next = i + 1 < text.size() ? text[i + 1] : '\0';
+      if (next == '/') {
+        depth = std::max(depth - 1, 0);
+      } else if (next != '?' && next != '!' && text[close - 1] != '/') {
+        deepest = std::max(deepest, ++depth);
+      }
+      i = close;
+    }
+    return deepest;
+  }
+  int flow = 0;                 // open [ and { (JSON, YAML flow collections)
+  std::vector<size_t> blocks;   // YAML: columns of the open block levels
+  size_t pos = 0;
+  while (pos < text.size()) {
+    const size_t end = std::min(text.find('\n', pos), text.size());
+    const std::string line = text.substr(pos, end - pos);
+    pos = end + 1;
+    size_t i = line.find_first_not_of(' ');
+    if (i == std::string::npos || line[i] == '#' || line[i] == '%') continue;
+    if (first != '{' && flow == 0) {
+      while (!blocks.empty() && blocks.back() > i) blocks.pop_back();
+      if (blocks.empty() || blocks.back() < i) blocks.push_back(i);
+      // "- - x": each dash opens a sequence level of its own.
+      while (i + 1 < line.size() && line[i] == '-' && line[i + 1] == ' ') {
+        i = line.find_first_not_of(' ', i + 1);
+        if (i == std::string::npos) break;
+        blocks.push_back(i);
+      }
+    }
+    char quote = '\0';
+    for (const char c : line) {
+      if (quote != '\0') {
+        if (c == quote) quote = '\0';
+      } else if (c == '"' || (c == '\'' && first != '{')) {
+        quote = c;
+      } else if (c == '[' || c == '{') {
+        ++flow;
+      } else if (c == ']' || c == '}') {
+        flow = std::max(flow - 1, 0);
+      }
+      deepest = std::max(deepest, static_cast<int>(blocks.size()) + flow);
+    }
+    deepest = std::max(deepest, static_cast<int>(blocks.size()) + flow);
+  }
+  return deepest;
+}
+
 // One open file: the path for messages and the parsed tree.
 class Document {
  public:
@@ -38,13 +116,25 @@ class Document {
     std::error_code ec;
     std::ifstream in(path, std::ios::binary);
     if (!in || !std::filesystem::is_regular_file(path, ec)) Fail("", "cannot open file");
-    std::ostringstream text;
-    text << in.rdbuf();
-    std::string content = text.str();
+    const std::uintmax_t size = std::filesystem::file_size(path, ec);
+    if (ec || size > kMaxFileBytes) {
+      Fail("", "file too large for a camera file (" + std::to_string(size) + " bytes, at most " +
+                   std::to_string(kMaxFileBytes) + ")");
+    }
+    // Read at most the bound, whatever the file grows to meanwhile.
+    std::string content(static_cast<size_t>(kMaxFileBytes) + 1, '\0');
+    in.read(&content[0], static_cast<std::streamsize>(content.size()));
+    content.resize(static_cast<size_t>(in.gcount()));
+    if (content.size() > kMaxFileBytes) Fail("", "file too large for a camera file");
     size_t start = content.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;  // UTF-8 BOM
     start = std::min(content.find_first_not_of(" \t\r\n", start), content.size());
     if (start == content.size()) Fail("", "malformed file: empty");
     const char first = content[start];
+    const int depth = NestingDepth(content, first);
+    if (depth > kMaxNesting) {
+      Fail("", "malformed file: nested " + std::to_string(depth) + " levels deep (at most " +
+                   std::to_string(kMaxNesting) + ")");
+    }
     // JSON and XML are detected by their first character; YAML needs the "%YAML" directive.
     if (first != '{' && first != '<' && content.compare(start, 5, "%YAML") != 0) {
       content = "%YAML:1.0\n" + content;
@@ -232,6 +322,14 @@ void ReadIntrinsics(const Document& doc, std::initializer_list<const char*> matr
                       std::to_string(M.cols()));
   }
   if (!(M(0, 0) > 0.0 && M(1, 1) > 0.0)) doc.Fail(key, "focal lengths must be positive");
+  if (M(0, 0) > kMaxFocalPx || M(1, 1) > kMaxFocalPx) {
+    doc.Fail(key, "focal length " + Num(std::max(M(0, 0), M(1, 1))) + " px is absurd (at most " +
+                      Num(kMaxFocalPx) + ")");
+  }
+  if (std::abs(M(0, 2)) > kMaxPrincipalPointPx || std::abs(M(1, 2)) > kMaxPrincipalPointPx) {
+    doc.Fail(key, "principal point (" + Num(M(0, 2)) + ", " + Num(M(1, 2)) +
+                      ") px is absurd (at most " + Num(kMaxPrincipalPointPx) + " from 0)");
+  }
   if (M(0, 1) != 0.0) doc.Fail(key, "non-zero skew is not supported (OpenCV ignores it too)");
   if (M(1, 0) != 0.0 || M(2, 0) != 0.0 || M(2, 1) != 0.0 || M(2, 2) != 1.0) {
     doc.Fail(key, "expected [fx 0 cx; 0 fy cy; 0 0 1]");
@@ -246,7 +344,8 @@ void ReadIntrinsics(const Document& doc, std::initializer_list<const char*> matr
   if (!model.isNone()) {
     const std::string name = model.isString() ? static_cast<std::string>(model) : "";
     if (name != "plumb_bob" && name != "rational_polynomial") {
-      doc.Fail(model_key, "'" + name + "' is not supported (plumb_bob, rational_polynomial)");
+      doc.Fail(model_key,
+               "'" + Clip(name) + "' is not supported (plumb_bob, rational_polynomial)");
     }
   }
   const Eigen::MatrixXd D = Matrix(doc, doc.Require(distortion_keys, &key), key);
@@ -260,6 +359,11 @@ void ReadIntrinsics(const Document& doc, std::initializer_list<const char*> matr
   double* const targets[] = {&K->k1, &K->k2, &K->p1, &K->p2, &K->k3};
   for (int i = 0; i < n; ++i) {
     const double d = D(i);
+    // k1 = 1e300 would pass as finite and make every projection overflow in the fit.
+    if (!(std::abs(d) <= kMaxDistortion)) {
+      doc.Fail(key, std::string("coefficient ") + kNames[i] + " = " + Num(d) +
+                        " is absurd (|k| at most " + Num(kMaxDistortion) + ")");
+    }
     if (i < 5) {
       *targets[i] = d;
     } else if (d != 0.0) {

@@ -1,0 +1,71 @@
+// Where a run's outputs may go (issue 15): every file of a run is staged in a temporary directory
+// beside the target and moved into place only when the run succeeds, no output path leaves its
+// output directory, and no output is one of the run's own inputs. Errors are InputErrors naming
+// the output path.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "rodfit/io/experiment.h"
+
+namespace rodfit {
+
+/// `relative` joined to `dir`, refused (InputError naming `dir` and `what`) unless it is a plain
+/// relative path that stays inside `dir`: not empty, not absolute, no `..` and no `.` component,
+/// no backslash or NUL. `what` says where the name came from, e.g. "case name 'x'".
+std::string PathInside(const std::string& dir, const std::string& relative,
+                       const std::string& what);
+
+/// An input of a run: its path and what it is, for messages ("the experiment", "the camera of
+/// cases[0].observations[1]").
+using InputFile = std::pair<std::string, std::string>;
+
+/// The experiment file and every file it names that a run reads: observation data files (unless
+/// `with_data_files` is false: synth writes them), camera files and start shapes (paths as
+/// resolved by the reader).
+std::vector<InputFile> ExperimentInputs(const Experiment& experiment, bool with_data_files = true);
+
+/// Throws InputError naming `output` and the input when `output` is the same file as one of
+/// `inputs` (std::filesystem::equivalent when both exist, else the same weakly canonical path).
+/// Call it before anything is written.
+void RefuseOverwritingInput(const std::string& output, const std::vector<InputFile>& inputs);
+
+/// A run's output directory, written all at once. Files are written into a fresh hidden
+/// directory beside `target` (`.NAME.tmp.PID.N`, so the final renames stay on one file system;
+/// inside an existing `target` when its parent is not writable);
+/// Commit() moves them into place: a target that does not exist is the staged directory renamed,
+/// one that exists gets each file renamed over its old one (other files stay), and a failure on
+/// the way puts back every file it had replaced. Without Commit(), or when it fails, the
+/// destructor removes the staging directory and any parent directories it created, so the
+/// output location is left as it was.
+class StagedDirectory {
+ public:
+  /// Throws InputError when `target` exists and is not a directory, or the staging directory
+  /// cannot be made.
+  explicit StagedDirectory(const std::string& target);
+  ~StagedDirectory();
+  StagedDirectory(const StagedDirectory&) = delete;
+  StagedDirectory& operator=(const StagedDirectory&) = delete;
+
+  /// Stages `relative` (checked with PathInside; `what` for its message) with `contents`.
+  void Write(const std::string& relative, const std::string& contents,
+             const std::string& what = "output file name");
+  /// The final path of a staged or to-be-staged file, for RefuseOverwritingInput and messages.
+  std::string FinalPath(const std::string& relative) const;
+  /// Moves every staged file into the target; throws InputError (target as it was) on failure.
+  void Commit();
+
+ private:
+  void RemoveStaging();
+
+  std::string target_;       // as given, for messages
+  std::string target_path_;  // absolute, normalised, no trailing separator
+  std::string staging_;
+  std::vector<std::string> created_parents_;  // made for the staging directory, innermost last
+  std::vector<std::string> files_;            // relative paths, in the order written
+  bool committed_ = false;
+};
+
+}  // namespace rodfit

@@ -1,0 +1,138 @@
+// Output directories (io/output_dir.h, issue 15): names never leave their directory, no output
+// is one of the run's inputs, and a staged directory appears whole or not at all, a failure
+// leaving an existing one as it was.
+#include "rodfit/io/output_dir.h"
+
+#include <filesystem>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "rodfit/io/errors.h"
+#include "temp_dir.h"
+
+namespace rodfit {
+namespace {
+
+namespace fs = std::filesystem;
+using test::ReadText;
+using test::TempDir;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+TEST(OutputDir, OutputNamesStayInsideTheirDirectory) {
+  EXPECT_EQ(PathInside("/out", "a.obj", "case file name"), "/out/a.obj");
+  EXPECT_EQ(PathInside("/out", "sub/a.csv", "file"), "/out/sub/a.csv");
+  for (const std::string& name : {std::string("../x.obj"), std::string("/etc/passwd"),
+                                  std::string("a/../../x"), std::string(""), std::string("."),
+                                  std::string("a\\b"), std::string("a\0b", 3)}) {
+    SCOPED_TRACE(name);
+    try {
+      PathInside("/out", name, "case file name");
+      ADD_FAILURE() << "accepted";
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), StartsWith("/out: case file name '"));
+    }
+  }
+}
+
+TEST(OutputDir, AnOutputThatIsAnInputIsRefused) {
+  TempDir dir;
+  const std::string experiment = dir.Write("exp/experiment.yaml", "x: 1\n");
+  const std::string data = dir.Write("exp/m.csv", "s,x,y,z\n");
+  const std::vector<InputFile> inputs = {{experiment, "the experiment"},
+                                         {data, "the data file of cases[0].observations[0]"}};
+  // The same file by another spelling, and through a symbolic link.
+  fs::create_directory_symlink(dir.File("exp"), dir.File("link"));
+  for (const std::string& output :
+       {dir.File("exp/./experiment.yaml"), dir.File("exp/../exp/m.csv"), dir.File("link/m.csv")}) {
+    SCOPED_TRACE(output);
+    try {
+      RefuseOverwritingInput(output, inputs);
+      ADD_FAILURE() << "accepted";
+    } catch (const InputError& e) {
+      const std::string message = e.what();
+      EXPECT_THAT(message, StartsWith(output + ": is the "));
+      EXPECT_THAT(message, HasSubstr("an input of this run"));
+    }
+  }
+  EXPECT_NO_THROW(RefuseOverwritingInput(dir.File("exp/profile.json"), inputs));
+  EXPECT_EQ(ReadText(experiment), "x: 1\n");
+}
+
+TEST(OutputDir, StagedDirectoryAppearsWholeOrNotAtAll) {
+  TempDir dir;
+  const std::string target = dir.File("new/out");
+  {
+    StagedDirectory out(target);
+    out.Write("a.csv", "a\n");
+    out.Write("sub/b.csv", "b\n");
+    EXPECT_FALSE(fs::exists(target));  // nothing visible before Commit
+    // Dropped without Commit (a failed run): the staging and the parent it made are gone.
+  }
+  EXPECT_FALSE(fs::exists(dir.File("new")));
+  EXPECT_TRUE(fs::is_empty(dir.path()));
+  {
+    StagedDirectory out(target);
+    out.Write("a.csv", "a\n");
+    out.Write("sub/b.csv", "b\n");
+    out.Commit();
+  }
+  EXPECT_EQ(ReadText(target + "/a.csv"), "a\n");
+  EXPECT_EQ(ReadText(target + "/sub/b.csv"), "b\n");
+  // Only the target is left beside it: no staging directory.
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.File("new")), fs::directory_iterator()), 1);
+}
+
+TEST(OutputDir, StagedDirectoryIntoAnExistingOneLeavesItAsItWasOnFailure) {
+  TempDir dir;
+  const std::string target = dir.File("out");
+  dir.Write("out/a.csv", "old a\n");
+  dir.Write("out/keep.txt", "mine\n");
+  fs::create_directory(dir.File("out/c.obj"));  // a directory where a file goes
+  {
+    StagedDirectory out(target);
+    out.Write("a.csv", "new a\n");
+    out.Write("b.csv", "new b\n");
+    out.Write("c.obj", "new c\n");
+    try {
+      out.Commit();
+      ADD_FAILURE() << "committed over a directory";
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), HasSubstr("c.obj: exists and is not a file"));
+    }
+  }
+  EXPECT_EQ(ReadText(target + "/a.csv"), "old a\n");
+  EXPECT_FALSE(fs::exists(target + "/b.csv"));
+  EXPECT_TRUE(fs::is_directory(target + "/c.obj"));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+
+  // Without the obstacle: replaced and added, the user's other files untouched.
+  fs::remove(dir.File("out/c.obj"));
+  StagedDirectory out(target);
+  out.Write("a.csv", "new a\n");
+  out.Write("c.obj", "new c\n");
+  out.Commit();
+  EXPECT_EQ(ReadText(target + "/a.csv"), "new a\n");
+  EXPECT_EQ(ReadText(target + "/c.obj"), "new c\n");
+  EXPECT_EQ(ReadText(target + "/keep.txt"), "mine\n");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+}
+
+TEST(OutputDir, StagedDirectoryRefusesAFileAsTarget) {
+  TempDir dir;
+  const std::string file = dir.Write("out", "a file\n");
+  try {
+    StagedDirectory out(file);
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), file + ": exists and is not a directory");
+  }
+  EXPECT_EQ(ReadText(file), "a file\n");
+}
+
+}  // namespace
+}  // namespace rodfit
