@@ -913,12 +913,27 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       const std::string& name = first.observation.empty() ? first.label : first.observation;
       double force_sum = 0.0, moment_sum = 0.0;
       int count = 0, with_moment = 0;
+      auto record = [&](const char* unit, int index, const Vec3& error, double sigma) {
+        MeasurementResidual mr;
+        mr.case_index = static_cast<int>(c);
+        mr.case_name = fc.load_case.name;
+        mr.observation = name;
+        mr.unit = unit;
+        mr.measurement = index;
+        mr.error = error;
+        mr.sigma = sigma;
+        result.measurement_residuals.push_back(mr);
+      };
       for (; f < nf; ++f) {
         const ForceMeasurement& m = fc.grasp_forces[f];
         if ((m.observation.empty() ? m.label : m.observation) != name || m.type != first.type) break;
-        force_sum += (rr.segment<3>(offset) * m.sigma).squaredNorm();
+        const Vec3 force_error = rr.segment<3>(offset) * m.sigma;
+        force_sum += force_error.squaredNorm();
+        record("N", count, force_error, m.sigma);
         if (m.moment) {
-          moment_sum += (rr.segment<3>(offset + 3) * m.sigma_moment).squaredNorm();
+          const Vec3 moment_error = rr.segment<3>(offset + 3) * m.sigma_moment;
+          moment_sum += moment_error.squaredNorm();
+          record("N m", with_moment, moment_error, m.sigma_moment);
           ++with_moment;
         }
         offset += m.num_residuals();
@@ -938,6 +953,17 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     for (const SurfacePoints& sp : fc.surface_points) {  // [m]: the distance to the ring
       const int np = static_cast<int>(sp.points.size());
       const double sum = (rr.segment(offset, 3 * np) * sp.sigma).squaredNorm();
+      for (int k = 0; k < np; ++k) {
+        MeasurementResidual mr;
+        mr.case_index = static_cast<int>(c);
+        mr.case_name = fc.load_case.name;
+        mr.observation = sp.label;
+        mr.unit = "m";
+        mr.measurement = k;
+        mr.error = rr.segment<3>(offset + 3 * k) * sp.sigma;
+        mr.sigma = sp.sigma;
+        result.measurement_residuals.push_back(mr);
+      }
       offset += 3 * np;
       ObservationFit of;
       of.case_index = static_cast<int>(c);

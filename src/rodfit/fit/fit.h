@@ -127,6 +127,19 @@ struct ObservationFit {
   double rms_moment = std::numeric_limits<double>::quiet_NaN();
 };
 
+/// One measurement's residual at the fit that is not a centre-line observation (a force or
+/// moment reading, a surface point): the error vector (model minus measurement) in its unit and
+/// the sigma it was weighted with, for the report's residuals.csv.
+struct MeasurementResidual {
+  int case_index = 0;
+  std::string case_name;
+  std::string observation;  ///< the entry's label, as in ObservationFit::label
+  std::string unit;         ///< "N", "N m" or "m"
+  int measurement = 0;      ///< index within the entry (per unit)
+  Eigen::Vector3d error = Eigen::Vector3d::Zero();
+  double sigma = 1.0;
+};
+
 struct FitResult {
   bool success = false;          ///< converged to a usable estimate
   std::string message;           ///< termination, or why the fit failed
@@ -149,6 +162,9 @@ struct FitResult {
   std::vector<std::string> fitted_names;
   Eigen::MatrixXd correlation;   ///< among fitted parameters (in log space)
   std::vector<ObservationFit> observations;
+  /// Force and moment readings and surface points, one entry each (centre-line observations
+  /// are evaluated again from `shapes`).
+  std::vector<MeasurementResidual> measurement_residuals;
   std::vector<Mat3X> shapes;     ///< fitted centre-lines, one per case
 };
 

@@ -61,6 +61,16 @@ void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput&
       }
     }
   }
+  // Force and moment readings and surface points, after the centre-line observations.
+  for (const MeasurementResidual& mr : result.measurement_residuals) {
+    const double norm = mr.error.norm();
+    residuals << mr.case_name << "," << mr.observation << "," << mr.unit << "," << mr.measurement
+              << "," << FormatDouble(mr.error.x()) << "," << FormatDouble(mr.error.y()) << ","
+              << FormatDouble(mr.error.z()) << "," << FormatDouble(norm) << ","
+              << FormatDouble(norm / mr.sigma) << "\n";
+    if (mr.case_index >= 0 && mr.case_index < static_cast<int>(sigma_norms.size()))
+      sigma_norms[mr.case_index].push_back(norm / mr.sigma);
+  }
   const std::filesystem::path d(dir);
   WriteFileAtomically((d / "summary.csv").string(), summary.str());
   WriteFileAtomically((d / "residuals.csv").string(), residuals.str());
