@@ -133,6 +133,10 @@ FitInput BuildFitInput(const Experiment& e) {
   for (size_t c = 0; c < e.scene.cases.size(); ++c) {
     FitCase fc;
     fc.load_case = e.scene.cases[c];
+    // The fit solves a symmetric case as the whole rod: its observations and reactions lie on
+    // both halves, and the sensitivities and reaction derivatives are the whole rod's (the
+    // half's mirrored ones are not derived). The solution is the same (tests/solve/symmetry_test).
+    fc.load_case.symmetry.reset();
     // The case's own vertex arc lengths: held points move the vertex nearest to them.
     std::vector<double> arc;
     try {
