@@ -1,6 +1,7 @@
 // The rodfit command (docs/cli.md): a thin table of subcommands in the manner of COLMAP's
 // `commands.emplace_back("name", &RunName)`. Each Run* parses its options with CLI11, calls the
 // library and turns a failure into one line on stderr and a non-zero exit. No physics here.
+#include <cstdio>
 #include <cstdint>
 #include <cstdlib>
 #include <exception>
@@ -45,6 +46,9 @@ int Parse(CLI::App& app, int argc, char** argv) {
   }
   return -1;
 }
+
+/// Strain above which `simulate` warns that an equilibrium is outside a rod model's range.
+constexpr double kLargeStrain = 0.05;
 
 int RunSimulate(int argc, char** argv) {
   CLI::App app(
@@ -97,6 +101,22 @@ int RunSimulate(int argc, char** argv) {
       warnings.push_back("rodfit simulate: warning: " + where +
                          "the equilibrium found is unstable (a displacement the rod does not "
                          "resist); an experiment would not hold it");
+    {
+      // A rod model is a small-strain model: an equilibrium that stretches an edge by more than
+      // 5 % (held points pulled apart, a unit mistake in EA) is reported, not silently returned.
+      double strain = 0.0;
+      const rodfit::RodModel& m = *solution.model;
+      for (int j = 0; j < m.num_edges(); ++j)
+        strain = std::max(strain, std::abs(solution.state.e.col(j).norm() /
+                                               m.rest_edge_length(j) - 1.0));
+      if (strain > kLargeStrain) {
+        char percent[32];
+        std::snprintf(percent, sizeof(percent), "%.3g", 100.0 * strain);
+        warnings.push_back("rodfit simulate: warning: " + where + "an edge is stretched by " +
+                           percent + " %, beyond the small strains of a rod model (held points too far "
+                           "apart? stretch_stiffness in the wrong unit?)");
+      }
+    }
     shapes.push_back({load_case.name, solution.shape_s, solution.shape});
     for (const rodfit::HeldReaction& r : solution.reactions)
       forces.push_back({load_case.name, r.point, r.s, r.position, r.force, r.moment});
