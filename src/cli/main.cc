@@ -48,7 +48,7 @@ int Parse(CLI::App& app, int argc, char** argv) {
 }
 
 /// Strain above which `simulate` warns that an equilibrium is outside a rod model's range.
-constexpr double kLargeStrain = 0.05;
+constexpr double kLargeStrain = 0.1;
 
 int RunSimulate(int argc, char** argv) {
   CLI::App app(
@@ -102,8 +102,8 @@ int RunSimulate(int argc, char** argv) {
                          "the equilibrium found is unstable (a displacement the rod does not "
                          "resist); an experiment would not hold it");
     {
-      // A rod model is a small-strain model: an equilibrium that stretches an edge by more than
-      // 5 % (held points pulled apart, a unit mistake in EA) is reported, not silently returned.
+      // A rod model is a small-strain model: an equilibrium that stretches or compresses an edge by more than
+      // 10 % (held points pulled apart, a unit mistake in EA) is reported, not silently returned.
       double strain = 0.0;
       const rodfit::RodModel& m = *solution.model;
       for (int j = 0; j < m.num_edges(); ++j)
@@ -112,7 +112,7 @@ int RunSimulate(int argc, char** argv) {
       if (strain > kLargeStrain) {
         char percent[32];
         std::snprintf(percent, sizeof(percent), "%.3g", 100.0 * strain);
-        warnings.push_back("rodfit simulate: warning: " + where + "an edge is stretched by " +
+        warnings.push_back("rodfit simulate: warning: " + where + "an edge is strained by " +
                            percent + " %, beyond the small strains of a rod model (held points too far "
                            "apart? stretch_stiffness in the wrong unit?)");
       }

@@ -30,7 +30,7 @@ TEST(SimulateStrain, EndClampBeyondReachIsWarnedAbout) {
   const RunResult run = RunRodfit(
       dir, "simulate " + Quote(dir.Write("s.yaml", Scene("2"))) + " -o " + Quote(dir.File("o")));
   ASSERT_EQ(run.status, 0) << run.err;
-  EXPECT_THAT(run.err, HasSubstr("case wire: an edge is stretched by 33.3 %"));
+  EXPECT_THAT(run.err, HasSubstr("case wire: an edge is strained by 33.3 %"));
 }
 
 TEST(SimulateStrain, OrdinarySagIsNot) {
