@@ -193,6 +193,13 @@ TEST_F(AtomicBoundedCliTest, InputsThatAreNotRegularFilesOrTooLargeGiveOneLine) 
     ExpectOneLineError(run, path + ": ");
     EXPECT_THAT(run.err, HasSubstr("an image file"));
   }
+  // As a camera file (its own reader, at most 1 MiB): the FIFO is not opened either.
+  for (const std::string& path : {folder, fifo, std::string("/dev/zero")}) {
+    SCOPED_TRACE(path);
+    const RunResult run = Rodfit("extract " + Q(dir_.File("image.png")) + " --camera " + Q(path) +
+                                 " -o " + Q(dir_.File("uv.csv")));
+    ExpectOneLineError(run, path + ": cannot open file: not a regular file");
+  }
   EXPECT_FALSE(fs::exists(profile));
   EXPECT_FALSE(fs::exists(dir_.File("uv.csv")));
 }
