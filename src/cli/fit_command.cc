@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -131,11 +132,27 @@ int RunFit(int argc, char** argv) {
               << " (no profile written)\n";
     return EXIT_FAILURE;
   }
-  // The report first: if it cannot be written, no profile claims a finished run.
-  if (!report_dir.empty()) rodfit::WriteFitReport(report_dir, experiment, input, result);
-  const std::filesystem::path parent = std::filesystem::path(profile_path).parent_path();
-  if (!parent.empty()) rodfit::CreateDirectories(parent.string());
-  rodfit::WriteProfile(profile_path, rodfit::ProfileJson(experiment, options, result));
+  // Every output staged first, then committed together: the report, then the profile, so that
+  // no profile claims a finished run without its report; when the profile cannot be moved into
+  // place the report is rolled back. A failure leaves both locations as they were.
+  {
+    std::vector<rodfit::StagedDirectory*> outputs;
+    std::unique_ptr<rodfit::StagedDirectory> report;
+    if (!report_dir.empty()) {
+      report = std::make_unique<rodfit::StagedDirectory>(report_dir);
+      rodfit::WriteFitReport(report.get(), experiment, input, result);
+      outputs.push_back(report.get());
+    }
+    const std::filesystem::path profile(profile_path);
+    rodfit::StagedDirectory profile_dir(profile.has_parent_path() ? profile.parent_path().string()
+                                                                  : std::string("."),
+                                         /*stage_inside=*/true);
+    profile_dir.Write(profile.filename().string(),
+                      rodfit::FormatProfile(rodfit::ProfileJson(experiment, options, result)),
+                      "profile file name");
+    outputs.push_back(&profile_dir);
+    rodfit::CommitAll(outputs);
+  }
   // Trusted sigmas keep the std as the sigmas state them, so nothing else would show that the
   // residuals are not what those sigmas predict: warned about (even with --quiet) when the
   // residual variance lies outside the 0.1 %-99.9 % quantiles of chi-square(dof) / dof. Under a

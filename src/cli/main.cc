@@ -7,6 +7,8 @@
 #include <exception>
 #include <filesystem>
 #include <iostream>
+#include <memory>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -281,10 +283,40 @@ int RunExtract(int argc, char** argv) {
         overlays[k],
         rodfit::DrawOverlay(rodfit::ReadImageFile(images[k]), lines[k].uv, reprojected[k])));
   }
-  for (size_t k = 0; k < overlays.size(); ++k) {
-    rodfit::WriteFileAtomically(overlays[k], encoded[k]);
+  // All outputs staged (one staging directory per output folder), then committed together,
+  // the CSV's folder last: a failure on the way leaves every output location as it was, and no
+  // CSV stands without its overlays.
+  std::vector<std::pair<std::string, std::string>> files;  // path, contents; the CSV last
+  for (size_t k = 0; k < overlays.size(); ++k) files.emplace_back(overlays[k], encoded[k]);
+  files.emplace_back(output_path, csv);
+  std::vector<std::pair<std::string, std::unique_ptr<rodfit::StagedDirectory>>> folders;
+  std::vector<std::string> finals;
+  rodfit::StagedDirectory* staged = nullptr;
+  for (const auto& [path, contents] : files) {
+    const std::filesystem::path file(path);
+    const std::string folder =
+        file.has_parent_path() ? file.parent_path().lexically_normal().string() : ".";
+    staged = nullptr;
+    for (const auto& [name, dir] : folders) {
+      if (name == folder) staged = dir.get();
+    }
+    if (staged == nullptr) {
+      folders.emplace_back(folder, std::make_unique<rodfit::StagedDirectory>(folder, true));
+      staged = folders.back().second.get();
+    }
+    const std::string final_path = staged->FinalPath(file.filename().string());
+    for (const std::string& other : finals) {
+      if (other == final_path) return fail(path + " is given as two outputs");
+    }
+    finals.push_back(final_path);
+    staged->Write(file.filename().string(), contents, "output file name");
   }
-  rodfit::WriteFileAtomically(output_path, csv);
+  std::vector<rodfit::StagedDirectory*> order;
+  for (const auto& [name, dir] : folders) {
+    if (dir.get() != staged) order.push_back(dir.get());
+  }
+  order.push_back(staged);  // the CSV's folder
+  rodfit::CommitAll(order);
   for (size_t k = 0; k < n; ++k) std::cout << images[k] << ": " << lines[k].BriefReport() << "\n";
   return EXIT_SUCCESS;
 }
@@ -335,6 +367,11 @@ int main(int argc, char** argv) {
     if (name != c.name) continue;
     try {
       return c.run(argc - 1, argv + 1);
+    } catch (const std::bad_alloc&) {
+      // Inputs within every documented limit can still ask for more memory than there is.
+      std::cerr << "rodfit: out of memory while running " << c.name
+                << " (inputs or limits too large for this machine)\n";
+      return EXIT_FAILURE;
     } catch (const std::exception& e) {
       std::cerr << "rodfit: " << OneLine(e.what()) << "\n";
       return EXIT_FAILURE;

@@ -134,5 +134,55 @@ TEST(OutputDir, StagedDirectoryRefusesAFileAsTarget) {
   EXPECT_EQ(ReadText(file), "a file\n");
 }
 
+TEST(OutputDir, CommitAllRollsBackTheOutputsAlreadyCommittedWhenALaterOneFails) {
+  TempDir dir;
+  dir.Write("report/summary.csv", "old summary\n");
+  dir.Write("report/keep.txt", "mine\n");
+  dir.Write("profile/profile.json", "old profile\n");
+  {
+    StagedDirectory report(dir.File("report")), fresh(dir.File("new/fresh"));
+    StagedDirectory profile(dir.File("profile"), /*stage_inside=*/true);
+    report.Write("summary.csv", "new summary\n");
+    report.Write("residuals.csv", "new residuals\n");
+    fresh.Write("a.csv", "a\n");
+    profile.Write("profile.json", "new profile\n");
+    // The last output cannot be committed: a directory appeared where its file goes.
+    fs::remove(dir.File("profile/profile.json"));
+    fs::create_directory(dir.File("profile/profile.json"));
+    try {
+      CommitAll({&report, &fresh, &profile});
+      ADD_FAILURE() << "committed over a directory";
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), HasSubstr("profile.json: exists and is not a file"));
+    }
+    // Rolled back at once, not only when the objects go.
+    EXPECT_EQ(ReadText(dir.File("report/summary.csv")), "old summary\n");
+    EXPECT_FALSE(fs::exists(dir.File("report/residuals.csv")));
+    EXPECT_FALSE(fs::exists(dir.File("new")));
+  }
+  EXPECT_EQ(ReadText(dir.File("report/keep.txt")), "mine\n");
+  EXPECT_TRUE(fs::is_empty(dir.File("profile/profile.json")));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.File("report")), fs::directory_iterator()), 2);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.File("profile")), fs::directory_iterator()), 1);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 2);
+
+  // Without the obstacle all are committed, and nothing but the outputs is left.
+  fs::remove(dir.File("profile/profile.json"));
+  {
+    StagedDirectory report(dir.File("report")), fresh(dir.File("new/fresh"));
+    StagedDirectory profile(dir.File("profile"), /*stage_inside=*/true);
+    report.Write("summary.csv", "new summary\n");
+    fresh.Write("a.csv", "a\n");
+    profile.Write("profile.json", "new profile\n");
+    CommitAll({&report, &fresh, &profile});
+    EXPECT_EQ(ReadText(dir.File("report/summary.csv")), "new summary\n");
+    EXPECT_EQ(ReadText(dir.File("new/fresh/a.csv")), "a\n");
+    EXPECT_EQ(ReadText(dir.File("profile/profile.json")), "new profile\n");
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir.File("profile")), fs::directory_iterator()),
+              1);
+  }
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 3);
+}
+
 }  // namespace
 }  // namespace rodfit

@@ -2,8 +2,10 @@
 #include "rodfit/io/csv.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <charconv>
@@ -69,15 +71,69 @@ bool SplitFields(const std::string& line, std::vector<std::string>* fields, std:
 
 std::string ErrnoMessage(int err) { return std::generic_category().message(err); }
 
+// Refuses what is not a regular file of at most max_bytes, from its stat.
+void CheckStat(const std::string& path, const struct stat& st, const std::string& what,
+               std::uintmax_t max_bytes) {
+  if (S_ISDIR(st.st_mode)) throw InputError(path, 0, "", "is a directory, not " + what);
+  if (!S_ISREG(st.st_mode)) {
+    throw InputError(path, 0, "", "is not a regular file (a device, FIFO or socket); " + what +
+                                      " must be a file");
+  }
+  if (static_cast<std::uintmax_t>(st.st_size) > max_bytes) {
+    throw InputError(path, 0, "", "is " + std::to_string(st.st_size) + " bytes, too large for " +
+                                      what + " (at most " + std::to_string(max_bytes) + ")");
+  }
+}
+
 }  // namespace
 
+void CheckInputFile(const std::string& path, const std::string& what, std::uintmax_t max_bytes) {
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0) {
+    throw InputError(path, 0, "", "cannot open file: " + ErrnoMessage(errno));
+  }
+  CheckStat(path, st, what, max_bytes);
+}
+
+std::string ReadInputFile(const std::string& path, const std::string& what,
+                          std::uintmax_t max_bytes) {
+  CheckInputFile(path, what, max_bytes);
+  // O_NONBLOCK: should the path have become a FIFO since the check, open does not wait for a
+  // writer; fstat then refuses it.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) throw InputError(path, 0, "", "cannot open file: " + ErrnoMessage(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st;
+  if (::fstat(fd, &st) != 0) throw InputError(path, 0, "", "cannot read file: " + ErrnoMessage(errno));
+  CheckStat(path, st, what, max_bytes);
+  std::string text(static_cast<size_t>(st.st_size), '\0');
+  size_t have = 0;
+  while (true) {
+    if (have == text.size()) {
+      if (text.size() > max_bytes) {
+        throw InputError(path, 0, "", "grew while read, too large for " + what + " (at most " +
+                                          std::to_string(max_bytes) + " bytes)");
+      }
+      // One byte more than expected: end of file, or a file that grew.
+      text.resize(std::min<std::uintmax_t>(max_bytes + 1, text.size() + 65536));
+    }
+    const ssize_t n = ::read(fd, &text[have], text.size() - have);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw InputError(path, 0, "", "cannot read file: " + ErrnoMessage(errno));
+    }
+    if (n == 0) break;
+    have += static_cast<size_t>(n);
+  }
+  text.resize(have);
+  return text;
+}
+
 CsvTable CsvTable::Read(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "", "cannot open file: " + ErrnoMessage(errno));
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InputError(path, 0, "", "cannot read file");
-  return Parse(text.str(), path);
+  return Parse(ReadInputFile(path, "a CSV file"), path);
 }
 
 CsvTable CsvTable::Parse(const std::string& text, const std::string& name) {
@@ -98,6 +154,14 @@ CsvTable CsvTable::Parse(const std::string& text, const std::string& name) {
     const std::string trimmed = Trim(line);
     if (trimmed.empty() || trimmed[0] == '#') continue;
     if (!SplitFields(line, &fields, &why)) throw InputError(name, line_number, "", why);
+    for (size_t c = 0; c < fields.size(); ++c) {
+      if (fields[c].size() > kMaxCsvFieldBytes) {
+        throw InputError(name, line_number, "",
+                         "field " + std::to_string(c + 1) + " is " +
+                             std::to_string(fields[c].size()) + " bytes long (at most " +
+                             std::to_string(kMaxCsvFieldBytes) + ")");
+      }
+    }
     if (!have_header) {
       for (size_t c = 0; c < fields.size(); ++c) {
         if (fields[c].empty()) {
@@ -118,6 +182,10 @@ CsvTable CsvTable::Parse(const std::string& text, const std::string& name) {
       throw InputError(name, line_number, "",
                        "expected " + std::to_string(table.header_.size()) +
                            " fields as in the header, got " + std::to_string(fields.size()));
+    }
+    if (table.num_rows() >= kMaxCsvRows) {
+      throw InputError(name, line_number, "",
+                       "more than " + std::to_string(kMaxCsvRows) + " data rows (the limit)");
     }
     table.rows_.push_back(fields);
     table.lines_.push_back(line_number);

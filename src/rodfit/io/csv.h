@@ -3,17 +3,38 @@
 // format every rodfit output uses. Errors are InputErrors naming the file, line and column.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
 namespace rodfit {
+
+/// Input files are bounded before they are parsed (docs/formats.md, "Limits"): at most this many
+/// bytes (experiment YAML, CSV, image files), regular files only.
+constexpr std::uintmax_t kMaxInputFileBytes = std::uintmax_t{256} << 20;  // 256 MiB
+/// At most this many data rows in a CSV file, and this many bytes in one field.
+constexpr int kMaxCsvRows = 1000000;
+constexpr size_t kMaxCsvFieldBytes = size_t{4} << 20;  // 4 MiB
+
+/// Throws InputError naming `path` unless it is a regular file (not a directory, device, FIFO or
+/// socket) of at most `max_bytes`; `what` names the kind of file for the message ("a CSV file").
+/// Opens nothing, so a FIFO cannot block.
+void CheckInputFile(const std::string& path, const std::string& what,
+                    std::uintmax_t max_bytes = kMaxInputFileBytes);
+
+/// The whole of an input file checked by CheckInputFile, read without ever holding more than
+/// `max_bytes` + 1 bytes (a file that grows meanwhile is refused as too large).
+std::string ReadInputFile(const std::string& path, const std::string& what,
+                          std::uintmax_t max_bytes = kMaxInputFileBytes);
 
 /// A CSV file read whole: comma separated, fields trimmed of blanks, double-quoted fields
 /// ("" inside is a quote), blank lines and lines starting with '#' skipped, CRLF and a UTF-8
 /// byte-order mark accepted. Every row must have as many fields as the header.
 class CsvTable {
  public:
-  /// Reads and parses a file; throws InputError if it cannot be read or is malformed.
+  /// Reads and parses a file (ReadInputFile: a regular file of at most kMaxInputFileBytes);
+  /// throws InputError if it cannot be read, is malformed, or has more than kMaxCsvRows rows or
+  /// a field longer than kMaxCsvFieldBytes.
   static CsvTable Read(const std::string& path);
   /// Parses text; `name` is the file name used in error messages.
   static CsvTable Parse(const std::string& text, const std::string& name);

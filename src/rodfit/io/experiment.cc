@@ -773,15 +773,8 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
 }
 
 Experiment LoadExperiment(const std::string& path) {
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) throw InputError(path, 0, "", "is a directory, not a YAML file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    throw InputError(path, 0, "", "cannot open file: " + std::generic_category().message(errno));
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseExperiment(text.str(), path);
+  // Bounded before yaml-cpp sees it: a regular file of at most kMaxInputFileBytes.
+  return ParseExperiment(ReadInputFile(path, "a YAML file"), path);
 }
 
 }  // namespace rodfit

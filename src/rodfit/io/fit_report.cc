@@ -27,7 +27,17 @@ std::string Safe(std::string s) {
 
 void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput& input,
                     const FitResult& result) {
-  CreateDirectories(dir);
+  StagedDirectory out(dir);
+  WriteFitReport(&out, e, input, result);
+  out.Commit();
+}
+
+void WriteFitReport(StagedDirectory* out, const Experiment& e, const FitInput& input,
+                    const FitResult& result) {
+  // Images are encoded in memory and staged like the tables: nothing reaches DIR before Commit.
+  auto write_image = [out](const std::string& name, const cv::Mat& image) {
+    out->Write(name, EncodeImage(out->FinalPath(name), image), "plot name");
+  };
   std::ostringstream summary, residuals;
   summary << "case,observation,type,count,rms,unit,rms_moment\n";
   residuals << "case,observation,unit,measurement,e1,e2,e3,norm,norm_sigma\n";
@@ -71,9 +81,8 @@ void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput&
     if (mr.case_index >= 0 && mr.case_index < static_cast<int>(sigma_norms.size()))
       sigma_norms[mr.case_index].push_back(norm / mr.sigma);
   }
-  const std::filesystem::path d(dir);
-  WriteFileAtomically((d / "summary.csv").string(), summary.str());
-  WriteFileAtomically((d / "residuals.csv").string(), residuals.str());
+  out->Write("summary.csv", summary.str());
+  out->Write("residuals.csv", residuals.str());
 
   // One picture per case and camera: the fitted centre-line projected over the image, or over
   // the observed pixels on a blank frame.
@@ -97,12 +106,12 @@ void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput&
         const auto u = t.Column("u"), v = t.Column("v");
         for (int r = 0; r < t.num_rows(); ++r) observed.emplace_back(u[r], v[r]);
       }
-      cv::Mat out = DrawOverlay(canvas, observed, fitted);
+      const cv::Mat overlay = DrawOverlay(canvas, observed, fitted);
       const std::string name = Safe(e.scene.cases[c].name) + "_" +
                                Safe(std::filesystem::path(spec.camera).stem().string()) + "_" +
                                std::to_string(k) + ".png";
-      // Safe() leaves no separator; PathInside holds every name-built output to DIR regardless.
-      WriteImageFile(PathInside(dir, name, "plot name"), out);
+      // Safe() leaves no separator; Write holds every name-built output to DIR regardless.
+      write_image(name, overlay);
     }
   }
 
@@ -130,7 +139,7 @@ void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput&
   }
   cv::putText(plot, "|residual| / sigma per measurement (grey: 1 and 3 sigma)", {margin, 25},
               cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1);
-  WriteImageFile((d / "residuals.png").string(), plot);
+  write_image("residuals.png", plot);
 }
 
 }  // namespace rodfit

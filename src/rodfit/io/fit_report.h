@@ -11,11 +11,17 @@
 
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
+#include "rodfit/io/output_dir.h"
 
 namespace rodfit {
 
-/// Writes the report files (each atomically); creates DIR. Throws InputError on I/O failure.
+/// Writes the report files into DIR all at once (a StagedDirectory): on failure DIR is left as
+/// it was. Throws InputError on I/O failure.
 void WriteFitReport(const std::string& dir, const Experiment& experiment, const FitInput& input,
+                    const FitResult& result);
+
+/// Stages the report files in `out` (committed by the caller, e.g. together with the profile).
+void WriteFitReport(StagedDirectory* out, const Experiment& experiment, const FitInput& input,
                     const FitResult& result);
 
 }  // namespace rodfit

@@ -22,9 +22,11 @@ std::string Show(double v) {
 
 cv::Mat ReadImageFile(const std::string& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
+  if (!std::filesystem::exists(path, ec)) {
     throw InputError(path, 0, "", "cannot read the image: no such file");
   }
+  // A directory, device or FIFO, or a file past the bound, never reaches the decoder.
+  CheckInputFile(path, "an image file");
   cv::Mat image;
   try {
     image = cv::imread(path, cv::IMREAD_UNCHANGED);

@@ -86,7 +86,8 @@ void RefuseOverwritingInput(const std::string& output, const std::vector<InputFi
   }
 }
 
-StagedDirectory::StagedDirectory(const std::string& target) : target_(target) {
+StagedDirectory::StagedDirectory(const std::string& target, bool stage_inside)
+    : target_(target) {
   std::error_code ec;
   fs::path path = fs::absolute(target.empty() ? fs::path(".") : fs::path(target), ec);
   if (ec) throw InputError(target, 0, "", "not a usable directory name: " + ec.message());
@@ -120,7 +121,7 @@ StagedDirectory::StagedDirectory(const std::string& target) : target_(target) {
   // folder of a read-only tree), which keeps the final renames on one file system all the same.
   static std::atomic<unsigned> counter{0};
   const std::string base = path.filename().string();
-  fs::path where = path.parent_path();
+  fs::path where = stage_inside && fs::is_directory(status) ? path : path.parent_path();
   for (int attempt = 0; attempt < 100 && staging_.empty(); ++attempt) {
     const std::string candidate =
         (where / ("." + base + ".tmp." + std::to_string(::getpid()) + "." +
@@ -135,7 +136,7 @@ StagedDirectory::StagedDirectory(const std::string& target) : target_(target) {
       const int err = errno;
       RemoveStaging();
       throw InputError(target, 0, "",
-                       "cannot create a temporary directory beside it: " + ErrnoMessage(err));
+                       "cannot create a temporary directory for it: " + ErrnoMessage(err));
     }
   }
   if (staging_.empty()) {
@@ -145,7 +146,11 @@ StagedDirectory::StagedDirectory(const std::string& target) : target_(target) {
 }
 
 StagedDirectory::~StagedDirectory() {
-  if (!committed_) RemoveStaging();
+  if (committed_) {
+    Release();
+  } else {
+    RemoveStaging();
+  }
 }
 
 void StagedDirectory::RemoveStaging() {
@@ -186,14 +191,16 @@ void StagedDirectory::Write(const std::string& relative, const std::string& cont
   files_.push_back(relative);
 }
 
-void StagedDirectory::Commit() {
+void StagedDirectory::Commit(bool undoable) {
   if (committed_) return;
   std::error_code ec;
   if (!fs::exists(target_path_, ec)) {
     // The whole directory at once.
     if (std::rename(staging_.c_str(), target_path_.c_str()) == 0) {
       committed_ = true;
-      staging_.clear();
+      renamed_whole_ = true;
+      undoable_ = undoable;
+      if (!undoable_) Release();
       return;
     }
     if (errno != EEXIST && errno != ENOTEMPTY) {
@@ -218,22 +225,11 @@ void StagedDirectory::Commit() {
                        "exists and is not a file; not replaced, nothing was written");
     }
   }
-  // Moved one by one; each replaced file kept aside until all are in, so a failure puts the
-  // directory back as it was.
-  struct Moved {
-    fs::path final_path, old_copy;  // old_copy empty: there was no file
-  };
-  std::vector<Moved> moved;
-  std::vector<fs::path> made_dirs;
+  // Moved one by one; each replaced file kept aside until all are in (and until RollBack() can
+  // no longer be asked for), so a failure puts the directory back as it was.
   const fs::path old_dir = staging_ + ".old";
-  auto roll_back = [&]() {
-    std::error_code ignore;
-    for (auto it = moved.rbegin(); it != moved.rend(); ++it) {
-      fs::remove(it->final_path, ignore);
-      if (!it->old_copy.empty()) fs::rename(it->old_copy, it->final_path, ignore);
-    }
-    for (auto it = made_dirs.rbegin(); it != made_dirs.rend(); ++it) fs::remove(*it, ignore);
-  };
+  moved_.clear();
+  made_dirs_.clear();
   for (size_t k = 0; k < files_.size(); ++k) {
     const fs::path final_path = FinalPath(files_[k]);
     const fs::path staged = PathInside(staging_, files_[k], "output file name");
@@ -243,31 +239,80 @@ void StagedDirectory::Commit() {
     for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
       if (::mkdir(it->c_str(), 0777) != 0) {
         const int err = errno;
-        roll_back();
+        UndoMoves();
         throw InputError(it->string(), 0, "", "cannot create directory: " + ErrnoMessage(err));
       }
-      made_dirs.push_back(*it);
+      made_dirs_.push_back(it->string());
     }
-    Moved m{final_path, {}};
+    Moved m{final_path.string(), {}};
     if (fs::exists(fs::symlink_status(final_path, ec))) {
-      m.old_copy = old_dir / std::to_string(k);
+      m.old_copy = (old_dir / std::to_string(k)).string();
       fs::create_directories(old_dir, ec);
       if (std::rename(final_path.c_str(), m.old_copy.c_str()) != 0) {
         const int err = errno;
-        roll_back();
+        UndoMoves();
         throw InputError(final_path.string(), 0, "", "cannot replace: " + ErrnoMessage(err));
       }
     }
     if (std::rename(staged.c_str(), final_path.c_str()) != 0) {
       const int err = errno;
       if (!m.old_copy.empty()) fs::rename(m.old_copy, final_path, ec);
-      roll_back();
+      UndoMoves();
       throw InputError(final_path.string(), 0, "", "cannot write: " + ErrnoMessage(err));
     }
-    moved.push_back(m);
+    moved_.push_back(m);
   }
   committed_ = true;
+  undoable_ = undoable;
+  if (!undoable_) Release();
+}
+
+void StagedDirectory::Release() noexcept {
+  if (!committed_) return;
+  undoable_ = false;
+  if (renamed_whole_) staging_.clear();  // it is the target now
+  renamed_whole_ = false;
+  moved_.clear();
+  made_dirs_.clear();
   RemoveStaging();
+}
+
+void StagedDirectory::UndoMoves() noexcept {
+  std::error_code ignore;
+  for (auto it = moved_.rbegin(); it != moved_.rend(); ++it) {
+    fs::remove(it->final_path, ignore);
+    if (!it->old_copy.empty()) fs::rename(it->old_copy, it->final_path, ignore);
+  }
+  for (auto it = made_dirs_.rbegin(); it != made_dirs_.rend(); ++it) fs::remove(*it, ignore);
+  moved_.clear();
+  made_dirs_.clear();
+}
+
+void StagedDirectory::RollBack() noexcept {
+  if (!committed_ || !undoable_) return;
+  std::error_code ignore;
+  if (renamed_whole_) {
+    // The target did not exist: it goes again, with the parents made for it.
+    fs::remove_all(target_path_, ignore);
+    renamed_whole_ = false;
+  } else {
+    UndoMoves();
+  }
+  committed_ = false;
+  undoable_ = false;
+  RemoveStaging();
+}
+
+void CommitAll(const std::vector<StagedDirectory*>& outputs) {
+  for (size_t k = 0; k < outputs.size(); ++k) {
+    try {
+      outputs[k]->Commit(/*undoable=*/true);
+    } catch (...) {
+      for (size_t j = k; j-- > 0;) outputs[j]->RollBack();
+      throw;
+    }
+  }
+  for (StagedDirectory* output : outputs) output->Release();
 }
 
 }  // namespace rodfit

@@ -39,12 +39,16 @@ void RefuseOverwritingInput(const std::string& output, const std::vector<InputFi
 /// one that exists gets each file renamed over its old one (other files stay), and a failure on
 /// the way puts back every file it had replaced. Without Commit(), or when it fails, the
 /// destructor removes the staging directory and any parent directories it created, so the
-/// output location is left as it was.
+/// output location is left as it was. Commit(true) keeps the files it replaced (and the staging
+/// directory) until Release() or the destructor, so that RollBack() can undo the commit when
+/// another output of the run then fails (CommitAll).
 class StagedDirectory {
  public:
   /// Throws InputError when `target` exists and is not a directory, or the staging directory
-  /// cannot be made.
-  explicit StagedDirectory(const std::string& target);
+  /// cannot be made. `stage_inside`: stage inside `target` when it exists (for single files
+  /// written into a directory of the user's, like the profile, which then get no temporary
+  /// directory beside that directory).
+  explicit StagedDirectory(const std::string& target, bool stage_inside = false);
   ~StagedDirectory();
   StagedDirectory(const StagedDirectory&) = delete;
   StagedDirectory& operator=(const StagedDirectory&) = delete;
@@ -55,17 +59,36 @@ class StagedDirectory {
   /// The final path of a staged or to-be-staged file, for RefuseOverwritingInput and messages.
   std::string FinalPath(const std::string& relative) const;
   /// Moves every staged file into the target; throws InputError (target as it was) on failure.
-  void Commit();
+  /// `undoable`: keep what RollBack() needs until Release().
+  void Commit(bool undoable = false);
+  /// Undoes a successful Commit(true): the files it moved in are removed, the ones it replaced
+  /// put back, the directories it created removed. Best effort, never throws; nothing to do
+  /// before a Commit(true) or after Release().
+  void RollBack() noexcept;
+  /// After Commit(true): the commit stands; the replaced files and the staging directory go.
+  void Release() noexcept;
 
  private:
+  struct Moved {
+    std::string final_path, old_copy;  // old_copy empty: there was no file
+  };
   void RemoveStaging();
+  void UndoMoves() noexcept;
 
   std::string target_;       // as given, for messages
   std::string target_path_;  // absolute, normalised, no trailing separator
   std::string staging_;
   std::vector<std::string> created_parents_;  // made for the staging directory, innermost last
   std::vector<std::string> files_;            // relative paths, in the order written
+  std::vector<Moved> moved_;                  // by the commit, in order
+  std::vector<std::string> made_dirs_;        // by the commit, outermost first
+  bool renamed_whole_ = false;                // the commit renamed the staging directory
+  bool undoable_ = false;                     // Commit(true), not yet released
   bool committed_ = false;
 };
+
+/// Commits `outputs` in order; when one fails, rolls back those already committed (in reverse)
+/// and rethrows, so the run's outputs are all in place or all as they were.
+void CommitAll(const std::vector<StagedDirectory*>& outputs);
 
 }  // namespace rodfit

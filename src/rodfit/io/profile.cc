@@ -29,6 +29,7 @@ nlohmann::json Vec(const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), 
 }  // namespace
 
 std::string FileDigest(const std::string& path) {
+  CheckInputFile(path, "an input file");
   std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(path, 0, "", "cannot read the file");
   std::uint64_t h = 1469598103934665603ULL;
@@ -136,8 +137,10 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   return p;
 }
 
+std::string FormatProfile(const nlohmann::json& profile) { return profile.dump(2) + "\n"; }
+
 void WriteProfile(const std::string& path, const nlohmann::json& profile) {
-  WriteFileAtomically(path, profile.dump(2) + "\n");
+  WriteFileAtomically(path, FormatProfile(profile));
 }
 
 }  // namespace rodfit

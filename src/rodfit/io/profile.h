@@ -13,12 +13,16 @@
 namespace rodfit {
 
 /// FNV-1a 64-bit digest of a file's bytes as 16 hex digits (identifies the inputs of a fit; not
-/// a cryptographic hash). Throws InputError when the file cannot be read.
+/// a cryptographic hash). Throws InputError when the file cannot be read or is not a regular file
+/// of at most kMaxInputFileBytes (never reads a device or FIFO).
 std::string FileDigest(const std::string& path);
 
 /// The profile document.
 nlohmann::json ProfileJson(const Experiment& experiment, const FitOptions& options,
                            const FitResult& result);
+
+/// Its text as written: two-space indented JSON and a final newline.
+std::string FormatProfile(const nlohmann::json& profile);
 
 /// Writes it atomically (temporary file, then rename).
 void WriteProfile(const std::string& path, const nlohmann::json& profile);

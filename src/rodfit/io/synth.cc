@@ -104,11 +104,7 @@ std::string EntryKey(int c, int o) {
 }
 
 std::string ReadBytes(const std::string& path, const std::string& what) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "", "cannot read " + what);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
+  return ReadInputFile(path, what);
 }
 
 std::string Lower(std::string s) {

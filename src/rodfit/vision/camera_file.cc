@@ -114,8 +114,14 @@ class Document {
  public:
   explicit Document(const std::string& path) : path_(path) {
     std::error_code ec;
+    // Checked before opening: a FIFO without a writer would block the open itself.
+    const std::filesystem::file_status status = std::filesystem::status(path, ec);
+    if (!std::filesystem::exists(status)) Fail("", "cannot open file");
+    if (!std::filesystem::is_regular_file(status)) {
+      Fail("", "cannot open file: not a regular file (a directory, device, FIFO or socket)");
+    }
     std::ifstream in(path, std::ios::binary);
-    if (!in || !std::filesystem::is_regular_file(path, ec)) Fail("", "cannot open file");
+    if (!in) Fail("", "cannot open file");
     const std::uintmax_t size = std::filesystem::file_size(path, ec);
     if (ec || size > kMaxFileBytes) {
       Fail("", "file too large for a camera file (" + std::to_string(size) + " bytes, at most " +
