@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "../reference/kirchhoff_shooting.h"
+#include "../solve/shooting_compare.h"
 #include "rodfit/solve/case_solve.h"
 
 namespace rodfit {
@@ -62,14 +63,6 @@ ref::RodProperties Props(const Scene& s) {
   return p;
 }
 
-ref::ClampSpec RefClamp(const Clamp& c) {
-  ref::ClampSpec r;
-  r.position = c.position;
-  r.tangent = c.tangent;
-  r.normal = c.normal;
-  return r;
-}
-
 std::string Format(const char* fmt, double v) {
   char b[64];
   std::snprintf(b, sizeof(b), fmt, v);
@@ -111,11 +104,9 @@ Row Run(const std::string& problem, const Scene& s,
   return row;
 }
 
-double MaxVertexError(const CaseSolution& sol, const ref::ShootingResult& r) {
-  double e = 0.0;
-  for (int i = 0; i < sol.model->num_vertices(); ++i)
-    e = std::max(e, (sol.state.x.col(i) - r.PositionAt(sol.model->arc_length(i))).norm());
-  return e / sol.model->length();
+// The largest vertex error relative to L.
+double RelativeVertexError(const CaseSolution& sol, const ref::ShootingResult& r) {
+  return testing::MaxVertexError(sol, r) / sol.model->length();
 }
 
 // The shooting reference of a cantilever case with a dead tip force and moment.
@@ -124,7 +115,7 @@ ref::ShootingResult Shoot(const Scene& s, int continuation_steps = 1) {
   o.continuation_steps = continuation_steps;
   const LoadCase& c = s.cases[0];
   const ref::ShootingResult r = ref::SolveKirchhoff(
-      Props(s), RefClamp(c.clamp), ref::EndCondition::Free(c.tip_force, c.tip_moment), o);
+      Props(s), testing::RefClamp(c.clamp), ref::EndCondition::Free(c.tip_force, c.tip_moment), o);
   if (!r.converged) std::fprintf(stderr, "reference did not converge: %s\n", r.message.c_str());
   return r;
 }
@@ -157,7 +148,7 @@ int main() {
     s.cases[0].tip_force = Vec3(0, 1, -3);
     const ref::ShootingResult r = Shoot(s);
     rows.push_back(Run("EA L^2/EI = " + Format("%.0e", ratio) + ", 3-D tip force", s,
-                       [&](const CaseSolution& sol) { return MaxVertexError(sol, r); }));
+                       [&](const CaseSolution& sol) { return RelativeVertexError(sol, r); }));
   }
   // A vanishing stiffness: EI = 1e-12 N m^2 with the same dimensionless loads.
   {
@@ -165,7 +156,7 @@ int main() {
     s.cases[0].tip_force = Vec3(0, 1, -3) * 1e-12;
     const ref::ShootingResult r = Shoot(s);
     rows.push_back(Run("EI = 1e-12 N m^2, same loads / EI", s,
-                       [&](const CaseSolution& sol) { return MaxVertexError(sol, r); }));
+                       [&](const CaseSolution& sol) { return RelativeVertexError(sol, r); }));
   }
   // Absurd loads: a 1e200 N tip force cannot be represented in the energy.
   {
@@ -186,7 +177,7 @@ int main() {
   const ref::ShootingResult heavy_reference = Shoot(heavy(100), 4);
   for (int n : {100, 10000, 100000}) {
     rows.push_back(Run("heavy 3-D cantilever", heavy(n), [&](const CaseSolution& sol) {
-      return MaxVertexError(sol, heavy_reference);
+      return RelativeVertexError(sol, heavy_reference);
     }));
   }
   // 2 pi roll-up: an isotropic rod under the end moment 2 pi EI / L closes a circle (the shooting
@@ -198,7 +189,7 @@ int main() {
     s.cases[0].tip_moment = Vec3(0, -2 * M_PI, 0);
     const ref::ShootingResult r = Shoot(s);
     rows.push_back(Run("2 pi roll-up (end moment)", s,
-                       [&](const CaseSolution& sol) { return MaxVertexError(sol, r); },
+                       [&](const CaseSolution& sol) { return RelativeVertexError(sol, r); },
                        std::nullopt));
   }
   // A column at 10 x its Euler load (clamped-free, P_cr = pi^2 EI / 4 L^2): the straight column

@@ -33,6 +33,7 @@
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
+#include "shooting_compare.h"
 
 namespace rodfit {
 namespace {
@@ -88,22 +89,8 @@ ref::RodProperties RefProps(const RodParams& p) {
   return r;
 }
 
-ref::ClampSpec RefClamp(const Clamp& c) {
-  ref::ClampSpec r;
-  r.position = c.position;
-  r.tangent = c.tangent;
-  r.normal = c.normal;
-  return r;
-}
-
-// Largest distance between the discrete vertices and the reference centre-line at the same
-// rest arc lengths.
-double MaxVertexError(const CaseSolution& sol, const ref::ShootingResult& r) {
-  double e = 0.0;
-  for (int i = 0; i < sol.model->num_vertices(); ++i)
-    e = std::max(e, (sol.state.x.col(i) - r.PositionAt(sol.model->arc_length(i))).norm());
-  return e;
-}
+using testing::MaxVertexError;
+using testing::RefClamp;
 
 CaseSolution Solve(const Scene& s) { return SolveCase(s, 0, nullptr); }
 
