@@ -41,6 +41,11 @@ struct Material {
   std::map<std::string, double> spring_parameters;
   double ring_bend_stiffness = 0.0;     ///< kb [N m^2] of the cross-section ring (tissue §4)
   double ring_stretch_stiffness = 0.0;  ///< ks [N] of the cross-section ring
+  // Damping, read by the dynamics only (docs/model.md, "Dynamics").
+  double damping = 0.0;          ///< c [N s/m^2]: external viscous drag per length, -c v
+  double bend_damping = 0.0;     ///< eta_B [N m^2 s]: viscosity of the bending rates
+  double twist_damping = 0.0;    ///< eta_GJ [N m^2 s]: viscosity of the twist rate
+  double stretch_damping = 0.0;  ///< eta_EA [N s]: viscosity of the stretch rate
 
   double B1() const { return bend_stiffness; }
   double B2() const { return bend_stiffness_2 ? *bend_stiffness_2 : bend_stiffness; }

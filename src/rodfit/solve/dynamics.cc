@@ -1,0 +1,544 @@
+#include "rodfit/solve/dynamics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include "rodfit/model/frames.h"
+#include "rodfit/solve/moment_loads.h"
+
+namespace rodfit {
+
+const char* IntegratorName(Integrator integrator) {
+  switch (integrator) {
+    case Integrator::kExplicit: return "explicit";
+    case Integrator::kBackwardEuler: return "backward_euler";
+    case Integrator::kMidpoint: return "midpoint";
+  }
+  return "?";
+}
+
+bool ParseIntegrator(const std::string& name, Integrator* integrator) {
+  for (Integrator k : {Integrator::kExplicit, Integrator::kBackwardEuler, Integrator::kMidpoint}) {
+    if (name == IntegratorName(k)) {
+      *integrator = k;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool DynamicsOptions::Check(std::string* why) const {
+  if (!(time_step > 0.0) || !std::isfinite(time_step)) {
+    *why = "time_step must be a positive number of seconds";
+    return false;
+  }
+  if (!(stability_safety > 0.0 && stability_safety <= 1.0)) {
+    *why = "stability_safety must be in (0, 1]";
+    return false;
+  }
+  if (stability_check_every < 1 || max_newton_iterations < 1) {
+    *why = "stability_check_every and max_newton_iterations must be at least 1";
+    return false;
+  }
+  if (!(residual_tolerance > 0.0) || !(step_tolerance > 0.0)) {
+    *why = "tolerances must be positive";
+    return false;
+  }
+  return true;
+}
+
+void Drive::PoseAt(const RodModel& model, double /*t*/, HeldPose* pose) const {
+  pose->clamp_position = model.clamp_position();
+  pose->clamp_tangent = model.clamp_tangent();
+  pose->clamp_d1 = model.clamp_d1();
+  pose->held.resize(model.held().size());
+  for (size_t k = 0; k < model.held().size(); ++k) pose->held[k] = model.held()[k].target;
+  if (model.has_end_clamp()) {
+    pose->end_tangent = model.end_tangent();
+    pose->end_d1 = model.end_twist_held() ? model.end_d1() : Vec3::Zero();
+  }
+  pose->tip_force.setZero();
+  pose->tip_moment.setZero();
+}
+
+namespace {
+
+// The pose halfway between two (implicit midpoint): positions and loads averaged, frames the
+// normalised mean (the rotation halfway to second order in the step's turn).
+void MidPose(const HeldPose& a, const HeldPose& b, HeldPose* m) {
+  m->clamp_position = 0.5 * (a.clamp_position + b.clamp_position);
+  m->clamp_tangent = (a.clamp_tangent.normalized() + b.clamp_tangent.normalized()).normalized();
+  m->clamp_d1 = a.clamp_d1.normalized() + b.clamp_d1.normalized();
+  m->held.resize(a.held.size());
+  for (size_t k = 0; k < a.held.size(); ++k) m->held[k] = 0.5 * (a.held[k] + b.held[k]);
+  m->end_tangent = (a.end_tangent.normalized() + b.end_tangent.normalized()).normalized();
+  m->end_d1 = a.end_d1 + b.end_d1;
+  m->tip_force = 0.5 * (a.tip_force + b.tip_force);
+  m->tip_moment = 0.5 * (a.tip_moment + b.tip_moment);
+}
+
+// d1 made perpendicular to the unit tangent t and unit.
+Vec3 Perpendicular(const Vec3& d1, const Vec3& t) {
+  return (d1 - d1.dot(t) * t).normalized();
+}
+
+}  // namespace
+
+DynamicsStepper::DynamicsStepper(const RodModel& model, const DynamicsOptions& options)
+    : model_(model), options_(options) {
+  std::string why;
+  if (!options_.Check(&why)) throw std::invalid_argument(why);
+  const RodSpec& rod = model.rod();
+  if (!(rod.linear_density > 0.0))
+    throw std::invalid_argument("dynamics needs rod.linear_density > 0 (the rod has no mass)");
+  if (model.symmetric())
+    throw std::invalid_argument("symmetry is for statics only: simulate the whole rod in time");
+  const Material& m = model.material();
+  for (double c : {m.damping, m.bend_damping, m.twist_damping, m.stretch_damping}) {
+    if (!(c >= 0.0) || !std::isfinite(c))
+      throw std::invalid_argument("damping parameters must be finite and >= 0");
+  }
+  const int n = model.num_edges();
+  const int dofs = model.num_free_dofs();
+  // Rotational inertia per length of a solid round section about its axis: rho A r^2 / 2.
+  const double spin_inertia = 0.5 * rod.linear_density * rod.radius * rod.radius;
+  if (options_.integrator == Integrator::kExplicit && !(spin_inertia > 0.0)) {
+    throw std::invalid_argument(
+        "the explicit integrator needs rod.radius > 0 (the twist angles' inertia); use an "
+        "implicit integrator, which treats a rod without it as spinning quasi-statically");
+  }
+  mass_.setOnes(dofs);
+  drag_.setZero(dofs);
+  for (int i = 1; i <= n; ++i) {
+    const double cell = model.vertex_mass(i) / rod.linear_density;  // [m]
+    mass_.segment<3>(RodModel::VertexDof(i)).setConstant(model.vertex_mass(i));
+    drag_.segment<3>(RodModel::VertexDof(i)).setConstant(m.damping * cell);
+  }
+  for (int j = 0; j < n; ++j) mass_[RodModel::TwistDof(j)] = spin_inertia * model.rest_edge_length(j);
+  if (model.has_end_ghost()) {
+    // The end clamp's ghost edge: its twist is the end's turn about its tangent, with half the
+    // last edge's spin inertia (the ghost carries no material of its own).
+    mass_[RodModel::TwistDof(n)] = 0.5 * spin_inertia * model.end_ghost_length();
+  }
+  internal_damping_ = m.bend_damping > 0.0 || m.twist_damping > 0.0 || m.stretch_damping > 0.0;
+  held_ = HeldDofs(model);
+  weights_ = GradientNormWeights(model);
+  Drive().PoseAt(model, 0.0, &pose_);
+  pose_mid_ = pose_;
+  damping_.Resize(dofs, kRodBandwidth, 4);
+  damping_.SetZero();
+}
+
+DynamicState DynamicsStepper::AtRest(const RodState& q) const {
+  DynamicState s;
+  s.q = q;
+  s.v.setZero(model_.num_free_dofs());
+  s.t = 0.0;
+  return s;
+}
+
+double DynamicsStepper::KineticEnergy(const DynamicState& s) const {
+  double k = 0.0;
+  for (int i = 0; i < s.v.size(); ++i)
+    if (!held_[i]) k += 0.5 * mass_[i] * s.v[i] * s.v[i];
+  return k;
+}
+
+double DynamicsStepper::PotentialEnergy(const RodState& q) const {
+  return rodfit::PotentialEnergy(model_, q);
+}
+
+void DynamicsStepper::Delta(const RodState& a, const RodState& b, VecX* d) const {
+  const int n = model_.num_edges();
+  d->setZero(model_.num_free_dofs());
+  for (int i = 1; i <= n; ++i) d->segment<3>(RodModel::VertexDof(i)) = b.x.col(i) - a.x.col(i);
+  for (int j = 0; j < n; ++j) (*d)[RodModel::TwistDof(j)] = b.theta[j] - a.theta[j];
+  if (model_.has_end_ghost()) (*d)[RodModel::TwistDof(n)] = b.end_theta - a.end_theta;
+  for (int k = 0; k < d->size(); ++k)
+    if (held_[k]) (*d)[k] = 0.0;
+}
+
+bool DynamicsStepper::Advance(const RodState& q, const VecX& dx, const HeldPose& pose,
+                              RodState* out) const {
+  const int n = model_.num_edges();
+  *out = q;
+  out->x.col(0) = pose.clamp_position;
+  out->clamp_t = pose.clamp_tangent.normalized();
+  out->clamp_d1 = Perpendicular(pose.clamp_d1, out->clamp_t);
+  for (int i = 1; i <= n; ++i) {
+    const int h = model_.held_at_vertex(i);
+    out->x.col(i) = h >= 0 ? pose.held[h] : Vec3(q.x.col(i) + dx.segment<3>(RodModel::VertexDof(i)));
+  }
+  for (int j = 0; j < n; ++j) out->theta[j] = q.theta[j] + dx[RodModel::TwistDof(j)];
+  out->SyncEdges();
+  if (model_.has_end_ghost()) {
+    // The ghost's reference director is transported in time to the new end tangent; its twist
+    // angle follows the rate (a free end) or keeps the held d1.
+    const Vec3 t_new = pose.end_tangent.normalized();
+    Vec3 u = ParallelTransport<double, double>(q.end_t, t_new, q.end_u);
+    u = (u - u.dot(t_new) * t_new).normalized();
+    out->end_t = t_new;
+    out->end_u = u;
+    out->end_theta = model_.end_twist_held()
+                         ? SignedAngle<double>(u, Perpendicular(pose.end_d1, t_new), t_new)
+                         : q.end_theta + dx[RodModel::TwistDof(n)];
+  }
+  return UpdateReferenceFrames(model_, q, out);
+}
+
+void DynamicsStepper::Forces(const RodState& q, const HeldPose& pose, VecX* g) {
+  const int n = model_.num_edges();
+  ComputeRodFrames(model_, q, &frames_);
+  AssembleGradient(model_, q, EnergyTerms(), g, &frames_);
+  if (model_.nonconservative()) AddMomentLoads(model_, q, frames_, 1.0, g, nullptr);
+  if (pose.tip_force.squaredNorm() > 0.0) g->segment<3>(RodModel::VertexDof(n)) -= pose.tip_force;
+  if (pose.tip_moment.squaredNorm() > 0.0) {
+    EdgeMoment em;
+    em.edge = n - 1;
+    em.moment = pose.tip_moment;
+    const EdgeMomentForce f = EdgeMomentLoad(em, frames_, 1.0);
+    g->segment<3>(RodModel::VertexDof(n)) -= f.Qe;
+    if (n >= 2) g->segment<3>(RodModel::VertexDof(n - 1)) += f.Qe;
+    (*g)[RodModel::TwistDof(n - 1)] -= f.Qt;
+  }
+  for (int k = 0; k < g->size(); ++k)
+    if (held_[k]) (*g)[k] = 0.0;
+}
+
+void DynamicsStepper::AssembleDamping(const RodState& q) {
+  if (!internal_damping_) return;
+  const Material& m = model_.material();
+  EnergyTerms terms = EnergyTerms::Elastic();
+  // U is linear in each stiffness: the Hessian with factors eta / k is sum eta K_unit.
+  terms.bend1 = m.bend_damping / m.B1();
+  terms.bend2 = m.bend_damping / m.B2();
+  terms.twist = m.twist_damping / m.twist_stiffness;
+  terms.stretch = m.stretch_damping / m.stretch_stiffness;
+  terms.springs = 0.0;
+  ComputeRodFrames(model_, q, &frames_);
+  AssembleHessian(model_, q, terms, &cv_, &damping_, &frames_);
+  // Held rows carry no damping (their dofs do not move freely).
+  for (int k = 0; k < damping_.size(); ++k)
+    if (held_[k]) damping_.At(k, k) = 0.0;
+}
+
+double DynamicsStepper::StableTimeStep(const RodState& q) {
+  ComputeRodFrames(model_, q, &frames_);
+  AssembleHessian(model_, q, EnergyTerms(), &g_, &hessian_, &frames_);
+  AssembleDamping(q);
+  const int N = model_.num_free_dofs();
+  const int p = hessian_.bandwidth();
+  // Gershgorin bounds of the mass-scaled stiffness and damping: every eigenvalue of
+  // M^-1/2 K M^-1/2 lies below the largest absolute row sum.
+  double lambda_k = 0.0, lambda_c = 0.0;
+  for (int r = 0; r < N; ++r) {
+    if (held_[r]) continue;
+    double sk = 0.0, sc = drag_[r] / mass_[r];
+    for (int c = std::max(0, r - p); c <= std::min(N - 1, r + p); ++c) {
+      if (held_[c]) continue;
+      const double scale = 1.0 / std::sqrt(mass_[r] * mass_[c]);
+      sk += std::abs(hessian_.Get(r, c)) * scale;
+      if (internal_damping_) sc += std::abs(damping_.Get(r, c)) * scale;
+    }
+    lambda_k = std::max(lambda_k, sk);
+    lambda_c = std::max(lambda_c, sc);
+  }
+  if (!(lambda_k > 0.0) || !std::isfinite(lambda_k)) return 0.0;
+  // Leapfrog with damping lagged by half a step is stable for a mode (omega, c) when
+  // omega^2 dt^2 + 2 c dt < 4; with the bounds for both: the positive root in dt.
+  const double dt = (-lambda_c + std::sqrt(lambda_c * lambda_c + 4.0 * lambda_k)) / lambda_k;
+  return options_.stability_safety * dt;
+}
+
+DynamicsStepSummary DynamicsStepper::Step(const Drive& drive, DynamicState* s) {
+  if (s->v.size() != model_.num_free_dofs()) s->v.setZero(model_.num_free_dofs());
+  if (options_.integrator != Integrator::kExplicit) return StepImplicit(drive, s);
+  // Explicit: the stable step at the current shape, re-evaluated every few steps.
+  const double dt = options_.time_step;
+  if (stable_dt_ == 0.0 || steps_since_check_ >= options_.stability_check_every) {
+    stable_dt_ = StableTimeStep(s->q);
+    steps_since_check_ = 0;
+  }
+  ++steps_since_check_;
+  DynamicsStepSummary summary;
+  int substeps = 1;
+  if (dt > stable_dt_) {
+    if (!options_.substep || !(stable_dt_ > 0.0)) {
+      char text[320];
+      std::snprintf(text, sizeof(text),
+                    "time_step %.4g s is above the explicit integrator's stable step %.4g s at "
+                    "t = %.6g s (use a smaller time_step, substep: true, or an implicit "
+                    "integrator)",
+                    dt, stable_dt_, s->t);
+      summary.reason = text;
+      return summary;
+    }
+    substeps = static_cast<int>(std::ceil(dt / stable_dt_));
+    if (substeps > 10000000) {
+      summary.reason = "the explicit integrator would need more than 1e7 substeps per step";
+      return summary;
+    }
+  }
+  const DynamicState before = *s;
+  const double h = dt / substeps;
+  const double t0 = s->t;
+  for (int k = 0; k < substeps; ++k) {
+    DynamicsStepSummary one = StepExplicit(drive, h, s);
+    if (!one.ok) {
+      *s = before;
+      force_valid_ = false;
+      return one;
+    }
+    s->t = t0 + (k + 1) * h;
+  }
+  s->t = t0 + dt;
+  summary.ok = true;
+  summary.substeps = substeps;
+  return summary;
+}
+
+DynamicsStepSummary DynamicsStepper::StepExplicit(const Drive& drive, double dt, DynamicState* s) {
+  DynamicsStepSummary summary;
+  const int N = model_.num_free_dofs();
+  // Velocity Verlet (kick, drift, kick), with the damping force of the velocity half a step
+  // before: one force evaluation per step (the end's force is the next step's start).
+  if (!force_valid_ || force_time_ != s->t) {
+    drive.PoseAt(model_, s->t, &pose_);
+    Forces(s->q, pose_, &force_);
+    force_valid_ = true;
+  }
+  AssembleDamping(s->q);
+  auto damping_force = [&](const VecX& v, VecX* out) {
+    *out = drag_.cwiseProduct(v);
+    if (internal_damping_) *out += damping_.Multiply(v);
+  };
+  damping_force(s->v, &cv_);
+  step_.resize(N);
+  for (int k = 0; k < N; ++k)
+    step_[k] = held_[k] ? 0.0 : s->v[k] - 0.5 * dt * (force_[k] + cv_[k]) / mass_[k];
+  drive.PoseAt(model_, s->t + dt, &pose_);
+  delta_ = dt * step_;
+  if (!Advance(s->q, delta_, pose_, &trial_)) {
+    summary.reason = "an edge collapsed or folded back (the explicit step blew up)";
+    return summary;
+  }
+  Forces(trial_, pose_, &force_);
+  if (!force_.allFinite()) {
+    summary.reason = "non-finite forces (the explicit step blew up)";
+    force_valid_ = false;
+    return summary;
+  }
+  damping_force(step_, &cv_);
+  for (int k = 0; k < N; ++k)
+    s->v[k] = held_[k] ? 0.0 : step_[k] - 0.5 * dt * (force_[k] + cv_[k]) / mass_[k];
+  std::swap(s->q, trial_);
+  force_time_ = s->t + dt;
+  summary.ok = true;
+  return summary;
+}
+
+DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicState* s) {
+  DynamicsStepSummary summary;
+  const int n = model_.num_edges();
+  const int N = model_.num_free_dofs();
+  const double dt = options_.time_step;
+  const bool midpoint = options_.integrator == Integrator::kMidpoint;
+  // Phi(q) = a/2 |d - b v|_M^2 + c/2 d^T C d + Pi(q) - f . q, d = q - q_n (see dynamics.h).
+  const double a = midpoint ? 4.0 / (dt * dt) : 1.0 / (dt * dt);
+  const double b = midpoint ? 0.5 * dt : dt;
+  const double c = midpoint ? 2.0 / dt : 1.0 / dt;
+  drive.PoseAt(model_, s->t + dt, &pose_);
+  const HeldPose* pose = &pose_;
+  if (midpoint) {
+    drive.PoseAt(model_, s->t, &pose_mid_);
+    HeldPose start = pose_mid_;
+    MidPose(start, pose_, &pose_mid_);
+    pose = &pose_mid_;
+  }
+  AssembleDamping(s->q);
+  const BandedSymmetric& C = damping_;
+  const RodState& q0 = s->q;
+  delta0_ = b * s->v;  // the predictor
+  if (!Advance(q0, delta0_, *pose, &prev_)) {
+    summary.reason = "the predictor folds an edge back: time_step too large for this motion";
+    return summary;
+  }
+  RodState& q = prev_;
+  const bool has_moments = model_.nonconservative() || pose->tip_moment.squaredNorm() > 0.0;
+  const double L = model_.length();
+  auto phi = [&](const RodState& state, const RodFrames& frames, double* value) {
+    Delta(q0, state, &delta_);
+    double e = PotentialEnergyFreshFrames(model_, state, EnergyTerms(), &frames);
+    e -= pose->tip_force.dot(state.x.col(n));
+    VecX& r = cv_;
+    r = delta_ - b * s->v;
+    double inertia = 0.0, damp = 0.0;
+    for (int k = 0; k < N; ++k) {
+      if (held_[k]) continue;
+      inertia += mass_[k] * r[k] * r[k];
+      damp += drag_[k] * delta_[k] * delta_[k];
+    }
+    if (internal_damping_) damp += delta_.dot(C.Multiply(delta_));
+    *value = e + 0.5 * a * inertia + 0.5 * c * damp;
+    return std::isfinite(*value);
+  };
+  double force_tol = -1.0, floor_tol = 0.0;
+  double energy = 0.0;
+  ComputeRodFrames(model_, q, &frames_);
+  if (!has_moments && !phi(q, frames_, &energy)) {
+    summary.reason = "non-finite energy at the predictor";
+    return summary;
+  }
+  bool converged = false;
+  // After the first Newton step the matrix a M + c C + K changes little within a step (the mass
+  // term dominates it at a step that resolves the motion): later iterations reuse its factor
+  // (chord steps, a gradient and a back-substitution each) while the residual falls at least
+  // fourfold per iteration, and refactor otherwise.
+  bool chord = false;
+  double previous_gnorm = std::numeric_limits<double>::infinity();
+  for (int it = 0; it < options_.max_newton_iterations && !converged; ++it) {
+    ComputeRodFrames(model_, q, &frames_);
+    if (chord) {
+      AssembleGradient(model_, q, EnergyTerms(), &g_, &frames_);
+    } else {
+      AssembleHessian(model_, q, EnergyTerms(), &g_, &hessian_, &frames_);
+    }
+    if (model_.nonconservative()) AddMomentLoads(model_, q, frames_, 1.0, &g_, nullptr);
+    if (pose->tip_force.squaredNorm() > 0.0) g_.segment<3>(RodModel::VertexDof(n)) -= pose->tip_force;
+    if (pose->tip_moment.squaredNorm() > 0.0) {
+      EdgeMoment em;
+      em.edge = n - 1;
+      em.moment = pose->tip_moment;
+      const EdgeMomentForce f = EdgeMomentLoad(em, frames_, 1.0);
+      g_.segment<3>(RodModel::VertexDof(n)) -= f.Qe;
+      if (n >= 2) g_.segment<3>(RodModel::VertexDof(n - 1)) += f.Qe;
+      g_[RodModel::TwistDof(n - 1)] -= f.Qt;
+    }
+    if (force_tol < 0.0) {
+      // Relative to the forces the step balances: the case's loads or the elastic forces at
+      // the predictor, whichever is larger.
+      double elastic = 0.0;
+      for (int k = 0; k < N; ++k) elastic = std::max(elastic, weights_[k] * std::abs(g_[k]));
+      force_tol = options_.residual_tolerance * std::max(model_.force_scale(), elastic);
+      // The stretch forces' round-off, ~eps EA per edge (as in the statics): a residual at this
+      // floor still hides errors in the soft bending modes (EA L^2 / B ~ 1e7 for a suture), so
+      // there convergence is told by the Newton step.
+      const double max_weight = weights_.size() ? weights_.maxCoeff() : 1.0;
+      floor_tol = 64.0 * std::numeric_limits<double>::epsilon() *
+                  model_.material().stretch_stiffness * max_weight;
+    }
+    Delta(q0, q, &delta_);
+    VecX cd = drag_.cwiseProduct(delta_);
+    if (internal_damping_) cd += C.Multiply(delta_);
+    for (int k = 0; k < N; ++k) g_[k] += a * mass_[k] * (delta_[k] - b * s->v[k]) + c * cd[k];
+    if (!chord) {
+      for (int k = 0; k < N; ++k) hessian_.At(k, k) += a * mass_[k] + c * drag_[k];
+      if (internal_damping_) hessian_.band() += c * C.band();
+    }
+    ApplyHeldRows(held_, &g_, chord ? nullptr : &hessian_);
+    double gnorm = 0.0;
+    for (int k = 0; k < N; ++k) gnorm = std::max(gnorm, weights_[k] * std::abs(g_[k]));
+    summary.residual = gnorm;
+    if (!std::isfinite(gnorm)) {
+      summary.reason = "non-finite residual in the implicit step";
+      return summary;
+    }
+    if (gnorm <= force_tol) {
+      converged = true;
+      break;
+    }
+    if (chord && gnorm > 0.25 * previous_gnorm) {
+      // The old factor no longer converges fast: this iteration again with the Hessian.
+      chord = false;
+      previous_gnorm = std::numeric_limits<double>::infinity();
+      --it;
+      continue;
+    }
+    previous_gnorm = gnorm;
+    bool shifted = false;
+    if (!chord && !factor_.Factor(hessian_)) {
+      // Phi is not convex here (compressed edges whose geometric stiffness outweighs a M at this
+      // step): a diagonal shift, grown tenfold until the factor exists, gives a descent
+      // direction for the line search, as in the statics.
+      double max_diagonal = 0.0;
+      for (int k = 0; k < N; ++k) max_diagonal = std::max(max_diagonal, std::abs(hessian_.At(k, k)));
+      double shift = 1e-10 * max_diagonal;
+      while (!factor_.Factor(hessian_, shift) && shift < 1e3 * max_diagonal) shift *= 10.0;
+      if (!factor_.valid()) {
+        summary.reason = "the step's Newton matrix cannot be made positive definite";
+        return summary;
+      }
+      shifted = true;
+    }
+    step_ = -g_;
+    factor_.SolveInPlace(step_);
+    ++summary.newton_iterations;
+    double alpha = 1.0;
+    const double turn = MaxTangentTurn(model_, q, step_);
+    if (turn > 0.5) alpha = 0.5 / turn;
+    bool accepted = false;
+    const double slope = g_.dot(step_);
+    for (int ls = 0; ls < 30; ++ls, alpha *= 0.5) {
+      if (!ApplyStep(model_, q, step_, alpha, &trial_)) continue;
+      if (has_moments) {  // no potential: the full (capped) step
+        accepted = true;
+        break;
+      }
+      ComputeRodFrames(model_, trial_, &trial_frames_);
+      double e_trial = 0.0;
+      const double noise = 1e-13 * (std::abs(energy) + model_.force_scale() * L);
+      if (phi(trial_, trial_frames_, &e_trial) && e_trial <= energy + 1e-4 * alpha * slope + noise) {
+        energy = e_trial;
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted) {
+      summary.reason = "the implicit step's line search failed";
+      return summary;
+    }
+    std::swap(q, trial_);
+    chord = alpha == 1.0 && !shifted;
+    // A full Newton step that moves nothing by more than the step tolerance (or by 1e3 times
+    // that with the residual at its round-off floor): converged.
+    if (alpha == 1.0 && !shifted) {
+      double dx = 0.0, dth = 0.0;
+      for (int k = 0; k < N; ++k) {
+        if (held_[k]) continue;
+        double& m = (k % 4 == 3) ? dth : dx;
+        m = std::max(m, std::abs(step_[k]));
+      }
+      const double tol = options_.step_tolerance * (gnorm <= std::max(force_tol, floor_tol) ? 1e3 : 1.0);
+      if (dx <= tol * L && dth <= tol) converged = true;
+    }
+  }
+  if (!converged) {
+    summary.reason = "the implicit step did not converge in " +
+                     std::to_string(options_.max_newton_iterations) +
+                     " Newton iterations (reduce time_step)";
+    return summary;
+  }
+  Delta(q0, q, &delta_);
+  if (midpoint) {
+    // q_{n+1} = 2 q_m - q_n (the midpoint's state carried on by the same increment), v_{n+1} =
+    // 2 v_m - v_n with v_m = 2 d / dt.
+    if (!Advance(q, delta_, pose_, &trial_)) {
+      summary.reason = "the midpoint's extrapolation folds an edge back (reduce time_step)";
+      return summary;
+    }
+    for (int k = 0; k < N; ++k) s->v[k] = held_[k] ? 0.0 : 4.0 * delta_[k] / dt - s->v[k];
+    std::swap(s->q, trial_);
+  } else {
+    for (int k = 0; k < N; ++k) s->v[k] = held_[k] ? 0.0 : delta_[k] / dt;
+    s->q = q;
+  }
+  s->t += dt;
+  force_valid_ = false;
+  summary.ok = true;
+  return summary;
+}
+
+}  // namespace rodfit

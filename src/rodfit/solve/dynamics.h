@@ -1,0 +1,164 @@
+// Dynamics of the discrete rod (docs/solvers.md, "Dynamics"): the same energy as the statics,
+// with lumped vertex masses m_i (linear density times the vertex's cell), the rotational inertia
+// of each edge about its axis (linear density r^2 / 2 times its length, a solid round section),
+// external viscous drag -c l_i v_i on the vertices, and Kelvin-Voigt internal damping of the
+// bending, twist and stretch rates. The generalised coordinates are those of the statics
+// (vertices and twist angles against reference frames transported in time), so their rates are
+// the vertex velocities and the edges' spin about their axes.
+//
+// Internal damping: the viscous force of a term is -(eta / k) K_k v, with K_k the term's stiffness
+// matrix (its Hessian with unit stiffness, scaled by eta) at the start of the step: the
+// linearisation of the dissipation 1/2 eta (d strain / dt)^2 about the current shape. It is the
+// "Rayleigh stiffness damping" of a simulator with one coefficient per deformation mode.
+//
+// Integrators:
+//  - kExplicit: Störmer–Verlet (leapfrog; the centred difference in time), one gradient per step.
+//    Its step is bounded by 2 / omega_max; StableTimeStep() bounds omega_max from above by
+//    Gershgorin's theorem on M^-1/2 K M^-1/2 (and the damping), so a step below it is stable for
+//    the linearised rod. The bound is re-evaluated as the shape changes; a step above it is
+//    refused with the limit, or substepped when asked.
+//  - kBackwardEuler (first order, numerically damped) and kMidpoint (implicit midpoint, second
+//    order, no numerical damping of a linear oscillator): each step minimises an incremental
+//    potential Phi(q) = a/2 |q - q_n - b v_n|^2_M + c/2 |q - q_n|^2_C + Pi(q) - f . q by Newton
+//    on the banded Hessian (the statics' plus a M + c C), warm-started from the explicit
+//    predictor q_n + dt v_n.
+//
+// Driven points: the clamp, an end clamp and the held points (pins, grasp, end pin) follow a
+// HeldPose given per time by a Drive. Dirichlet rows keep them where the pose puts them.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "rodfit/model/rod.h"
+#include "rodfit/solve/banded.h"
+#include "rodfit/solve/rod_energy.h"
+
+namespace rodfit {
+
+enum class Integrator { kExplicit, kBackwardEuler, kMidpoint };
+/// "explicit", "backward_euler", "midpoint".
+const char* IntegratorName(Integrator integrator);
+/// Parses an integrator name; false for an unknown one.
+bool ParseIntegrator(const std::string& name, Integrator* integrator);
+
+struct DynamicsOptions {
+  double time_step = 1e-3;  ///< [s]
+  Integrator integrator = Integrator::kMidpoint;
+  /// Explicit only: with a time_step above the stable step, take as many equal substeps as the
+  /// stable step needs instead of refusing.
+  bool substep = false;
+  /// Explicit only: the fraction of the stability bound 2 / omega_max used (the bound is for the
+  /// linearised rod at the shape where it was evaluated).
+  double stability_safety = 0.9;
+  /// Explicit only: re-evaluate the stable step every this many steps (and whenever the
+  /// energy grows by more than the work done on the rod could explain).
+  int stability_check_every = 50;
+  /// Implicit: Newton iterations per step before the step counts as failed.
+  int max_newton_iterations = 25;
+  /// Implicit: converged when the scaled residual (ScaledGradientNorm) is below this times the
+  /// larger of the case's load scale and its inertial forces, or when a Newton step moves no
+  /// vertex by more than step_tolerance L (and no twist angle by more than that in radians).
+  double residual_tolerance = 1e-9;
+  double step_tolerance = 1e-11;
+  bool Check(std::string* why) const;
+};
+
+/// Where the held boundary is at one time: the clamp at s = 0 (position, d3, d1), each held
+/// point of RodModel::held() (in order), the end clamp's frame, and extra dead loads at the tip.
+struct HeldPose {
+  Vec3 clamp_position = Vec3::Zero();
+  Vec3 clamp_tangent = Vec3::UnitX();
+  Vec3 clamp_d1 = Vec3::UnitZ();
+  std::vector<Vec3> held;                 ///< [m] per RodModel::held()
+  Vec3 end_tangent = Vec3::UnitX();       ///< end clamp only
+  Vec3 end_d1 = Vec3::UnitZ();            ///< end clamp with a held normal only
+  Vec3 tip_force = Vec3::Zero();          ///< [N] added to the case's (dead, at s = L)
+  Vec3 tip_moment = Vec3::Zero();         ///< [N m] added at s = L (dead, world components)
+};
+
+/// The pose of the held boundary over time. The default holds the model's own targets.
+class Drive {
+ public:
+  virtual ~Drive() = default;
+  /// Fills *pose for time t [s] (pose->held has RodModel::held().size() entries on entry).
+  virtual void PoseAt(const RodModel& model, double t, HeldPose* pose) const;
+};
+
+/// Positions, twist angles and their rates.
+struct DynamicState {
+  RodState q;
+  VecX v;          ///< rates of the free dofs (held dofs: 0) [m/s, rad/s]
+  double t = 0.0;  ///< [s]
+};
+
+struct DynamicsStepSummary {
+  bool ok = false;
+  int newton_iterations = 0;  ///< implicit: Newton iterations in this step
+  int substeps = 1;           ///< explicit with substep: substeps taken
+  double residual = 0.0;      ///< implicit: scaled residual at exit [N]
+  std::string reason;         ///< why a step failed
+};
+
+/// Integrates a RodModel in time. The stepper owns its scratch (band matrices, factor, states),
+/// kept between steps. The held points' reactions at a step's end are those of
+/// solve/reactions.h at the state (the held vertices' own inertia is the driver's).
+class DynamicsStepper {
+ public:
+  /// Throws std::invalid_argument when the rod cannot move (no linear density) or the explicit
+  /// integrator lacks a rotational inertia (radius 0).
+  DynamicsStepper(const RodModel& model, const DynamicsOptions& options);
+
+  const RodModel& model() const { return model_; }
+  const DynamicsOptions& options() const { return options_; }
+
+  /// The state at rest in the initial shape `q` (velocities zero, t = 0).
+  DynamicState AtRest(const RodState& q) const;
+
+  /// One step of options().time_step from s->t. On failure *s is unchanged and the summary says
+  /// why (explicit: the step is above the stable step; implicit: Newton did not converge).
+  DynamicsStepSummary Step(const Drive& drive, DynamicState* s);
+
+  /// The explicit integrator's stable step [s] at a state: stability_safety times the bound
+  /// 2 / (omega_max) of the linearised, lagged-damped leapfrog, omega_max from Gershgorin.
+  double StableTimeStep(const RodState& q);
+
+  /// Kinetic energy 1/2 v^T M v [J] and the potential energy Pi of the model's own loads [J].
+  double KineticEnergy(const DynamicState& s) const;
+  double PotentialEnergy(const RodState& q) const;
+
+  /// Lumped mass of each free dof [kg or kg m^2] (held dofs: their mass, unused).
+  const VecX& mass() const { return mass_; }
+
+ private:
+  DynamicsStepSummary StepExplicit(const Drive& drive, double dt, DynamicState* s);
+  DynamicsStepSummary StepImplicit(const Drive& drive, DynamicState* s);
+  /// Gradient of Pi at q plus the pose's extra tip loads' (held rows zeroed).
+  void Forces(const RodState& q, const HeldPose& pose, VecX* g);
+  /// The damping matrix C (external drag and internal viscosities) at q into damping_.
+  void AssembleDamping(const RodState& q);
+  /// Free-dof difference b - a (held dofs 0).
+  void Delta(const RodState& a, const RodState& b, VecX* d) const;
+  /// *out = q with free vertices moved by `dx` (dof vector), the boundary at `pose`.
+  bool Advance(const RodState& q, const VecX& dx, const HeldPose& pose, RodState* out) const;
+
+  const RodModel& model_;
+  DynamicsOptions options_;
+  VecX mass_, drag_;  // per free dof: lumped mass, external drag coefficient [N s/m]
+  bool internal_damping_ = false;
+  std::vector<char> held_;
+  VecX weights_;  // ScaledGradientNorm weights
+  // Scratch.
+  HeldPose pose_, pose_mid_;
+  RodFrames frames_, trial_frames_;
+  RodState trial_, prev_;
+  VecX g_, step_, delta_, delta0_, force_, cv_;
+  BandedSymmetric hessian_, damping_;
+  BandedCholesky factor_;
+  bool force_valid_ = false;  // explicit: force_ holds -grad at s->q (cached between steps)
+  double force_time_ = -1.0;
+  double stable_dt_ = 0.0;
+  int steps_since_check_ = 0;
+};
+
+}  // namespace rodfit

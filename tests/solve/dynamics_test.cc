@@ -1,0 +1,351 @@
+// Dynamics against closed forms: the natural frequencies of a cantilever (Euler–Bernoulli:
+// omega_n = (beta_n L)^2 sqrt(B / (rho L^4)), beta_n L = 1.875104, 4.694091, 7.854757, the roots
+// of 1 + cos(x) cosh(x) = 0; e.g. Meirovitch, "Fundamentals of Vibrations", table 8.1), the
+// energy of the undamped explicit integrator, the midpoint rule's order, the logarithmic
+// decrement of a damped mode, and the quasi-static limit (the statics solver).
+#include <cmath>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+namespace {
+
+constexpr double kBetaL[3] = {1.875104, 4.694091, 7.854757};
+
+// The nylon suture of data/scenes/cantilever.yaml, without gravity.
+struct Suture {
+  RodSpec rod;
+  Material material;
+  LoadCase load_case;
+  explicit Suture(int segments) {
+    rod.length = 0.2;
+    rod.segments = segments;
+    rod.radius = 1.25e-4;
+    rod.linear_density = 5.6e-5;
+    material.bend_stiffness = 9.6e-7;
+    material.twist_stiffness = 8.0e-7;
+    material.stretch_stiffness = 245.0;
+    load_case.clamp.tangent = Vec3::UnitX();
+    load_case.clamp.normal = Vec3::UnitZ();
+  }
+  double Omega(int mode) const {
+    const double bl = kBetaL[mode];
+    return bl * bl * std::sqrt(material.B1() / (rod.linear_density * std::pow(rod.length, 4)));
+  }
+};
+
+// Cantilever mode shape n at xi = s / L (unit-free).
+double ModeShape(int mode, double xi) {
+  const double bl = kBetaL[mode];
+  const double sigma = (std::cosh(bl) + std::cos(bl)) / (std::sinh(bl) + std::sin(bl));
+  const double b = bl * xi;
+  return std::cosh(b) - std::cos(b) - sigma * (std::sinh(b) - std::sin(b));
+}
+
+// The rod bent into a mode shape of tip deflection ~ `amplitude` [m]: each edge keeps its rest
+// length and turns, about y, to the slope of amplitude * shape (an unstretched initial state,
+// so that the stretch modes are not excited).
+RodState ModeState(const RodModel& model, int mode, double amplitude) {
+  RodState q = model.StraightState();
+  const RodState straight = q;
+  const double L = model.length();
+  for (int j = 0; j < model.num_edges(); ++j) {
+    const double s = 0.5 * (model.arc_length(j) + model.arc_length(j + 1)) / L;
+    const double h = 1e-6;
+    const double slope =
+        amplitude * (ModeShape(mode, s + h) - ModeShape(mode, s - h)) / (2.0 * h * L);
+    const double angle = std::atan(slope);
+    q.e.col(j) = model.rest_edge_length(j) * Vec3(std::cos(angle), 0.0, std::sin(angle));
+  }
+  q.SyncVertices();
+  EXPECT_TRUE(UpdateReferenceFrames(model, straight, &q));
+  return q;
+}
+
+// The mass-weighted projection of the z displacement on a mode shape.
+double Modal(const RodModel& model, const RodState& q, int mode) {
+  double p = 0.0;
+  for (int i = 1; i <= model.num_edges(); ++i)
+    p += model.vertex_mass(i) * q.x(2, i) * ModeShape(mode, model.arc_length(i) / model.length());
+  return p;
+}
+
+struct Oscillation {
+  double period = 0.0;           // [s] from downward zero crossings
+  std::vector<double> peaks;     // successive maxima of the modal coordinate
+  double energy_drift = 0.0;     // max |E - E0| / E0
+};
+
+Oscillation FreeOscillation(DynamicsStepper* stepper, DynamicState s, int mode, double duration,
+                int energy_every = 1) {
+  const RodModel& model = stepper->model();
+  const double dt = stepper->options().time_step;
+  Oscillation o;
+  const double e0 = stepper->KineticEnergy(s) + stepper->PotentialEnergy(s.q);
+  double first = -1.0, last = 0.0, p_prev = 0.0, p_prev2 = 0.0;
+  int crossings = 0;
+  const int steps = static_cast<int>(std::lround(duration / dt));
+  Drive still;
+  for (int k = 0; k < steps; ++k) {
+    const double p = Modal(model, s.q, mode);
+    if (k > 0 && p_prev > 0.0 && p <= 0.0) {
+      const double tc = s.t - dt * p / (p - p_prev);
+      if (first < 0.0) {
+        first = tc;
+      } else {
+        last = tc;
+        ++crossings;
+      }
+    }
+    if (k > 1 && p_prev >= p_prev2 && p_prev > p && p_prev > 0.0) {
+      // Parabola through the three samples around the maximum.
+      const double den = p_prev2 - 2.0 * p_prev + p;
+      o.peaks.push_back(p_prev - 0.125 * (p_prev2 - p) * (p_prev2 - p) / den);
+    }
+    p_prev2 = p_prev;
+    p_prev = p;
+    const DynamicsStepSummary r = stepper->Step(still, &s);
+    EXPECT_TRUE(r.ok) << r.reason;
+    if (!r.ok) break;
+    if (k % energy_every == 0) {
+      const double e = stepper->KineticEnergy(s) + stepper->PotentialEnergy(s.q);
+      o.energy_drift = std::max(o.energy_drift, std::abs(e - e0) / e0);
+    }
+  }
+  o.period = crossings > 0 ? (last - first) / crossings : 0.0;
+  return o;
+}
+
+TEST(Dynamics, CantileverFrequenciesMidpointWithinHalfAPercentAt100Segments) {
+  const Suture suture(100);
+  const RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
+  for (int mode = 0; mode < 3; ++mode) {
+    const double period = 2.0 * M_PI / suture.Omega(mode);
+    DynamicsOptions options;
+    options.integrator = Integrator::kMidpoint;
+    options.time_step = period / 200.0;
+    DynamicsStepper stepper(model, options);
+    const Oscillation o =
+        FreeOscillation(&stepper, stepper.AtRest(ModeState(model, mode, 1e-5)), mode, 4.0 * period, 50);
+    EXPECT_NEAR(o.period / period, 1.0, 5e-3) << "mode " << mode + 1;
+  }
+}
+
+TEST(Dynamics, CantileverFrequenciesExplicitWithinHalfAPercentAt100Segments) {
+  // The explicit integrator at its stable step: the first mode over 1.2 periods (~8e5 steps)
+  // is too long for a unit test, so a stiffer-in-bending, softer-in-stretch rod (EA L^2 / B =
+  // 1e4, still far from its stretch modes) keeps the step count small; modes 1 and 2.
+  Suture rod(100);
+  rod.material.bend_stiffness = 1e-4;
+  rod.material.stretch_stiffness = 10.0;
+  rod.material.twist_stiffness = 8e-5;
+  rod.rod.radius = 1e-3;  // the twist angles' inertia then limits the step no more than bending
+  const RodModel model(rod.rod, rod.material, Vec3::Zero(), rod.load_case);
+  for (int mode = 0; mode < 2; ++mode) {
+    const double period = 2.0 * M_PI / rod.Omega(mode);
+    DynamicsOptions options;
+    options.integrator = Integrator::kExplicit;
+    DynamicsStepper probe(model, options);
+    const RodState start = ModeState(model, mode, 1e-5);
+    options.time_step = 0.98 * probe.StableTimeStep(start);
+    DynamicsStepper stepper(model, options);
+    const Oscillation o = FreeOscillation(&stepper, stepper.AtRest(start), mode,
+                              (mode == 0 ? 1.3 : 2.2) * period, 1000);
+    EXPECT_NEAR(o.period / period, 1.0, 5e-3) << "mode " << mode + 1;
+  }
+}
+
+TEST(Dynamics, ExplicitEnergyBoundedOver1e5Steps) {
+  Suture rod(50);
+  const RodModel model(rod.rod, rod.material, Vec3::Zero(), rod.load_case);
+  DynamicsOptions options;
+  options.integrator = Integrator::kExplicit;
+  DynamicsStepper probe(model, options);
+  // A large swing (tip 10 % of L) in mode 1.
+  const RodState start = ModeState(model, 0, 0.01);
+  // The bound is for the linearised rod at the start; the swing changes the tension.
+  options.time_step = 0.9 * probe.StableTimeStep(start);
+  DynamicsStepper stepper(model, options);
+  const Oscillation o = FreeOscillation(&stepper, stepper.AtRest(start), 0,
+                            1e5 * options.time_step, 100);
+  EXPECT_LT(o.energy_drift, 1e-3);
+}
+
+TEST(Dynamics, ExplicitRefusesAStepAboveTheStableStepAndSubstepsWhenAsked) {
+  Suture rod(50);
+  const RodModel model(rod.rod, rod.material, Vec3::Zero(), rod.load_case);
+  DynamicsOptions options;
+  options.integrator = Integrator::kExplicit;
+  options.time_step = 1e-5;
+  DynamicsStepper stepper(model, options);
+  const double stable = stepper.StableTimeStep(model.StraightState());
+  ASSERT_LT(stable, options.time_step);
+  DynamicState s = stepper.AtRest(ModeState(model, 0, 1e-3));
+  const DynamicState before = s;
+  const DynamicsStepSummary refused = stepper.Step(Drive(), &s);
+  EXPECT_FALSE(refused.ok);
+  EXPECT_NE(refused.reason.find("stable step"), std::string::npos) << refused.reason;
+  EXPECT_EQ(s.t, before.t);
+  EXPECT_EQ((s.q.x - before.q.x).norm(), 0.0);
+  options.substep = true;
+  DynamicsStepper substepping(model, options);
+  const DynamicsStepSummary ok = substepping.Step(Drive(), &s);
+  ASSERT_TRUE(ok.ok) << ok.reason;
+  EXPECT_GE(ok.substeps, static_cast<int>(std::ceil(options.time_step / stable)));
+  EXPECT_DOUBLE_EQ(s.t, options.time_step);
+}
+
+// The midpoint rule is second order: the error of the tip at a fixed time falls fourfold when
+// the step halves. Backward Euler is first order and damps numerically (its amplitude decays
+// by ~ exp(-omega^2 dt t / 2)): stated here as a measured decay.
+TEST(Dynamics, MidpointIsSecondOrderBackwardEulerFirstOrder) {
+  const Suture suture(40);
+  const RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
+  const double period = 2.0 * M_PI / suture.Omega(0);
+  // The tip at a quarter period (a zero crossing, where the phase error shows) and at half a
+  // period (a peak, where the amplitude error shows), stacked.
+  auto tips = [&](Integrator integrator, double dt) {
+    DynamicsOptions options;
+    options.integrator = integrator;
+    options.time_step = dt;
+    options.step_tolerance = 1e-14;
+    DynamicsStepper stepper(model, options);
+    // A small amplitude (tip 2e-5 m): the stretch modes, far beyond these steps, where the
+    // midpoint rule keeps their amplitudes with a phase that jumps each step, are excited only
+    // at second order in it.
+    DynamicState s = stepper.AtRest(ModeState(model, 0, 1e-5));
+    Eigen::Matrix<double, 6, 1> out;
+    const int quarter = static_cast<int>(std::lround(0.25 * period / dt));
+    for (int k = 0; k < 2 * quarter; ++k) {
+      const DynamicsStepSummary r = stepper.Step(Drive(), &s);
+      EXPECT_TRUE(r.ok) << r.reason;
+      if (!r.ok) break;
+      if (k + 1 == quarter) out.head<3>() = s.q.x.col(model.num_edges());
+    }
+    out.tail<3>() = s.q.x.col(model.num_edges());
+    return out;
+  };
+  const double h = period / 64.0;
+  const auto ref = tips(Integrator::kMidpoint, h / 16.0);
+  const double e1 = (tips(Integrator::kMidpoint, h) - ref).norm();
+  const double e2 = (tips(Integrator::kMidpoint, h / 2.0) - ref).norm();
+  EXPECT_NEAR(std::log2(e1 / e2), 2.0, 0.2) << e1 << " " << e2;
+  const double b1 = (tips(Integrator::kBackwardEuler, h) - ref).norm();
+  const double b2 = (tips(Integrator::kBackwardEuler, h / 2.0) - ref).norm();
+  EXPECT_NEAR(std::log2(b1 / b2), 1.0, 0.2) << b1 << " " << b2;
+}
+
+TEST(Dynamics, BackwardEulerDampsAnUndampedModeNumerically) {
+  const Suture suture(40);
+  const RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
+  const double omega = suture.Omega(0), period = 2.0 * M_PI / omega;
+  DynamicsOptions options;
+  options.integrator = Integrator::kBackwardEuler;
+  options.time_step = period / 100.0;
+  DynamicsStepper stepper(model, options);
+  const Oscillation o = FreeOscillation(&stepper, stepper.AtRest(ModeState(model, 0, 1e-4)), 0, 3.0 * period);
+  ASSERT_GE(o.peaks.size(), 2u);
+  // Backward Euler on x'' = -omega^2 x: |z| = 1 / sqrt(1 + (omega dt)^2) per step, so per period
+  // the amplitude falls by (1 + (omega dt)^2)^(-N/2), N = period / dt steps.
+  const double expected = std::pow(1.0 + std::pow(omega * options.time_step, 2), -50.0);
+  EXPECT_NEAR(o.peaks[1] / o.peaks[0], expected, 0.02 * expected);
+}
+
+// Logarithmic decrement delta = ln(x_k / x_k+1) = 2 pi zeta / sqrt(1 - zeta^2) of a damped mode:
+// external drag c gives zeta = c / (2 rho omega); bending viscosity eta gives zeta = eta omega /
+// (2 B) (Kelvin–Voigt: the damping matrix is eta / B times the bending stiffness matrix).
+TEST(Dynamics, LogarithmicDecrementMatchesTheDampingWithinOnePercent) {
+  for (int kind = 0; kind < 2; ++kind) {
+    Suture suture(100);
+    const double omega = suture.Omega(0), period = 2.0 * M_PI / omega;
+    const double zeta = 0.02;
+    if (kind == 0) {
+      suture.material.damping = 2.0 * zeta * suture.rod.linear_density * omega;
+    } else {
+      suture.material.bend_damping = 2.0 * zeta * suture.material.B1() / omega;
+    }
+    const RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
+    DynamicsOptions options;
+    options.integrator = Integrator::kMidpoint;
+    options.time_step = period / 200.0;
+    DynamicsStepper stepper(model, options);
+    const Oscillation o =
+        FreeOscillation(&stepper, stepper.AtRest(ModeState(model, 0, 1e-5)), 0, 4.2 * period, 1000000);
+    ASSERT_GE(o.peaks.size(), 4u);
+    const double measured = std::log(o.peaks[0] / o.peaks[3]) / 3.0;
+    const double expected = 2.0 * M_PI * zeta / std::sqrt(1.0 - zeta * zeta);
+    EXPECT_NEAR(measured / expected, 1.0, 0.01) << (kind == 0 ? "drag" : "bending viscosity");
+  }
+}
+
+// Moving a pinned end slowly (over many periods of the first mode) with damping, then holding it:
+// the rod settles onto the statics solver's equilibrium for the final pin position, under
+// gravity, to 1e-6 L.
+TEST(Dynamics, SlowDriveReproducesTheStaticsSolver) {
+  Suture suture(30);
+  const double omega = suture.Omega(0);
+  suture.material.damping = 2.0 * 0.7 * suture.rod.linear_density * omega;
+  const Vec3 gravity(0, 0, -9.81);
+  const Vec3 start_pin(0.19, 0.0, 0.0), end_pin(0.15, 0.03, -0.04);
+  LoadCase initial = suture.load_case;
+  initial.end_pin = start_pin;
+  LoadCase final_case = suture.load_case;
+  final_case.end_pin = end_pin;
+  const RodModel first(suture.rod, suture.material, gravity, initial);
+  const RodModel last(suture.rod, suture.material, gravity, final_case);
+  RodState q = first.StraightState();
+  ASSERT_TRUE(SolveStatics(first, StaticsOptions(), &q).converged);
+  RodState expected = last.StraightState();
+  ASSERT_TRUE(SolveStatics(last, StaticsOptions(), &expected).converged);
+
+  // The pin follows a smooth step from start to end over `ramp` seconds.
+  struct Ramp : Drive {
+    Vec3 a, b;
+    double ramp = 0.0;
+    void PoseAt(const RodModel& model, double t, HeldPose* pose) const override {
+      Drive::PoseAt(model, t, pose);
+      const double u = std::min(1.0, t / ramp);
+      const double w = u * u * (3.0 - 2.0 * u);
+      pose->held[0] = (1.0 - w) * a + w * b;
+    }
+  } drive;
+  drive.a = start_pin;
+  drive.b = end_pin;
+  drive.ramp = 20.0 * 2.0 * M_PI / omega;
+  DynamicsOptions options;
+  options.integrator = Integrator::kBackwardEuler;
+  options.time_step = 2e-3;
+  DynamicsStepper stepper(last, options);
+  DynamicState s = stepper.AtRest(q);
+  const int steps = static_cast<int>((drive.ramp + 40.0 / omega) / options.time_step);
+  for (int k = 0; k < steps; ++k) {
+    const DynamicsStepSummary r = stepper.Step(drive, &s);
+    ASSERT_TRUE(r.ok) << r.reason << " at t = " << s.t;
+  }
+  double worst = 0.0;
+  for (int i = 0; i <= last.num_edges(); ++i)
+    worst = std::max(worst, (s.q.x.col(i) - expected.x.col(i)).norm());
+  EXPECT_LT(worst, 1e-6 * suture.rod.length);
+}
+
+TEST(Dynamics, RefusesARodWithoutMassAndExplicitWithoutRadius) {
+  Suture suture(10);
+  suture.rod.linear_density = 0.0;
+  const RodModel massless(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
+  EXPECT_THROW(DynamicsStepper(massless, DynamicsOptions()), std::invalid_argument);
+  Suture thin(10);
+  thin.rod.radius = 0.0;
+  const RodModel no_radius(thin.rod, thin.material, Vec3::Zero(), thin.load_case);
+  DynamicsOptions options;
+  options.integrator = Integrator::kExplicit;
+  EXPECT_THROW(DynamicsStepper(no_radius, options), std::invalid_argument);
+  options.integrator = Integrator::kMidpoint;
+  EXPECT_NO_THROW(DynamicsStepper(no_radius, options));
+}
+
+}  // namespace
+}  // namespace rodfit
