@@ -1,4 +1,15 @@
 // Subcommands defined outside main.cc, one file each, registered in main.cc's table.
 #pragma once
 
+#include <string>
+
 int RunFit(int argc, char** argv);
+
+namespace rodfit {
+struct Experiment;
+}
+
+/// `rodfit simulate` on a scene with a `dynamics:` block (simulate_dynamics.cc): integrates
+/// every case in time and writes DIR/trajectory.csv, DIR/reactions.csv and DIR/summary.csv.
+int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scene_path,
+                   const std::string& output_dir, bool keep_going);

@@ -57,7 +57,10 @@ int RunSimulate(int argc, char** argv) {
       "Solve every load case of a scene to static equilibrium and write DIR/shapes.csv "
       "(case,vertex,s,x,y,z), DIR/forces.csv (the force and moment on every held point), "
       "DIR/summary.csv (how each solve ended); DIR/sections.csv and DIR/CASE.obj for poked "
-      "cases. Cases that converge to an unstable equilibrium are warned about on stderr.",
+      "cases. Cases that converge to an unstable equilibrium are warned about on stderr. "
+      "A scene with a dynamics: block is integrated in time instead: DIR/trajectory.csv "
+      "(case,t,vertex,s,x,y,z), DIR/reactions.csv (held points' forces over time), "
+      "DIR/summary.csv.",
       "rodfit simulate");
   std::string scene_path, output_dir;
   bool keep_going = false;
@@ -68,6 +71,7 @@ int RunSimulate(int argc, char** argv) {
   if (const int status = Parse(app, argc, argv); status >= 0) return status;
 
   const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
+  if (experiment.scene.dynamics) return SimulateMotion(experiment, scene_path, output_dir, keep_going);
   const rodfit::Scene& scene = experiment.scene;
   std::vector<rodfit::CaseShape> shapes;
   std::vector<rodfit::CaseForce> forces;

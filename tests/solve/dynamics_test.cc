@@ -120,18 +120,21 @@ Oscillation FreeOscillation(DynamicsStepper* stepper, DynamicState s, int mode, 
   return o;
 }
 
-TEST(Dynamics, CantileverFrequenciesMidpointWithinHalfAPercentAt100Segments) {
+TEST(Dynamics, CantileverFrequenciesImplicitWithinHalfAPercentAt100Segments) {
   const Suture suture(100);
   const RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
   for (int mode = 0; mode < 3; ++mode) {
     const double period = 2.0 * M_PI / suture.Omega(mode);
-    DynamicsOptions options;
-    options.integrator = Integrator::kMidpoint;
-    options.time_step = period / 200.0;
-    DynamicsStepper stepper(model, options);
-    const Oscillation o =
-        FreeOscillation(&stepper, stepper.AtRest(ModeState(model, mode, 1e-5)), mode, 4.0 * period, 50);
-    EXPECT_NEAR(o.period / period, 1.0, 5e-3) << "mode " << mode + 1;
+    for (Integrator integrator : {Integrator::kMidpoint, Integrator::kBdf2}) {
+      DynamicsOptions options;
+      options.integrator = integrator;
+      options.time_step = period / 200.0;
+      DynamicsStepper stepper(model, options);
+      const Oscillation o = FreeOscillation(
+          &stepper, stepper.AtRest(ModeState(model, mode, 1e-5)), mode, 4.0 * period, 50);
+      EXPECT_NEAR(o.period / period, 1.0, 5e-3)
+          << "mode " << mode + 1 << " " << IntegratorName(integrator);
+    }
   }
 }
 
@@ -202,7 +205,7 @@ TEST(Dynamics, ExplicitRefusesAStepAboveTheStableStepAndSubstepsWhenAsked) {
 // The midpoint rule is second order: the error of the tip at a fixed time falls fourfold when
 // the step halves. Backward Euler is first order and damps numerically (its amplitude decays
 // by ~ exp(-omega^2 dt t / 2)): stated here as a measured decay.
-TEST(Dynamics, MidpointIsSecondOrderBackwardEulerFirstOrder) {
+TEST(Dynamics, MidpointAndBdf2AreSecondOrderBackwardEulerFirstOrder) {
   const Suture suture(40);
   const RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
   const double period = 2.0 * M_PI / suture.Omega(0);
@@ -234,6 +237,9 @@ TEST(Dynamics, MidpointIsSecondOrderBackwardEulerFirstOrder) {
   const double e1 = (tips(Integrator::kMidpoint, h) - ref).norm();
   const double e2 = (tips(Integrator::kMidpoint, h / 2.0) - ref).norm();
   EXPECT_NEAR(std::log2(e1 / e2), 2.0, 0.2) << e1 << " " << e2;
+  const double d1 = (tips(Integrator::kBdf2, h) - ref).norm();
+  const double d2 = (tips(Integrator::kBdf2, h / 2.0) - ref).norm();
+  EXPECT_NEAR(std::log2(d1 / d2), 2.0, 0.25) << d1 << " " << d2;
   const double b1 = (tips(Integrator::kBackwardEuler, h) - ref).norm();
   const double b2 = (tips(Integrator::kBackwardEuler, h / 2.0) - ref).norm();
   EXPECT_NEAR(std::log2(b1 / b2), 1.0, 0.2) << b1 << " " << b2;

@@ -31,7 +31,14 @@ constexpr size_t kMaxCaseNameLength = 100;
 
 const std::vector<std::string> kParameterNames = {
     "bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",       "stretch_stiffness",
-    "spring_stiffness", "ring_bend_stiffness", "ring_stretch_stiffness"};
+    "spring_stiffness", "ring_bend_stiffness", "ring_stretch_stiffness",
+    "damping",          "bend_damping",        "twist_damping",         "stretch_damping"};
+
+// Damping (dynamics only): >= 0, not fitted from static cases.
+bool IsDampingParameter(const std::string& name) {
+  return name == "damping" || name == "bend_damping" || name == "twist_damping" ||
+         name == "stretch_damping";
+}
 const std::vector<std::string> kObservationTypes = {"markers3d",   "points3d", "image_points",
                                                     "images",      "grasp_force",
                                                     "surface_points", "reaction"};
@@ -228,8 +235,14 @@ ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& 
   const Field& value = r.Require(m, f, "value");
   // spring_stiffness = 0 means no springs (docs/model.md, "What a scene builds"); every stiffness
   // of the rod is > 0.
-  p.value = name == "spring_stiffness" ? r.NonNegative(value) : r.Positive(value);
-  if (const Field* fit = Reader::Find(m, "fit")) p.fit = r.Bool(*fit);
+  p.value = name == "spring_stiffness" || IsDampingParameter(name) ? r.NonNegative(value)
+                                                                   : r.Positive(value);
+  if (const Field* fit = Reader::Find(m, "fit")) {
+    p.fit = r.Bool(*fit);
+    if (p.fit && IsDampingParameter(name))
+      r.Fail(*fit, "damping is identified from motion, which `rodfit fit` does not read yet; "
+                   "give its value (fit: false)");
+  }
   if (p.fit && !(p.value > 0.0)) {
     r.Fail(value, "a fitted parameter must be > 0 (fitted in log space)");
   }
@@ -272,6 +285,13 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
   if (ex->parameters.count("spring_stiffness")) {
     mat.spring_stiffness = ex->parameters.at("spring_stiffness").value;
   }
+  auto optional = [&](const char* name, double* value) {
+    if (ex->parameters.count(name)) *value = ex->parameters.at(name).value;
+  };
+  optional("damping", &mat.damping);
+  optional("bend_damping", &mat.bend_damping);
+  optional("twist_damping", &mat.twist_damping);
+  optional("stretch_damping", &mat.stretch_damping);
   if (ex->scene.section) {  // the cross-section ring's stiffness (tissue paper §4)
     r.Require(m, f, "ring_bend_stiffness");
     r.Require(m, f, "ring_stretch_stiffness");
@@ -509,12 +529,103 @@ StartShape ReadStart(const Reader& r, const Field& f, const Experiment& ex, int 
   return start;
 }
 
+// A CSV of samples over time: column t [s], strictly increasing, and the columns `a` (required),
+// `b` and `c` (optional, both or neither of each triple).
+TimeSeries ReadTimeSeries(const Reader& r, const Field& f, const Experiment& ex,
+                          const std::vector<std::string>& a, const std::vector<std::string>& b,
+                          const std::vector<std::string>& c) {
+  TimeSeries series;
+  series.file = r.Path(f, ex.directory);
+  const CsvTable table = CsvTable::Read(series.file);
+  if (table.num_rows() < 1) throw InputError(series.file, 0, "", "no rows");
+  series.t = table.Column("t");
+  for (int k = 1; k < table.num_rows(); ++k)
+    if (!(series.t[k] > series.t[k - 1]))
+      throw InputError(series.file, table.line(k), "t", "must increase from row to row");
+  auto triple = [&](const std::vector<std::string>& names, std::vector<Vec3>* out) {
+    if (names.empty() || !table.HasColumn(names[0])) return;
+    const std::vector<double> x = table.Column(names[0]), y = table.Column(names[1]),
+                              z = table.Column(names[2]);
+    for (int k = 0; k < table.num_rows(); ++k) out->emplace_back(x[k], y[k], z[k]);
+  };
+  for (const std::string& name : a)
+    if (!table.HasColumn(name)) throw InputError(series.file, 1, name, "missing column");
+  triple(a, &series.a);
+  triple(b, &series.b);
+  triple(c, &series.c);
+  if (!c.empty() && series.b.empty() != series.c.empty())
+    throw InputError(series.file, 1, series.b.empty() ? b[0] : c[0],
+                     "orientation needs both the tangent (tx,ty,tz) and normal (nx,ny,nz) columns");
+  for (size_t k = 0; k < series.c.size(); ++k) {
+    const Vec3& t = series.b[k];
+    const Vec3& n = series.c[k];
+    if (!(t.norm() > 0.0) || t.cross(n).norm() < kMinClampSine * t.norm() * n.norm())
+      throw InputError(series.file, table.line(static_cast<int>(k)), "nx",
+                       "the normal is zero or (nearly) parallel to the tangent");
+  }
+  return series;
+}
+
+// `drive:` [{point: clamp | end_clamp | end_pin | grasp | pins[k], file: path.csv}].
+void ReadDrives(const Reader& r, const Field& f, const Experiment& ex, LoadCase* c) {
+  for (const Field& item : r.Sequence(f)) {
+    const Entries dm = r.Map(item, {"point", "file"});
+    DrivenPoint d;
+    const Field& point = r.Require(dm, item, "point");
+    d.point = r.Text(point);
+    bool held = d.point == "clamp" || (d.point == "end_clamp" && c->end_clamp) ||
+                (d.point == "end_pin" && c->end_pin) || (d.point == "grasp" && c->grasp);
+    if (d.point.rfind("pins[", 0) == 0 && d.point.back() == ']') {
+      const std::string digits = d.point.substr(5, d.point.size() - 6);
+      held = !digits.empty() && digits.size() < 6 &&
+             digits.find_first_not_of("0123456789") == std::string::npos &&
+             std::stoul(digits) < c->pins.size();
+    }
+    if (!held)
+      r.Fail(point, "must name a point the case holds (clamp, end_clamp, end_pin, grasp or "
+                    "pins[k]), got '" + ClipForMessage(d.point) + "'");
+    for (const DrivenPoint& other : c->drives)
+      if (other.point == d.point) r.Fail(point, "is driven twice");
+    const bool frame = d.point == "clamp" || d.point == "end_clamp";
+    d.path = ReadTimeSeries(r, r.Require(dm, item, "file"), ex, {"x", "y", "z"},
+                            frame ? std::vector<std::string>{"tx", "ty", "tz"}
+                                  : std::vector<std::string>{},
+                            frame ? std::vector<std::string>{"nx", "ny", "nz"}
+                                  : std::vector<std::string>{});
+    c->drives.push_back(std::move(d));
+  }
+}
+
+// `initial:` {shape: equilibrium | start, velocity: path.csv (s,vx,vy,vz)}.
+void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, LoadCase* c) {
+  const Entries im = r.Map(f, {"shape", "velocity"});
+  if (const Field* shape = Reader::Find(im, "shape")) {
+    const std::string text = r.Text(*shape);
+    if (text != "equilibrium" && text != "start")
+      r.Fail(*shape, "must be equilibrium or start, got '" + ClipForMessage(text) + "'");
+    c->initial.equilibrium = text == "equilibrium";
+  }
+  if (const Field* v = Reader::Find(im, "velocity")) {
+    c->initial.file = r.Path(*v, ex.directory);
+    const CsvTable table = CsvTable::Read(c->initial.file);
+    if (table.num_rows() < 1) throw InputError(c->initial.file, 0, "", "no rows");
+    c->initial.velocity_s = table.Column("s");
+    const std::vector<double> x = table.Column("vx"), y = table.Column("vy"), z = table.Column("vz");
+    c->initial.velocity.resize(3, table.num_rows());
+    for (int k = 0; k < table.num_rows(); ++k) {
+      if (k > 0 && !(c->initial.velocity_s[k] > c->initial.velocity_s[k - 1]))
+        throw InputError(c->initial.file, table.line(k), "s", "must increase from row to row");
+      c->initial.velocity.col(k) = Vec3(x[k], y[k], z[k]);
+    }
+  }
+}
+
 void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
               std::map<std::string, int>* name_lines) {
   const Entries m =
       r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "tip_moment_follower", "point_forces",
                 "point_moments", "cut", "grasp", "poke", "end_clamp", "end_pin", "pins", "start",
-                "symmetry", "observations"});
+                "symmetry", "observations", "drive", "tip_load", "initial"});
   LoadCase c;
   c.name = "case" + std::to_string(index);
   if (const Field* name = Reader::Find(m, "name")) {
@@ -606,6 +717,17 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     }
   }
   if (const Field* start = Reader::Find(m, "start")) c.start = ReadStart(r, *start, *ex, index);
+  for (const char* key : {"drive", "tip_load", "initial"}) {
+    if (const Field* d = Reader::Find(m, key); d && !ex->scene.dynamics)
+      r.Fail(*d, "only for a moving scene (a top-level dynamics: block)");
+  }
+  if (const Field* d = Reader::Find(m, "drive")) ReadDrives(r, *d, *ex, &c);
+  if (const Field* t = Reader::Find(m, "tip_load")) {
+    const Entries tm = r.Map(*t, {"file"});
+    c.tip_load = ReadTimeSeries(r, r.Require(tm, *t, "file"), *ex, {"fx", "fy", "fz"},
+                                {"mx", "my", "mz"}, {});
+  }
+  if (const Field* init = Reader::Find(m, "initial")) ReadInitial(r, *init, *ex, &c);
   if (const Field* pf = Reader::Find(m, "point_forces")) {
     for (const Field& item : r.Sequence(*pf)) {
       const Entries pm = r.Map(item, {"s", "force"});
@@ -689,6 +811,36 @@ StaticsOptions ReadSolver(const Reader& r, const Field& f) {
   return o;
 }
 
+// Steps a run may take in all (duration / time_step): beyond it the run would take hours.
+constexpr double kMaxDynamicSteps = 1e8;
+
+DynamicsSpec ReadDynamics(const Reader& r, const Field& f) {
+  const Entries m =
+      r.Map(f, {"time_step", "duration", "integrator", "output_every", "substep"});
+  DynamicsSpec d;
+  const Field& dt = r.Require(m, f, "time_step");
+  d.time_step = r.InRange(dt, 1e-12, 10.0);
+  d.duration = r.InRange(r.Require(m, f, "duration"), 0.0, 1e6);
+  if (d.duration / d.time_step > kMaxDynamicSteps)
+    r.Fail(dt, "gives " + Show(d.duration / d.time_step) + " steps, above the limit of " +
+                   Show(kMaxDynamicSteps));
+  if (const Field* integrator = Reader::Find(m, "integrator")) {
+    d.integrator = r.Text(*integrator);
+    if (d.integrator != "explicit" && d.integrator != "backward_euler" &&
+        d.integrator != "midpoint" && d.integrator != "bdf2")
+      r.Fail(*integrator, "must be explicit, backward_euler, midpoint or bdf2, got '" +
+                              ClipForMessage(d.integrator) + "'");
+  }
+  if (const Field* every = Reader::Find(m, "output_every")) {
+    d.output_every = r.Integer(*every);
+    if (d.output_every < 1 || d.output_every > 100000000)
+      r.Fail(*every, "must be in [1, 1e8], got " + std::to_string(d.output_every));
+  }
+  if (const Field* sub = Reader::Find(m, "substep")) d.substep = r.Bool(*sub);
+  if (d.substep && d.integrator != "explicit") r.Fail(*Reader::Find(m, "substep"), "is for the explicit integrator only");
+  return d;
+}
+
 FitSpec ReadFit(const Reader& r, const Field& f) {
   const Entries m = r.Map(f, {"loss", "loss_scale", "global", "max_iterations", "trusted_sigmas"});
   FitSpec fit;
@@ -750,7 +902,8 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
   ex.directory = fs::path(path).parent_path().string();
   const Field top{root, "", 1, 0};
   const Entries m = r.Map(
-      top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit", "solver"});
+      top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit", "solver",
+            "dynamics"});
   ex.scene.rod = ReadRod(r, r.Require(m, top, "rod"));
   if (const Field* section = Reader::Find(m, "section")) ex.scene.section = ReadSection(r, *section);
   std::vector<std::string> zone_parameters;
@@ -761,6 +914,7 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
   if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
+  if (const Field* dynamics = Reader::Find(m, "dynamics")) ex.scene.dynamics = ReadDynamics(r, *dynamics);
 
   const Field& cases = r.Require(m, top, "cases");
   const std::vector<Field> items = r.Sequence(cases);

@@ -108,3 +108,50 @@ void WriteSectionsCsv(const std::string& path, const std::vector<CaseSection>& s
 }
 
 }  // namespace rodfit
+
+namespace rodfit {
+
+std::string FormatTrajectoryCsv(const std::vector<CaseMotion>& motions) {
+  std::string out = "case,t,vertex,s,x,y,z\n";
+  for (const CaseMotion& m : motions) {
+    for (const CaseMotion::Frame& f : m.frames) {
+      const std::string head = m.name + "," + FormatDouble(f.t) + ",";
+      for (Eigen::Index i = 0; i < f.x.cols(); ++i) {
+        out += head + std::to_string(i) + "," + FormatDouble(m.s[i]) + "," +
+               FormatDouble(f.x(0, i)) + "," + FormatDouble(f.x(1, i)) + "," +
+               FormatDouble(f.x(2, i)) + "\n";
+      }
+    }
+  }
+  return out;
+}
+
+std::string FormatReactionsCsv(const std::vector<CaseMotion>& motions) {
+  std::string out = "case,t,point,s,x,y,z,fx,fy,fz,mx,my,mz\n";
+  auto v3 = [](const Eigen::Vector3d& v) {
+    return FormatDouble(v[0]) + "," + FormatDouble(v[1]) + "," + FormatDouble(v[2]);
+  };
+  for (const CaseMotion& m : motions) {
+    for (const CaseMotion::Frame& f : m.frames) {
+      for (const CaseForce& r : f.reactions) {
+        out += m.name + "," + FormatDouble(f.t) + "," + r.point + "," + FormatDouble(r.s) + "," +
+               v3(r.position) + "," + v3(r.force) + "," + v3(r.moment) + "\n";
+      }
+    }
+  }
+  return out;
+}
+
+std::string FormatMotionSummaryCsv(const std::vector<MotionSummaryRow>& rows) {
+  std::string out = "case,completed,steps,newton_iterations,stable_step,reason\n";
+  for (const MotionSummaryRow& r : rows) {
+    std::string reason;
+    for (char c : r.reason) reason += (c == '"') ? std::string("\"\"") : std::string(1, c);
+    out += r.name + "," + (r.completed ? "1" : "0") + "," + std::to_string(r.steps) + "," +
+           std::to_string(r.newton_iterations) + "," + FormatDouble(r.stable_step) + ",\"" +
+           reason + "\"\n";
+  }
+  return out;
+}
+
+}  // namespace rodfit

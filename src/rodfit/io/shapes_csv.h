@@ -63,3 +63,36 @@ void WriteShapesCsv(const std::string& path, const std::vector<CaseShape>& shape
 std::vector<CaseShape> ReadShapesCsv(const std::string& path);
 
 }  // namespace rodfit
+
+namespace rodfit {
+
+/// A moving case's frames for trajectory.csv and reactions.csv (rodfit simulate with dynamics).
+struct CaseMotion {
+  std::string name;
+  std::vector<double> s;  ///< [m] the vertices' arc lengths
+  struct Frame {
+    double t = 0.0;
+    Eigen::Matrix3Xd x;
+    std::vector<CaseForce> reactions;  ///< name, point, s, position, force, moment
+  };
+  std::vector<Frame> frames;
+};
+
+/// `case,t,vertex,s,x,y,z`: every written frame of every case.
+std::string FormatTrajectoryCsv(const std::vector<CaseMotion>& motions);
+/// `case,t,point,s,x,y,z,fx,fy,fz,mx,my,mz`: the held points' reactions at every written frame.
+std::string FormatReactionsCsv(const std::vector<CaseMotion>& motions);
+
+/// One row of a moving scene's summary.csv: `case,completed,steps,newton_iterations,
+/// stable_step,reason`.
+struct MotionSummaryRow {
+  std::string name;
+  bool completed = false;
+  int steps = 0;
+  int newton_iterations = 0;
+  double stable_step = 0.0;  ///< [s] explicit: the stable step at the start; else 0
+  std::string reason;
+};
+std::string FormatMotionSummaryCsv(const std::vector<MotionSummaryRow>& rows);
+
+}  // namespace rodfit

@@ -130,6 +130,42 @@ struct PointForce {
   Vec3 force = Vec3::Zero();   ///< [N]
 };
 
+/// Samples of a quantity over time [s], strictly increasing, interpolated linearly between
+/// samples and held constant before the first and after the last.
+struct TimeSeries {
+  std::string file;                ///< where the samples came from (messages)
+  std::vector<double> t;           ///< [s]
+  std::vector<Vec3> a;             ///< first vector: a position [m] or a force [N]
+  std::vector<Vec3> b, c;          ///< optional: tangent and normal, or a moment [N m]
+  bool empty() const { return t.empty(); }
+};
+
+/// A held point moved along a recorded path (dynamics): `point` is "clamp", "end_clamp",
+/// "end_pin", "grasp" or "pins[k]"; `path.a` its position, and for a clamp or end clamp with
+/// orientation columns `path.b` its tangent and `path.c` its normal.
+struct DrivenPoint {
+  std::string point;
+  TimeSeries path;
+};
+
+/// How a moving case starts: at rest in its equilibrium (the statics from `start`), or at rest
+/// or moving in a given shape (the `start` shape itself, with velocities per vertex).
+struct InitialMotion {
+  bool equilibrium = true;          ///< solve the statics first (else: the start shape as is)
+  std::vector<double> velocity_s;   ///< [m] arc lengths of the velocity samples
+  Eigen::Matrix3Xd velocity;        ///< [m/s] per sample; empty: at rest
+  std::string file;                 ///< where the velocities came from (messages)
+};
+
+/// Time stepping of a scene (`dynamics:`): every case is integrated from its initial state.
+struct DynamicsSpec {
+  double time_step = 1e-3;      ///< [s]
+  double duration = 1.0;        ///< [s]
+  std::string integrator = "bdf2";  ///< explicit | backward_euler | midpoint | bdf2
+  int output_every = 1;         ///< write every this many steps
+  bool substep = false;         ///< explicit: substep a time_step above the stable step
+};
+
 /// One quasi-static load case: the rod clamped and loaded, solved to equilibrium.
 struct LoadCase {
   std::string name;
@@ -149,6 +185,10 @@ struct LoadCase {
   std::vector<Interval> cuts;    ///< springs removed here: tissue cut free (K = 0)
   std::optional<Grasp> grasp;    ///< an instrument holding the rod
   std::optional<Poke> poke;      ///< an instrument pushing the tissue (needs Scene::section)
+  // Dynamics only (Scene::dynamics).
+  std::vector<DrivenPoint> drives;  ///< held points moved along recorded paths
+  TimeSeries tip_load;              ///< extra tip force (a) [N] and moment (b) [N m] over time
+  InitialMotion initial;
 };
 
 /// A whole scene: one rod and material shared by every case.
@@ -159,6 +199,7 @@ struct Scene {
   std::vector<SpringZone> springs;        ///< attachment zones shared by every case
   std::optional<SectionSpec> section;     ///< the cross-section model, for pokes
   std::vector<LoadCase> cases;
+  std::optional<DynamicsSpec> dynamics;   ///< time stepping instead of statics
 };
 
 }  // namespace rodfit

@@ -16,12 +16,14 @@ const char* IntegratorName(Integrator integrator) {
     case Integrator::kExplicit: return "explicit";
     case Integrator::kBackwardEuler: return "backward_euler";
     case Integrator::kMidpoint: return "midpoint";
+    case Integrator::kBdf2: return "bdf2";
   }
   return "?";
 }
 
 bool ParseIntegrator(const std::string& name, Integrator* integrator) {
-  for (Integrator k : {Integrator::kExplicit, Integrator::kBackwardEuler, Integrator::kMidpoint}) {
+  for (Integrator k : {Integrator::kExplicit, Integrator::kBackwardEuler, Integrator::kMidpoint,
+                       Integrator::kBdf2}) {
     if (name == IntegratorName(k)) {
       *integrator = k;
       return true;
@@ -346,10 +348,21 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
   const int N = model_.num_free_dofs();
   const double dt = options_.time_step;
   const bool midpoint = options_.integrator == Integrator::kMidpoint;
-  // Phi(q) = a/2 |d - b v|_M^2 + c/2 d^T C d + Pi(q) - f . q, d = q - q_n (see dynamics.h).
-  const double a = midpoint ? 4.0 / (dt * dt) : 1.0 / (dt * dt);
-  const double b = midpoint ? 0.5 * dt : dt;
-  const double c = midpoint ? 2.0 / dt : 1.0 / dt;
+  // BDF2 needs the step before (its first step is backward Euler's).
+  const bool bdf2 = options_.integrator == Integrator::kBdf2 && s->has_history &&
+                    s->last_step.size() == N && s->last_v.size() == N;
+  // Phi(q) = a/2 |d - y|_M^2 + c/2 |d - z|_C^2 + Pi(q) - f . q, d = q - q_n (see dynamics.h):
+  // backward Euler y = dt v_n; midpoint (the unknown is the midpoint) y = dt v_n / 2; BDF2
+  // y = d_n-1 / 3 + 2 dt (4 v_n - v_n-1) / 9 and z = d_n-1 / 3, d_n-1 = q_n - q_n-1.
+  const double a = midpoint ? 4.0 / (dt * dt) : bdf2 ? 9.0 / (4.0 * dt * dt) : 1.0 / (dt * dt);
+  const double c = midpoint ? 2.0 / dt : bdf2 ? 1.5 / dt : 1.0 / dt;
+  if (bdf2) {
+    y_ = s->last_step / 3.0 + (2.0 * dt / 9.0) * (4.0 * s->v - s->last_v);
+    z_ = s->last_step / 3.0;
+  } else {
+    y_ = (midpoint ? 0.5 * dt : dt) * s->v;
+    z_.setZero(N);
+  }
   drive.PoseAt(model_, s->t + dt, &pose_);
   const HeldPose* pose = &pose_;
   if (midpoint) {
@@ -361,8 +374,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
   AssembleDamping(s->q);
   const BandedSymmetric& C = damping_;
   const RodState& q0 = s->q;
-  delta0_ = b * s->v;  // the predictor
-  if (!Advance(q0, delta0_, *pose, &prev_)) {
+  if (!Advance(q0, y_, *pose, &prev_)) {  // the predictor
     summary.reason = "the predictor folds an edge back: time_step too large for this motion";
     return summary;
   }
@@ -374,14 +386,15 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
     double e = PotentialEnergyFreshFrames(model_, state, EnergyTerms(), &frames);
     e -= pose->tip_force.dot(state.x.col(n));
     VecX& r = cv_;
-    r = delta_ - b * s->v;
+    r = delta_ - y_;
+    delta0_ = delta_ - z_;
     double inertia = 0.0, damp = 0.0;
     for (int k = 0; k < N; ++k) {
       if (held_[k]) continue;
       inertia += mass_[k] * r[k] * r[k];
-      damp += drag_[k] * delta_[k] * delta_[k];
+      damp += drag_[k] * delta0_[k] * delta0_[k];
     }
-    if (internal_damping_) damp += delta_.dot(C.Multiply(delta_));
+    if (internal_damping_) damp += delta0_.dot(C.Multiply(delta0_));
     *value = e + 0.5 * a * inertia + 0.5 * c * damp;
     return std::isfinite(*value);
   };
@@ -431,9 +444,10 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
                   model_.material().stretch_stiffness * max_weight;
     }
     Delta(q0, q, &delta_);
-    VecX cd = drag_.cwiseProduct(delta_);
-    if (internal_damping_) cd += C.Multiply(delta_);
-    for (int k = 0; k < N; ++k) g_[k] += a * mass_[k] * (delta_[k] - b * s->v[k]) + c * cd[k];
+    delta0_ = delta_ - z_;
+    VecX cd = drag_.cwiseProduct(delta0_);
+    if (internal_damping_) cd += C.Multiply(delta0_);
+    for (int k = 0; k < N; ++k) g_[k] += a * mass_[k] * (delta_[k] - y_[k]) + c * cd[k];
     if (!chord) {
       for (int k = 0; k < N; ++k) hessian_.At(k, k) += a * mass_[k] + c * drag_[k];
       if (internal_damping_) hessian_.band() += c * C.band();
@@ -532,7 +546,13 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
     for (int k = 0; k < N; ++k) s->v[k] = held_[k] ? 0.0 : 4.0 * delta_[k] / dt - s->v[k];
     std::swap(s->q, trial_);
   } else {
-    for (int k = 0; k < N; ++k) s->v[k] = held_[k] ? 0.0 : delta_[k] / dt;
+    // Backward Euler v = d / dt; BDF2 v = 3 (d - d_n-1 / 3) / (2 dt) = c (d - z).
+    if (options_.integrator == Integrator::kBdf2) {
+      s->last_v = s->v;
+      s->last_step = delta_;
+      s->has_history = true;
+    }
+    for (int k = 0; k < N; ++k) s->v[k] = held_[k] ? 0.0 : c * (delta_[k] - z_[k]);
     s->q = q;
   }
   s->t += dt;

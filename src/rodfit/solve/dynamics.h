@@ -17,11 +17,12 @@
 //    Gershgorin's theorem on M^-1/2 K M^-1/2 (and the damping), so a step below it is stable for
 //    the linearised rod. The bound is re-evaluated as the shape changes; a step above it is
 //    refused with the limit, or substepped when asked.
-//  - kBackwardEuler (first order, numerically damped) and kMidpoint (implicit midpoint, second
-//    order, no numerical damping of a linear oscillator): each step minimises an incremental
-//    potential Phi(q) = a/2 |q - q_n - b v_n|^2_M + c/2 |q - q_n|^2_C + Pi(q) - f . q by Newton
-//    on the banded Hessian (the statics' plus a M + c C), warm-started from the explicit
-//    predictor q_n + dt v_n.
+//  - kBackwardEuler (first order, numerically damped), kMidpoint (implicit midpoint, second
+//    order, no numerical damping of a linear oscillator, so unresolved stiff modes keep their
+//    energy) and kBdf2 (second order and L-stable: it damps the unresolved stretch modes, the
+//    robust choice for driven and stiff rods): each step minimises an incremental potential
+//    Phi(q) = a/2 |d - y|^2_M + c/2 |d - z|^2_C + Pi(q) - f . q, d = q - q_n, by Newton on
+//    the banded Hessian (the statics' plus a M + c C), from the predictor q_n + y.
 //
 // Driven points: the clamp, an end clamp and the held points (pins, grasp, end pin) follow a
 // HeldPose given per time by a Drive. Dirichlet rows keep them where the pose puts them.
@@ -36,8 +37,9 @@
 
 namespace rodfit {
 
-enum class Integrator { kExplicit, kBackwardEuler, kMidpoint };
-/// "explicit", "backward_euler", "midpoint".
+/// The scheme in time (DynamicsSpec::integrator names it).
+enum class Integrator { kExplicit, kBackwardEuler, kMidpoint, kBdf2 };
+/// "explicit", "backward_euler", "midpoint", "bdf2".
 const char* IntegratorName(Integrator integrator);
 /// Parses an integrator name; false for an unknown one.
 bool ParseIntegrator(const std::string& name, Integrator* integrator);
@@ -90,6 +92,10 @@ struct DynamicState {
   RodState q;
   VecX v;          ///< rates of the free dofs (held dofs: 0) [m/s, rad/s]
   double t = 0.0;  ///< [s]
+  /// BDF2's history: the last step's increment q_n - q_n-1 and the rates v_n-1 (set by a BDF2
+  /// step; a state without it starts with a backward Euler step).
+  VecX last_step, last_v;
+  bool has_history = false;
 };
 
 struct DynamicsStepSummary {
@@ -152,7 +158,7 @@ class DynamicsStepper {
   HeldPose pose_, pose_mid_;
   RodFrames frames_, trial_frames_;
   RodState trial_, prev_;
-  VecX g_, step_, delta_, delta0_, force_, cv_;
+  VecX g_, step_, delta_, delta0_, force_, cv_, y_, z_;
   BandedSymmetric hessian_, damping_;
   BandedCholesky factor_;
   bool force_valid_ = false;  // explicit: force_ holds -grad at s->q (cached between steps)

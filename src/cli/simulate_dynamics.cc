@@ -1,0 +1,70 @@
+// `rodfit simulate` for a moving scene (a `dynamics:` block): every case integrated in time by
+// SimulateCaseDynamics, its frames written as trajectory.csv and reactions.csv.
+#include <cstdlib>
+#include <iostream>
+#include <stdexcept>
+
+#include "commands.h"
+#include "rodfit/io/errors.h"
+#include "rodfit/io/experiment.h"
+#include "rodfit/io/output_dir.h"
+#include "rodfit/io/shapes_csv.h"
+#include "rodfit/solve/case_dynamics.h"
+
+int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scene_path,
+                   const std::string& output_dir, bool keep_going) {
+  const rodfit::Scene& scene = experiment.scene;
+  std::vector<rodfit::CaseMotion> motions;
+  std::vector<rodfit::MotionSummaryRow> summary;
+  std::string first_failure;
+  for (size_t k = 0; k < scene.cases.size(); ++k) {
+    const rodfit::LoadCase& load_case = scene.cases[k];
+    rodfit::CaseTrajectory trajectory;
+    try {
+      trajectory = rodfit::SimulateCaseDynamics(scene, static_cast<int>(k), experiment.statics);
+    } catch (const std::invalid_argument& e) {
+      throw rodfit::InputError(scene_path, experiment.cases[k].line,
+                               "cases[" + std::to_string(k) + "]", e.what());
+    } catch (const std::runtime_error& e) {
+      trajectory.ok = false;
+      trajectory.reason = e.what();
+    }
+    summary.push_back({load_case.name, trajectory.ok, trajectory.steps,
+                       trajectory.newton_iterations, trajectory.stable_step, trajectory.reason});
+    if (!trajectory.ok && first_failure.empty())
+      first_failure = "case " + load_case.name + ": " + trajectory.reason;
+    rodfit::CaseMotion motion;
+    motion.name = load_case.name;
+    motion.s = trajectory.s;
+    for (const rodfit::TrajectoryFrame& f : trajectory.frames) {
+      rodfit::CaseMotion::Frame frame;
+      frame.t = f.t;
+      frame.x = f.x;
+      for (const rodfit::HeldReaction& r : f.reactions)
+        frame.reactions.push_back({load_case.name, r.point, r.s, r.position, r.force, r.moment});
+      motion.frames.push_back(std::move(frame));
+    }
+    // A case that stopped early keeps the frames up to there only with --keep-going.
+    if (trajectory.ok || keep_going) motions.push_back(std::move(motion));
+  }
+  if (!first_failure.empty() && !keep_going) {
+    std::cerr << "rodfit simulate: " << first_failure << "\n";
+    return EXIT_FAILURE;
+  }
+  rodfit::StagedDirectory out(output_dir);
+  const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"trajectory.csv", rodfit::FormatTrajectoryCsv(motions)},
+      {"reactions.csv", rodfit::FormatReactionsCsv(motions)},
+      {"summary.csv", rodfit::FormatMotionSummaryCsv(summary)}};
+  for (const auto& [name, text] : files) {
+    out.Write(name, text, "output file name");
+    rodfit::RefuseOverwritingInput(out.FinalPath(name), inputs);
+  }
+  out.Commit();
+  if (!first_failure.empty()) {
+    std::cerr << "rodfit simulate: " << first_failure << " (the frames up to there written)\n";
+    return 3;
+  }
+  return EXIT_SUCCESS;
+}

@@ -1,0 +1,202 @@
+#include "rodfit/solve/case_dynamics.h"
+
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+#include "rodfit/solve/case_solve.h"
+
+namespace rodfit {
+namespace {
+
+// Linear interpolation of sample column `which` (0: a, 1: b, 2: c) at t, held at the ends.
+Vec3 Interpolate(const TimeSeries& series, int which, double t) {
+  const std::vector<Vec3>& v = which == 0 ? series.a : which == 1 ? series.b : series.c;
+  const std::vector<double>& ts = series.t;
+  if (t <= ts.front()) return v.front();
+  if (t >= ts.back()) return v.back();
+  const size_t k = static_cast<size_t>(std::upper_bound(ts.begin(), ts.end(), t) - ts.begin());
+  const double w = (t - ts[k - 1]) / (ts[k] - ts[k - 1]);
+  return (1.0 - w) * v[k - 1] + w * v[k];
+}
+
+}  // namespace
+
+LoadCase CaseAtStart(const LoadCase& load_case) {
+  LoadCase c = load_case;
+  for (const DrivenPoint& d : load_case.drives) {
+    const TimeSeries& p = d.path;
+    const double t0 = 0.0;
+    const Vec3 at = Interpolate(p, 0, t0);
+    const bool frame = !p.b.empty();
+    if (d.point == "clamp") {
+      c.clamp.position = at;
+      if (frame) c.clamp.tangent = Interpolate(p, 1, t0), c.clamp.normal = Interpolate(p, 2, t0);
+    } else if (d.point == "end_clamp" && c.end_clamp) {
+      c.end_clamp->position = at;
+      if (frame) {
+        c.end_clamp->tangent = Interpolate(p, 1, t0);
+        c.end_clamp->normal = Interpolate(p, 2, t0);
+      }
+    } else if (d.point == "end_pin" && c.end_pin) {
+      *c.end_pin = at;
+    } else if (d.point == "grasp" && c.grasp) {
+      c.grasp->position = at;
+    } else if (d.point.rfind("pins[", 0) == 0) {
+      const size_t k = std::stoul(d.point.substr(5));
+      if (k < c.pins.size()) c.pins[k].position = at;
+    }
+  }
+  return c;
+}
+
+CaseDrive::CaseDrive(const RodModel& model, const LoadCase& load_case) {
+  held_.assign(model.held().size(), nullptr);
+  for (const DrivenPoint& d : load_case.drives) {
+    if (d.path.empty()) continue;
+    if (d.point == "clamp") {
+      clamp_ = &d.path;
+      continue;
+    }
+    bool found = false;
+    for (size_t k = 0; k < model.held().size(); ++k) {
+      if (model.held()[k].Label() != d.point) continue;
+      held_[k] = &d.path;
+      if (d.point == "end_clamp") end_clamp_ = &d.path;
+      found = true;
+    }
+    if (!found) throw std::invalid_argument("drive: the case holds no point " + d.point);
+  }
+  if (!load_case.tip_load.empty()) tip_load_ = &load_case.tip_load;
+}
+
+void CaseDrive::PoseAt(const RodModel& model, double t, HeldPose* pose) const {
+  Drive::PoseAt(model, t, pose);
+  if (clamp_) {
+    pose->clamp_position = Interpolate(*clamp_, 0, t);
+    if (!clamp_->b.empty()) {
+      pose->clamp_tangent = Interpolate(*clamp_, 1, t).normalized();
+      pose->clamp_d1 = Interpolate(*clamp_, 2, t);
+    }
+  }
+  for (size_t k = 0; k < held_.size(); ++k)
+    if (held_[k]) pose->held[k] = Interpolate(*held_[k], 0, t);
+  if (end_clamp_ && !end_clamp_->b.empty()) {
+    pose->end_tangent = Interpolate(*end_clamp_, 1, t).normalized();
+    pose->end_d1 = Interpolate(*end_clamp_, 2, t);
+  }
+  if (tip_load_) {
+    pose->tip_force = Interpolate(*tip_load_, 0, t);
+    if (!tip_load_->b.empty()) pose->tip_moment = Interpolate(*tip_load_, 1, t);
+  }
+}
+
+DynamicState InitialDynamicState(const Scene& scene, int index, const StaticsOptions& statics,
+                                 const DynamicsStepper& stepper) {
+  const RodModel& model = stepper.model();
+  const LoadCase& lc = scene.cases[index];
+  RodState q;
+  if (lc.initial.equilibrium) {
+    // The equilibrium under the loads at t = 0 (the tip load series included).
+    Scene at_start = scene;
+    at_start.dynamics.reset();
+    LoadCase& c = at_start.cases[index];
+    c = CaseAtStart(lc);
+    if (!lc.tip_load.empty()) {
+      c.tip_force += lc.tip_load.a.front();
+      if (!lc.tip_load.b.empty()) c.tip_moment += lc.tip_load.b.front();
+    }
+    const CaseSolution solution = SolveCase(at_start, index, nullptr, statics);
+    if (!solution.ok())
+      throw std::runtime_error("the initial equilibrium: " + solution.summary.BriefReport());
+    q = solution.state;
+  } else {
+    q = StartState(model, nullptr);
+  }
+  DynamicState s = stepper.AtRest(q);
+  if (lc.initial.velocity.cols() > 0) {
+    // Velocity samples interpolated linearly in arc length to the free vertices.
+    const std::vector<double>& vs = lc.initial.velocity_s;
+    for (int i = 1; i <= model.num_edges(); ++i) {
+      if (model.held_at_vertex(i) >= 0) continue;
+      const double si = model.arc_length(i);
+      Vec3 v;
+      if (si <= vs.front()) {
+        v = lc.initial.velocity.col(0);
+      } else if (si >= vs.back()) {
+        v = lc.initial.velocity.col(vs.size() - 1);
+      } else {
+        const size_t k = static_cast<size_t>(std::upper_bound(vs.begin(), vs.end(), si) - vs.begin());
+        const double w = (si - vs[k - 1]) / (vs[k] - vs[k - 1]);
+        v = (1.0 - w) * lc.initial.velocity.col(k - 1) + w * lc.initial.velocity.col(k);
+      }
+      s.v.segment<3>(RodModel::VertexDof(i)) = v;
+    }
+  }
+  return s;
+}
+
+CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
+                                    const std::function<void(double)>& progress) {
+  const DynamicsSpec& spec = *scene.dynamics;
+  const LoadCase start_case = CaseAtStart(scene.cases[index]);
+  const RodModel model(scene.rod, scene.material, scene.gravity, start_case, scene.springs);
+  DynamicsOptions options;
+  options.time_step = spec.time_step;
+  options.substep = spec.substep;
+  if (!ParseIntegrator(spec.integrator, &options.integrator))
+    throw std::invalid_argument("unknown integrator " + spec.integrator);
+  DynamicsStepper stepper(model, options);
+  const CaseDrive drive(model, scene.cases[index]);
+  CaseTrajectory out;
+  out.s = model.arc_lengths();
+  DynamicState s = InitialDynamicState(scene, index, statics, stepper);
+  if (options.integrator == Integrator::kExplicit) out.stable_step = stepper.StableTimeStep(s.q);
+  const int n = model.num_edges();
+  VecX v_before = s.v;
+  auto record = [&](double dt) {
+    TrajectoryFrame f;
+    f.t = s.t;
+    f.x = s.q.x;
+    f.reactions = HeldReactions(model, s.q);
+    // The clamp at s = 0 balances the moving rod: less its inertia and drag forces m a + c v
+    // (a from the last step's change of velocity), and their moments about x_0. (The spin
+    // inertia of the edges, ~r^2 / L^2 of these, is left out.)
+    if (!f.reactions.empty() && dt > 0.0) {
+      const Material& m = model.material();
+      Vec3 force = Vec3::Zero(), moment = Vec3::Zero();
+      for (int i = 1; i <= n; ++i) {
+        if (model.held_at_vertex(i) >= 0) continue;
+        const int d = RodModel::VertexDof(i);
+        const double cell = model.vertex_mass(i) / scene.rod.linear_density;
+        const Vec3 fi = model.vertex_mass(i) * (s.v.segment<3>(d) - v_before.segment<3>(d)) / dt +
+                        m.damping * cell * s.v.segment<3>(d);
+        force += fi;
+        moment += (s.q.x.col(i) - s.q.x.col(0)).cross(fi);
+      }
+      f.reactions[0].force -= force;
+      f.reactions[0].moment -= moment;
+    }
+    out.frames.push_back(std::move(f));
+  };
+  record(0.0);
+  const auto t0 = std::chrono::steady_clock::now();
+  const int steps = static_cast<int>(std::ceil(spec.duration / spec.time_step - 1e-9));
+  for (int k = 0; k < steps; ++k) {
+    v_before = s.v;
+    const DynamicsStepSummary r = stepper.Step(drive, &s);
+    if (!r.ok) {
+      out.reason = "t = " + std::to_string(s.t) + " s: " + r.reason;
+      break;
+    }
+    ++out.steps;
+    out.newton_iterations += r.newton_iterations;
+    if ((k + 1) % spec.output_every == 0 || k + 1 == steps) record(spec.time_step);
+    if (progress) progress(s.t);
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.ok = out.reason.empty();
+  return out;
+}
+
+}  // namespace rodfit

@@ -1,0 +1,64 @@
+// One case of a scene integrated in time (docs/solvers.md, "Dynamics"): the initial state (the
+// case's equilibrium with its driven points where their paths start, or its start shape with
+// given velocities), the driven points and the tip load over time, and the frames written out.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "rodfit/model/rod.h"
+#include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/reactions.h"
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+
+/// The pose of a case's held boundary from its driven points' paths and its tip load series
+/// (held points without a path stay at the case's targets).
+class CaseDrive : public Drive {
+ public:
+  /// Throws std::invalid_argument for a driven point the case does not hold.
+  CaseDrive(const RodModel& model, const LoadCase& load_case);
+  void PoseAt(const RodModel& model, double t, HeldPose* pose) const override;
+
+ private:
+  const TimeSeries* clamp_ = nullptr;
+  const TimeSeries* end_clamp_ = nullptr;
+  std::vector<const TimeSeries*> held_;  // per RodModel::held(), null when not driven
+  const TimeSeries* tip_load_ = nullptr;
+};
+
+/// One written frame: the time, the vertices and the held points' reactions (the clamp's
+/// includes the rod's inertia and drag: its balance is that of the moving rod).
+struct TrajectoryFrame {
+  double t = 0.0;
+  Mat3X x;
+  std::vector<HeldReaction> reactions;
+};
+
+struct CaseTrajectory {
+  bool ok = false;
+  std::string reason;                 ///< why it stopped early (empty when it ran to the end)
+  std::vector<double> s;              ///< [m] the vertices' arc lengths
+  std::vector<TrajectoryFrame> frames;
+  int steps = 0;
+  int newton_iterations = 0;          ///< implicit: in all
+  double stable_step = 0.0;           ///< explicit: the stable step at the start [s]
+  double seconds = 0.0;               ///< wall time of the integration
+};
+
+/// The case's state at t = 0 (see InitialMotion); throws std::runtime_error when the initial
+/// equilibrium does not converge.
+DynamicState InitialDynamicState(const Scene& scene, int index, const StaticsOptions& statics,
+                                 const DynamicsStepper& stepper);
+
+/// Integrates case `index` of a scene with `scene.dynamics` (which must be set). `progress`, when
+/// given, is called with the simulated time after each step.
+CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
+                                    const std::function<void(double)>& progress = nullptr);
+
+/// The model of a case for dynamics: its held points where the driven paths start.
+LoadCase CaseAtStart(const LoadCase& load_case);
+
+}  // namespace rodfit
