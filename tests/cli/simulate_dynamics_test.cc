@@ -1,0 +1,150 @@
+// `simulate` on a moving scene (a `dynamics:` block): the files it writes, a driven point that
+// follows its path, and one-line errors for bad dynamics input (docs/formats.md, docs/cli.md).
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "rodfit/io/csv.h"
+#include "run_cli.h"
+
+namespace rodfit::test {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string Scene(const std::string& dynamics, const std::string& case_extra) {
+  return "rod: {length: 1.0, segments: 20, radius: 0.0025, linear_density: 0.04}\n"
+         "parameters:\n"
+         "  bend_stiffness: {value: 2.0e-3}\n"
+         "  twist_stiffness: {value: 1.5e-3}\n"
+         "  stretch_stiffness: {value: 2.0e4}\n"
+         "  damping: {value: 0.02}\n"
+         "dynamics: " + dynamics + "\n"
+         "cases:\n"
+         "  - name: cable\n"
+         "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n" +
+         case_extra;
+}
+
+TEST(SimulateDynamics, BundledSwingWritesTrajectoryReactionsAndSummary) {
+  TempDir dir;
+  const RunResult run = RunRodfit(dir, "simulate " + Quote(std::string(RODFIT_SOURCE_DIR) +
+                                                           "/data/scenes/suture_swing.yaml") +
+                                           " -o " + Quote(dir.File("o")));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const CsvTable traj = CsvTable::Read(dir.File("o/trajectory.csv"));
+  // 1 s at 1 ms, every 10th step and t = 0: 101 frames of 51 vertices.
+  ASSERT_EQ(traj.num_rows(), 101 * 51);
+  const std::vector<double> t = traj.Column("t"), z = traj.Column("z"), v = traj.Column("vertex");
+  EXPECT_EQ(t.front(), 0.0);
+  EXPECT_NEAR(t.back(), 1.0, 1e-12);
+  // The tip (vertex 50) has swung down by most of the rod's length at some time.
+  double lowest = 0.0;
+  for (int r = 0; r < traj.num_rows(); ++r)
+    if (v[r] == 50) lowest = std::min(lowest, z[r]);
+  EXPECT_LT(lowest, -0.15);
+  const CsvTable reactions = CsvTable::Read(dir.File("o/reactions.csv"));
+  EXPECT_EQ(reactions.num_rows(), 101);  // the clamp at every frame
+  const CsvTable summary = CsvTable::Read(dir.File("o/summary.csv"));
+  ASSERT_EQ(summary.num_rows(), 1);
+  EXPECT_EQ(summary.Column("completed")[0], 1.0);
+  EXPECT_EQ(summary.Column("steps")[0], 1000.0);
+}
+
+TEST(SimulateDynamics, DrivenEndPinFollowsItsPath) {
+  TempDir dir;
+  dir.Write("path.csv", "t,x,y,z\n0,0.9,0,0\n0.1,0.85,0.1,0.05\n");
+  const RunResult run = RunRodfit(
+      dir, "simulate " +
+               Quote(dir.Write("s.yaml",
+                               Scene("{time_step: 0.005, duration: 0.2, output_every: 2}",
+                                     "    end_pin: {position: [0.5, 0, 0]}\n"
+                                     "    drive: [{point: end_pin, file: path.csv}]\n"))) +
+               " -o " + Quote(dir.File("o")));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const CsvTable traj = CsvTable::Read(dir.File("o/trajectory.csv"));
+  const std::vector<double> t = traj.Column("t"), v = traj.Column("vertex"), x = traj.Column("x"),
+                            y = traj.Column("y"), z = traj.Column("z");
+  int checked = 0;
+  for (int r = 0; r < traj.num_rows(); ++r) {
+    if (v[r] != 20) continue;
+    // Linear between the two rows, held after t = 0.1.
+    const double w = std::min(1.0, t[r] / 0.1);
+    EXPECT_NEAR(x[r], 0.9 - 0.05 * w, 1e-12) << "t = " << t[r];
+    EXPECT_NEAR(y[r], 0.1 * w, 1e-12);
+    EXPECT_NEAR(z[r], 0.05 * w, 1e-12);
+    ++checked;
+  }
+  EXPECT_EQ(checked, 21);
+  const CsvTable reactions = CsvTable::Read(dir.File("o/reactions.csv"));
+  EXPECT_EQ(reactions.num_rows(), 2 * 21);  // clamp and end_pin
+}
+
+TEST(SimulateDynamics, ExplicitAboveItsStableStepIsRefusedWithTheLimit) {
+  TempDir dir;
+  const RunResult run = RunRodfit(
+      dir, "simulate " +
+               Quote(dir.Write("s.yaml", Scene("{time_step: 0.001, duration: 0.01, integrator: "
+                                               "explicit}",
+                                               ""))) +
+               " -o " + Quote(dir.File("o")));
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("above the explicit integrator's stable step"));
+  EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1);
+  std::ifstream nothing(dir.File("o/trajectory.csv"));
+  EXPECT_FALSE(nothing.good());
+}
+
+TEST(SimulateDynamics, BadDynamicsInputIsOneLineNamingFileLineAndKey) {
+  struct Bad {
+    std::string dynamics, extra, message;
+  };
+  const std::vector<Bad> cases = {
+      {"{time_step: 0.001, duration: 1, integrator: rk4}", "", "dynamics.integrator: must be"},
+      {"{time_step: 0, duration: 1}", "", "dynamics.time_step"},
+      {"{time_step: 1e-9, duration: 1e6}", "", "above the limit of 100000000"},
+      {"{duration: 1}", "", "dynamics.time_step"},
+      {"{time_step: 0.001, duration: 1, substep: true}", "", "explicit integrator only"},
+      {"{time_step: 0.001, duration: 1}", "    drive: [{point: end_pin, file: p.csv}]\n",
+       "must name a point the case holds"},
+      {"{time_step: 0.001, duration: 1}", "    initial: {shape: bent}\n",
+       "must be equilibrium or start"},
+  };
+  for (const Bad& bad : cases) {
+    TempDir dir;
+    dir.Write("p.csv", "t,x,y,z\n0,1,0,0\n");
+    const std::string scene = dir.Write("s.yaml", Scene(bad.dynamics, bad.extra));
+    const RunResult run = RunRodfit(dir, "simulate " + Quote(scene) + " -o " + Quote(dir.File("o")));
+    EXPECT_EQ(run.status, 1) << bad.message;
+    EXPECT_THAT(run.err, HasSubstr(bad.message));
+    EXPECT_THAT(run.err, HasSubstr("s.yaml:"));
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+  }
+  // A drive without a dynamics block, and a path whose t does not increase.
+  TempDir dir;
+  dir.Write("p.csv", "t,x,y,z\n0,1,0,0\n0,1,0,0\n");
+  const std::string no_dynamics =
+      "rod: {length: 1.0, segments: 20, radius: 0.0025, linear_density: 0.04}\n"
+      "parameters: {bend_stiffness: {value: 2e-3}, twist_stiffness: {value: 1.5e-3}, "
+      "stretch_stiffness: {value: 2e4}}\n"
+      "cases:\n  - clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"
+      "    end_pin: {position: [0.9, 0, 0]}\n    drive: [{point: end_pin, file: p.csv}]\n";
+  RunResult run = RunRodfit(dir, "simulate " + Quote(dir.Write("a.yaml", no_dynamics)) + " -o " +
+                                     Quote(dir.File("o")));
+  EXPECT_THAT(run.err, HasSubstr("only for a moving scene"));
+  run = RunRodfit(dir, "simulate " +
+                           Quote(dir.Write("b.yaml",
+                                           Scene("{time_step: 0.001, duration: 1}",
+                                                 "    end_pin: {position: [0.9, 0, 0]}\n"
+                                                 "    drive: [{point: end_pin, file: p.csv}]\n"))) +
+                           " -o " + Quote(dir.File("o")));
+  EXPECT_THAT(run.err, HasSubstr("p.csv:3: t: must increase"));
+}
+
+}  // namespace
+}  // namespace rodfit::test
