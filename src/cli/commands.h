@@ -4,6 +4,7 @@
 #include <string>
 
 int RunFit(int argc, char** argv);
+int RunRollout(int argc, char** argv);
 
 namespace rodfit {
 struct Experiment;

@@ -340,6 +340,8 @@ const std::vector<Command>& Commands() {
        &RunExtract},
       {"fit", "fit an experiment's parameters to its observations; write the profile JSON",
        &RunFit},
+      {"rollout", "predict a recorded motion open-loop from its first frames; its error",
+       &RunRollout},
   };
   return commands;
 }

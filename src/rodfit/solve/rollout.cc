@@ -1,0 +1,175 @@
+#include "rodfit/solve/rollout.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "rodfit/model/frames.h"
+#include "rodfit/solve/case_dynamics.h"
+
+namespace rodfit {
+namespace {
+
+bool Seen(const Eigen::Matrix3Xd& frame, int m) { return frame.col(m).allFinite(); }
+
+// The path of marker m over the frames that saw it (dropped frames are interpolated over).
+TimeSeries MarkerPath(const std::vector<Eigen::Matrix3Xd>& frames, int m, double dt) {
+  TimeSeries p;
+  for (size_t k = 0; k < frames.size(); ++k) {
+    if (!Seen(frames[k], m)) continue;
+    p.t.push_back(k * dt);
+    p.a.push_back(frames[k].col(m));
+  }
+  return p;
+}
+
+}  // namespace
+
+RolloutResult Rollout(const Scene& scene, double frame_interval,
+                      const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
+                      const StaticsOptions& statics) {
+  if (!scene.dynamics) throw std::invalid_argument("rollout needs a dynamics: block");
+  if (frames.size() < 2) throw std::invalid_argument("a recording needs at least 2 frames");
+  const int M = static_cast<int>(frames[0].cols());
+  if (M < 3) throw std::invalid_argument("a recording needs at least 3 markers");
+  RolloutResult out;
+  out.held.assign(M, 0);
+  for (int h : options.held_markers) {
+    const int m = h < 0 ? M + h : h;
+    if (m < 0 || m >= M) throw std::invalid_argument("held marker " + std::to_string(h) + " does not exist");
+    out.held[m] = 1;
+  }
+  if (!out.held[0]) throw std::invalid_argument("marker 0 (the clamp) must be held");
+  for (int m = 0; m < M; ++m) {
+    if (!Seen(frames[0], m))
+      throw std::invalid_argument("marker " + std::to_string(m) + " is missing in frame 0 (the start)");
+    if (!Seen(frames[1], m))
+      throw std::invalid_argument("marker " + std::to_string(m) + " is missing in frame 1 (the start's velocity)");
+  }
+  // Arc lengths from frame 0's polyline, scaled to the rod's length.
+  const double L = scene.rod.length;
+  std::vector<double> chord(M, 0.0);
+  for (int m = 1; m < M; ++m) chord[m] = chord[m - 1] + (frames[0].col(m) - frames[0].col(m - 1)).norm();
+  if (!(chord[M - 1] > 0.0)) throw std::invalid_argument("the markers of frame 0 coincide");
+  out.marker_s.resize(M);
+  for (int m = 0; m < M; ++m) out.marker_s[m] = L * chord[m] / chord[M - 1];
+  for (int m = 1; m < M; ++m)
+    if (!(out.marker_s[m] > out.marker_s[m - 1]))
+      throw std::invalid_argument("markers " + std::to_string(m - 1) + " and " + std::to_string(m) +
+                                  " coincide in frame 0");
+
+  // Vertices at every marker, the gaps between them subdivided in proportion to their length.
+  Scene sc = scene;
+  std::vector<int> marker_vertex(M, 0);
+  sc.rod.vertex_s = {0.0};
+  for (int m = 1; m < M; ++m) {
+    const double gap = out.marker_s[m] - out.marker_s[m - 1];
+    const int pieces = std::max(1, static_cast<int>(std::lround(scene.rod.segments * gap / L)));
+    for (int p = 1; p <= pieces; ++p) sc.rod.vertex_s.push_back(out.marker_s[m - 1] + gap * p / pieces);
+    sc.rod.vertex_s.back() = out.marker_s[m];
+    marker_vertex[m] = static_cast<int>(sc.rod.vertex_s.size()) - 1;
+  }
+  sc.rod.vertex_s.back() = L;
+  sc.rod.segments = static_cast<int>(sc.rod.vertex_s.size()) - 1;
+
+  // The case: the clamp at marker 0 along marker 1, pins at the other held markers (the last one
+  // an end pin), each driven along its recorded path.
+  LoadCase c;
+  c.name = "rollout";
+  const Vec3 t0 = (frames[0].col(1) - frames[0].col(0)).normalized();
+  Vec3 n0 = std::abs(t0.z()) < 0.9 ? Vec3::UnitZ() : Vec3::UnitX();
+  n0 = (n0 - n0.dot(t0) * t0).normalized();
+  c.clamp.position = frames[0].col(0);
+  c.clamp.tangent = t0;
+  c.clamp.normal = n0;
+  DrivenPoint clamp_drive;
+  clamp_drive.point = "clamp";
+  clamp_drive.path = MarkerPath(frames, 0, frame_interval);
+  {
+    // The clamp's frame over time: its tangent towards marker 1 (interpolated over frames where
+    // either is missing), its normal carried by parallel transport.
+    const TimeSeries p1 = MarkerPath(frames, 1, frame_interval);
+    Vec3 normal = n0, tangent = t0;
+    TimeSeries& cp = clamp_drive.path;
+    for (size_t k = 0; k < cp.t.size(); ++k) {
+      // Marker 1 at this time, by interpolation of its own path.
+      const double t = cp.t[k];
+      size_t j = 0;
+      while (j + 1 < p1.t.size() && p1.t[j + 1] <= t) ++j;
+      Vec3 m1 = p1.a[j];
+      if (j + 1 < p1.t.size() && t > p1.t[j]) {
+        const double w = (t - p1.t[j]) / (p1.t[j + 1] - p1.t[j]);
+        m1 = (1 - w) * p1.a[j] + w * p1.a[j + 1];
+      }
+      const Vec3 tn = (m1 - cp.a[k]).normalized();
+      normal = ParallelTransport<double, double>(tangent, tn, normal);
+      normal = (normal - normal.dot(tn) * tn).normalized();
+      tangent = tn;
+      cp.b.push_back(tangent);
+      cp.c.push_back(normal);
+    }
+  }
+  c.drives.push_back(clamp_drive);
+  for (int m = 1; m < M; ++m) {
+    if (!out.held[m]) continue;
+    DrivenPoint d;
+    d.path = MarkerPath(frames, m, frame_interval);
+    if (m == M - 1) {
+      c.end_pin = frames[0].col(m);
+      d.point = "end_pin";
+    } else {
+      Pin pin;
+      pin.s = out.marker_s[m];
+      pin.position = frames[0].col(m);
+      c.pins.push_back(pin);
+      d.point = "pins[" + std::to_string(c.pins.size() - 1) + "]";
+    }
+    c.drives.push_back(d);
+  }
+  // The start: the equilibrium (or the frame-0 polyline) with the velocities of frames 0 -> 1.
+  c.initial.equilibrium = options.initial_equilibrium;
+  if (!options.initial_equilibrium) {
+    c.start.kind = StartShape::Kind::kPoints;
+    c.start.s = out.marker_s;
+    c.start.points = frames[0];
+  }
+  c.initial.velocity_s = out.marker_s;
+  c.initial.velocity = (frames[1] - frames[0]) / frame_interval;
+  sc.cases = {c};
+  sc.springs.clear();
+  const double dt = sc.dynamics->time_step;
+  const int per_frame = static_cast<int>(std::lround(frame_interval / dt));
+  if (per_frame < 1 || std::abs(per_frame * dt - frame_interval) > 1e-9 * frame_interval)
+    throw std::invalid_argument("dynamics.time_step must divide the frame interval (" +
+                                std::to_string(frame_interval) + " s)");
+  sc.dynamics->output_every = per_frame;
+  sc.dynamics->duration = (frames.size() - 1) * frame_interval;
+
+  const CaseTrajectory traj = SimulateCaseDynamics(sc, 0, statics);
+  out.seconds = traj.seconds;
+  out.ok = traj.ok;
+  out.reason = traj.reason;
+  double sum_all = 0.0, sum_free = 0.0;
+  int n_all = 0, n_free = 0;
+  for (size_t k = 0; k < traj.frames.size() && k < frames.size(); ++k) {
+    Eigen::Matrix3Xd p(3, M);
+    for (int m = 0; m < M; ++m) p.col(m) = traj.frames[k].x.col(marker_vertex[m]);
+    out.predicted.push_back(p);
+    if (k == 0) continue;  // the start is given
+    for (int m = 0; m < M; ++m) {
+      if (!Seen(frames[k], m)) continue;
+      const double e = (p.col(m) - frames[k].col(m)).cwiseAbs().sum() / 3.0;
+      sum_all += e;
+      ++n_all;
+      if (!out.held[m]) {
+        sum_free += e;
+        ++n_free;
+      }
+    }
+  }
+  out.samples = n_all;
+  out.mae_all = n_all ? sum_all / n_all : 0.0;
+  out.mae_predicted = n_free ? sum_free / n_free : 0.0;
+  return out;
+}
+
+}  // namespace rodfit

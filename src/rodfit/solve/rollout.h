@@ -1,0 +1,46 @@
+// Open-loop prediction of a recorded motion (docs/cli.md, "rollout"): a rod held by tracked
+// markers (motion capture of a cable moved by robots), started from its first two frames, its
+// held markers driven from the recording, the others predicted; the score is the mean absolute
+// coordinate error against the recording.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "rodfit/model/scene.h"
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+
+struct RolloutOptions {
+  /// Markers driven from the recording; negative counts from the last (-1 the last). Marker 0
+  /// is the clamp (its frame from the direction to marker 1); it must be among them.
+  std::vector<int> held_markers = {0, 1, -2, -1};
+  /// Start at rest in the equilibrium with the held markers at frame 0 (then given the first
+  /// two frames' velocities), or in the frame-0 marker polyline itself.
+  bool initial_equilibrium = true;
+};
+
+struct RolloutResult {
+  bool ok = false;
+  std::string reason;
+  std::vector<double> marker_s;           ///< [m] the markers' arc lengths (from frame 0)
+  std::vector<char> held;                 ///< per marker: driven
+  std::vector<Eigen::Matrix3Xd> predicted;  ///< per frame, 3 x markers [m]
+  double mae_all = 0.0;        ///< [m] mean |coordinate error| over all markers, frames >= 1
+  double mae_predicted = 0.0;  ///< [m] the same over the markers not driven
+  int samples = 0;             ///< marker samples compared (present in the recording)
+  double seconds = 0.0;        ///< wall time of the integration
+};
+
+/// `frames[k]` holds the markers (3 x M, NaN where a marker was not seen) at time
+/// k * frame_interval. The scene gives the rod (length, radius, density; `segments` is the
+/// target number of edges, spread over the gaps between markers), the material, gravity and
+/// `dynamics` (its time_step must divide the frame interval; its duration is the recording's).
+/// Throws std::invalid_argument for unusable input (fewer than 3 markers, a held marker missing
+/// from every frame, markers 0 and 1 missing in frame 0 or 1, ...).
+RolloutResult Rollout(const Scene& scene, double frame_interval,
+                      const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
+                      const StaticsOptions& statics = StaticsOptions());
+
+}  // namespace rodfit
