@@ -23,6 +23,7 @@
 #include "rodfit/io/fit_report.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/profile.h"
+#include "rodfit/io/progress.h"
 
 namespace {
 
@@ -98,7 +99,7 @@ int RunFit(int argc, char** argv) {
     const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
     rodfit::RefuseOverwritingInput(profile_path, inputs);
     if (!report_dir.empty()) {
-      for (const char* name : {"summary.csv", "residuals.csv", "residuals.png"})
+      for (const char* name : {"summary.csv", "residuals.csv", "index.html"})
         rodfit::RefuseOverwritingInput((std::filesystem::path(report_dir) / name).string(),
                                        inputs);
     }
@@ -111,12 +112,14 @@ int RunFit(int argc, char** argv) {
   options.max_iterations = experiment.fit.max_iterations;
   options.trusted_sigmas = experiment.fit.trusted_sigmas;
   options.num_threads = threads;
-  const bool live = !quiet && isatty(STDERR_FILENO);
-  if (live) {
-    options.progress = [](const rodfit::FitIterationInfo& i) {
-      std::fprintf(stderr, "\riteration %3d  cost %.6e  relative change %9.2e  %7.3f s", i.iteration,
-                   i.cost, i.relative_decrease, i.seconds);
-      std::fflush(stderr);
+  // The fit's size is not known in advance (it stops when it converges), so the line has no ETA.
+  rodfit::ProgressLine progress(quiet, STDERR_FILENO);
+  if (progress.enabled()) {
+    options.progress = [&progress](const rodfit::FitIterationInfo& i) {
+      char text[96];
+      std::snprintf(text, sizeof(text), "fit: iteration %d  cost %.4e  relative change %.1e",
+                    i.iteration, i.cost, i.relative_decrease);
+      progress.Update(text);
     };
   }
   rodfit::FitResult result;
@@ -126,7 +129,7 @@ int RunFit(int argc, char** argv) {
     std::cerr << "rodfit fit: " << experiment_path << ": " << e.what() << "\n";
     return EXIT_FAILURE;
   }
-  if (live) std::fprintf(stderr, "\n");
+  progress.Finish();
   if (!result.success) {
     std::cerr << "rodfit fit: " << experiment_path << ": the fit failed: " << result.message
               << " (no profile written)\n";
