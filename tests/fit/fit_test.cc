@@ -357,5 +357,32 @@ TEST(Fit, GlobalStartRecoversFromThreeDecadesOff) {
       << "plain LM " << plain.iterations << " iterations, global polish " << g.iterations;
 }
 
+// The report's convergence plot reads FitResult::cost_per_iteration: Ceres' cost at the start and
+// after every iteration, from the initial to the final cost, never rising (Levenberg–Marquardt
+// keeps only steps that lower it), with non-decreasing times within the fit's wall time.
+TEST(Fit, CostPerIterationIsRecorded) {
+  std::mt19937 rng(3);
+  FitInput in = Protocol(Suture(), 3e-4, &rng);
+  AddParameters(&in, {"bend_stiffness"}, 3.0);
+  const FitResult r = Fit(in, FitOptions());
+  ASSERT_TRUE(r.success) << r.message;
+  ASSERT_GE(r.iterations, 2);
+  ASSERT_EQ(r.cost_per_iteration.size(), static_cast<size_t>(r.iterations + 1));
+  ASSERT_EQ(r.seconds_per_iteration.size(), r.cost_per_iteration.size());
+  EXPECT_DOUBLE_EQ(r.cost_per_iteration.front(), r.initial_cost);
+  EXPECT_DOUBLE_EQ(r.cost_per_iteration.back(), r.final_cost);
+  EXPECT_LT(r.final_cost, 0.5 * r.initial_cost);  // started 3x off: the fit had work to do
+  for (size_t i = 1; i < r.cost_per_iteration.size(); ++i) {
+    EXPECT_LE(r.cost_per_iteration[i], r.cost_per_iteration[i - 1]) << "iteration " << i;
+    EXPECT_GE(r.seconds_per_iteration[i], r.seconds_per_iteration[i - 1]) << "iteration " << i;
+  }
+  EXPECT_GE(r.seconds_per_iteration.front(), 0.0);
+  EXPECT_LE(r.seconds_per_iteration.back(), r.seconds);
+  EXPECT_EQ(r.global_seconds, 0.0);  // no global search asked for
+  // No case has a poke: no sections, one empty entry per shape.
+  ASSERT_EQ(r.sections.size(), r.shapes.size());
+  for (const Eigen::Matrix3Xd& ring : r.sections) EXPECT_EQ(ring.cols(), 0);
+}
+
 }  // namespace
 }  // namespace rodfit

@@ -127,8 +127,11 @@ TEST(SvgTicks, KnownRanges) {
   EXPECT_DOUBLE_EQ(TickStep(-3, 3, 6), 1.0);
   EXPECT_EQ(LinearTicks(-3, 3, 6), (std::vector<double>{-3, -2, -1, 0, 1, 2, 3}));
   // A range that straddles zero has an exact 0 tick (not 1e-17).
-  for (double t : LinearTicks(-0.3, 0.7, 5))
-    if (std::abs(t) < 0.05) EXPECT_EQ(t, 0.0);
+  for (double t : LinearTicks(-0.3, 0.7, 5)) {
+    if (std::abs(t) < 0.05) {
+      EXPECT_EQ(t, 0.0);
+    }
+  }
 }
 
 TEST(SvgTicks, NonFiniteOrEmptyRangesGiveNoTicks) {

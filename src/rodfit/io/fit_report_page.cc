@@ -36,7 +36,7 @@ const char* Colour(size_t i) { return kPalette[i % (sizeof(kPalette) / sizeof(kP
 const char* const kObserved = "#d62728";  // measurements: red markers
 const char* const kFitted = "#1f5fbf";    // the model at the fit: blue lines and crosses
 const char* const kComponent[] = {"#1f77b4", "#2ca02c", "#d62728"};  // x, y, z
-constexpr size_t kMaxPixelsDrawn = 300;  // per entry in a camera view
+constexpr size_t kMaxPixelsDrawn = 80;  // per entry in a camera view, so the image shows
 // Residual plots show at most this many sigmas; values beyond are drawn at the edge.
 constexpr double kMaxSigmasShown = 12.0;
 
@@ -622,8 +622,11 @@ class Builder {
           // line: every k-th is drawn, as the legend says. Not in the zoom (an outlier far
           // from the thread would zoom out to the whole frame); the figure says how many lie
           // outside the view.
-          const size_t n = m->pixels().size(), every = std::max<size_t>(1, n / kMaxPixelsDrawn);
-          if (every > 1) s.label += " (every " + std::to_string(every) + "th of " + std::to_string(n) + ")";
+          const size_t n = m->pixels().size();
+          const size_t every = (n + kMaxPixelsDrawn - 1) / kMaxPixelsDrawn;
+          s.marker_size = 2.5;
+          if (every > 1)
+            s.label += " (1 in " + std::to_string(every) + " of " + std::to_string(n) + " shown)";
           for (size_t k = 0; k < n; k += every) {
             s.x.push_back(m->pixels()[k].x());
             s.y.push_back(m->pixels()[k].y());
@@ -804,15 +807,16 @@ class Builder {
     u.normalize();
     Eigen::Vector3d v = normal.cross(u);
     if (v[ib] < 0) v = -v;
-    const bool aligned = std::abs(u[ia]) > 0.99 && std::abs(v[ib]) > 0.99;
+    // Where the section is tilted (the rod is not along a world axis there), the axes are the
+    // world axes projected on its plane, primed.
+    const bool aligned = std::abs(u[ia]) > 0.9999 && std::abs(v[ib]) > 0.9999;
     svg::Figure f;
     f.title = e_.scene.cases[c].name + ": poked section";
     f.width = 560;
     f.height = 520;
-    f.x.label = aligned ? std::string(AxisName(ia)) + " [mm]"
-                        : std::string("in-plane, along ") + AxisName(ia) + " [mm]";
-    f.y.label = aligned ? std::string(AxisName(ib)) + " [mm]"
-                        : std::string("in-plane, along ") + AxisName(ib) + " [mm]";
+    const std::string prime = aligned ? "" : "′";
+    f.x.label = std::string(AxisName(ia)) + prime + " [mm]";
+    f.y.label = std::string(AxisName(ib)) + prime + " [mm]";
     f.equal_aspect = true;
     auto add_ring = [&](const Eigen::Matrix3Xd& nodes, const std::string& label, const char* colour,
                         bool dashed) {
@@ -845,8 +849,12 @@ class Builder {
     }
     page_.Figure(f, "section-view", "section_" + e_.scene.cases[c].name,
                  " data-case=\"" + Escape(e_.scene.cases[c].name) + "\"",
-                 "The poked cross-section in its plane (equal scales): the ring at rest (dashed), "
-                 "the ring deformed at the fitted parameters, and the measured surface points.");
+                 std::string("The poked cross-section in its plane (equal scales): the ring at rest "
+                             "(dashed), the ring deformed at the fitted parameters, and the "
+                             "measured surface points.") +
+                     (aligned ? "" : " Axes: the world's " + std::string(AxisName(ia)) + " and " +
+                                         AxisName(ib) + " projected on the section's plane, "
+                                         "which the rod's tangent tilts."));
   }
 
   // Per force entry of the case: force versus time (haptic logs) and the force residuals.

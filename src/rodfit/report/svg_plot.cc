@@ -487,8 +487,9 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
       for (size_t i = 0; i < n && i < s.point_labels.size(); ++i) {
         if (!std::isfinite(px[i]) || s.point_labels[i].empty()) continue;
         // A label that would overlap one already placed is left out (dense markers).
-        const Box box{px[i] + 6, py[i] - 6 - kTickFont, kCharWidth * s.point_labels[i].size(),
-                      kTickFont + 3.0};
+        // (the width estimate generous by a few pixels: a near miss reads as an overlap)
+        const Box box{px[i] + 6, py[i] - 6 - kTickFont,
+                      (kCharWidth + 0.6) * s.point_labels[i].size() + 4, kTickFont + 4.0};
         if (std::any_of(labels.begin(), labels.end(), [&](const Box& b) { return b.Overlaps(box); }))
           continue;
         labels.push_back(box);
