@@ -112,14 +112,21 @@ int RunFit(int argc, char** argv) {
   options.max_iterations = experiment.fit.max_iterations;
   options.trusted_sigmas = experiment.fit.trusted_sigmas;
   options.num_threads = threads;
-  // The fit's size is not known in advance (it stops when it converges), so the line has no ETA.
+  // The global search has a budget of evaluations, so its line has an ETA; Levenberg–Marquardt
+  // stops when it converges, so its line has none.
   rodfit::ProgressLine progress(quiet, STDERR_FILENO);
   if (progress.enabled()) {
     options.progress = [&progress](const rodfit::FitIterationInfo& i) {
       char text[96];
-      std::snprintf(text, sizeof(text), "fit: iteration %d  cost %.4e  relative change %.1e",
-                    i.iteration, i.cost, i.relative_decrease);
-      progress.Update(text);
+      if (i.global) {
+        std::snprintf(text, sizeof(text), "fit: global search %d/%d  best cost %.4e", i.iteration,
+                      i.budget, i.cost);
+        progress.Update(text, i.budget > 0 ? double(i.iteration) / i.budget : NAN);
+      } else {
+        std::snprintf(text, sizeof(text), "fit: iteration %d  cost %.4e  relative change %.1e",
+                      i.iteration, i.cost, i.relative_decrease);
+        progress.Update(text);
+      }
     };
   }
   rodfit::FitResult result;

@@ -384,5 +384,40 @@ TEST(Fit, CostPerIterationIsRecorded) {
   for (const Eigen::Matrix3Xd& ring : r.sections) EXPECT_EQ(ring.cols(), 0);
 }
 
+// The progress callback (the CLI's progress line): one call per evaluation of the global search,
+// counted against its budget with the best cost so far, then one per Levenberg–Marquardt
+// iteration with that iteration's cost.
+TEST(Fit, ProgressReportsTheGlobalSearchThenEachIteration) {
+  std::mt19937 rng(5);
+  FitInput in = Protocol(Suture(), 3e-4, &rng);
+  AddParameters(&in, {"bend_stiffness"}, 10.0);
+  in.parameters[0].min = 1e-8;
+  in.parameters[0].max = 1e-4;
+  FitOptions options;
+  options.global = true;
+  options.global_evaluations = 25;
+  std::vector<FitIterationInfo> calls;
+  options.progress = [&calls](const FitIterationInfo& i) { calls.push_back(i); };
+  const FitResult r = Fit(in, options);
+  ASSERT_TRUE(r.success) << r.message;
+  ASSERT_EQ(r.global_evaluations, 25);
+  ASSERT_EQ(calls.size(), static_cast<size_t>(r.global_evaluations + r.iterations + 1));
+  for (int k = 0; k < r.global_evaluations; ++k) {
+    EXPECT_TRUE(calls[k].global);
+    EXPECT_EQ(calls[k].iteration, k + 1);
+    EXPECT_EQ(calls[k].budget, 25);
+    if (k > 0) {
+      EXPECT_LE(calls[k].cost, calls[k - 1].cost);  // the best so far
+    }
+  }
+  for (size_t k = r.global_evaluations; k < calls.size(); ++k) {
+    EXPECT_FALSE(calls[k].global);
+    EXPECT_EQ(calls[k].iteration, static_cast<int>(k) - r.global_evaluations);
+    EXPECT_DOUBLE_EQ(calls[k].cost, r.cost_per_iteration[k - r.global_evaluations]);
+  }
+  EXPECT_GT(r.global_seconds, 0.0);
+  EXPECT_LE(r.global_seconds, r.seconds);
+}
+
 }  // namespace
 }  // namespace rodfit

@@ -689,13 +689,26 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     struct Ctx {
       decltype(total_cost)* f;
       int evaluations;
-    } ctx{&total_cost, 0};
+      const FitOptions* options;
+      Clock::time_point start;
+      double best;
+    } ctx{&total_cost, 0, &options, start, std::numeric_limits<double>::infinity()};
     opt.set_min_objective(
         [](const std::vector<double>& x, std::vector<double>&, void* data) {
           Ctx* c = static_cast<Ctx*>(data);
           ++c->evaluations;
           bool ok;
           const double v = (*c->f)(x.data(), &ok);
+          if (ok) c->best = std::min(c->best, v);
+          if (c->options->progress) {
+            FitIterationInfo info;
+            info.global = true;
+            info.iteration = c->evaluations;
+            info.budget = c->options->global_evaluations;
+            info.cost = c->best;
+            info.seconds = std::chrono::duration<double>(Clock::now() - c->start).count();
+            c->options->progress(info);
+          }
           return ok ? v : 1e30;  // a failed solve is a very bad point, not an error
         },
         &ctx);

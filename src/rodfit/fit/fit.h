@@ -88,6 +88,11 @@ struct FitIterationInfo {
   double cost = 0.0;
   double relative_decrease = 0.0;
   double seconds = 0.0;
+  /// The NLopt global search before Levenberg–Marquardt (FitOptions::global): `iteration` counts
+  /// its evaluations out of `budget` (so a progress line can estimate the time left) and `cost`
+  /// is the best so far.
+  bool global = false;
+  int budget = 0;
 };
 
 struct FitOptions {
@@ -101,7 +106,8 @@ struct FitOptions {
   /// A parameter whose log has a standard deviation above this is reported as not
   /// identifiable: the data pin it down only within a factor exp(this).
   double max_log_std = 1.0;
-  std::function<void(const FitIterationInfo&)> progress;  ///< called once per iteration
+  /// Called once per iteration (and per evaluation of the global search).
+  std::function<void(const FitIterationInfo&)> progress;
   bool Check(std::string* why) const;
 };
 

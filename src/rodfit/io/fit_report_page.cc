@@ -553,7 +553,7 @@ class Builder {
       if (!cam) continue;
       svg::Figure f;
       f.title = e_.scene.cases[c].name + ", camera " + Stem(camera_path);
-      f.width = 680;
+      f.width = 660;
       f.height = 560;
       f.x.label = "u [px]";
       f.y.label = "v [px]";
@@ -907,7 +907,7 @@ class Builder {
       if (haptic) {
         svg::Figure f;
         f.title = e_.scene.cases[c].name + ": force of " + FileName(spec.file);
-        f.width = 680;
+        f.width = 660;
         f.height = 400;
         f.x.label = xlabel;
         f.y.label = "force on the instrument [N]";
@@ -955,7 +955,7 @@ class Builder {
       }
       svg::Figure f;
       f.title = e_.scene.cases[c].name + ": force residuals, " + FileName(spec.file);
-      f.width = 680;
+      f.width = 660;
       f.height = 360;
       f.x.label = xlabel;
       f.y.label = "force residual, model − measured [N]";
@@ -1040,7 +1040,7 @@ class Builder {
     if (all.empty()) return;
     svg::Figure f;
     f.title = e_.scene.cases[c].name + ": residuals in sigmas";
-    f.width = 680;
+    f.width = 660;
     f.height = 380;
     f.x.label = "measurement (per entry)";
     f.y.label = "residual, model − measured [σ]";
@@ -1120,7 +1120,7 @@ class Builder {
     }
     svg::Figure f;
     f.title = "Residuals of all cases against the normal density";
-    f.width = 680;
+    f.width = 660;
     f.height = 400;
     f.x.label = "residual, model − measured [σ]";
     f.y.label = "count per " + svg::FormatTick(bin, 0.1) + " σ bin";
@@ -1203,7 +1203,9 @@ class Builder {
     row("forward solves (" + std::to_string(r_.forward_solves) + ")", r_.solve_seconds);
     row("exact Jacobians (sensitivities)", r_.jacobian_seconds);
     row("observation models", r_.observation_seconds);
-    row("Ceres, covariance and the rest", std::max(0.0, r_.seconds - evaluations));
+    row(r_.global_seconds > 0 ? "NLopt, Ceres, covariance and the rest"
+                              : "Ceres, covariance and the rest",
+        std::max(0.0, r_.seconds - evaluations));
     h << "</table>\n<p>Forward solves, Jacobians and observation models are summed over the "
          "threads that evaluate cases in parallel.</p>\n</section>\n";
   }
