@@ -315,8 +315,8 @@ TEST_F(ReportPageTest, SyntheticDemoEmbedsTheCameraImages) {
   for (const FigureTag& f : OfClass(figures, "camera-view")) {
     EXPECT_THAT(f.body, HasSubstr("<image "));
     EXPECT_THAT(f.body, HasSubstr("href=\"data:image/jpeg;base64,"));
-    EXPECT_THAT(f.body, ::testing::ContainsRegex(
-                            ">pixels extracted from [a-z_]+\\.png( \\(1 in [0-9]+ of [0-9]+ shown\\))?</text>"));
+    EXPECT_THAT(f.body, ::testing::ContainsRegex(">pixels extracted from [a-z_]+\\.png"
+                                                 "( \\(1 in [0-9]+ of [0-9]+ shown\\))?</text>"));
   }
   // Both entries of cam_front in `sag` (pixels from a file and from the image) are in one figure.
   int sag_front = 0;

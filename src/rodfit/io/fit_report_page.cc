@@ -122,7 +122,9 @@ std::string FileName(const std::string& path) {
 }
 
 // The label fit_input.cc gives an entry (ObservationFit::label, FitCase::labels).
-std::string EntryLabel(const ObservationSpec& spec) { return spec.type + " " + FileName(spec.file); }
+std::string EntryLabel(const ObservationSpec& spec) {
+  return spec.type + " " + FileName(spec.file);
+}
 
 bool IsCentreLineType(const std::string& type) {
   return type == "markers3d" || type == "points3d" || type == "image_points" || type == "images";
@@ -399,7 +401,8 @@ class Builder {
     std::ostringstream& h = page_.html;
     const VarianceBand band = ResidualVarianceBand(r_.residual_dof);
     h << "<section id=\"summary\">\n<h2>Summary</h2>\n<table class=\"summary\">\n";
-    h << "<tr><th>result</th><td>" << (r_.success ? "converged" : "<span class=\"warn\">failed</span>")
+    h << "<tr><th>result</th><td>"
+      << (r_.success ? "converged" : "<span class=\"warn\">failed</span>")
       << ": " << Escape(r_.message) << "</td></tr>\n";
     h << "<tr><th>iterations</th><td class=\"num\">" << r_.iterations << "</td></tr>\n";
     if (r_.global_evaluations > 0)
@@ -488,12 +491,12 @@ class Builder {
           }
           const double a = std::min(1.0, std::abs(rho));
           // White blended towards red (214, 39, 40) or blue (31, 119, 180) by |rho|.
-          const int R = rho >= 0 ? 255 - static_cast<int>(a * (255 - 214)) : 255 - static_cast<int>(a * (255 - 31));
-          const int G = rho >= 0 ? 255 - static_cast<int>(a * (255 - 39)) : 255 - static_cast<int>(a * (255 - 119));
-          const int B = rho >= 0 ? 255 - static_cast<int>(a * (255 - 40)) : 255 - static_cast<int>(a * (255 - 180));
+          const int full[3] = {rho >= 0 ? 214 : 31, rho >= 0 ? 39 : 119, rho >= 0 ? 40 : 180};
+          int rgb[3];
+          for (int k = 0; k < 3; ++k) rgb[k] = 255 - static_cast<int>(a * (255 - full[k]));
           char style[96];
-          std::snprintf(style, sizeof(style), "background:rgb(%d,%d,%d);color:%s", R, G, B,
-                        a > 0.6 ? "#fff" : "#000");
+          std::snprintf(style, sizeof(style), "background:rgb(%d,%d,%d);color:%s", rgb[0], rgb[1],
+                        rgb[2], a > 0.6 ? "#fff" : "#000");
           char v[32];
           std::snprintf(v, sizeof(v), "%+.3f", rho);
           h << "<td class=\"num\" style=\"" << style << "\">" << v << "</td>";
@@ -531,7 +534,8 @@ class Builder {
   void CameraViews(size_t c) {
     const FitCase& fc = in_.cases[c];
     // Entries in the order fit_input.cc loaded them: centre-line types only.
-    std::map<std::string, std::vector<std::pair<const ObservationSpec*, const Observation*>>> by_camera;
+    using Entry = std::pair<const ObservationSpec*, const Observation*>;
+    std::map<std::string, std::vector<Entry>> by_camera;
     std::vector<std::string> order;
     size_t j = 0;
     for (const ObservationSpec& spec : e_.cases[c].observations) {
@@ -849,8 +853,8 @@ class Builder {
     }
     page_.Figure(f, "section-view", "section_" + e_.scene.cases[c].name,
                  " data-case=\"" + Escape(e_.scene.cases[c].name) + "\"",
-                 std::string("The poked cross-section in its plane (equal scales): the ring at rest "
-                             "(dashed), the ring deformed at the fitted parameters, and the "
+                 std::string("The poked cross-section in its plane (equal scales): the ring at "
+                             "rest (dashed), the ring deformed at the fitted parameters, and the "
                              "measured surface points.") +
                      (aligned ? "" : " Axes: the world's " + std::string(AxisName(ia)) + " and " +
                                          AxisName(ib) + " projected on the section's plane, "
@@ -960,7 +964,8 @@ class Builder {
       f.x.label = xlabel;
       f.y.label = "force residual, model − measured [N]";
       const double sigma = list.empty() ? spec.sigma : list.front().sigma;
-      f.bands.push_back({-3 * sigma, 3 * sigma, "#2ca02c", 0.08, "±3 σ (" + svg::FormatTick(3 * sigma, sigma) + " N)"});
+      f.bands.push_back({-3 * sigma, 3 * sigma, "#2ca02c", 0.08,
+                         "±3 σ (" + svg::FormatTick(3 * sigma, sigma) + " N)"});
       f.bands.push_back({-sigma, sigma, "#2ca02c", 0.18, "±1 σ"});
       const char* const names[] = {"x", "y", "z"};
       for (int i = 0; i < 3; ++i) {
@@ -979,7 +984,8 @@ class Builder {
       page_.Figure(f, "force-residuals",
                    "force_residuals_" + e_.scene.cases[c].name + "_" + Stem(spec.file), attrs,
                    "Force residuals of <code>" + Escape(FileName(spec.file)) +
-                       "</code> per reading, with the ±1 σ and ±3 σ bands of the entry's sigma.");
+                       "</code> per reading, with the ±1 σ and ±3 σ bands of the entry's "
+                       "sigma.");
     }
   }
 
@@ -1000,7 +1006,8 @@ class Builder {
       const FitCase& fc = in_.cases[ci];
       if (shapes_ok_) {
         for (size_t k = 0; k < fc.observations.size(); ++k) {
-          const std::string label = k < fc.labels.size() ? fc.labels[k] : fc.observations[k]->type();
+          const std::string label =
+              k < fc.labels.size() ? fc.labels[k] : fc.observations[k]->type();
           ResidualSeries& s = series(label);
           const auto comps = NoisyComponents(*fc.observations[k], r_.shapes[ci]);
           for (size_t m = 0; m < comps.size(); ++m)

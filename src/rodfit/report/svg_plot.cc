@@ -190,7 +190,9 @@ double TickStep(double lo, double hi, int target) {
   const double nice[] = {0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0};
   int k = 3;
   while (k < 6 && raw > nice[k] * decade * 1.25) ++k;
-  auto count = [&](double step) { return std::floor(hi / step + 1e-9) - std::ceil(lo / step - 1e-9) + 1; };
+  auto count = [&](double step) {
+    return std::floor(hi / step + 1e-9) - std::ceil(lo / step - 1e-9) + 1;
+  };
   while (k > 0 && count(nice[k] * decade) < 2) --k;
   return nice[k] * decade;
 }
@@ -212,7 +214,8 @@ std::vector<double> LogTicks(double lo, double hi, int target) {
   std::vector<double> out;
   if (!(lo > 0) || !(hi > lo) || !std::isfinite(hi)) return out;
   const double a = std::log10(lo), b = std::log10(hi);
-  const int first = static_cast<int>(std::ceil(a - 1e-9)), last = static_cast<int>(std::floor(b + 1e-9));
+  const int first = static_cast<int>(std::ceil(a - 1e-9));
+  const int last = static_cast<int>(std::floor(b + 1e-9));
   if (last - first + 1 >= 2) {
     const int stride = std::max(1, (last - first + target) / std::max(1, target));
     for (int k = first; k <= last; k += stride) out.push_back(std::pow(10.0, k));
@@ -416,7 +419,8 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
   if (!has_image) {
     o << "<g stroke=\"#e3e3e3\" stroke-width=\"1\">";
     for (const Tick& t : xt)
-      o << "<path d=\"M" << Num(tx(t.value)) << " " << Num(top) << "V" << Num(plot_bottom) << "\"/>";
+      o << "<path d=\"M" << Num(tx(t.value)) << " " << Num(top) << "V" << Num(plot_bottom)
+        << "\"/>";
     for (const Tick& t : yt)
       o << "<path d=\"M" << Num(left) << " " << Num(ty(t.value)) << "H" << Num(left + plot_w)
         << "\"/>";
@@ -451,7 +455,8 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
         const double xa = sx.Px(s.x[i] - 0.5 * s.bar_width), xb = sx.Px(s.x[i] + 0.5 * s.bar_width);
         if (!std::isfinite(xa) || !std::isfinite(xb)) continue;
         o << "<rect x=\"" << Num(std::min(xa, xb)) << "\" y=\"" << Num(std::min(base, py[i]))
-          << "\" width=\"" << Num(std::abs(xb - xa)) << "\" height=\"" << Num(std::abs(py[i] - base))
+          << "\" width=\"" << Num(std::abs(xb - xa)) << "\" height=\""
+          << Num(std::abs(py[i] - base))
           << "\"/>";
       }
       o << "</g>";
@@ -490,7 +495,8 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
         // (the width estimate generous by a few pixels: a near miss reads as an overlap)
         const Box box{px[i] + 6, py[i] - 6 - kTickFont,
                       (kCharWidth + 0.6) * s.point_labels[i].size() + 4, kTickFont + 4.0};
-        if (std::any_of(labels.begin(), labels.end(), [&](const Box& b) { return b.Overlaps(box); }))
+        if (std::any_of(labels.begin(), labels.end(),
+                        [&](const Box& b) { return b.Overlaps(box); }))
           continue;
         labels.push_back(box);
         o << "<text x=\"" << Num(px[i] + 6) << "\" y=\"" << Num(py[i] - 6) << "\">"
