@@ -74,7 +74,7 @@ int RunFit(int argc, char** argv) {
   app.add_option("--threads", threads, "cases evaluated in parallel, 1 to " +
                                            std::to_string(kMaxThreads))
       ->check(CLI::Validator(CheckThreads, "INT", "threads"));
-  app.add_flag("-q,--quiet", quiet, "no progress line");
+  app.add_flag("-q,--quiet", quiet, "no progress line and no summary");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
