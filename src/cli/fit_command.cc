@@ -23,6 +23,7 @@
 #include "rodfit/io/fit_report.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/profile.h"
+#include "rodfit/io/progress.h"
 
 namespace {
 
@@ -73,7 +74,7 @@ int RunFit(int argc, char** argv) {
   app.add_option("--threads", threads, "cases evaluated in parallel, 1 to " +
                                            std::to_string(kMaxThreads))
       ->check(CLI::Validator(CheckThreads, "INT", "threads"));
-  app.add_flag("-q,--quiet", quiet, "no progress line");
+  app.add_flag("-q,--quiet", quiet, "no progress line and no summary");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -98,7 +99,7 @@ int RunFit(int argc, char** argv) {
     const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
     rodfit::RefuseOverwritingInput(profile_path, inputs);
     if (!report_dir.empty()) {
-      for (const char* name : {"summary.csv", "residuals.csv", "residuals.png"})
+      for (const char* name : {"summary.csv", "residuals.csv", "index.html"})
         rodfit::RefuseOverwritingInput((std::filesystem::path(report_dir) / name).string(),
                                        inputs);
     }
@@ -111,12 +112,21 @@ int RunFit(int argc, char** argv) {
   options.max_iterations = experiment.fit.max_iterations;
   options.trusted_sigmas = experiment.fit.trusted_sigmas;
   options.num_threads = threads;
-  const bool live = !quiet && isatty(STDERR_FILENO);
-  if (live) {
-    options.progress = [](const rodfit::FitIterationInfo& i) {
-      std::fprintf(stderr, "\riteration %3d  cost %.6e  relative change %9.2e  %7.3f s", i.iteration,
-                   i.cost, i.relative_decrease, i.seconds);
-      std::fflush(stderr);
+  // The global search has a budget of evaluations, so its line has an ETA; Levenberg–Marquardt
+  // stops when it converges, so its line has none.
+  rodfit::ProgressLine progress(quiet, STDERR_FILENO);
+  if (progress.enabled()) {
+    options.progress = [&progress](const rodfit::FitIterationInfo& i) {
+      char text[96];
+      if (i.global) {
+        std::snprintf(text, sizeof(text), "fit: global search %d/%d  best cost %.4e", i.iteration,
+                      i.budget, i.cost);
+        progress.Update(text, i.budget > 0 ? double(i.iteration) / i.budget : NAN);
+      } else {
+        std::snprintf(text, sizeof(text), "fit: iteration %d  cost %.4e  relative change %.1e",
+                      i.iteration, i.cost, i.relative_decrease);
+        progress.Update(text);
+      }
     };
   }
   rodfit::FitResult result;
@@ -126,7 +136,7 @@ int RunFit(int argc, char** argv) {
     std::cerr << "rodfit fit: " << experiment_path << ": " << e.what() << "\n";
     return EXIT_FAILURE;
   }
-  if (live) std::fprintf(stderr, "\n");
+  progress.Finish();
   if (!result.success) {
     std::cerr << "rodfit fit: " << experiment_path << ": the fit failed: " << result.message
               << " (no profile written)\n";

@@ -81,17 +81,17 @@ TEST_F(AtomicBoundedCliTest, FitThatFailsToWriteLeavesProfileAndReportAsTheyWere
   const std::string profile = dir_.Write("out/profile.json", "old profile\n");
   const std::string report = dir_.File("report");
   dir_.Write("report/summary.csv", "old summary\n");
-  fs::create_directory(report + "/residuals.png");  // the report's last file cannot be written
+  fs::create_directory(report + "/index.html");  // the report's last file cannot be written
   const std::vector<std::string> top = Entries(dir_.path());
   const std::string fit = "fit " + Q(experiment) + " --quiet --threads 1";
 
   RunResult run = Rodfit(fit + " -o " + Q(profile) + " --report " + Q(report));
-  ExpectOneLineError(run, "residuals.png: exists and is not a file");
+  ExpectOneLineError(run, "index.html: exists and is not a file");
   EXPECT_EQ(ReadText(profile), "old profile\n");
   EXPECT_EQ(Entries(dir_.File("out")), std::vector<std::string>{"profile.json"});
   EXPECT_EQ(ReadText(report + "/summary.csv"), "old summary\n");
-  EXPECT_EQ(Entries(report), (std::vector<std::string>{"residuals.png", "summary.csv"}));
-  EXPECT_TRUE(fs::is_empty(report + "/residuals.png"));
+  EXPECT_EQ(Entries(report), (std::vector<std::string>{"index.html", "summary.csv"}));
+  EXPECT_TRUE(fs::is_empty(report + "/index.html"));
 
   // The profile's folder cannot be made (a file is in the way): a new report is not left behind.
   const std::string blocked = dir_.Write("blocked", "a file\n");
@@ -108,15 +108,18 @@ TEST_F(AtomicBoundedCliTest, FitThatFailsToWriteLeavesProfileAndReportAsTheyWere
   }());
 
   // Without the obstacle both are written, the old files replaced, nothing else left behind.
-  fs::remove(report + "/residuals.png");
+  fs::remove(report + "/index.html");
   run = Rodfit(fit + " -o " + Q(profile) + " --report " + Q(report));
   ASSERT_EQ(run.status, 0) << run.err;
   EXPECT_THAT(ReadText(profile), StartsWith("{"));
   EXPECT_EQ(Entries(dir_.File("out")), std::vector<std::string>{"profile.json"});
   EXPECT_THAT(ReadText(report + "/summary.csv"), StartsWith("case,observation,"));
-  EXPECT_EQ(Entries(report), (std::vector<std::string>{"residuals.csv", "residuals.png",
-                                                       "sag_cam_front_1.png",
-                                                       "sag_cam_front_2.png", "summary.csv"}));
+  EXPECT_EQ(Entries(report), (std::vector<std::string>{"figures", "index.html", "residuals.csv",
+                                                       "summary.csv"}));
+  EXPECT_EQ(Entries(report + "/figures"),
+            (std::vector<std::string>{"camera_sag_cam_front.svg", "cost.svg", "histogram.svg",
+                                      "residuals_sag.svg", "shape_sag_xy.svg",
+                                      "shape_sag_xz.svg"}));
 }
 
 TEST_F(AtomicBoundedCliTest, ExtractThatFailsToWriteLeavesEveryOutputAsItWas) {

@@ -249,8 +249,8 @@ TEST_F(FitCliTest, SynthesizedExperimentIsRecoveredAndTheProfileIsComplete) {
   EXPECT_NEAR(corr["matrix"][0][1].get<double>(), corr["matrix"][1][0].get<double>(), 1e-12);
   EXPECT_LT(std::abs(corr["matrix"][0][1].get<double>()), 1.0);
 
-  // The report: tables, the residual plot and one picture per case and camera.
-  for (const char* name : {"summary.csv", "residuals.csv", "residuals.png"})
+  // The report: tables, the page and one camera figure per case and camera.
+  for (const char* name : {"summary.csv", "residuals.csv", "index.html"})
     EXPECT_TRUE(fs::is_regular_file(report + "/" + name)) << name;
   EXPECT_THAT(ReadText(report + "/summary.csv"),
               StartsWith("case,observation,type,count,rms,unit"));
@@ -258,11 +258,11 @@ TEST_F(FitCliTest, SynthesizedExperimentIsRecoveredAndTheProfileIsComplete) {
   const std::string residuals = ReadText(report + "/residuals.csv");
   EXPECT_EQ(std::count(residuals.begin(), residuals.end(), '\n'), 1 + 2 * 8 + 12);
   std::multiset<std::string> pictures;
-  for (const auto& entry : fs::directory_iterator(report)) {
+  for (const auto& entry : fs::directory_iterator(report + "/figures")) {
     const std::string name = entry.path().filename().string();
-    if (entry.path().extension() == ".png" && name != "residuals.png") {
+    if (name.rfind("camera_", 0) == 0) {
       EXPECT_GT(fs::file_size(entry.path()), 0u) << name;
-      pictures.insert(name.substr(0, name.rfind('_')));  // CASE_CAMERA_K.png -> CASE_CAMERA
+      pictures.insert(entry.path().stem().string().substr(7));  // camera_CASE_CAMERA.svg
     }
   }
   EXPECT_EQ(pictures, std::multiset<std::string>({"flat_cam_front", "flat_cam_top",

@@ -357,5 +357,67 @@ TEST(Fit, GlobalStartRecoversFromThreeDecadesOff) {
       << "plain LM " << plain.iterations << " iterations, global polish " << g.iterations;
 }
 
+// The report's convergence plot reads FitResult::cost_per_iteration: Ceres' cost at the start and
+// after every iteration, from the initial to the final cost, never rising (Levenberg–Marquardt
+// keeps only steps that lower it), with non-decreasing times within the fit's wall time.
+TEST(Fit, CostPerIterationIsRecorded) {
+  std::mt19937 rng(3);
+  FitInput in = Protocol(Suture(), 3e-4, &rng);
+  AddParameters(&in, {"bend_stiffness"}, 3.0);
+  const FitResult r = Fit(in, FitOptions());
+  ASSERT_TRUE(r.success) << r.message;
+  ASSERT_GE(r.iterations, 2);
+  ASSERT_EQ(r.cost_per_iteration.size(), static_cast<size_t>(r.iterations + 1));
+  ASSERT_EQ(r.seconds_per_iteration.size(), r.cost_per_iteration.size());
+  EXPECT_DOUBLE_EQ(r.cost_per_iteration.front(), r.initial_cost);
+  EXPECT_DOUBLE_EQ(r.cost_per_iteration.back(), r.final_cost);
+  EXPECT_LT(r.final_cost, 0.5 * r.initial_cost);  // started 3x off: the fit had work to do
+  for (size_t i = 1; i < r.cost_per_iteration.size(); ++i) {
+    EXPECT_LE(r.cost_per_iteration[i], r.cost_per_iteration[i - 1]) << "iteration " << i;
+    EXPECT_GE(r.seconds_per_iteration[i], r.seconds_per_iteration[i - 1]) << "iteration " << i;
+  }
+  EXPECT_GE(r.seconds_per_iteration.front(), 0.0);
+  EXPECT_LE(r.seconds_per_iteration.back(), r.seconds);
+  EXPECT_EQ(r.global_seconds, 0.0);  // no global search asked for
+  // No case has a poke: no sections, one empty entry per shape.
+  ASSERT_EQ(r.sections.size(), r.shapes.size());
+  for (const Eigen::Matrix3Xd& ring : r.sections) EXPECT_EQ(ring.cols(), 0);
+}
+
+// The progress callback (the CLI's progress line): one call per evaluation of the global search,
+// counted against its budget with the best cost so far, then one per Levenberg–Marquardt
+// iteration with that iteration's cost.
+TEST(Fit, ProgressReportsTheGlobalSearchThenEachIteration) {
+  std::mt19937 rng(5);
+  FitInput in = Protocol(Suture(), 3e-4, &rng);
+  AddParameters(&in, {"bend_stiffness"}, 10.0);
+  in.parameters[0].min = 1e-8;
+  in.parameters[0].max = 1e-4;
+  FitOptions options;
+  options.global = true;
+  options.global_evaluations = 25;
+  std::vector<FitIterationInfo> calls;
+  options.progress = [&calls](const FitIterationInfo& i) { calls.push_back(i); };
+  const FitResult r = Fit(in, options);
+  ASSERT_TRUE(r.success) << r.message;
+  ASSERT_EQ(r.global_evaluations, 25);
+  ASSERT_EQ(calls.size(), static_cast<size_t>(r.global_evaluations + r.iterations + 1));
+  for (int k = 0; k < r.global_evaluations; ++k) {
+    EXPECT_TRUE(calls[k].global);
+    EXPECT_EQ(calls[k].iteration, k + 1);
+    EXPECT_EQ(calls[k].budget, 25);
+    if (k > 0) {
+      EXPECT_LE(calls[k].cost, calls[k - 1].cost);  // the best so far
+    }
+  }
+  for (size_t k = r.global_evaluations; k < calls.size(); ++k) {
+    EXPECT_FALSE(calls[k].global);
+    EXPECT_EQ(calls[k].iteration, static_cast<int>(k) - r.global_evaluations);
+    EXPECT_DOUBLE_EQ(calls[k].cost, r.cost_per_iteration[k - r.global_evaluations]);
+  }
+  EXPECT_GT(r.global_seconds, 0.0);
+  EXPECT_LE(r.global_seconds, r.seconds);
+}
+
 }  // namespace
 }  // namespace rodfit

@@ -204,5 +204,40 @@ TEST(RingFit, RefusesSurfacePointsWithoutPokeOrSection) {
   EXPECT_THROW(Fit(in, FitOptions()), std::invalid_argument);
 }
 
+// The report's section plot reads FitResult::rest_sections / sections: the poked ring at rest
+// and deformed at the fitted parameters. Fitted to noise-free points on the true ring, the
+// fitted ring passes through them, and it differs from the rest ring by the dent.
+TEST(RingFit, FittedSectionIsRecordedPerCase) {
+  FitInput in = PokedBowel();
+  std::mt19937 rng(4);
+  for (const Vec3& f : {Vec3(0, -0.03, 0), Vec3(0, 0.015, -0.02)}) {
+    FitCase fc;
+    fc.load_case = PokeCase("poke", f);
+    fc.surface_points.push_back(Surface(in, fc.load_case, 3e-5, 0.0, &rng));
+    in.cases.push_back(fc);
+  }
+  AddParameters(&in, {"ring_bend_stiffness"}, 3.0);
+  const FitResult result = Fit(in, FitOptions());
+  ASSERT_TRUE(result.success) << result.message;
+  ASSERT_EQ(result.shapes.size(), in.cases.size());
+  ASSERT_EQ(result.sections.size(), in.cases.size());
+  ASSERT_EQ(result.rest_sections.size(), in.cases.size());
+  for (size_t c = 0; c < in.cases.size(); ++c) {
+    const Eigen::Matrix3Xd& ring = result.sections[c];
+    const Eigen::Matrix3Xd& rest = result.rest_sections[c];
+    ASSERT_EQ(ring.cols(), in.section->nodes);
+    ASSERT_EQ(rest.cols(), in.section->nodes);
+    Eigen::Matrix3Xd closed(3, ring.cols() + 1);
+    closed << ring, ring.col(0);
+    double worst = 0.0;
+    for (const Vec3& q : in.cases[c].surface_points[0].points) {
+      const PolylineFoot foot = ClosestPointOnPolyline<3>(closed, q);
+      worst = std::max(worst, std::sqrt(foot.distance_squared));
+    }
+    EXPECT_LT(worst, 1e-7) << "case " << c;  // [m]: 1/300 of the 30 um sigma
+    EXPECT_GT((ring - rest).colwise().norm().maxCoeff(), 1e-4) << "case " << c;  // the dent [m]
+  }
+}
+
 }  // namespace
 }  // namespace rodfit

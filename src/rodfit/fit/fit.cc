@@ -208,7 +208,9 @@ class CaseEvaluator {
   }
 
   /// residuals: num_residuals(); jacobian (row major num_residuals x m) optional.
-  bool Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape) const {
+  /// `final_state`, when given, receives the equilibrium (the report's poked section needs it).
+  bool Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape,
+                RodState* final_state = nullptr) const {
     const Material material = MaterialAt(in_, fitted_, logp);
     std::shared_ptr<const RodModel> model;
     try {
@@ -351,6 +353,7 @@ class CaseEvaluator {
       workspace_ = ws;
     }
     if (shape) *shape = state.x;
+    if (final_state) *final_state = state;
     return true;
   }
 
@@ -675,6 +678,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   };
 
   if (options.global) {
+    const Clock::time_point global_start = Clock::now();
     // DIRECT-L: a deterministic derivative-free global search over the log box; Ceres polishes.
     nlopt::opt opt(nlopt::GN_DIRECT_L, m);
     std::vector<double> lo(m), hi(m);
@@ -685,13 +689,26 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     struct Ctx {
       decltype(total_cost)* f;
       int evaluations;
-    } ctx{&total_cost, 0};
+      const FitOptions* options;
+      Clock::time_point start;
+      double best;
+    } ctx{&total_cost, 0, &options, start, std::numeric_limits<double>::infinity()};
     opt.set_min_objective(
         [](const std::vector<double>& x, std::vector<double>&, void* data) {
           Ctx* c = static_cast<Ctx*>(data);
           ++c->evaluations;
           bool ok;
           const double v = (*c->f)(x.data(), &ok);
+          if (ok) c->best = std::min(c->best, v);
+          if (c->options->progress) {
+            FitIterationInfo info;
+            info.global = true;
+            info.iteration = c->evaluations;
+            info.budget = c->options->global_evaluations;
+            info.cost = c->best;
+            info.seconds = std::chrono::duration<double>(Clock::now() - c->start).count();
+            c->options->progress(info);
+          }
           return ok ? v : 1e30;  // a failed solve is a very bad point, not an error
         },
         &ctx);
@@ -705,6 +722,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     }
     result.global_evaluations = ctx.evaluations;
     if (best < 1e30) logp = x;
+    result.global_seconds = std::chrono::duration<double>(Clock::now() - global_start).count();
   }
 
   ceres::Problem::Options problem_options;
@@ -730,8 +748,13 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   ProgressCallback callback(options, start);
   so.callbacks.push_back(&callback);
   ceres::Solver::Summary summary;
+  const double ceres_start = std::chrono::duration<double>(Clock::now() - start).count();
   ceres::Solve(so, &problem, &summary);
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  for (const ceres::IterationSummary& it : summary.iterations) {
+    result.cost_per_iteration.push_back(it.cost);
+    result.seconds_per_iteration.push_back(ceres_start + it.cumulative_time_in_seconds);
+  }
   result.initial_cost = summary.initial_cost;
   result.final_cost = summary.final_cost;
   result.num_residuals = total_residuals;
@@ -888,9 +911,29 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     CaseEvaluator plain(input, static_cast<int>(c), fitted, nullptr);
     if (const std::optional<RodState> warm = evals[c]->WarmState()) plain.SetWarmStart(*warm);
     VecX rr(std::max(1, plain.num_residuals()));
-    if (!plain.Evaluate(logp.data(), rr.data(), nullptr, &shape)) continue;
+    RodState state;
+    if (!plain.Evaluate(logp.data(), rr.data(), nullptr, &shape, &state)) continue;
     result.shapes.push_back(shape);
     const FitCase& fc = input.cases[c];
+    // The poked section at the fit, for the report's measured-versus-fitted section plot.
+    Eigen::Matrix3Xd rest_ring, ring;
+    if (fc.load_case.poke && input.section) {
+      try {
+        const Material material = MaterialAt(input, fitted, logp.data());
+        const RodModel model(input.rod, material, input.gravity, fc.load_case, input.springs);
+        const PokeResult poke =
+            SolvePoke(model, state, *input.section,
+                      RingStiffness{material.ring_bend_stiffness, material.ring_stretch_stiffness});
+        if (poke.ring.summary.converged) {
+          rest_ring = poke.rest_world;
+          ring = poke.deformed_world;
+        }
+      } catch (const std::invalid_argument&) {
+        // No section to show; the residuals above already count this case.
+      }
+    }
+    result.rest_sections.push_back(rest_ring);
+    result.sections.push_back(ring);
     for (size_t o = 0; o < fc.observations.size(); ++o) {
       ObservationFit of;
       of.case_index = static_cast<int>(c);

@@ -44,6 +44,9 @@ struct ForceMeasurement {
   std::string point = "grasp";  ///< HeldReaction::point: clamp, end_clamp, end_pin, pins[k], grasp
   std::optional<Vec3> moment;   ///< [N m] about the held point, for clamps
   double sigma_moment = 1.0;    ///< [N m]
+  /// [s] the haptic log's time of a `grasp_force` sample (for the report's force-versus-time
+  /// plot); NaN for readings without a time.
+  double time = std::numeric_limits<double>::quiet_NaN();
   int num_residuals() const { return moment ? 6 : 3; }
 };
 
@@ -85,6 +88,11 @@ struct FitIterationInfo {
   double cost = 0.0;
   double relative_decrease = 0.0;
   double seconds = 0.0;
+  /// The NLopt global search before Levenberg–Marquardt (FitOptions::global): `iteration` counts
+  /// its evaluations out of `budget` (so a progress line can estimate the time left) and `cost`
+  /// is the best so far.
+  bool global = false;
+  int budget = 0;
 };
 
 struct FitOptions {
@@ -98,7 +106,8 @@ struct FitOptions {
   /// A parameter whose log has a standard deviation above this is reported as not
   /// identifiable: the data pin it down only within a factor exp(this).
   double max_log_std = 1.0;
-  std::function<void(const FitIterationInfo&)> progress;  ///< called once per iteration
+  /// Called once per iteration (and per evaluation of the global search).
+  std::function<void(const FitIterationInfo&)> progress;
   bool Check(std::string* why) const;
 };
 
@@ -154,6 +163,10 @@ struct FitResult {
   double residual_variance = 1.0;
   int residual_dof = 1;          ///< N - m (at least 1): the degrees of freedom of that ratio
   double seconds = 0.0;          ///< wall time of the whole fit
+  double global_seconds = 0.0;   ///< wall time of the NLopt global search (0 without)
+  /// Ceres' cost at the start ([0]) and after each iteration, and the wall time since the fit
+  /// began [s] at each: the report's convergence plot.
+  std::vector<double> cost_per_iteration, seconds_per_iteration;
   /// Summed over all case evaluations (threads add up): forward solves, sensitivities and the
   /// observation models; the rest of `seconds` is Ceres and the covariance.
   double solve_seconds = 0.0, jacobian_seconds = 0.0, observation_seconds = 0.0;
@@ -166,6 +179,9 @@ struct FitResult {
   /// are evaluated again from `shapes`).
   std::vector<MeasurementResidual> measurement_residuals;
   std::vector<Mat3X> shapes;     ///< fitted centre-lines, one per case
+  /// Per entry of `shapes`: the poked cross-section's ring nodes at rest and deformed at the
+  /// fitted parameters [m], world (empty for a case without a poke or without a section).
+  std::vector<Eigen::Matrix3Xd> rest_sections, sections;
 };
 
 /// The range a residual variance (chi-square / dof) of a correct model with correct sigmas lies

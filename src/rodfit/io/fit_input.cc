@@ -156,6 +156,7 @@ FitInput BuildFitInput(const Experiment& e) {
           f.force = h.force;
           f.sigma = spec.sigma;
           f.label = Label(spec) + " t=" + FormatDouble(h.t);
+          f.time = h.t;
           f.observation = Label(spec);
           f.type = spec.type;
           gc.grasp_forces.push_back(f);

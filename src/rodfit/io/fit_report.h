@@ -1,10 +1,12 @@
-// The fit report (`rodfit fit --report DIR`): what a lab looks at to judge a calibration.
-//   DIR/summary.csv     case,observation,type,count,rms,unit
+// The fit report (`rodfit fit --report DIR`): what a lab looks at to judge a calibration
+// (docs/formats.md, "Fit report").
+//   DIR/index.html      one self-contained page: parameter and correlation tables, per case the
+//                       camera views, 3-D projections, poked sections, force logs and residuals,
+//                       the residual histogram, cost per iteration and timing (fit_report_page.h)
+//   DIR/figures/*.svg   each of the page's figures as a file of its own
+//   DIR/summary.csv     case,observation,type,count,rms,unit,rms_moment
 //   DIR/residuals.csv   case,observation,unit,measurement,e1,e2,e3,norm,norm_sigma
 //                       (model - measured per measurement; e3 = 0 for pixels)
-//   DIR/CASE_CAMERA.png the fitted centre-line (green) over the image, or over the observed
-//                       points (red) on a blank frame when there is no image
-//   DIR/residuals.png   |residual| / sigma of every measurement, case by case
 #pragma once
 
 #include <string>

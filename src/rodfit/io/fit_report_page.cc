@@ -1,0 +1,1234 @@
+// The fit report's page (fit_report_page.h). Residuals are shown in sigmas, one value per noisy
+// dimension of a measurement: every component for markers, pixels with s, forces and moments;
+// for the closest-point observations (image curves, points3d, surface points) only the
+// components across the curve, since the one along it is zero by construction (observations.h)
+// and would pile up at 0 in the histogram. Positions are shown in mm, pixels in px, forces in N.
+#include "rodfit/io/fit_report_page.h"
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <Eigen/Eigenvalues>
+#include <opencv2/imgproc.hpp>
+
+#include "rodfit/io/csv.h"
+#include "rodfit/io/image_observations.h"
+#include "rodfit/report/svg_plot.h"
+#include "rodfit/version.h"
+
+namespace rodfit {
+namespace {
+
+using svg::Escape;
+
+constexpr double kMm = 1e3;  // [mm/m]: positions are plotted in millimetres
+constexpr double kPi = 3.14159265358979323846;
+const char* const kPalette[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e",
+                                "#8c564b", "#e377c2", "#17becf", "#7f7f7f", "#bcbd22"};
+const char* Colour(size_t i) { return kPalette[i % (sizeof(kPalette) / sizeof(kPalette[0]))]; }
+const char* const kObserved = "#d62728";  // measurements: red markers
+const char* const kFitted = "#1f5fbf";    // the model at the fit: blue lines and crosses
+const char* const kComponent[] = {"#1f77b4", "#2ca02c", "#d62728"};  // x, y, z
+constexpr size_t kMaxPixelsDrawn = 80;  // per entry in a camera view, so the image shows
+// Residual plots show at most this many sigmas; values beyond are drawn at the edge.
+constexpr double kMaxSigmasShown = 12.0;
+
+// ---------------------------------------------------------------------------------------------
+// Numbers and units.
+
+// "2.463×10⁻⁶" in HTML (a <sup> exponent) outside [1e-3, 1e5); "%.{digits}g" inside.
+std::string HtmlNumber(double v, int digits = 4) {
+  if (std::isnan(v)) return "NaN";
+  if (std::isinf(v)) return v > 0 ? "∞" : "−∞";
+  char b[64];
+  const double a = std::abs(v);
+  if (a == 0.0 || (a >= 1e-3 && a < 1e5)) {
+    std::snprintf(b, sizeof(b), "%.*g", digits, v);
+    std::string s = b;
+    if (!s.empty() && s[0] == '-') s = "−" + s.substr(1);
+    return s;
+  }
+  int e = static_cast<int>(std::floor(std::log10(a)));
+  double m = v / std::pow(10.0, e);
+  std::snprintf(b, sizeof(b), "%.*f", std::max(0, digits - 1), m);
+  if (std::abs(std::stod(b)) >= 10.0) {  // 9.9996 rounded up to 10.000
+    ++e;
+    m = v / std::pow(10.0, e);
+    std::snprintf(b, sizeof(b), "%.*f", std::max(0, digits - 1), m);
+  }
+  std::string s = b;
+  if (s.find('.') != std::string::npos) {
+    while (s.back() == '0') s.pop_back();
+    if (s.back() == '.') s.pop_back();
+  }
+  if (s[0] == '-') s = "−" + s.substr(1);
+  return s + "×10<sup>" + (e < 0 ? "−" + std::to_string(-e) : std::to_string(e)) + "</sup>";
+}
+
+// "N m^2" -> "N m<sup>2</sup>", escaped.
+std::string HtmlUnit(const std::string& unit) {
+  std::string out;
+  for (size_t i = 0; i < unit.size(); ++i) {
+    if (unit[i] == '^') {
+      size_t j = i + 1;
+      if (j < unit.size() && unit[j] == '-') ++j;
+      while (j < unit.size() && std::isdigit(static_cast<unsigned char>(unit[j]))) ++j;
+      out += "<sup>" + Escape(unit.substr(i + 1, j - i - 1)) + "</sup>";
+      i = j - 1;
+    } else {
+      out += Escape(std::string(1, unit[i]));
+    }
+  }
+  return out;
+}
+
+std::string WithUnit(double v, const std::string& unit, int digits = 4) {
+  return HtmlNumber(v, digits) + (unit.empty() ? "" : "&nbsp;" + HtmlUnit(unit));
+}
+
+std::string Duration(double seconds) {
+  char b[32];
+  if (seconds < 1.0)
+    std::snprintf(b, sizeof(b), "%.3g&nbsp;ms", seconds * 1e3);
+  else
+    std::snprintf(b, sizeof(b), "%.3g&nbsp;s", seconds);
+  return b;
+}
+
+std::string Percent(double fraction) {
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.1f&nbsp;%%", 100.0 * fraction);
+  return b;
+}
+
+// A name for a figure file: letters, digits, '-' and '_' only.
+std::string FileSafe(const std::string& s) {
+  std::string out = s;
+  for (char& c : out)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
+  return out.substr(0, 80);
+}
+
+std::string Stem(const std::string& path) { return std::filesystem::path(path).stem().string(); }
+std::string FileName(const std::string& path) {
+  return std::filesystem::path(path).filename().string();
+}
+
+// The label fit_input.cc gives an entry (ObservationFit::label, FitCase::labels).
+std::string EntryLabel(const ObservationSpec& spec) {
+  return spec.type + " " + FileName(spec.file);
+}
+
+bool IsCentreLineType(const std::string& type) {
+  return type == "markers3d" || type == "points3d" || type == "image_points" || type == "images";
+}
+
+// ---------------------------------------------------------------------------------------------
+// The page being built.
+
+class Page {
+ public:
+  std::ostringstream html;
+  std::vector<std::pair<std::string, std::string>> figures;
+
+  /// Appends `figure` inline as <figure class="fig CLS" ATTRS> with its caption (HTML) and keeps
+  /// it as figures/NAME.svg.
+  void Figure(const svg::Figure& figure, const std::string& cls, const std::string& name,
+              const std::string& attributes, const std::string& caption_html) {
+    std::string file = FileSafe(name);
+    if (!used_.insert(file).second) file += "_" + std::to_string(figures.size());
+    used_.insert(file);
+    const std::string svg = svg::RenderSvg(figure, "f" + std::to_string(figures.size() + 1));
+    html << "<figure class=\"fig " << cls << "\"" << attributes << ">\n"
+         << svg << "<figcaption>" << caption_html << " <a class=\"svg-file\" href=\"figures/"
+         << file << ".svg\">SVG</a></figcaption>\n</figure>\n";
+    figures.emplace_back(file + ".svg", svg);
+  }
+
+ private:
+  std::set<std::string> used_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Residuals.
+
+// Unit vectors n1, n2 across a 3-D tangent t (any right-handed pair).
+void Across(const Eigen::Vector3d& t, Eigen::Vector3d* n1, Eigen::Vector3d* n2) {
+  const Eigen::Vector3d u = t.normalized();
+  Eigen::Index axis;
+  u.cwiseAbs().minCoeff(&axis);
+  *n1 = u.cross(Eigen::Vector3d::Unit(axis)).normalized();
+  *n2 = u.cross(*n1);
+}
+
+// The noisy residual components in sigmas of a 3-D closest-point residual e (already / sigma) at
+// the foot of q on `polyline`: the two across the foot's edge, or all three when the foot is a
+// vertex (beyond an end, where e need not be perpendicular to an edge).
+void AcrossComponents(const Eigen::Matrix3Xd& polyline, const Eigen::Vector3d& q,
+                      const Eigen::Vector3d& e, std::vector<double>* out) {
+  const PolylineFoot foot = ClosestPointOnPolyline<3>(polyline, q);
+  if (foot.edge < 0 || foot.vertex >= 0) {
+    for (int i = 0; i < 3; ++i) out->push_back(e[i]);
+    return;
+  }
+  const Eigen::Vector3d t = polyline.col(foot.edge + 1) - polyline.col(foot.edge);
+  if (!(t.norm() > 0)) {
+    for (int i = 0; i < 3; ++i) out->push_back(e[i]);
+    return;
+  }
+  Eigen::Vector3d n1, n2;
+  Across(t, &n1, &n2);
+  out->push_back(e.dot(n1));
+  out->push_back(e.dot(n2));
+}
+
+// Per measurement of a centre-line observation at `shape`: its noisy components in sigmas.
+// Empty when the observation cannot be evaluated there.
+std::vector<std::vector<double>> NoisyComponents(const Observation& obs, const Mat3X& shape) {
+  std::vector<std::vector<double>> out;
+  VecX r;
+  if (!obs.Evaluate(shape, &r)) return out;
+  const int n = obs.num_measurements();
+  const int dim = n > 0 ? obs.num_residuals() / n : 0;
+  out.resize(n);
+  if (const auto* points = dynamic_cast<const Points3dObservation*>(&obs)) {
+    for (int m = 0; m < n; ++m)
+      AcrossComponents(shape, points->samples()[m], r.segment<3>(3 * m), &out[m]);
+    return out;
+  }
+  if (const auto* curve = dynamic_cast<const ImageCurveObservation*>(&obs)) {
+    Eigen::Matrix2Xd uv(2, shape.cols());
+    bool projected = true;
+    for (int i = 0; i < shape.cols() && projected; ++i) {
+      Eigen::Vector2d p;
+      projected = Project(curve->camera(), Eigen::Vector3d(shape.col(i)), &p);
+      uv.col(i) = p;
+    }
+    for (int m = 0; m < n; ++m) {
+      const Eigen::Vector2d e = r.segment<2>(2 * m);
+      const PolylineFoot foot =
+          projected ? ClosestPointOnPolyline<2>(uv, curve->pixels()[m]) : PolylineFoot();
+      if (foot.edge < 0 || foot.vertex >= 0) {
+        out[m] = {e.x(), e.y()};
+        continue;
+      }
+      const Eigen::Vector2d t = uv.col(foot.edge + 1) - uv.col(foot.edge);
+      if (!(t.norm() > 0)) {
+        out[m] = {e.x(), e.y()};
+        continue;
+      }
+      out[m] = {e.dot(Eigen::Vector2d(-t.y(), t.x()).normalized())};  // signed, across
+    }
+    return out;
+  }
+  for (int m = 0; m < n; ++m)
+    for (int i = 0; i < dim; ++i) out[m].push_back(r[m * dim + i]);
+  return out;
+}
+
+// One observation's residuals for the plots: x (measurement number or time) and the values.
+struct ResidualSeries {
+  std::string label;
+  std::vector<double> x, sigmas;  // one entry per noisy component
+};
+
+// ---------------------------------------------------------------------------------------------
+// Figures.
+
+// A closed polyline for a ring: the first node repeated.
+Eigen::Matrix3Xd Closed(const Eigen::Matrix3Xd& ring) {
+  Eigen::Matrix3Xd out(3, ring.cols() + 1);
+  out.leftCols(ring.cols()) = ring;
+  out.col(ring.cols()) = ring.col(0);
+  return out;
+}
+
+std::string Base64(const std::string& bytes) {
+  static const char* const kTable =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const unsigned v = (static_cast<unsigned char>(bytes[i]) << 16) |
+                       (static_cast<unsigned char>(bytes[i + 1]) << 8) |
+                       static_cast<unsigned char>(bytes[i + 2]);
+    out += kTable[(v >> 18) & 63];
+    out += kTable[(v >> 12) & 63];
+    out += kTable[(v >> 6) & 63];
+    out += kTable[v & 63];
+  }
+  if (i + 1 == bytes.size()) {
+    const unsigned v = static_cast<unsigned char>(bytes[i]) << 16;
+    out += kTable[(v >> 18) & 63];
+    out += kTable[(v >> 12) & 63];
+    out += "==";
+  } else if (i + 2 == bytes.size()) {
+    const unsigned v = (static_cast<unsigned char>(bytes[i]) << 16) |
+                       (static_cast<unsigned char>(bytes[i + 1]) << 8);
+    out += kTable[(v >> 18) & 63];
+    out += kTable[(v >> 12) & 63];
+    out += kTable[(v >> 6) & 63];
+    out += '=';
+  }
+  return out;
+}
+
+// The part [u0, u1) x [v0, v1) of `image` as a data: URI (JPEG for 8-bit photographs, PNG
+// otherwise), at most kMaxImageSide pixels on its longer side so the page stays small.
+std::string ImageDataUri(const std::string& path, const cv::Mat& image, const cv::Rect& crop) {
+  constexpr int kMaxImageSide = 1200;
+  cv::Mat part = image(crop).clone();
+  const int side = std::max(part.cols, part.rows);
+  if (side > kMaxImageSide) {
+    const double f = double(kMaxImageSide) / side;
+    cv::resize(part, part, cv::Size(), f, f, cv::INTER_AREA);
+  }
+  const bool jpeg = part.depth() == CV_8U && (part.channels() == 1 || part.channels() == 3);
+  const std::string ext = jpeg ? ".jpg" : ".png";
+  const std::string bytes =
+      EncodeImage((std::filesystem::path(path).parent_path() / ("report" + ext)).string(), part);
+  return std::string("data:image/") + (jpeg ? "jpeg" : "png") + ";base64," + Base64(bytes);
+}
+
+// Text of an arc length for a marker's label: "s = 0.12 m".
+std::string ArcLabel(double s) {
+  char b[40];
+  std::snprintf(b, sizeof(b), "s = %.3g m", s);
+  return b;
+}
+
+// The world axes of the two long views of a 3-D shape: the axis of largest extent a, with each
+// of the other two. Returns {{a, c}, {a, b}} (b < c) so that a rod along x is seen from the side
+// (x-z) and from above (x-y).
+std::array<std::array<int, 2>, 2> LongViews(const std::vector<Eigen::Vector3d>& points) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (const Eigen::Vector3d& p : points) {
+    if (!p.allFinite()) continue;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  Eigen::Index a = 0;
+  if ((hi - lo).allFinite()) (hi - lo).maxCoeff(&a);
+  const int b = a == 0 ? 1 : 0, c = a == 2 ? 1 : 2;
+  return {{{static_cast<int>(a), c}, {static_cast<int>(a), b}}};
+}
+
+const char* AxisName(int i) { return i == 0 ? "x" : i == 1 ? "y" : "z"; }
+
+// ---------------------------------------------------------------------------------------------
+// The builder.
+
+class Builder {
+ public:
+  Builder(const Experiment& e, const FitInput& in, const FitResult& r)
+      : e_(e), in_(in), r_(r), shapes_ok_(r.shapes.size() == in.cases.size()) {}
+
+  FitReportPage Build() {
+    Head();
+    Summary();
+    Parameters();
+    Cases();
+    AllResiduals();
+    Convergence();
+    page_.html << "<footer>Tables beside this page: <a href=\"summary.csv\">summary.csv</a> (RMS "
+                  "per observation), <a href=\"residuals.csv\">residuals.csv</a> (every "
+                  "measurement's residual); each figure as SVG in <code>figures/</code>. Written "
+                  "by rodfit "
+               << Escape(RODFIT_VERSION) << ".</footer>\n</body>\n</html>\n";
+    return {page_.html.str(), std::move(page_.figures)};
+  }
+
+ private:
+  // The experiment case a fit case belongs to: itself, or for the grasped case of a haptic
+  // sample ("drag@t=1.25", fit_input.cc) the case it was made from. -1 when none.
+  int ExperimentCase(size_t ci) const {
+    if (ci < e_.cases.size()) return static_cast<int>(ci);
+    const std::string& name = in_.cases[ci].load_case.name;
+    int best = -1;
+    size_t best_len = 0;
+    for (size_t c = 0; c < e_.scene.cases.size(); ++c) {
+      const std::string prefix = e_.scene.cases[c].name + "@t=";
+      if (name.compare(0, prefix.size(), prefix) == 0 && prefix.size() > best_len) {
+        best = static_cast<int>(c);
+        best_len = prefix.size();
+      }
+    }
+    return best;
+  }
+
+  void Head() {
+    const std::string name = FileName(e_.path);
+    page_.html << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+               << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
+               << "<meta name=\"generator\" content=\"rodfit " << Escape(RODFIT_VERSION)
+               << "\">\n<title>rodfit fit report: " << Escape(name) << "</title>\n<style>\n"
+               << "body{font-family:'DejaVu Sans',Helvetica,Arial,sans-serif;font-size:15px;"
+                  "margin:24px auto;max-width:1400px;padding:0 16px;color:#222;line-height:1.4}\n"
+                  "h1{font-size:24px}h2{font-size:20px;border-bottom:1px solid #ccc;"
+                  "padding-bottom:4px;margin-top:36px}h3{font-size:17px;margin-top:24px}\n"
+                  "table{border-collapse:collapse;margin:8px 0 16px}\n"
+                  "th,td{border:1px solid #ccc;padding:4px 8px;text-align:left;"
+                  "vertical-align:top}th{background:#f2f2f2}\n"
+                  "td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}\n"
+                  "tr.not-identifiable td{background:#fff1e6}\n"
+                  ".verdict-no{color:#b34700;font-weight:bold}\n"
+                  ".figures{display:flex;flex-wrap:wrap;gap:16px;align-items:flex-start}\n"
+                  "figure{margin:0;border:1px solid #ddd;padding:6px;background:#fff}\n"
+                  "figure svg{display:block;max-width:100%;height:auto}\n"
+                  "figcaption{font-size:13px;color:#444;max-width:640px;margin-top:4px}\n"
+                  "table.correlation td{text-align:center;min-width:64px}\n"
+                  ".warn{color:#b30000;font-weight:bold}\n"
+                  "nav a{margin-right:12px}footer{margin-top:40px;font-size:13px;color:#555}\n"
+               << "</style>\n</head>\n<body>\n"
+               << "<h1>Fit report: <code>" << Escape(name) << "</code></h1>\n"
+               << "<p class=\"meta\">Experiment <code>" << Escape(e_.path) << "</code>; "
+               << e_.cases.size() << " case" << (e_.cases.size() == 1 ? "" : "s")
+               << "; rodfit " << Escape(RODFIT_VERSION) << ".</p>\n"
+               << "<nav><a href=\"#summary\">Summary</a><a href=\"#parameters\">Parameters</a>"
+                  "<a href=\"#cases\">Cases</a><a href=\"#residuals\">Residuals</a>"
+                  "<a href=\"#convergence\">Convergence and timing</a></nav>\n";
+  }
+
+  void Summary() {
+    std::ostringstream& h = page_.html;
+    const VarianceBand band = ResidualVarianceBand(r_.residual_dof);
+    h << "<section id=\"summary\">\n<h2>Summary</h2>\n<table class=\"summary\">\n";
+    h << "<tr><th>result</th><td>"
+      << (r_.success ? "converged" : "<span class=\"warn\">failed</span>")
+      << ": " << Escape(r_.message) << "</td></tr>\n";
+    h << "<tr><th>iterations</th><td class=\"num\">" << r_.iterations << "</td></tr>\n";
+    if (r_.global_evaluations > 0)
+      h << "<tr><th>global search</th><td class=\"num\">" << r_.global_evaluations
+        << " evaluations</td></tr>\n";
+    h << "<tr><th>cost, start → end</th><td class=\"num\">" << HtmlNumber(r_.initial_cost)
+      << " → " << HtmlNumber(r_.final_cost) << "</td></tr>\n";
+    h << "<tr><th>residuals</th><td class=\"num\">" << r_.num_residuals << " ("
+      << r_.residual_dof << " degrees of freedom)</td></tr>\n";
+    const bool plausible = r_.residual_variance >= band.low && r_.residual_variance <= band.high;
+    h << "<tr><th>residual variance (χ²/dof)</th><td class=\"num\">"
+      << HtmlNumber(r_.residual_variance, 3) << " (expected " << HtmlNumber(band.low, 2) << " to "
+      << HtmlNumber(band.high, 2) << " for correct sigmas"
+      << (plausible ? ")" : ") <span class=\"warn\">outside</span>") << "</td></tr>\n";
+    h << "<tr><th>loss</th><td>" << LossTypeName(e_.fit.loss);
+    if (e_.fit.loss != LossType::kNone)
+      h << ", scale " << HtmlNumber(e_.fit.loss_scale, 3) << "&nbsp;σ";
+    h << (e_.fit.trusted_sigmas ? "; sigmas trusted (covariance not rescaled)" : "")
+      << "</td></tr>\n";
+    h << "<tr><th>wall time</th><td class=\"num\">" << Duration(r_.seconds) << "</td></tr>\n";
+    h << "</table>\n</section>\n";
+  }
+
+  void Parameters() {
+    std::ostringstream& h = page_.html;
+    h << "<section id=\"parameters\">\n<h2>Parameters</h2>\n";
+    h << "<table class=\"parameters\">\n<tr><th>parameter</th><th>value ± std</th><th>unit</th>"
+         "<th>relative std</th><th>identifiable</th><th>start</th><th>bounds</th>"
+         "<th>at a bound</th></tr>\n";
+    std::vector<const ParameterEstimate*> held;
+    for (const ParameterEstimate& p : r_.parameters) {
+      if (!p.fitted) {
+        held.push_back(&p);
+        continue;
+      }
+      const FitParameter* spec = nullptr;
+      for (const FitParameter& f : in_.parameters)
+        if (f.name == p.name) spec = &f;
+      h << "<tr class=\"parameter" << (p.identifiable ? "" : " not-identifiable")
+        << "\" data-name=\"" << Escape(p.name) << "\"><td><code>" << Escape(p.name)
+        << "</code></td>";
+      if (p.identifiable && p.std) {
+        h << "<td class=\"num\">" << HtmlNumber(p.value) << " ± " << HtmlNumber(*p.std, 2)
+          << "</td><td>" << HtmlUnit(p.unit) << "</td><td class=\"num\">"
+          << (p.value != 0 ? Percent(*p.std / std::abs(p.value)) : "—") << "</td>"
+          << "<td>yes</td>";
+      } else {
+        // Where the fit stopped is not a measurement: no number an importer could mistake.
+        h << "<td class=\"num\">not determined</td><td>" << HtmlUnit(p.unit)
+          << "</td><td class=\"num\">—</td><td><span class=\"verdict-no\">no</span>: "
+          << Escape(p.reason) << "</td>";
+      }
+      h << "<td class=\"num\">" << WithUnit(p.start, "") << "</td><td class=\"num\">";
+      if (spec && (spec->min || spec->max))
+        h << "[" << (spec->min ? HtmlNumber(*spec->min) : "0") << ", "
+          << (spec->max ? HtmlNumber(*spec->max) : "∞") << "]";
+      else
+        h << "none";
+      h << "</td><td>" << (p.at_bound ? "<span class=\"warn\">yes</span>" : "no") << "</td></tr>\n";
+    }
+    h << "</table>\n";
+    if (!held.empty()) {
+      h << "<p>Held at their given values:</p>\n<table class=\"held\">\n<tr><th>parameter</th>"
+           "<th>value</th><th>unit</th></tr>\n";
+      for (const ParameterEstimate* p : held)
+        h << "<tr><td><code>" << Escape(p->name) << "</code></td><td class=\"num\">"
+          << HtmlNumber(p->value) << "</td><td>" << HtmlUnit(p->unit) << "</td></tr>\n";
+      h << "</table>\n";
+    }
+    // Correlations among the fitted parameters (of their logs), coloured: red positive, blue
+    // negative, the stronger the deeper.
+    const Eigen::MatrixXd& c = r_.correlation;
+    if (c.rows() > 0 && c.rows() == c.cols() &&
+        c.rows() == static_cast<Eigen::Index>(r_.fitted_names.size())) {
+      h << "<h3>Correlation (of the logs of the fitted parameters)</h3>\n<table "
+           "class=\"correlation\">\n<tr><th></th>";
+      for (const std::string& n : r_.fitted_names) h << "<th><code>" << Escape(n) << "</code></th>";
+      h << "</tr>\n";
+      for (Eigen::Index i = 0; i < c.rows(); ++i) {
+        h << "<tr><th><code>" << Escape(r_.fitted_names[i]) << "</code></th>";
+        for (Eigen::Index j = 0; j < c.cols(); ++j) {
+          const double rho = c(i, j);
+          if (!std::isfinite(rho)) {
+            h << "<td>—</td>";
+            continue;
+          }
+          const double a = std::min(1.0, std::abs(rho));
+          // White blended towards red (214, 39, 40) or blue (31, 119, 180) by |rho|.
+          const int full[3] = {rho >= 0 ? 214 : 31, rho >= 0 ? 39 : 119, rho >= 0 ? 40 : 180};
+          int rgb[3];
+          for (int k = 0; k < 3; ++k) rgb[k] = 255 - static_cast<int>(a * (255 - full[k]));
+          char style[96];
+          std::snprintf(style, sizeof(style), "background:rgb(%d,%d,%d);color:%s", rgb[0], rgb[1],
+                        rgb[2], a > 0.6 ? "#fff" : "#000");
+          char v[32];
+          std::snprintf(v, sizeof(v), "%+.3f", rho);
+          h << "<td class=\"num\" style=\"" << style << "\">" << v << "</td>";
+        }
+        h << "</tr>\n";
+      }
+      h << "</table>\n";
+    }
+    h << "</section>\n";
+  }
+
+  void Cases() {
+    page_.html << "<section id=\"cases\">\n<h2>Cases</h2>\n";
+    if (!shapes_ok_)
+      page_.html << "<p class=\"warn\">Some cases could not be evaluated at the fitted "
+                    "parameters: their shapes are not shown.</p>\n";
+    for (size_t c = 0; c < e_.cases.size() && c < in_.cases.size(); ++c) {
+      page_.html << "<h3 class=\"case\" id=\"case-" << c << "\">Case <code>"
+                 << Escape(e_.scene.cases[c].name) << "</code></h3>\n<div class=\"figures\">\n";
+      if (shapes_ok_) {
+        CameraViews(c);
+        ShapeViews(c);
+        SectionView(c);
+      }
+      ForcePlots(c);
+      CaseResiduals(c);
+      page_.html << "</div>\n";
+    }
+    page_.html << "</section>\n";
+  }
+
+  // One figure per camera of the case: the image (or a blank frame) zoomed to the thread, the
+  // observed pixels of every entry of that camera, the fitted centre-line projected, and the
+  // fitted position of each marker with s.
+  void CameraViews(size_t c) {
+    const FitCase& fc = in_.cases[c];
+    // Entries in the order fit_input.cc loaded them: centre-line types only.
+    using Entry = std::pair<const ObservationSpec*, const Observation*>;
+    std::map<std::string, std::vector<Entry>> by_camera;
+    std::vector<std::string> order;
+    size_t j = 0;
+    for (const ObservationSpec& spec : e_.cases[c].observations) {
+      if (!IsCentreLineType(spec.type)) continue;
+      const Observation* obs = j < fc.observations.size() ? fc.observations[j].get() : nullptr;
+      ++j;
+      if (spec.camera.empty() || !obs) continue;
+      if (!by_camera.count(spec.camera)) order.push_back(spec.camera);
+      by_camera[spec.camera].push_back({&spec, obs});
+    }
+    const Mat3X& shape = r_.shapes[c];
+    for (const std::string& camera_path : order) {
+      const auto& entries = by_camera[camera_path];
+      const Camera* cam = nullptr;
+      for (const auto& [spec, obs] : entries) {
+        if (const auto* m = dynamic_cast<const ImageMarkersObservation*>(obs)) cam = &m->camera();
+        if (const auto* m = dynamic_cast<const ImageCurveObservation*>(obs)) cam = &m->camera();
+      }
+      if (!cam) continue;
+      svg::Figure f;
+      f.title = e_.scene.cases[c].name + ", camera " + Stem(camera_path);
+      f.width = 660;
+      f.height = 560;
+      f.x.label = "u [px]";
+      f.y.label = "v [px]";
+      f.y.reversed = true;  // image rows grow downwards
+      f.equal_aspect = true;
+      f.height_from_data = true;
+      // The zoom: every observed and fitted pixel on the sensor, with a margin.
+      double u0 = INFINITY, u1 = -INFINITY, v0 = INFINITY, v1 = -INFINITY;
+      auto grow = [&](const Eigen::Vector2d& p) {
+        if (!p.allFinite() || !cam->InImage(p, -50.0)) return;
+        u0 = std::min(u0, p.x());
+        u1 = std::max(u1, p.x());
+        v0 = std::min(v0, p.y());
+        v1 = std::max(v1, p.y());
+      };
+      svg::Series fitted;
+      fitted.label = "fitted centre-line";
+      fitted.colour = kFitted;
+      for (int i = 0; i < shape.cols(); ++i) {
+        Eigen::Vector2d uv;
+        if (Project(*cam, Eigen::Vector3d(shape.col(i)), &uv)) {
+          fitted.x.push_back(uv.x());
+          fitted.y.push_back(uv.y());
+          grow(uv);
+        } else {
+          fitted.x.push_back(NAN);  // the line breaks where the rod is behind the camera
+          fitted.y.push_back(NAN);
+        }
+      }
+      std::string image_file;
+      std::vector<Eigen::Vector2d> curve_pixels;  // observed without s
+      size_t colour = 0;
+      std::vector<svg::Series> observed;
+      svg::Series fitted_markers;
+      fitted_markers.label = "fitted marker positions";
+      fitted_markers.colour = kFitted;
+      fitted_markers.line = false;
+      fitted_markers.marker = svg::Marker::kCross;
+      for (const auto& [spec, obs] : entries) {
+        if (spec->type == "images") image_file = spec->file;
+        svg::Series s;
+        s.label = spec->type == "images" ? "pixels extracted from " + FileName(spec->file)
+                                         : "observed " + FileName(spec->file);
+        s.colour = colour++ == 0 ? kObserved : "#e377c2";
+        s.line = false;
+        s.marker = svg::Marker::kCircle;
+        s.hollow = true;
+        s.marker_size = 3.5;
+        if (const auto* m = dynamic_cast<const ImageMarkersObservation*>(obs)) {
+          VecX r;
+          const bool ok = m->Evaluate(shape, &r);
+          for (size_t k = 0; k < m->markers().size(); ++k) {
+            const MarkerPixel& px = m->markers()[k];
+            s.x.push_back(px.uv.x());
+            s.y.push_back(px.uv.y());
+            s.point_labels.push_back(ArcLabel(px.s));
+            grow(px.uv);
+            if (ok) {
+              const Eigen::Vector2d model = px.uv + r.segment<2>(2 * k) * m->sigma();
+              fitted_markers.x.push_back(model.x());
+              fitted_markers.y.push_back(model.y());
+            }
+          }
+        } else if (const auto* m = dynamic_cast<const ImageCurveObservation*>(obs)) {
+          // Thousands of pixels extracted from an image would hide the image and the fitted
+          // line: every k-th is drawn, as the legend says. Not in the zoom (an outlier far
+          // from the thread would zoom out to the whole frame); the figure says how many lie
+          // outside the view.
+          const size_t n = m->pixels().size();
+          const size_t every = (n + kMaxPixelsDrawn - 1) / kMaxPixelsDrawn;
+          s.marker_size = 2.5;
+          if (every > 1)
+            s.label += " (1 in " + std::to_string(every) + " of " + std::to_string(n) + " shown)";
+          for (size_t k = 0; k < n; k += every) {
+            s.x.push_back(m->pixels()[k].x());
+            s.y.push_back(m->pixels()[k].y());
+          }
+          curve_pixels.insert(curve_pixels.end(), m->pixels().begin(), m->pixels().end());
+        }
+        observed.push_back(std::move(s));
+      }
+      if (!(u1 >= u0))  // the fitted line is not on the sensor: zoom to what was observed
+        for (const Eigen::Vector2d& p : curve_pixels) grow(p);
+      const double W = cam->K.width, H = cam->K.height;
+      if (!(u1 >= u0)) {  // nothing on the sensor: the whole frame
+        u0 = 0;
+        u1 = W - 1;
+        v0 = 0;
+        v1 = H - 1;
+      }
+      const double pad = 0.08 * std::max(u1 - u0, v1 - v0) + 20.0;
+      u0 = std::max(-0.5, u0 - pad);
+      u1 = std::min(W - 0.5, u1 + pad);
+      v0 = std::max(-0.5, v0 - pad);
+      v1 = std::min(H - 0.5, v1 + pad);
+      f.x.min = u0;
+      f.x.max = u1;
+      f.y.min = v0;
+      f.y.max = v1;
+      std::string what = "blank frame (no image in the experiment)";
+      if (!image_file.empty()) {
+        const cv::Mat image = ReadImageFile(image_file);
+        const int cx0 = std::clamp(static_cast<int>(std::floor(u0 + 0.5)), 0, image.cols - 1);
+        const int cy0 = std::clamp(static_cast<int>(std::floor(v0 + 0.5)), 0, image.rows - 1);
+        const int cx1 = std::clamp(static_cast<int>(std::ceil(u1 + 0.5)), cx0 + 1, image.cols);
+        const int cy1 = std::clamp(static_cast<int>(std::ceil(v1 + 0.5)), cy0 + 1, image.rows);
+        f.background.href =
+            ImageDataUri(image_file, image, cv::Rect(cx0, cy0, cx1 - cx0, cy1 - cy0));
+        f.background.x0 = cx0 - 0.5;
+        f.background.x1 = cx1 - 0.5;
+        f.background.y0 = cy0 - 0.5;
+        f.background.y1 = cy1 - 0.5;
+        what = "image <code>" + Escape(FileName(image_file)) + "</code>";
+      } else {
+        // The sensor's edge, where the zoom reaches it.
+        svg::Series edge;
+        edge.label = "image border";
+        edge.colour = "#999999";
+        edge.dashed = true;
+        edge.line_width = 1.2;
+        edge.closed = true;
+        edge.x = {-0.5, W - 0.5, W - 0.5, -0.5};
+        edge.y = {-0.5, -0.5, H - 0.5, H - 0.5};
+        f.series.push_back(edge);
+      }
+      // Observations first, the model drawn over them.
+      for (svg::Series& s : observed) f.series.push_back(std::move(s));
+      f.series.push_back(fitted);
+      if (!fitted_markers.x.empty()) f.series.push_back(fitted_markers);
+      int outside = 0;
+      for (const Eigen::Vector2d& p : curve_pixels)
+        if (!(p.x() >= u0 && p.x() <= u1 && p.y() >= v0 && p.y() <= v1)) ++outside;
+      page_.Figure(f, "camera-view",
+                   "camera_" + e_.scene.cases[c].name + "_" + Stem(camera_path),
+                   " data-case=\"" + Escape(e_.scene.cases[c].name) + "\" data-camera=\"" +
+                       Escape(Stem(camera_path)) + "\"",
+                   "Camera <code>" + Escape(FileName(camera_path)) + "</code> over the " + what +
+                       ", zoomed to the thread: observed pixels (circles, with the markers' arc "
+                       "length s) and the fitted centre-line projected (line)." +
+                       (outside > 0 ? " " + std::to_string(outside) +
+                                          " observed pixels lie outside this view."
+                                    : std::string()));
+    }
+  }
+
+  // Two orthogonal projections of the fitted centre-line with the case's 3-D markers and points.
+  void ShapeViews(size_t c) {
+    const FitCase& fc = in_.cases[c];
+    const Mat3X& shape = r_.shapes[c];
+    std::vector<const Markers3dObservation*> markers;
+    std::vector<const Points3dObservation*> points;
+    for (const auto& o : fc.observations) {
+      if (const auto* m = dynamic_cast<const Markers3dObservation*>(o.get())) markers.push_back(m);
+      if (const auto* p = dynamic_cast<const Points3dObservation*>(o.get())) points.push_back(p);
+    }
+    if (markers.empty() && points.empty()) return;
+    std::vector<Eigen::Vector3d> all;
+    for (int i = 0; i < shape.cols(); ++i) all.push_back(shape.col(i));
+    for (const auto* m : markers)
+      for (const Marker3d& k : m->markers()) all.push_back(k.p_world);
+    for (const auto* p : points)
+      for (const Eigen::Vector3d& q : p->samples()) all.push_back(q);
+    for (const auto& axes : LongViews(all)) {
+      const int a = axes[0], b = axes[1];
+      svg::Figure f;
+      f.title = e_.scene.cases[c].name + ": " + AxisName(a) + "–" + AxisName(b) + " projection";
+      f.width = 620;
+      f.height = 420;
+      f.x.label = std::string(AxisName(a)) + " [mm]";
+      f.y.label = std::string(AxisName(b)) + " [mm]";
+      f.equal_aspect = true;
+      f.height_from_data = true;
+      svg::Series line;
+      line.label = "fitted centre-line";
+      line.colour = kFitted;
+      for (int i = 0; i < shape.cols(); ++i) {
+        line.x.push_back(kMm * shape(a, i));
+        line.y.push_back(kMm * shape(b, i));
+      }
+      f.series.push_back(line);
+      for (const auto* m : markers) {
+        svg::Series obs, model;
+        obs.label = "observed markers";
+        obs.colour = kObserved;
+        obs.line = false;
+        obs.marker = svg::Marker::kCircle;
+        obs.hollow = true;
+        model.label = "fitted marker positions";
+        model.colour = kFitted;
+        model.line = false;
+        model.marker = svg::Marker::kCross;
+        VecX r;
+        const bool ok = m->Evaluate(shape, &r);
+        for (size_t k = 0; k < m->markers().size(); ++k) {
+          const Marker3d& mk = m->markers()[k];
+          obs.x.push_back(kMm * mk.p_world[a]);
+          obs.y.push_back(kMm * mk.p_world[b]);
+          obs.point_labels.push_back(ArcLabel(mk.s));
+          if (ok) {
+            const Eigen::Vector3d model_p = mk.p_world + r.segment<3>(3 * k) * m->sigma();
+            model.x.push_back(kMm * model_p[a]);
+            model.y.push_back(kMm * model_p[b]);
+          }
+        }
+        f.series.push_back(obs);
+        if (!model.x.empty()) f.series.push_back(model);
+      }
+      for (const auto* p : points) {
+        svg::Series obs;
+        obs.label = "observed points";
+        obs.colour = "#e377c2";
+        obs.line = false;
+        obs.marker = svg::Marker::kCircle;
+        obs.marker_size = 2.5;
+        for (const Eigen::Vector3d& q : p->samples()) {
+          obs.x.push_back(kMm * q[a]);
+          obs.y.push_back(kMm * q[b]);
+        }
+        f.series.push_back(obs);
+      }
+      page_.Figure(f, "shape-view",
+                   "shape_" + e_.scene.cases[c].name + "_" + AxisName(a) + AxisName(b),
+                   " data-case=\"" + Escape(e_.scene.cases[c].name) + "\" data-plane=\"" +
+                       AxisName(a) + AxisName(b) + "\"",
+                   std::string("The case's 3-D data projected on the ") + AxisName(a) + "–" +
+                       AxisName(b) + " plane (equal scales): observed markers (circles, with s), "
+                       "their fitted positions (crosses) and the fitted centre-line.");
+    }
+  }
+
+  // The poked cross-section in its plane: rest ring, fitted deformed ring, measured points.
+  void SectionView(size_t c) {
+    const FitCase& fc = in_.cases[c];
+    if (fc.surface_points.empty() || c >= r_.sections.size() || r_.sections[c].cols() < 3) return;
+    const Eigen::Matrix3Xd& rest = r_.rest_sections[c];
+    const Eigen::Matrix3Xd& ring = r_.sections[c];
+    // The section's plane: normal = the rest ring's least-spread direction; in-plane axes are
+    // the world axes most in the plane, so that a section across a rod along x shows y and z.
+    const Eigen::Vector3d centre = rest.rowwise().mean();
+    const Eigen::Matrix3d cov = (rest.colwise() - centre) * (rest.colwise() - centre).transpose();
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitX();
+    {
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+      if (eig.info() == Eigen::Success) normal = eig.eigenvectors().col(0);
+    }
+    std::array<int, 3> order = {0, 1, 2};
+    std::sort(order.begin(), order.end(),
+              [&](int i, int j) { return std::abs(normal[i]) < std::abs(normal[j]); });
+    const int ia = std::min(order[0], order[1]), ib = std::max(order[0], order[1]);
+    Eigen::Vector3d u = Eigen::Vector3d::Unit(ia) - normal[ia] * normal;
+    u.normalize();
+    Eigen::Vector3d v = normal.cross(u);
+    if (v[ib] < 0) v = -v;
+    // Where the section is tilted (the rod is not along a world axis there), the axes are the
+    // world axes projected on its plane, primed.
+    const bool aligned = std::abs(u[ia]) > 0.9999 && std::abs(v[ib]) > 0.9999;
+    svg::Figure f;
+    f.title = e_.scene.cases[c].name + ": poked section";
+    f.width = 560;
+    f.height = 520;
+    const std::string prime = aligned ? "" : "′";
+    f.x.label = std::string(AxisName(ia)) + prime + " [mm]";
+    f.y.label = std::string(AxisName(ib)) + prime + " [mm]";
+    f.equal_aspect = true;
+    auto add_ring = [&](const Eigen::Matrix3Xd& nodes, const std::string& label, const char* colour,
+                        bool dashed) {
+      svg::Series s;
+      s.label = label;
+      s.colour = colour;
+      s.dashed = dashed;
+      s.closed = true;
+      for (int i = 0; i < nodes.cols(); ++i) {
+        s.x.push_back(kMm * u.dot(nodes.col(i)));
+        s.y.push_back(kMm * v.dot(nodes.col(i)));
+      }
+      f.series.push_back(s);
+    };
+    add_ring(rest, "rest section", "#888888", true);
+    add_ring(ring, "fitted deformed section", kFitted, false);
+    for (const SurfacePoints& sp : fc.surface_points) {
+      svg::Series s;
+      s.label = "measured " + sp.label.substr(sp.label.find(' ') + 1);
+      s.colour = kObserved;
+      s.line = false;
+      s.marker = svg::Marker::kCircle;
+      s.hollow = true;
+      s.marker_size = 3.5;
+      for (const Eigen::Vector3d& q : sp.points) {
+        s.x.push_back(kMm * u.dot(q));
+        s.y.push_back(kMm * v.dot(q));
+      }
+      f.series.push_back(s);
+    }
+    page_.Figure(f, "section-view", "section_" + e_.scene.cases[c].name,
+                 " data-case=\"" + Escape(e_.scene.cases[c].name) + "\"",
+                 std::string("The poked cross-section in its plane (equal scales): the ring at "
+                             "rest (dashed), the ring deformed at the fitted parameters, and the "
+                             "measured surface points.") +
+                     (aligned ? "" : " Axes: the world's " + std::string(AxisName(ia)) + " and " +
+                                         AxisName(ib) + " projected on the section's plane, "
+                                         "which the rod's tangent tilts."));
+  }
+
+  // Per force entry of the case: force versus time (haptic logs) and the force residuals.
+  void ForcePlots(size_t c) {
+    // Readings of each force entry of this case, with their residuals and fit cases.
+    struct Reading {
+      double x;  // time [s] or reading number
+      Vec3 measured, error;
+      double sigma;
+    };
+    std::map<std::string, std::vector<Reading>> readings;
+    std::map<std::string, const ObservationSpec*> spec_of;
+    std::vector<std::string> order;
+    for (const ObservationSpec& spec : e_.cases[c].observations)
+      if (spec.type == "grasp_force" || spec.type == "reaction") {
+        const std::string label = EntryLabel(spec);
+        if (!spec_of.count(label)) order.push_back(label);
+        spec_of[label] = &spec;
+      }
+    if (order.empty()) return;
+    std::map<std::pair<int, std::string>, int> seen;  // force readings per (fit case, entry)
+    for (const MeasurementResidual& mr : r_.measurement_residuals) {
+      if (mr.unit != "N" || ExperimentCase(mr.case_index) != static_cast<int>(c)) continue;
+      if (!spec_of.count(mr.observation)) continue;
+      // The k-th force reading of this entry in the fit case: its ForceMeasurement.
+      const FitCase& fc = in_.cases[mr.case_index];
+      int k = seen[{mr.case_index, mr.observation}]++;
+      const ForceMeasurement* fm = nullptr;
+      for (const ForceMeasurement& g : fc.grasp_forces) {
+        const std::string& name = g.observation.empty() ? g.label : g.observation;
+        if (name == mr.observation && k-- == 0) {
+          fm = &g;
+          break;
+        }
+      }
+      if (!fm) continue;
+      auto& list = readings[mr.observation];
+      const double x = std::isfinite(fm->time) ? fm->time : static_cast<double>(list.size() + 1);
+      list.push_back({x, fm->force, mr.error, mr.sigma});
+    }
+    for (const std::string& label : order) {
+      auto& list = readings[label];
+      std::sort(list.begin(), list.end(),
+                [](const Reading& a, const Reading& b) { return a.x < b.x; });
+      const ObservationSpec& spec = *spec_of[label];
+      const bool haptic = spec.type == "grasp_force";
+      const std::string xlabel = haptic ? "t [s]" : "reading";
+      const std::string attrs = " data-case=\"" + Escape(e_.scene.cases[c].name) +
+                                "\" data-entry=\"" + Escape(label) + "\"";
+      if (haptic) {
+        svg::Figure f;
+        f.title = e_.scene.cases[c].name + ": force of " + FileName(spec.file);
+        f.width = 660;
+        f.height = 400;
+        f.x.label = xlabel;
+        f.y.label = "force on the instrument [N]";
+        // The whole log as recorded, then the quasi-static samples the fit used, measured and
+        // fitted.
+        const CsvTable t = CsvTable::Read(spec.file);
+        const std::vector<double> time = t.Column("t");
+        const char* const cols[] = {"fx", "fy", "fz"};
+        for (int i = 0; i < 3; ++i) {
+          svg::Series s;
+          s.label = std::string(cols[i]) + " log";
+          s.colour = kComponent[i];
+          s.line_width = 1.0;
+          s.x = time;
+          s.y = t.Column(cols[i]);
+          f.series.push_back(s);
+        }
+        for (int i = 0; i < 3; ++i) {
+          svg::Series m, model;
+          m.label = std::string(cols[i]) + " used (measured)";
+          m.colour = kComponent[i];
+          m.line = false;
+          m.marker = svg::Marker::kCircle;
+          m.hollow = true;
+          m.marker_size = 5;
+          model.label = std::string(cols[i]) + " fitted";
+          model.colour = kComponent[i];
+          model.line = false;
+          model.marker = svg::Marker::kCross;
+          model.marker_size = 5;
+          for (const Reading& rd : list) {
+            m.x.push_back(rd.x);
+            m.y.push_back(rd.measured[i]);
+            model.x.push_back(rd.x);
+            model.y.push_back(rd.measured[i] + rd.error[i]);
+          }
+          f.series.push_back(m);
+          f.series.push_back(model);
+        }
+        page_.Figure(f, "force-time", "force_" + e_.scene.cases[c].name + "_" + Stem(spec.file),
+                     attrs,
+                     "Haptic log <code>" + Escape(FileName(spec.file)) +
+                         "</code>: the force components as recorded (lines), the quasi-static "
+                         "samples the fit used (circles) and the model's force there (crosses).");
+      }
+      svg::Figure f;
+      f.title = e_.scene.cases[c].name + ": force residuals, " + FileName(spec.file);
+      f.width = 660;
+      f.height = 360;
+      f.x.label = xlabel;
+      f.y.label = "force residual, model − measured [N]";
+      const double sigma = list.empty() ? spec.sigma : list.front().sigma;
+      f.bands.push_back({-3 * sigma, 3 * sigma, "#2ca02c", 0.08,
+                         "±3 σ (" + svg::FormatTick(3 * sigma, sigma) + " N)"});
+      f.bands.push_back({-sigma, sigma, "#2ca02c", 0.18, "±1 σ"});
+      const char* const names[] = {"x", "y", "z"};
+      for (int i = 0; i < 3; ++i) {
+        svg::Series s;
+        s.label = std::string("f") + names[i] + " residual";
+        s.colour = kComponent[i];
+        s.line = false;
+        s.marker = svg::Marker::kCircle;
+        s.marker_size = 4;
+        for (const Reading& rd : list) {
+          s.x.push_back(rd.x);
+          s.y.push_back(rd.error[i]);
+        }
+        f.series.push_back(s);
+      }
+      page_.Figure(f, "force-residuals",
+                   "force_residuals_" + e_.scene.cases[c].name + "_" + Stem(spec.file), attrs,
+                   "Force residuals of <code>" + Escape(FileName(spec.file)) +
+                       "</code> per reading, with the ±1 σ and ±3 σ bands of the entry's "
+                       "sigma.");
+    }
+  }
+
+  // The case's residuals in sigmas (all its entries, haptic samples included), per entry.
+  std::vector<ResidualSeries> ResidualsOfCase(size_t c) const {
+    std::vector<ResidualSeries> out;
+    std::map<std::string, size_t> index;
+    auto series = [&](const std::string& label) -> ResidualSeries& {
+      auto it = index.find(label);
+      if (it == index.end()) {
+        it = index.emplace(label, out.size()).first;
+        out.push_back({label, {}, {}});
+      }
+      return out[it->second];
+    };
+    for (size_t ci = 0; ci < in_.cases.size(); ++ci) {
+      if (ExperimentCase(ci) != static_cast<int>(c)) continue;
+      const FitCase& fc = in_.cases[ci];
+      if (shapes_ok_) {
+        for (size_t k = 0; k < fc.observations.size(); ++k) {
+          const std::string label =
+              k < fc.labels.size() ? fc.labels[k] : fc.observations[k]->type();
+          ResidualSeries& s = series(label);
+          const auto comps = NoisyComponents(*fc.observations[k], r_.shapes[ci]);
+          for (size_t m = 0; m < comps.size(); ++m)
+            for (double v : comps[m]) {
+              s.x.push_back(static_cast<double>(m + 1));
+              s.sigmas.push_back(v);
+            }
+        }
+      }
+      // Forces, moments and surface points.
+      std::map<std::string, int> counter;
+      for (const MeasurementResidual& mr : r_.measurement_residuals) {
+        if (mr.case_index != static_cast<int>(ci)) continue;
+        const std::string label = mr.unit == "N m" ? mr.observation + " (moments)" : mr.observation;
+        ResidualSeries& s = series(label);
+        const Eigen::Vector3d e = mr.error / mr.sigma;
+        const double x = static_cast<double>(s.x.empty() ? 1 : s.x.back() + 1);
+        std::vector<double> comps;
+        if (mr.unit == "m" && shapes_ok_ && ci < r_.sections.size() && r_.sections[ci].cols() > 2) {
+          // A surface point: across the ring, as the centre-line points.
+          for (const SurfacePoints& sp : fc.surface_points)
+            if (sp.label == mr.observation && mr.measurement < static_cast<int>(sp.points.size()))
+              AcrossComponents(Closed(r_.sections[ci]), sp.points[mr.measurement], e, &comps);
+        }
+        if (comps.empty()) comps = {e.x(), e.y(), e.z()};
+        for (double v : comps) {
+          s.x.push_back(x);
+          s.sigmas.push_back(v);
+        }
+      }
+    }
+    return out;
+  }
+
+  void CaseResiduals(size_t c) {
+    const std::vector<ResidualSeries> all = ResidualsOfCase(c);
+    if (all.empty()) return;
+    svg::Figure f;
+    f.title = e_.scene.cases[c].name + ": residuals in sigmas";
+    f.width = 660;
+    f.height = 380;
+    f.x.label = "measurement (per entry)";
+    f.y.label = "residual, model − measured [σ]";
+    f.bands.push_back({-3, 3, "#2ca02c", 0.08, "±3 σ"});
+    f.bands.push_back({-1, 1, "#2ca02c", 0.18, "±1 σ"});
+    const svg::Marker shapes[] = {svg::Marker::kCircle, svg::Marker::kSquare,
+                                  svg::Marker::kTriangle, svg::Marker::kDiamond};
+    // A few gross outliers (hundreds of sigmas) would flatten everything else to a line: the
+    // axis stops at kMaxSigmasShown and such points sit on its edge, as their own series.
+    double extent = 4.0;
+    for (const ResidualSeries& rs : all)
+      for (double v : rs.sigmas)
+        if (std::isfinite(v)) extent = std::max(extent, std::min(kMaxSigmasShown, std::abs(v)));
+    extent *= 1.05;
+    f.y.min = -extent;
+    f.y.max = extent;
+    svg::Series beyond;
+    beyond.colour = "#000000";
+    beyond.line = false;
+    beyond.marker = svg::Marker::kTriangle;
+    beyond.hollow = true;
+    beyond.marker_size = 5;
+    for (size_t i = 0; i < all.size(); ++i) {
+      svg::Series s;
+      s.label = all[i].label;
+      s.colour = Colour(i);
+      s.line = false;
+      s.marker = shapes[i % 4];
+      s.marker_size = 3.5;
+      for (size_t k = 0; k < all[i].sigmas.size(); ++k) {
+        const double v = all[i].sigmas[k];
+        if (std::abs(v) > kMaxSigmasShown) {
+          beyond.x.push_back(all[i].x[k]);
+          beyond.y.push_back(std::copysign(extent, v));
+        } else {
+          s.x.push_back(all[i].x[k]);
+          s.y.push_back(v);
+        }
+      }
+      f.series.push_back(s);
+    }
+    if (!beyond.x.empty()) {
+      beyond.label = std::to_string(beyond.x.size()) + " beyond ±" +
+                     svg::FormatTick(kMaxSigmasShown, 1) + " σ (at the edge)";
+      f.series.push_back(beyond);
+    }
+    page_.Figure(f, "residual-plot", "residuals_" + e_.scene.cases[c].name,
+                 " data-case=\"" + Escape(e_.scene.cases[c].name) + "\"",
+                 "Every residual component of the case divided by its entry's sigma, by "
+                 "measurement number within the entry (closest-point entries: the components "
+                 "across the curve only). About 68 % should lie in the ±1 σ band and nearly all "
+                 "in ±3 σ when the model and the sigmas are right.");
+  }
+
+  void AllResiduals() {
+    std::ostringstream& h = page_.html;
+    h << "<section id=\"residuals\">\n<h2>Residuals</h2>\n<div class=\"figures\">\n";
+    std::vector<double> values;
+    for (size_t c = 0; c < e_.cases.size(); ++c)
+      for (const ResidualSeries& s : ResidualsOfCase(c))
+        for (double v : s.sigmas)
+          if (std::isfinite(v)) values.push_back(v);
+    double extent = 4.0;
+    for (double v : values) extent = std::max(extent, std::min(10.0, std::ceil(std::abs(v))));
+    const double bin = extent > 6 ? 1.0 : 0.5;
+    const int bins = static_cast<int>(std::lround(2 * extent / bin));
+    std::vector<double> centres(bins), counts(bins, 0.0);
+    int outside = 0;
+    for (int b = 0; b < bins; ++b) centres[b] = -extent + (b + 0.5) * bin;
+    for (double v : values) {
+      const int b = static_cast<int>(std::floor((v + extent) / bin));
+      if (b < 0 || b >= bins) {
+        ++outside;
+        continue;
+      }
+      counts[b] += 1.0;
+    }
+    svg::Figure f;
+    f.title = "Residuals of all cases against the normal density";
+    f.width = 660;
+    f.height = 400;
+    f.x.label = "residual, model − measured [σ]";
+    f.y.label = "count per " + svg::FormatTick(bin, 0.1) + " σ bin";
+    svg::Series hist;
+    hist.label = "residual components (" + std::to_string(values.size()) + ")";
+    hist.colour = "#1f77b4";
+    hist.bars = true;
+    hist.bar_width = bin;
+    hist.line = false;
+    hist.x = centres;
+    hist.y = counts;
+    f.series.push_back(hist);
+    svg::Series normal;
+    normal.label = "N(0, 1) × count × bin";
+    normal.colour = "#d62728";
+    normal.line_width = 2.0;
+    for (int i = 0; i <= 200; ++i) {
+      const double x = -extent + 2 * extent * i / 200.0;
+      normal.x.push_back(x);
+      normal.y.push_back(values.size() * bin * std::exp(-0.5 * x * x) / std::sqrt(2 * kPi));
+    }
+    if (!values.empty()) f.series.push_back(normal);
+    page_.Figure(f, "histogram", "histogram", "",
+                 "Histogram of every residual component in sigmas (closest-point entries: across "
+                 "the curve only) with the standard normal density scaled to the count" +
+                     (outside > 0 ? "; " + std::to_string(outside) + " beyond ±" +
+                                        svg::FormatTick(extent, 1) + " σ not shown"
+                                  : std::string()) +
+                     ".");
+    h << "</div>\n";
+    // RMS per entry, as summary.csv.
+    h << "<h3>RMS per observation entry</h3>\n<table class=\"rms\">\n<tr><th>case</th>"
+         "<th>entry</th><th>type</th><th>count</th><th>RMS</th></tr>\n";
+    for (const ObservationFit& o : r_.observations) {
+      h << "<tr><td>" << Escape(o.case_name) << "</td><td>" << Escape(o.label) << "</td><td>"
+        << Escape(o.type) << "</td><td class=\"num\">" << o.num_measurements
+        << "</td><td class=\"num\">" << WithUnit(o.rms, o.unit, 3);
+      if (std::isfinite(o.rms_moment)) h << "; moments " << WithUnit(o.rms_moment, "N m", 3);
+      h << "</td></tr>\n";
+    }
+    h << "</table>\n</section>\n";
+  }
+
+  void Convergence() {
+    std::ostringstream& h = page_.html;
+    h << "<section id=\"convergence\">\n<h2>Convergence and timing</h2>\n<div class=\"figures\">\n";
+    svg::Figure f;
+    f.title = "Cost per iteration";
+    f.width = 560;
+    f.height = 360;
+    f.x.label = "Levenberg–Marquardt iteration";
+    f.y.label = "cost, ½ Σ (residual/σ)² after the loss";
+    f.y.log = true;
+    svg::Series s;
+    s.label = "cost";
+    s.colour = kFitted;
+    s.marker = svg::Marker::kCircle;
+    for (size_t i = 0; i < r_.cost_per_iteration.size(); ++i) {
+      s.x.push_back(static_cast<double>(i));
+      s.y.push_back(r_.cost_per_iteration[i]);
+    }
+    f.series.push_back(s);
+    f.no_data_text = "no iteration recorded (or a zero cost)";
+    page_.Figure(f, "cost-plot", "cost", "",
+                 "Ceres' cost at the start (iteration 0) and after each iteration (log scale).");
+    h << "</div>\n";
+    // The timing split. Case evaluations run in parallel, so their times are summed over threads
+    // and may add up to more than the wall time.
+    const double evaluations = r_.solve_seconds + r_.jacobian_seconds + r_.observation_seconds;
+    h << "<table class=\"timing\">\n<tr><th>part</th><th>time</th><th>share of the wall "
+         "time</th></tr>\n";
+    auto row = [&](const std::string& part, double seconds) {
+      h << "<tr><td>" << part << "</td><td class=\"num\">" << Duration(seconds)
+        << "</td><td class=\"num\">" << (r_.seconds > 0 ? Percent(seconds / r_.seconds) : "—")
+        << "</td></tr>\n";
+    };
+    row("whole fit (wall time)", r_.seconds);
+    if (r_.global_seconds > 0)
+      row("global search (NLopt; its evaluations are in the rows below)", r_.global_seconds);
+    row("forward solves (" + std::to_string(r_.forward_solves) + ")", r_.solve_seconds);
+    row("exact Jacobians (sensitivities)", r_.jacobian_seconds);
+    row("observation models", r_.observation_seconds);
+    row(r_.global_seconds > 0 ? "NLopt, Ceres, covariance and the rest"
+                              : "Ceres, covariance and the rest",
+        std::max(0.0, r_.seconds - evaluations));
+    h << "</table>\n<p>Forward solves, Jacobians and observation models are summed over the "
+         "threads that evaluate cases in parallel.</p>\n</section>\n";
+  }
+
+  const Experiment& e_;
+  const FitInput& in_;
+  const FitResult& r_;
+  const bool shapes_ok_;  // one fitted shape per fit case (else shape figures are left out)
+  Page page_;
+};
+
+}  // namespace
+
+FitReportPage BuildFitReportPage(const Experiment& experiment, const FitInput& input,
+                                 const FitResult& result) {
+  return Builder(experiment, input, result).Build();
+}
+
+}  // namespace rodfit
