@@ -14,20 +14,30 @@
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/recording.h"
+#include "rodfit/fit/motion_fit.h"
 #include "rodfit/solve/rollout.h"
+#include "rodfit/version.h"
 
 int RunRollout(int argc, char** argv) {
   CLI::App app(
-      "Predict a recorded motion open-loop: the rod of SCENE (its rod, parameters, gravity and "
-      "dynamics) with a vertex at every marker of RECORDING, started from the first two frames, "
-      "the held markers driven from the recording; write DIR/rollout.csv "
-      "(frame,t,marker,s,held,observed_x,observed_y,observed_z,x,y,z) and print the mean "
-      "absolute coordinate error.",
+      "Predict recorded motions open-loop: the rod of SCENE (its rod, parameters, gravity and "
+      "dynamics) with a vertex at every marker of each RECORDING, started from its first two "
+      "frames, the held markers driven from the recording; write DIR/rollout.csv "
+      "(recording,frame,t,marker,s,held,observed_x,observed_y,observed_z,x,y,z) and print the "
+      "mean absolute coordinate error. With --fit, first fit those parameters to the recordings "
+      "(DIR/motion_fit.json).",
       "rodfit rollout");
-  std::string scene_path, recording_path, output_dir, held_text = "0,1,-2,-1", initial = "equilibrium";
+  std::string scene_path, output_dir, held_text = "0,1,-2,-1", initial = "equilibrium", fit_text;
+  std::vector<std::string> recording_paths;
+  int max_evaluations = 150;
   double frame_rate = 0.0;
   app.add_option("scene", scene_path, "scene YAML with a dynamics: block (docs/formats.md)")->required();
-  app.add_option("recording", recording_path, "markers CSV: frame,marker,x,y,z or t,marker,x,y,z")->required();
+  app.add_option("recordings", recording_paths, "markers CSV(s): frame,marker,x,y,z or t,marker,x,y,z")->required();
+  app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (bend_stiffness, "
+                 "bend_stiffness_2, twist_stiffness, stretch_stiffness, damping, bend_damping, twist_damping, "
+                 "stretch_damping); their scene values are the start, > 0");
+  app.add_option("--max-evaluations", max_evaluations, "rollouts of every recording the fit may take")
+      ->check(CLI::Range(1, 100000));
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
   app.add_option("--frame-rate", frame_rate, "[Hz] with a frame column")->check(CLI::Range(1e-6, 1e9));
   app.add_option("--held", held_text, "driven markers, comma separated; negative from the last (default 0,1,-2,-1)");
@@ -41,7 +51,12 @@ int RunRollout(int argc, char** argv) {
   const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
   if (!experiment.scene.dynamics)
     throw rodfit::InputError(scene_path, 1, "dynamics", "rollout needs a dynamics: block");
-  const rodfit::MarkerRecording rec = rodfit::ReadMarkerRecording(recording_path, frame_rate);
+  std::vector<rodfit::MarkerRecording> recs;
+  std::vector<rodfit::MotionRecordingData> data;
+  for (const std::string& path : recording_paths) {
+    recs.push_back(rodfit::ReadMarkerRecording(path, frame_rate));
+    data.push_back({recs.back().frame_interval, recs.back().frames});
+  }
   rodfit::RolloutOptions options;
   options.initial_equilibrium = initial == "equilibrium";
   options.held_markers.clear();
@@ -55,37 +70,81 @@ int RunRollout(int argc, char** argv) {
       options.held_markers.push_back(static_cast<int>(v));
     }
   }
-  rodfit::RolloutResult result;
-  try {
-    result = rodfit::Rollout(experiment.scene, rec.frame_interval, rec.frames, options,
-                             experiment.statics);
-  } catch (const std::invalid_argument& e) {
-    throw rodfit::InputError(recording_path, 0, "", e.what());
-  }
-  std::string csv = "frame,t,marker,s,held,observed_x,observed_y,observed_z,x,y,z\n";
-  for (size_t k = 0; k < result.predicted.size(); ++k) {
-    for (int m = 0; m < static_cast<int>(result.marker_s.size()); ++m) {
-      const Eigen::Vector3d o = rec.frames[k].col(m), p = result.predicted[k].col(m);
-      auto num = [](double v) { return std::isfinite(v) ? rodfit::FormatDouble(v) : std::string(); };
-      csv += std::to_string(k) + "," + rodfit::FormatDouble(k * rec.frame_interval) + "," +
-             std::to_string(m) + "," + rodfit::FormatDouble(result.marker_s[m]) + "," +
-             (result.held[m] ? "1," : "0,") + num(o[0]) + "," + num(o[1]) + "," + num(o[2]) + "," +
-             num(p[0]) + "," + num(p[1]) + "," + num(p[2]) + "\n";
+  rodfit::Scene scene = experiment.scene;
+  std::string fit_json;
+  if (!fit_text.empty()) {
+    std::vector<std::string> names;
+    std::stringstream ss(fit_text);
+    std::string item;
+    while (std::getline(ss, item, ',')) names.push_back(item);
+    rodfit::MotionFitResult fit;
+    try {
+      fit = rodfit::FitToRecordings(scene, data, names, options, experiment.statics, max_evaluations);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("--fit: ") + e.what());
     }
+    fit_json = "{\n  \"rodfit_version\": \"" + std::string(RODFIT_VERSION) + "\",\n  \"method\": "
+               "\"BOBYQA on the predicted markers' mean absolute error (derivative-free)\",\n"
+               "  \"evaluations\": " + std::to_string(fit.evaluations) + ",\n  \"error_start_m\": " +
+               rodfit::FormatDouble(fit.error_start) + ",\n  \"error_fitted_m\": " +
+               rodfit::FormatDouble(fit.error_fitted) + ",\n  \"parameters\": {";
+    for (size_t k = 0; k < names.size(); ++k) {
+      rodfit::SetMaterialParameter(names[k], fit.values[k], &scene.material);
+      fit_json += std::string(k ? "," : "") + "\n    \"" + names[k] + "\": {\"start\": " +
+                  rodfit::FormatDouble(fit.start[k]) + ", \"value\": " +
+                  rodfit::FormatDouble(fit.values[k]) + "}";
+    }
+    fit_json += "\n  }\n}\n";
+    std::printf("fitted over %zu recording(s) in %d rollouts: mean error %.4g m -> %.4g m\n",
+                data.size(), fit.evaluations, fit.error_start, fit.error_fitted);
+    for (size_t k = 0; k < names.size(); ++k)
+      std::printf("  %s: %.6g -> %.6g\n", names[k].c_str(), fit.start[k], fit.values[k]);
   }
-  if (!result.ok) {
-    std::cerr << "rodfit rollout: " << result.reason << "\n";
-    return EXIT_FAILURE;
+  std::string csv = "recording,frame,t,marker,s,held,observed_x,observed_y,observed_z,x,y,z\n";
+  double sum_all = 0.0, sum_predicted = 0.0;
+  int samples = 0;
+  for (size_t r = 0; r < recs.size(); ++r) {
+    const rodfit::MarkerRecording& rec = recs[r];
+    rodfit::RolloutResult result;
+    try {
+      result = rodfit::Rollout(scene, rec.frame_interval, rec.frames, options, experiment.statics);
+    } catch (const std::invalid_argument& e) {
+      throw rodfit::InputError(rec.file, 0, "", e.what());
+    }
+    if (!result.ok) {
+      std::cerr << "rodfit rollout: " << rec.file << ": " << result.reason << "\n";
+      return EXIT_FAILURE;
+    }
+    for (size_t k = 0; k < result.predicted.size(); ++k) {
+      for (int m = 0; m < static_cast<int>(result.marker_s.size()); ++m) {
+        const Eigen::Vector3d o = rec.frames[k].col(m), p = result.predicted[k].col(m);
+        auto num = [](double v) { return std::isfinite(v) ? rodfit::FormatDouble(v) : std::string(); };
+        csv += std::to_string(r) + "," + std::to_string(k) + "," +
+               rodfit::FormatDouble(k * rec.frame_interval) + "," + std::to_string(m) + "," +
+               rodfit::FormatDouble(result.marker_s[m]) + "," + (result.held[m] ? "1," : "0,") +
+               num(o[0]) + "," + num(o[1]) + "," + num(o[2]) + "," + num(p[0]) + "," +
+               num(p[1]) + "," + num(p[2]) + "\n";
+      }
+    }
+    sum_all += result.mae_all;
+    sum_predicted += result.mae_predicted;
+    samples += result.samples;
   }
   rodfit::StagedDirectory out(output_dir);
+  const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
   out.Write("rollout.csv", csv, "output file name");
-  rodfit::RefuseOverwritingInput(out.FinalPath("rollout.csv"), rodfit::ExperimentInputs(experiment));
+  rodfit::RefuseOverwritingInput(out.FinalPath("rollout.csv"), inputs);
+  if (!fit_json.empty()) {
+    out.Write("motion_fit.json", fit_json, "output file name");
+    rodfit::RefuseOverwritingInput(out.FinalPath("motion_fit.json"), inputs);
+  }
   out.Commit();
+  const double n = static_cast<double>(recs.size());
   char line[256];
   std::snprintf(line, sizeof(line),
                 "mean absolute coordinate error: %.4g m over all markers, %.4g m over the "
-                "predicted ones (%d samples, %zu frames)\n",
-                result.mae_all, result.mae_predicted, result.samples, result.predicted.size());
+                "predicted ones (%d samples, %zu recording(s))\n",
+                sum_all / n, sum_predicted / n, samples, recs.size());
   std::cout << line;
   return EXIT_SUCCESS;
 }

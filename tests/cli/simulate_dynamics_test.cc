@@ -2,6 +2,7 @@
 // follows its path, and one-line errors for bad dynamics input (docs/formats.md, docs/cli.md).
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -187,6 +188,24 @@ TEST(Rollout, PredictsARecordingMadeBySimulate) {
   double sum = 0.0;
   for (int r = 0; r < out.num_rows(); ++r) sum += std::abs(ox[r] - px[r]) + std::abs(oz[r] - pz[r]);
   EXPECT_LT(sum / (2 * out.num_rows()), 3e-3) << run.out;
+  // --fit: drag started 3x too high, fitted to the recording: the error does not grow, and
+  // motion_fit.json holds the start and the fitted value.
+  const std::string high_drag = dir.Write(
+      "h.yaml", Replace(Scene("{time_step: 0.005, duration: 0.3, output_every: 2}",
+                              "    end_pin: {position: [0.9, 0, 0]}\n"),
+                        "damping: {value: 0.02}", "damping: {value: 0.06}"));
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("f")) + " --held 0,1,-1 --fit damping "
+                           "--max-evaluations 20");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_THAT(run.out, HasSubstr("damping: 0.06 ->"));
+  std::ifstream in(dir.File("f/motion_fit.json"));
+  const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(json, HasSubstr("\"damping\": {\"start\": 0.059999999999999998"));
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("g")) + " --fit length");
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("--fit: a motion fit cannot fit 'length'"));
   // A frame column without its rate is one line naming the file.
   dir.Write("bad.csv", "frame,marker,x,y,z\n0,0,0,0,0\n");
   run = RunRodfit(dir, "rollout " + Quote(scene) + " " + Quote(dir.File("bad.csv")) + " -o " +
