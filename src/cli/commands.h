@@ -5,6 +5,7 @@
 
 int RunFit(int argc, char** argv);
 int RunRollout(int argc, char** argv);
+int RunBench(int argc, char** argv);
 
 namespace rodfit {
 struct Experiment;

@@ -342,6 +342,7 @@ const std::vector<Command>& Commands() {
        &RunFit},
       {"rollout", "predict a recorded motion open-loop from its first frames; its error",
        &RunRollout},
+      {"bench", "reference problems: error against time over settings; --stress", &RunBench},
   };
   return commands;
 }

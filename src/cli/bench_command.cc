@@ -1,0 +1,560 @@
+// `rodfit bench [--quick] [--stress] -o DIR` (docs/cli.md, "bench"): reference problems with
+// exact answers solved over a ladder of settings, each row its error against the exact answer,
+// its time (median of repeats, with the spread), iterations, converged and stable; and the
+// stress suite, where a wrong answer returned as success fails the command.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "commands.h"
+#include "rodfit/io/csv.h"
+#include "rodfit/io/output_dir.h"
+#include "rodfit/report/svg_plot.h"
+#include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/statics.h"
+#include "rodfit/version.h"
+
+namespace {
+
+using rodfit::Vec3;
+
+struct Row {
+  std::string problem, family, setting;
+  double error = 0.0;
+  std::string error_unit;  // "L" (max vertex distance / length), "relative"
+  double t_median = 0.0, t_min = 0.0, t_max = 0.0;  // [s]
+  int iterations = 0;
+  bool converged = false, stable = false;
+  std::string verdict;  // stress: ok | WRONG
+  std::string note;
+};
+
+// Runs `once` `repeats` times; the median, min and max of its wall times.
+template <typename F>
+void Time(int repeats, F once, Row* row) {
+  std::vector<double> t;
+  for (int k = 0; k < repeats; ++k) {
+    const auto a = std::chrono::steady_clock::now();
+    once();
+    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count());
+  }
+  std::sort(t.begin(), t.end());
+  row->t_median = t[t.size() / 2];
+  row->t_min = t.front();
+  row->t_max = t.back();
+}
+
+// An isotropic cantilever (L = 1 m, B = 1 N m^2, GJ = 1/1.3, EA = 1e6 N unless changed) clamped
+// at the origin along x with d1 = z.
+struct Rod {
+  rodfit::RodSpec rod;
+  rodfit::Material material;
+  rodfit::LoadCase load_case;
+  explicit Rod(int segments) {
+    rod.length = 1.0;
+    rod.segments = segments;
+    rod.radius = 0.01;
+    material.bend_stiffness = 1.0;
+    material.twist_stiffness = 1.0 / 1.3;
+    material.stretch_stiffness = 1e6;
+    load_case.clamp.tangent = Vec3::UnitX();
+    load_case.clamp.normal = Vec3::UnitZ();
+  }
+};
+
+// The exact centre-line of an isotropic rod under a dead end moment M (no other load): the
+// internal moment is M everywhere, so d3' = (M / B) x d3, a helix about M (a circle when M is
+// normal to the clamp tangent): x(s) = (d.m) m s + sin(k s)/k (d - (d.m) m) + (1 - cos k s)/k
+// (m x d), m = M / |M|, k = |M| / B, d the clamp tangent.
+Vec3 HelixPoint(const Vec3& d, const Vec3& M, double B, double s) {
+  const double k = M.norm() / B;
+  const Vec3 m = M.normalized();
+  const Vec3 along = d.dot(m) * m;
+  return along * s + std::sin(k * s) / k * (d - along) + (1.0 - std::cos(k * s)) / k * m.cross(d);
+}
+
+// Statics of an end-moment rod: error = max vertex distance to the exact helix / L.
+Row EndMoment(const std::string& problem, const std::string& family, const std::string& setting,
+              Rod r, const Vec3& moment, const rodfit::StaticsOptions& options, int repeats) {
+  Row row;
+  row.problem = problem;
+  row.family = family;
+  row.setting = setting;
+  row.error_unit = "L";
+  r.load_case.tip_moment = moment;
+  try {
+    const rodfit::RodModel model(r.rod, r.material, Vec3::Zero(), r.load_case);
+    rodfit::RodState state;
+    rodfit::StaticsSummary summary;
+    Time(repeats, [&] {
+      state = model.StraightState();
+      summary = rodfit::SolveStatics(model, options, &state);
+    }, &row);
+    row.converged = summary.converged;
+    row.stable = summary.stable;
+    row.iterations = summary.iterations;
+    double worst = 0.0;
+    for (int i = 0; i <= model.num_edges(); ++i) {
+      const Vec3 exact = HelixPoint(Vec3::UnitX(), moment, r.material.B1(), model.arc_length(i));
+      worst = std::max(worst, (state.x.col(i) - exact).norm());
+    }
+    row.error = worst / r.rod.length;
+    if (!summary.converged) row.note = summary.reason;
+  } catch (const std::exception& e) {
+    row.note = e.what();
+  }
+  return row;
+}
+
+// Mattiasson's large-deflection cantilever (a dead tip force P = alpha B / L^2 across a
+// horizontal cantilever): the tip's deflection w / L and shortening u / L from Mattiasson
+// (1981), Int. J. Numer. Meth. Eng. 17, Table 1 (5 digits, so errors below ~1e-5 L are the
+// table's). Error: the tip's distance to the tabulated point / L.
+struct MattiassonPoint {
+  double alpha, w, u;
+};
+constexpr MattiassonPoint kMattiasson[] = {{1, 0.30172, 0.05643}, {3, 0.60325, 0.25442},
+                                           {5, 0.71379, 0.38763}, {10, 0.81061, 0.55500}};
+
+Row Mattiasson(const std::string& family, const std::string& setting, Rod r,
+               const MattiassonPoint& point, int repeats) {
+  Row row;
+  row.problem = "mattiasson_alpha" + std::to_string(static_cast<int>(point.alpha));
+  row.family = family;
+  row.setting = setting;
+  row.error_unit = "L";
+  const double L = r.rod.length;
+  r.load_case.tip_force = Vec3(0, 0, -point.alpha * r.material.B1() / (L * L));
+  try {
+    const rodfit::RodModel model(r.rod, r.material, Vec3::Zero(), r.load_case);
+    rodfit::RodState state;
+    rodfit::StaticsSummary summary;
+    Time(repeats, [&] {
+      state = model.StraightState();
+      summary = rodfit::SolveStatics(model, rodfit::StaticsOptions(), &state);
+    }, &row);
+    row.converged = summary.converged;
+    row.stable = summary.stable;
+    row.iterations = summary.iterations;
+    const Vec3 tip = state.x.col(model.num_edges());
+    row.error = (tip - Vec3(L * (1 - point.u), 0, -L * point.w)).norm() / L;
+    if (!summary.converged) row.note = summary.reason;
+  } catch (const std::exception& e) {
+    row.note = e.what();
+  }
+  return row;
+}
+
+// --- dynamics: the first bending mode of a cantilever (the suture of data/scenes) ---
+
+constexpr double kBeta1L = 1.875104;  // 1 + cos x cosh x = 0
+
+double ModeShape1(double xi) {
+  const double sigma = (std::cosh(kBeta1L) + std::cos(kBeta1L)) / (std::sinh(kBeta1L) + std::sin(kBeta1L));
+  const double b = kBeta1L * xi;
+  return std::cosh(b) - std::cos(b) - sigma * (std::sinh(b) - std::sin(b));
+}
+
+struct Suture {
+  rodfit::RodSpec rod;
+  rodfit::Material material;
+  rodfit::LoadCase load_case;
+  explicit Suture(int segments) {
+    rod.length = 0.2;
+    rod.segments = segments;
+    rod.radius = 1.25e-4;
+    rod.linear_density = 5.6e-5;
+    material.bend_stiffness = 9.6e-7;
+    material.twist_stiffness = 8.0e-7;
+    material.stretch_stiffness = 245.0;
+    load_case.clamp.tangent = Vec3::UnitX();
+    load_case.clamp.normal = Vec3::UnitZ();
+  }
+  double Omega1() const {
+    return kBeta1L * kBeta1L *
+           std::sqrt(material.B1() / (rod.linear_density * std::pow(rod.length, 4)));
+  }
+};
+
+// The rod bent into mode 1 (tip ~2e-5 m), edges at their rest lengths.
+rodfit::RodState ModeState(const rodfit::RodModel& model) {
+  rodfit::RodState q = model.StraightState();
+  const rodfit::RodState straight = q;
+  for (int j = 0; j < model.num_edges(); ++j) {
+    const double xi = 0.5 * (model.arc_length(j) + model.arc_length(j + 1)) / model.length();
+    const double h = 1e-6;
+    const double slope = 1e-5 * (ModeShape1(xi + h) - ModeShape1(xi - h)) / (2 * h * model.length());
+    const double a = std::atan(slope);
+    q.e.col(j) = model.rest_edge_length(j) * Vec3(std::cos(a), 0, std::sin(a));
+  }
+  q.SyncVertices();
+  rodfit::UpdateReferenceFrames(model, straight, &q);
+  return q;
+}
+
+// Free vibration for `periods`: the period from downward zero crossings of the modal
+// coordinate, and the mean logarithmic decrement between successive maxima.
+struct Vibration {
+  double period = 0.0, decrement = 0.0;
+  bool ok = false;
+  std::string reason;
+  int newton = 0;
+};
+
+Vibration Vibrate(const rodfit::RodModel& model, rodfit::DynamicsOptions options, double periods,
+                  double period) {
+  Vibration out;
+  rodfit::DynamicsStepper stepper(model, options);
+  rodfit::DynamicState s = stepper.AtRest(ModeState(model));
+  const double dt = options.time_step;
+  double first = -1.0, last = 0.0, p1 = 0.0, p2 = 0.0;
+  int crossings = 0;
+  std::vector<double> peaks;
+  const int steps = static_cast<int>(std::lround(periods * period / dt));
+  for (int k = 0; k < steps; ++k) {
+    double p = 0.0;
+    for (int i = 1; i <= model.num_edges(); ++i)
+      p += model.vertex_mass(i) * s.q.x(2, i) * ModeShape1(model.arc_length(i) / model.length());
+    if (k > 0 && p1 > 0 && p <= 0) {
+      const double tc = s.t - dt * p / (p - p1);
+      if (first < 0) {
+        first = tc;
+      } else {
+        last = tc;
+        ++crossings;
+      }
+    }
+    if (k > 1 && p1 >= p2 && p1 > p && p1 > 0) {
+      const double den = p2 - 2 * p1 + p;
+      peaks.push_back(p1 - 0.125 * (p2 - p) * (p2 - p) / den);
+    }
+    p2 = p1;
+    p1 = p;
+    const rodfit::DynamicsStepSummary r = stepper.Step(rodfit::Drive(), &s);
+    if (!r.ok) {
+      out.reason = r.reason;
+      return out;
+    }
+    out.newton += r.newton_iterations;
+  }
+  out.ok = crossings > 0;
+  out.period = crossings > 0 ? (last - first) / crossings : 0.0;
+  if (peaks.size() >= 2)
+    out.decrement = std::log(peaks.front() / peaks.back()) / (peaks.size() - 1);
+  return out;
+}
+
+Row Frequency(const std::string& integrator, double dt_fraction, bool quick) {
+  Row row;
+  row.problem = "cantilever_frequency";
+  row.family = integrator;
+  row.error_unit = "relative";
+  const Suture suture(50);
+  const rodfit::RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
+  const double period = 2 * M_PI / suture.Omega1();
+  rodfit::DynamicsOptions options;
+  rodfit::ParseIntegrator(integrator, &options.integrator);
+  if (options.integrator == rodfit::Integrator::kExplicit) {
+    rodfit::DynamicsStepper probe(model, options);
+    options.time_step = 0.8 * probe.StableTimeStep(ModeState(model));
+    char text[64];
+    std::snprintf(text, sizeof(text), "dt=%.3g s (0.8 x stable)", options.time_step);
+    row.setting = text;
+  } else {
+    options.time_step = period * dt_fraction;
+    char text[64];
+    std::snprintf(text, sizeof(text), "dt=T/%.0f", 1.0 / dt_fraction);
+    row.setting = text;
+  }
+  Vibration v;
+  Time(quick ? 1 : 3, [&] { v = Vibrate(model, options, 1.3, period); }, &row);
+  row.converged = v.ok;
+  row.stable = v.ok;
+  row.iterations = v.newton;
+  row.error = v.ok ? std::abs(v.period / period - 1.0) : NAN;
+  row.note = v.reason.empty() ? "Euler-Bernoulli beta1 L = 1.875104; 50 segments" : v.reason;
+  return row;
+}
+
+Row Decay(const std::string& integrator, double dt_fraction) {
+  Row row;
+  row.problem = "damped_decay";
+  row.family = integrator;
+  row.error_unit = "relative";
+  Suture suture(50);
+  const double omega = suture.Omega1(), period = 2 * M_PI / omega, zeta = 0.02;
+  suture.material.damping = 2 * zeta * suture.rod.linear_density * omega;
+  const rodfit::RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
+  rodfit::DynamicsOptions options;
+  rodfit::ParseIntegrator(integrator, &options.integrator);
+  options.time_step = period * dt_fraction;
+  char text[64];
+  std::snprintf(text, sizeof(text), "dt=T/%.0f", 1.0 / dt_fraction);
+  row.setting = text;
+  Vibration v;
+  Time(1, [&] { v = Vibrate(model, options, 4.2, period); }, &row);
+  const double expected = 2 * M_PI * zeta / std::sqrt(1 - zeta * zeta);
+  row.converged = v.ok;
+  row.stable = v.ok;
+  row.iterations = v.newton;
+  row.error = v.ok ? std::abs(v.decrement / expected - 1.0) : NAN;
+  row.note = "log decrement vs 2 pi zeta / sqrt(1 - zeta^2), zeta = 0.02 (drag)";
+  return row;
+}
+
+void Print(const Row& r) {
+  char line[512];
+  std::snprintf(line, sizeof(line), "%-28s %-26s %-24s error %-10.3g %-8s %9.3g s  %s%s%s\n",
+                r.problem.c_str(), r.family.c_str(), r.setting.c_str(), r.error,
+                r.error_unit.c_str(), r.t_median, r.converged ? "converged" : "failed",
+                r.verdict.empty() ? "" : "  ", r.verdict.c_str());
+  std::cout << line;
+  if (r.verdict == "WRONG") std::cout << "    " << r.note << "\n";
+  std::cout.flush();
+}
+
+// Rows are printed as they come (a full ladder takes minutes).
+struct Rows {
+  std::vector<Row> rows;
+  void push_back(const Row& r) {
+    Print(r);
+    rows.push_back(r);
+  }
+};
+
+std::vector<Row> Ladder(bool quick) {
+  Rows rows;
+  const int repeats = quick ? 1 : 3;
+  std::vector<int> segments = {10, 30, 100, 300, 1000};
+  if (!quick) segments.insert(segments.end(), {3000, 10000});
+  const Vec3 circle(0, -M_PI, 0);                    // a half circle in the x-z plane
+  const Vec3 helix = Vec3(2.0, -3.0, 1.0).normalized() * 4.0;  // |M| L / B = 4 rad
+  for (int n : segments) {
+    rows.push_back(EndMoment("end_moment_circle", "segments", "n=" + std::to_string(n), Rod(n),
+                             circle, rodfit::StaticsOptions(), repeats));
+    rows.push_back(EndMoment("end_moment_helix", "segments", "n=" + std::to_string(n), Rod(n),
+                             helix, rodfit::StaticsOptions(), repeats));
+  }
+  for (int n : segments) rows.push_back(Mattiasson("segments", "n=" + std::to_string(n), Rod(n), kMattiasson[1], repeats));
+  for (const MattiassonPoint& p : kMattiasson) {
+    if (p.alpha != 3) rows.push_back(Mattiasson("alpha (100 segments)", "n=100", Rod(100), p, repeats));
+  }
+  for (double tol : {1e-4, 1e-6, 1e-9, 1e-12}) {
+    rodfit::StaticsOptions o;
+    o.gradient_tolerance = tol;
+    o.step_tolerance = std::max(tol, 1e-12);
+    char text[32];
+    std::snprintf(text, sizeof(text), "tol=%.0e", tol);
+    rows.push_back(EndMoment("end_moment_helix", "tolerance (300 segments)", text, Rod(300), helix,
+                             o, repeats));
+  }
+  for (const char* integrator : {"bdf2", "midpoint", "backward_euler"}) {
+    for (double f : {1.0 / 25, 1.0 / 50, 1.0 / 100, 1.0 / 200}) rows.push_back(Frequency(integrator, f, quick));
+    rows.push_back(Decay(integrator, 1.0 / 100));
+  }
+  if (!quick) rows.push_back(Frequency("explicit", 0.0, quick));
+  return rows.rows;
+}
+
+// The stress suite: each row right (converged and within its tolerance), or failed with a
+// message; converged and wrong is WRONG.
+std::vector<Row> Stress() {
+  Rows rows;
+  auto judge = [](Row row, double tolerance, bool must_fail = false) {
+    if (must_fail) {
+      row.verdict = row.converged ? "WRONG" : "ok";
+      if (row.converged) row.note = "converged where it must fail: " + row.note;
+    } else if (!row.converged) {
+      row.verdict = row.note.empty() ? "WRONG" : "ok";  // a failure must say why
+    } else {
+      row.verdict = row.error <= tolerance ? "ok" : "WRONG";
+    }
+    return row;
+  };
+  const rodfit::StaticsOptions o;
+  const Vec3 helix = Vec3(2.0, -3.0, 1.0).normalized() * 4.0;
+  for (double ratio : {1e9, 1e12}) {
+    Rod r(100);
+    r.material.stretch_stiffness = ratio;  // EA L^2 / B
+    char text[32];
+    std::snprintf(text, sizeof(text), "EA/B=%.0e", ratio);
+    Row m = Mattiasson("stress", text, r, kMattiasson[2], 1);
+    m.problem = "stiff_stretch_mattiasson";
+    rows.push_back(judge(m, 1e-3));
+    rows.push_back(judge(EndMoment("stiff_stretch_helix", "stress", text, r, helix, o, 1), 1e-3));
+  }
+  {
+    Rod r(100);
+    r.material.twist_stiffness = 1e12;
+    rows.push_back(judge(EndMoment("stiff_twist_helix", "stress", "GJ/B=1e12", r, helix, o, 1), 1e-3));
+  }
+  {
+    Row m = Mattiasson("stress", "n=100000", Rod(100000), kMattiasson[2], 1);
+    m.problem = "segments_1e5_mattiasson";
+    rows.push_back(judge(m, 1e-3));
+  }
+  rows.push_back(judge(EndMoment("rollup_2pi", "stress", "M L/B=2 pi", Rod(200), Vec3(0, -2 * M_PI, 0), o, 1), 1e-3));
+  {
+    // An axial tip force 1.5 times Euler's load pi^2 B / (4 L^2) on the straight column: the
+    // straight state is a saddle; right = a stable, buckled equilibrium.
+    Row row;
+    row.problem = "buckling_1.5_euler";
+    row.family = "stress";
+    row.setting = "P=1.5 P_E";
+    row.error_unit = "L";
+    Rod r(100);
+    r.load_case.tip_force = Vec3(-1.5 * M_PI * M_PI / 4.0, 0, 0);
+    const rodfit::RodModel model(r.rod, r.material, Vec3::Zero(), r.load_case);
+    rodfit::RodState state = model.StraightState();
+    rodfit::StaticsSummary summary;
+    Time(1, [&] { summary = rodfit::SolveStatics(model, o, &state); }, &row);
+    row.converged = summary.converged;
+    row.stable = summary.stable;
+    row.iterations = summary.iterations;
+    const double lateral = state.x.col(model.num_edges()).tail<2>().norm();
+    // A buckled column's tip leaves the axis (exact elastica at 1.5 P_E: ~0.6 L; here only
+    // "not straight and stable" is judged).
+    row.error = (summary.converged && summary.stable && lateral > 0.1) ? 0.0 : 1.0;
+    row.note = summary.converged ? "tip off axis " + std::to_string(lateral) + " L" : summary.reason;
+    rows.push_back(judge(row, 0.5));
+  }
+  {
+    Rod r(50);
+    rows.push_back(judge(EndMoment("load_1e200", "stress", "M=1e200", r, Vec3(0, -1e200, 0), o, 1), 1e-3, true));
+  }
+  {
+    // The explicit integrator asked for a step 10x its stable step: refused with the limit.
+    Row row;
+    row.problem = "explicit_above_stable_step";
+    row.family = "stress";
+    row.setting = "dt=10 x stable";
+    row.error_unit = "-";
+    const Suture suture(50);
+    const rodfit::RodModel model(suture.rod, suture.material, Vec3(0, 0, -9.81), suture.load_case);
+    rodfit::DynamicsOptions options;
+    options.integrator = rodfit::Integrator::kExplicit;
+    rodfit::DynamicsStepper probe(model, options);
+    options.time_step = 10 * probe.StableTimeStep(model.StraightState());
+    rodfit::DynamicsStepper stepper(model, options);
+    rodfit::DynamicState s = stepper.AtRest(model.StraightState());
+    const rodfit::DynamicsStepSummary r = stepper.Step(rodfit::Drive(), &s);
+    row.converged = r.ok;
+    row.note = r.reason;
+    rows.push_back(judge(row, 0.0, true));
+  }
+  return rows.rows;
+}
+
+std::string Csv(const std::vector<Row>& rows) {
+  std::string out =
+      "problem,family,setting,error,error_unit,time_median_s,time_min_s,time_max_s,iterations,"
+      "converged,stable,verdict,note\n";
+  for (const Row& r : rows) {
+    std::string note;
+    for (char c : r.note) note += c == '"' ? std::string("\"\"") : std::string(1, c == '\n' ? ' ' : c);
+    out += r.problem + "," + r.family + ",\"" + r.setting + "\"," + rodfit::FormatDouble(r.error) +
+           "," + r.error_unit + "," + rodfit::FormatDouble(r.t_median) + "," +
+           rodfit::FormatDouble(r.t_min) + "," + rodfit::FormatDouble(r.t_max) + "," +
+           std::to_string(r.iterations) + "," + (r.converged ? "1" : "0") + "," +
+           (r.stable ? "1" : "0") + "," + r.verdict + ",\"" + note + "\"\n";
+  }
+  return out;
+}
+
+std::string Html(const std::vector<Row>& rows) {
+  std::string page =
+      "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>rodfit bench</title>"
+      "<style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 8px;text-align:right}"
+      "</style></head><body>\n<h1>rodfit bench</h1>\n<p>rodfit " +
+      rodfit::svg::Escape(RODFIT_VERSION) +
+      ". Error against each problem's exact answer against wall time (median of repeats); one "
+      "curve per setting family.</p>\n";
+  std::map<std::string, std::vector<const Row*>> by_problem;
+  std::vector<std::string> order;
+  for (const Row& r : rows) {
+    if (!by_problem.count(r.problem)) order.push_back(r.problem);
+    by_problem[r.problem].push_back(&r);
+  }
+  const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+  int id = 0;
+  for (const std::string& problem : order) {
+    rodfit::svg::Figure f;
+    f.title = problem;
+    f.x.label = "time [s]";
+    f.x.log = true;
+    f.y.label = "error [" + by_problem[problem].front()->error_unit + "]";
+    f.y.log = true;
+    std::map<std::string, int> family_index;
+    for (const Row* r : by_problem[problem]) {
+      if (!family_index.count(r->family)) {
+        family_index[r->family] = static_cast<int>(f.series.size());
+        rodfit::svg::Series s;
+        s.label = r->family;
+        s.colour = colours[f.series.size() % 6];
+        s.marker = rodfit::svg::Marker::kCircle;
+        f.series.push_back(s);
+      }
+      rodfit::svg::Series& s = f.series[family_index[r->family]];
+      s.x.push_back(r->t_median);
+      s.y.push_back(r->error);
+      s.point_labels.push_back(r->setting);
+    }
+    page += "<h2>" + rodfit::svg::Escape(problem) + "</h2>\n" +
+            rodfit::svg::RenderSvg(f, "p" + std::to_string(id++)) + "\n";
+  }
+  page += "<h2>All rows</h2>\n<table><tr><th>problem</th><th>setting</th><th>error</th>"
+          "<th>time [s]</th><th>iterations</th><th>converged</th><th>verdict</th></tr>\n";
+  for (const Row& r : rows) {
+    char e[64], t[64];
+    std::snprintf(e, sizeof(e), "%.3g %s", r.error, r.error_unit.c_str());
+    std::snprintf(t, sizeof(t), "%.3g", r.t_median);
+    page += "<tr><td>" + rodfit::svg::Escape(r.problem) + "</td><td>" + rodfit::svg::Escape(r.setting) +
+            "</td><td>" + e + "</td><td>" + t + "</td><td>" + std::to_string(r.iterations) +
+            "</td><td>" + (r.converged ? "yes" : "no") + "</td><td>" + rodfit::svg::Escape(r.verdict) +
+            "</td></tr>\n";
+  }
+  return page + "</table>\n</body></html>\n";
+}
+
+}  // namespace
+
+int RunBench(int argc, char** argv) {
+  CLI::App app(
+      "Solve reference problems with exact answers over a ladder of settings (statics: end "
+      "moments, circle and helix, segments 10 to 10,000 and tolerances; dynamics: a "
+      "cantilever's first frequency and a damped decay, per integrator and time step); write "
+      "DIR/bench.csv and DIR/index.html (error against time) and print a summary. --stress runs "
+      "the stress suite instead: every row right or failed with a message, else exit 1.",
+      "rodfit bench");
+  std::string output_dir;
+  bool quick = false, stress = false;
+  app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
+  app.add_flag("--quick", quick, "a shorter ladder (up to 1000 segments, one repeat, no explicit run)");
+  app.add_flag("--stress", stress, "the stress suite");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  const std::vector<Row> rows = stress ? Stress() : Ladder(quick);
+  int wrong = 0;
+  for (const Row& r : rows) wrong += r.verdict == "WRONG";
+  rodfit::StagedDirectory out(output_dir);
+  out.Write("bench.csv", Csv(rows), "output file name");
+  out.Write("index.html", Html(rows), "output file name");
+  out.Commit();
+  if (wrong > 0) {
+    std::cerr << "rodfit bench: " << wrong << " stress row(s) returned a wrong answer as success\n";
+    return EXIT_FAILURE;
+  }
+  return EXIT_SUCCESS;
+}
