@@ -66,12 +66,25 @@ int RunSimulate(int argc, char** argv) {
   bool keep_going = false;
   app.add_option("scene", scene_path, "scene YAML (docs/formats.md)")->required();
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
+  MarkerSampling markers;
+  app.add_option("--markers", markers.count,
+                 "moving scene: also write DIR/markers.csv, a synthetic motion-capture recording "
+                 "(t,marker,x,y,z) of this many markers evenly spaced in s, at every written frame")
+      ->check(CLI::Range(2, 10000));
+  app.add_option("--marker-noise", markers.noise, "[m] Gaussian noise per coordinate of markers.csv")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--marker-drop", markers.drop, "fraction of markers.csv samples dropped (not in frames 0-1)")
+      ->check(CLI::Range(0.0, 0.9));
+  app.add_option("--seed", markers.seed, "random seed of the marker noise and drops");
   app.add_flag("--keep-going", keep_going,
                "write the cases that converged and summary.csv even when one fails (exit 3)");
   if (const int status = Parse(app, argc, argv); status >= 0) return status;
 
   const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
-  if (experiment.scene.dynamics) return SimulateMotion(experiment, scene_path, output_dir, keep_going);
+  if (experiment.scene.dynamics)
+    return SimulateMotion(experiment, scene_path, output_dir, keep_going, markers);
+  if (markers.count > 0)
+    throw std::invalid_argument("--markers is for a moving scene (a dynamics: block)");
   const rodfit::Scene& scene = experiment.scene;
   std::vector<rodfit::CaseShape> shapes;
   std::vector<rodfit::CaseForce> forces;

@@ -36,6 +36,13 @@ int RunRollout(int argc, char** argv) {
   app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (bend_stiffness, "
                  "bend_stiffness_2, twist_stiffness, stretch_stiffness, damping, bend_damping, twist_damping, "
                  "stretch_damping); their scene values are the start, > 0");
+  int smooth_frames = 5;
+  bool orient_ends = false;
+  app.add_option("--smooth", smooth_frames,
+                 "held markers' paths smoothed by a centred quadratic over +-N frames (0: as recorded)")
+      ->check(CLI::Range(0, 1000));
+  app.add_flag("--orient-ends", orient_ends,
+               "held markers 1 and n-2 orient the clamps at 0 and n-1 instead of being pinned");
   app.add_option("--max-evaluations", max_evaluations, "rollouts of every recording the fit may take")
       ->check(CLI::Range(1, 100000));
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
@@ -59,6 +66,8 @@ int RunRollout(int argc, char** argv) {
   }
   rodfit::RolloutOptions options;
   options.initial_equilibrium = initial == "equilibrium";
+  options.smooth_frames = smooth_frames;
+  options.pin_pairs = !orient_ends;
   options.held_markers.clear();
   {
     std::stringstream ss(held_text);

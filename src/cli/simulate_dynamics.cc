@@ -1,18 +1,54 @@
 // `rodfit simulate` for a moving scene (a `dynamics:` block): every case integrated in time by
 // SimulateCaseDynamics, its frames written as trajectory.csv and reactions.csv.
+#include <algorithm>
 #include <cstdlib>
+#include <random>
 #include <iostream>
 #include <stdexcept>
 
 #include "commands.h"
+#include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/solve/case_dynamics.h"
 
+namespace {
+
+// markers.csv: `count` markers evenly spaced in s, interpolated along each written frame's
+// centre-line, with noise and drops, one recording per case (`case` column first).
+std::string MarkersCsv(const std::vector<rodfit::CaseMotion>& motions, const MarkerSampling& m) {
+  std::mt19937 rng(m.seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::string out = "case,t,marker,x,y,z\n";
+  for (const rodfit::CaseMotion& motion : motions) {
+    const std::vector<double>& s = motion.s;
+    for (size_t f = 0; f < motion.frames.size(); ++f) {
+      const Eigen::Matrix3Xd& x = motion.frames[f].x;
+      for (int k = 0; k < m.count; ++k) {
+        const double sk = s.back() * k / (m.count - 1);
+        size_t i = std::upper_bound(s.begin(), s.end(), sk) - s.begin();
+        i = std::min(std::max<size_t>(i, 1), s.size() - 1);
+        const double w = (sk - s[i - 1]) / (s[i] - s[i - 1]);
+        Eigen::Vector3d p = (1 - w) * x.col(i - 1) + w * x.col(i);
+        for (int c = 0; c < 3; ++c) p[c] += m.noise * gauss(rng);
+        const bool dropped = f >= 2 && uniform(rng) < m.drop;
+        if (dropped) continue;
+        out += motion.name + "," + rodfit::FormatDouble(motion.frames[f].t) + "," +
+               std::to_string(k) + "," + rodfit::FormatDouble(p[0]) + "," +
+               rodfit::FormatDouble(p[1]) + "," + rodfit::FormatDouble(p[2]) + "\n";
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scene_path,
-                   const std::string& output_dir, bool keep_going) {
+                   const std::string& output_dir, bool keep_going, const MarkerSampling& markers) {
   const rodfit::Scene& scene = experiment.scene;
   std::vector<rodfit::CaseMotion> motions;
   std::vector<rodfit::MotionSummaryRow> summary;
@@ -53,10 +89,11 @@ int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scen
   }
   rodfit::StagedDirectory out(output_dir);
   const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
-  const std::vector<std::pair<std::string, std::string>> files = {
+  std::vector<std::pair<std::string, std::string>> files = {
       {"trajectory.csv", rodfit::FormatTrajectoryCsv(motions)},
       {"reactions.csv", rodfit::FormatReactionsCsv(motions)},
       {"summary.csv", rodfit::FormatMotionSummaryCsv(summary)}};
+  if (markers.count > 0) files.emplace_back("markers.csv", MarkersCsv(motions, markers));
   for (const auto& [name, text] : files) {
     out.Write(name, text, "output file name");
     rodfit::RefuseOverwritingInput(out.FinalPath(name), inputs);

@@ -14,6 +14,15 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate) 
   MarkerRecording rec;
   rec.file = path;
   if (table.num_rows() < 1) throw InputError(path, 0, "", "no rows");
+  if (table.HasColumn("case")) {
+    // simulate --markers writes one recording per case into one file: one case per rollout.
+    const std::vector<std::string> cases = table.TextColumn("case");
+    for (int r = 1; r < table.num_rows(); ++r)
+      if (cases[r] != cases[0])
+        throw InputError(path, table.line(r), "case",
+                         "a second case (" + ClipForMessage(cases[r]) +
+                             "): a recording holds one case; split the file by its case column");
+  }
   const bool by_frame = table.HasColumn("frame");
   if (!by_frame && !table.HasColumn("t"))
     throw InputError(path, 1, "frame", "needs a frame column (with --frame-rate) or a t column");

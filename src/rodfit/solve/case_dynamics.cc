@@ -31,12 +31,15 @@ LoadCase CaseAtStart(const LoadCase& load_case) {
     const bool frame = !p.b.empty();
     if (d.point == "clamp") {
       c.clamp.position = at;
-      if (frame) c.clamp.tangent = Interpolate(p, 1, t0), c.clamp.normal = Interpolate(p, 2, t0);
+      if (frame) {
+        c.clamp.tangent = Interpolate(p, 1, t0);
+        if (!p.c.empty()) c.clamp.normal = Interpolate(p, 2, t0);
+      }
     } else if (d.point == "end_clamp" && c.end_clamp) {
       c.end_clamp->position = at;
       if (frame) {
         c.end_clamp->tangent = Interpolate(p, 1, t0);
-        c.end_clamp->normal = Interpolate(p, 2, t0);
+        if (!p.c.empty()) c.end_clamp->normal = Interpolate(p, 2, t0);
       }
     } else if (d.point == "end_pin" && c.end_pin) {
       *c.end_pin = at;
@@ -83,7 +86,7 @@ void CaseDrive::PoseAt(const RodModel& model, double t, HeldPose* pose) const {
     if (held_[k]) pose->held[k] = Interpolate(*held_[k], 0, t);
   if (end_clamp_ && !end_clamp_->b.empty()) {
     pose->end_tangent = Interpolate(*end_clamp_, 1, t).normalized();
-    pose->end_d1 = Interpolate(*end_clamp_, 2, t);
+    if (!end_clamp_->c.empty()) pose->end_d1 = Interpolate(*end_clamp_, 2, t);
   }
   if (tip_load_) {
     pose->tip_force = Interpolate(*tip_load_, 0, t);

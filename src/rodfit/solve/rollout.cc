@@ -22,6 +22,41 @@ TimeSeries MarkerPath(const std::vector<Eigen::Matrix3Xd>& frames, int m, double
   return p;
 }
 
+// Marker path `of` interpolated at time t (held at its ends).
+Vec3 At(const TimeSeries& of, double t) {
+  size_t j = 0;
+  while (j + 1 < of.t.size() && of.t[j + 1] <= t) ++j;
+  if (j + 1 < of.t.size() && t > of.t[j]) {
+    const double w = (t - of.t[j]) / (of.t[j + 1] - of.t[j]);
+    return (1 - w) * of.a[j] + w * of.a[j + 1];
+  }
+  return of.a[j];
+}
+
+// A held marker's recorded path smoothed in time: each sample replaced by the value at its time
+// of the least-squares quadratic through the samples within +-half_window frames (a centred
+// Savitzky-Golay filter, which keeps a quadratic motion exactly). Motion capture's ~1 mm noise
+// differenced at 100 Hz is a velocity noise of ~0.1 m/s: driving a stiff rod with it jerks it.
+void Smooth(TimeSeries* path, double frame_interval, int half_window) {
+  if (half_window <= 0 || path->t.size() < 3) return;
+  const std::vector<Vec3> raw = path->a;
+  const double reach = (half_window + 0.5) * frame_interval;
+  for (size_t k = 0; k < raw.size(); ++k) {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Matrix3d B = Eigen::Matrix3d::Zero();  // columns: sum phi_j * x (per coordinate)
+    int used = 0;
+    for (size_t j = 0; j < raw.size(); ++j) {
+      const double d = path->t[j] - path->t[k];
+      if (std::abs(d) > reach) continue;
+      const Eigen::Vector3d phi(1.0, d / frame_interval, std::pow(d / frame_interval, 2));
+      A += phi * phi.transpose();
+      B += phi * raw[j].transpose();
+      ++used;
+    }
+    if (used >= 4) path->a[k] = A.ldlt().solve(B).row(0).transpose();
+  }
+}
+
 }  // namespace
 
 RolloutResult Rollout(const Scene& scene, double frame_interval,
@@ -84,22 +119,19 @@ RolloutResult Rollout(const Scene& scene, double frame_interval,
   DrivenPoint clamp_drive;
   clamp_drive.point = "clamp";
   clamp_drive.path = MarkerPath(frames, 0, frame_interval);
+  Smooth(&clamp_drive.path, frame_interval, options.smooth_frames);
+  // Marker 1 held: it orients the clamp (its tangent points at marker 1) rather than pinning a
+  // second point 1 marker gap away, which noise in the two would stretch against EA.
+  const bool clamp_oriented = out.held[1] && !options.pin_pairs;
   {
     // The clamp's frame over time: its tangent towards marker 1 (interpolated over frames where
     // either is missing), its normal carried by parallel transport.
-    const TimeSeries p1 = MarkerPath(frames, 1, frame_interval);
+    TimeSeries p1 = MarkerPath(frames, 1, frame_interval);
+    Smooth(&p1, frame_interval, options.smooth_frames);
     Vec3 normal = n0, tangent = t0;
     TimeSeries& cp = clamp_drive.path;
     for (size_t k = 0; k < cp.t.size(); ++k) {
-      // Marker 1 at this time, by interpolation of its own path.
-      const double t = cp.t[k];
-      size_t j = 0;
-      while (j + 1 < p1.t.size() && p1.t[j + 1] <= t) ++j;
-      Vec3 m1 = p1.a[j];
-      if (j + 1 < p1.t.size() && t > p1.t[j]) {
-        const double w = (t - p1.t[j]) / (p1.t[j + 1] - p1.t[j]);
-        m1 = (1 - w) * p1.a[j] + w * p1.a[j + 1];
-      }
+      const Vec3 m1 = out.held[1] ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
       const Vec3 tn = (m1 - cp.a[k]).normalized();
       normal = ParallelTransport<double, double>(tangent, tn, normal);
       normal = (normal - normal.dot(tn) * tn).normalized();
@@ -109,11 +141,25 @@ RolloutResult Rollout(const Scene& scene, double frame_interval,
     }
   }
   c.drives.push_back(clamp_drive);
-  for (int m = 1; m < M; ++m) {
-    if (!out.held[m]) continue;
+  // Markers n-2 and n-1 both held: an end clamp at n-1 along n-2 -> n-1, free to turn about its
+  // tangent (the same reason as at the clamp).
+  const bool end_oriented = out.held[M - 1] && out.held[M - 2] && M - 2 > 1 && !options.pin_pairs;
+  for (int m = clamp_oriented ? 2 : 1; m < M; ++m) {
+    if (!out.held[m] || (end_oriented && m == M - 2)) continue;
     DrivenPoint d;
     d.path = MarkerPath(frames, m, frame_interval);
-    if (m == M - 1) {
+    Smooth(&d.path, frame_interval, options.smooth_frames);
+    if (m == M - 1 && end_oriented) {
+      TimeSeries before = MarkerPath(frames, M - 2, frame_interval);
+      Smooth(&before, frame_interval, options.smooth_frames);
+      for (size_t k = 0; k < d.path.t.size(); ++k)
+        d.path.b.push_back((d.path.a[k] - At(before, d.path.t[k])).normalized());
+      EndClamp end;
+      end.position = d.path.a.front();
+      end.tangent = d.path.b.front();
+      c.end_clamp = end;
+      d.point = "end_clamp";
+    } else if (m == M - 1) {
       c.end_pin = frames[0].col(m);
       d.point = "end_pin";
     } else {
