@@ -207,7 +207,7 @@ struct Outcome {
 
 // fork + exec in `dir` with stdout and stderr to files outside it; polls for the end, killing
 // the process group at the time limit.
-Outcome Run(const Case& c, const std::string& dir, const std::string& logs) {
+Outcome RunCase(const Case& c, const std::string& dir, const std::string& logs) {
   const std::vector<std::string> args =
       c.replace_arguments ? c.extra : Arguments(c.command, c.extra);
   const std::string cli = Cli();
@@ -350,7 +350,7 @@ class FuzzCorpusTest : public ::testing::Test {
         const std::string dir = work.File("case" + std::to_string(k));
         fs::copy(base_->path(), dir, fs::copy_options::recursive);
         cases[k].mutate(dir);
-        outcomes[k] = Run(cases[k], dir, work.File("log" + std::to_string(k)));
+        outcomes[k] = RunCase(cases[k], dir, work.File("log" + std::to_string(k)));
         std::error_code ec;
         fs::remove_all(dir, ec);
       }

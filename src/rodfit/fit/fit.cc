@@ -820,8 +820,8 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       else
         result.message = "the forward solve fails at the " + at + " values" +
                          (why.empty() ? std::string() : " (" + why + ")") +
-                         ": a solver limit, not bad data (start values or a start shape nearer "
-                         "the equilibrium, or a larger solver.max_iterations, may reach it)";
+                         ": a solver limit, not bad data (start nearer, or raise "
+                         "solver.max_iterations)";
     } else {
       J.setZero(crs.num_rows, crs.num_cols);
       for (int i = 0; i < crs.num_rows; ++i)
