@@ -254,23 +254,24 @@ FitInput BuildFitInput(const Experiment& e) {
           std::vector<Eigen::Vector3d> positions;
           for (int r = 0; r < t.num_rows(); ++r) {
             CheckArcLength(t, r, s[r], L);
-            CheckReach(t, r, Eigen::Vector3d(x[r], y[r], z[r]), fc.load_case.clamp.position, L);
             markers.push_back({std::min(std::max(s[r], 0.0), L), Vec3(x[r], y[r], z[r])});
             positions.emplace_back(x[r], y[r], z[r]);
           }
           if (markers.empty()) throw InputError(spec.file, 0, "", "no rows");
+          // Millimetres as metres first (the likelier mistake), then any single point too far.
           CheckSpread(spec.file, "the markers", positions, L);
+          for (int r = 0; r < t.num_rows(); ++r)
+            CheckReach(t, r, positions[r], fc.load_case.clamp.position, L);
           obs = std::make_shared<Markers3dObservation>(arc, markers, spec.sigma);
         } else if (spec.type == "points3d") {
           const CsvTable t = CsvTable::Read(spec.file);
           const auto x = ColumnOf(t, "x"), y = ColumnOf(t, "y"), z = ColumnOf(t, "z");
           std::vector<Eigen::Vector3d> pts;
-          for (int r = 0; r < t.num_rows(); ++r) {
-            pts.emplace_back(x[r], y[r], z[r]);
-            CheckReach(t, r, pts.back(), fc.load_case.clamp.position, L);
-          }
+          for (int r = 0; r < t.num_rows(); ++r) pts.emplace_back(x[r], y[r], z[r]);
           if (pts.empty()) throw InputError(spec.file, 0, "", "no rows");
           CheckSpread(spec.file, "the points", pts, L);
+          for (int r = 0; r < t.num_rows(); ++r)
+            CheckReach(t, r, pts[r], fc.load_case.clamp.position, L);
           obs = std::make_shared<Points3dObservation>(nv, pts, spec.sigma);
         } else if (spec.type == "image_points") {
           const CsvTable t = CsvTable::Read(spec.file);
