@@ -157,6 +157,37 @@ TEST_F(LimitsDiagnosesCliTest, MarkerAt1e308IsRefusedAtReadTimeNamingFileAndLine
                 "more than 100 rod lengths (0.2 m): not on the rod");
 }
 
+TEST_F(LimitsDiagnosesCliTest, HapticLogOutOfReachOrAt1e308IsNamedAsBadData) {
+  const std::string drag = RODFIT_SOURCE_DIR "/calibration/tissue_drag/";
+  for (const char* f : {"experiment.yaml", "rest_markers.csv", "drag_markers.csv"})
+    fs::copy_file(drag + f, dir_.File(std::string("in/") + f));
+  const std::string log = ReadText(drag + "drag_force.csv");
+  const size_t second = log.find('\n') + 1, third = log.find('\n', second) + 1;
+  const std::string row = log.substr(second, third - second);  // t,tool_x,...,fz
+  const std::string experiment = dir_.File("in/experiment.yaml");
+  // The tool 1e308 m away: refused when the log is read, naming its line and column.
+  std::string far = row;
+  far.replace(far.find(',') + 1, far.find(',', far.find(',') + 1) - far.find(',') - 1, "1e308");
+  dir_.Write("in/drag_force.csv", log.substr(0, second) + far + log.substr(third));
+  ExpectRefused(FitSuture(experiment), "drag_force.csv:2: tool_x:",
+                "more than 100 rod lengths (0.15 m): not on the rod");
+  // Force readings of 1e308 N (fz of every row): their residuals overflow. Bad data, named by
+  // the reading, not a solver failure nor a NaN gradient.
+  std::string huge = log.substr(0, second);
+  for (size_t at = second; at < log.size();) {
+    const size_t end = log.find('\n', at);
+    const std::string line = log.substr(at, end - at);
+    huge += line.substr(0, line.rfind(',') + 1) + "1e308\n";
+    at = end + 1;
+  }
+  dir_.Write("in/drag_force.csv", huge);
+  const RunResult run = FitSuture(experiment);
+  ExpectRefused(run, "experiment.yaml", "bad data: case drag@t=");
+  EXPECT_THAT(run.err, HasSubstr("grasp_force drag_force.csv t="));
+  EXPECT_THAT(run.err, HasSubstr("is not finite"));
+  EXPECT_THAT(run.err, Not(HasSubstr("nan")));
+}
+
 TEST_F(LimitsDiagnosesCliTest, CameraBehindTheRodIsNamedBeforeTheFit) {
   const std::string experiment = CopySuture();
   const std::string camera = dir_.File("in/cam_front.yaml");

@@ -354,8 +354,20 @@ class CaseEvaluator {
         !SurfaceResiduals(*model, state, material, residuals, jacobian, &row))
       return false;
     Charge(&timing_.observation, &t0);
-    for (int i = 0; i < num_residuals_; ++i)
-      if (!std::isfinite(residuals[i])) return false;
+    for (int i = 0; i < num_residuals_; ++i) {
+      bool finite = std::isfinite(residuals[i]);
+      for (int c = 0; finite && jacobian && c < m; ++c) finite = std::isfinite(jacobian[i * m + c]);
+      if (!finite) {
+        // A value beyond what a double can weigh (a reading of 1e308 N, a sigma of 1e-320): bad
+        // data, named by its observation; Ceres would only report a NaN gradient.
+        std::lock_guard<std::mutex> lock(mutex_);
+        last_failure_ = "case " + case_.load_case.name + ": " + ResidualLabel(i) +
+                        ": a residual or its derivative is not finite (a value too large or a "
+                        "sigma too small?)";
+        data_failure_ = true;
+        return false;
+      }
+    }
     // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
     // the start): trial steps start from the last iterate's state but do not replace it, so a
     // rejected trial that slipped onto another equilibrium (an extra twist turn, a flipped
@@ -371,6 +383,24 @@ class CaseEvaluator {
   }
 
  private:
+  // The observation (or force reading, or surface point set) that residual row i belongs to.
+  std::string ResidualLabel(int i) const {
+    int row = 0;
+    for (size_t o = 0; o < case_.observations.size(); ++o) {
+      row += case_.observations[o]->num_residuals();
+      if (i < row) return o < case_.labels.size() ? case_.labels[o] : case_.observations[o]->type();
+    }
+    for (const ForceMeasurement& f : case_.grasp_forces) {
+      row += f.num_residuals();
+      if (i < row) return f.label;
+    }
+    for (const SurfacePoints& sp : case_.surface_points) {
+      row += 3 * static_cast<int>(sp.points.size());
+      if (i < row) return sp.label;
+    }
+    return "a residual";
+  }
+
   // The case's surface points against the deformed ring of its poke (fit.h SurfacePoints), rows
   // from *row on. Only ring parameters have non-zero columns (CheckSurfacePoints refuses rod
   // parameters together with surface points): the ring's d nodes / d log k in section

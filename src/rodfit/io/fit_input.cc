@@ -26,7 +26,7 @@ std::vector<double> ColumnOf(const CsvTable& t, const std::string& c) { return t
 constexpr double kMaxReachLengths = 100.0;
 
 void CheckReach(const CsvTable& t, int row, const Eigen::Vector3d& p, const Vec3& clamp,
-                double length) {
+                double length, const char* column = "x") {
   const double d = (p - clamp).norm();
   if (!(d <= kMaxReachLengths * length)) {
     char b[160];
@@ -34,7 +34,7 @@ void CheckReach(const CsvTable& t, int row, const Eigen::Vector3d& p, const Vec3
                   "the point lies %.3g m from the clamp, more than %.0f rod lengths (%.6g m): "
                   "not on the rod (wrong units or frame?)",
                   d, kMaxReachLengths, length);
-    throw InputError(t.name(), t.line(row), "x", b);
+    throw InputError(t.name(), t.line(row), column, b);
   }
 }
 
@@ -92,12 +92,16 @@ struct HapticSample {
   Vec3 tool, force;
 };
 
-std::vector<HapticSample> QuasiStaticSamples(const ObservationSpec& spec) {
+std::vector<HapticSample> QuasiStaticSamples(const ObservationSpec& spec, const Vec3& clamp,
+                                             double length) {
   const CsvTable t = CsvTable::Read(spec.file);
   const auto time = t.Column("t"), x = t.Column("tool_x"), y = t.Column("tool_y"),
              z = t.Column("tool_z"), fx = t.Column("fx"), fy = t.Column("fy"), fz = t.Column("fz");
   const int n = t.num_rows();
   if (n < 3) throw InputError(spec.file, 0, "", "a force log needs at least 3 samples");
+  // The instrument holds the rod: a tool position out of its reach is bad data (each quasi-static
+  // sample becomes a held point the solve would chase).
+  for (int r = 0; r < n; ++r) CheckReach(t, r, Vec3(x[r], y[r], z[r]), clamp, length, "tool_x");
   for (int r = 1; r < n; ++r)
     if (!(time[r] > time[r - 1]))
       throw InputError(spec.file, t.line(r), "t",
@@ -189,7 +193,8 @@ FitInput BuildFitInput(const Experiment& e) {
     }
     for (const ObservationSpec& spec : e.cases[c].observations) {
       if (spec.type == "grasp_force") {
-        for (const HapticSample& h : QuasiStaticSamples(spec)) {
+        for (const HapticSample& h :
+             QuasiStaticSamples(spec, e.scene.cases[c].clamp.position, L)) {
           FitCase gc;
           gc.load_case = e.scene.cases[c];
           gc.load_case.name += "@t=" + FormatDouble(h.t);
