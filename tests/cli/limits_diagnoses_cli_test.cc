@@ -154,7 +154,7 @@ TEST_F(LimitsDiagnosesCliTest, MarkerAt1e308IsRefusedAtReadTimeNamingFileAndLine
   text.insert(text.find('\n') + 1, "0.1,1e308,0,0\n");
   std::ofstream(markers, std::ios::trunc) << text;
   ExpectRefused(FitSuture(experiment), "up30_markers.csv:2: x:",
-                "more than 100 rod lengths (0.2 m): not on the rod");
+                "more than 10000 rod lengths (0.2 m): not on the rod");
 }
 
 TEST_F(LimitsDiagnosesCliTest, HapticLogOutOfReachOrAt1e308IsNamedAsBadData) {

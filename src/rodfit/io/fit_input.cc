@@ -22,18 +22,21 @@ namespace fs = std::filesystem;
 std::vector<double> ColumnOf(const CsvTable& t, const std::string& c) { return t.Column(c); }
 
 // A 3-D point more than this many rod lengths from the case's clamp cannot lie on the rod, even
-// as an outlier within its reach: a unit or frame mistake, or a value such as 1e308.
+// as an outlier within its reach: a unit or frame mistake, or a value such as 1e308. Points
+// beyond kAbsurdReachLengths are refused first, by their line (millimetres given as metres lie
+// about 1000 lengths out and are told as such by CheckSpread).
 constexpr double kMaxReachLengths = 100.0;
+constexpr double kAbsurdReachLengths = 1e4;
 
 void CheckReach(const CsvTable& t, int row, const Eigen::Vector3d& p, const Vec3& clamp,
-                double length, const char* column = "x") {
+                double length, const char* column = "x", double lengths = kMaxReachLengths) {
   const double d = (p - clamp).norm();
-  if (!(d <= kMaxReachLengths * length)) {
+  if (!(d <= lengths * length)) {
     char b[160];
     std::snprintf(b, sizeof(b),
                   "the point lies %.3g m from the clamp, more than %.0f rod lengths (%.6g m): "
                   "not on the rod (wrong units or frame?)",
-                  d, kMaxReachLengths, length);
+                  d, lengths, length);
     throw InputError(t.name(), t.line(row), column, b);
   }
 }
@@ -263,7 +266,10 @@ FitInput BuildFitInput(const Experiment& e) {
             positions.emplace_back(x[r], y[r], z[r]);
           }
           if (markers.empty()) throw InputError(spec.file, 0, "", "no rows");
-          // Millimetres as metres first (the likelier mistake), then any single point too far.
+          // An absurd point by its line, then millimetres as metres (the likelier mistake), then
+          // any single point too far.
+          for (int r = 0; r < t.num_rows(); ++r)
+            CheckReach(t, r, positions[r], fc.load_case.clamp.position, L, "x", kAbsurdReachLengths);
           CheckSpread(spec.file, "the markers", positions, L);
           for (int r = 0; r < t.num_rows(); ++r)
             CheckReach(t, r, positions[r], fc.load_case.clamp.position, L);
@@ -274,6 +280,8 @@ FitInput BuildFitInput(const Experiment& e) {
           std::vector<Eigen::Vector3d> pts;
           for (int r = 0; r < t.num_rows(); ++r) pts.emplace_back(x[r], y[r], z[r]);
           if (pts.empty()) throw InputError(spec.file, 0, "", "no rows");
+          for (int r = 0; r < t.num_rows(); ++r)
+            CheckReach(t, r, pts[r], fc.load_case.clamp.position, L, "x", kAbsurdReachLengths);
           CheckSpread(spec.file, "the points", pts, L);
           for (int r = 0; r < t.num_rows(); ++r)
             CheckReach(t, r, pts[r], fc.load_case.clamp.position, L);
