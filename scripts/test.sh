@@ -3,4 +3,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/build.sh
-cd build && ctest --output-on-failure -j"$(nproc)"
+(cd build && ctest --output-on-failure -j"$(nproc)")
+
+# Issue 15: the fuzz corpus (tests/cli/fuzz_corpus_test.cc) once more on an address +
+# undefined-behaviour sanitizer build of the CLI and its libraries only (no tests, no
+# benchmarks), in build-sanitize/. A memory error or undefined behaviour aborts rodfit, which the
+# corpus counts as a crash and fails on.
+cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=Release -DRODFIT_SANITIZE=ON \
+  -DRODFIT_BUILD_TESTS=OFF -DRODFIT_BUILD_BENCH=OFF >/dev/null
+cmake --build build-sanitize --target rodfit-cli -j"$(nproc)"
+ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 \
+  UBSAN_OPTIONS=halt_on_error=1:abort_on_error=1:print_stacktrace=1 \
+  RODFIT_FUZZ_CLI="$PWD/build-sanitize/rodfit" RODFIT_FUZZ_TIMEOUT=120 \
+  build/test_cli --gtest_filter='FuzzCorpusTest.*'

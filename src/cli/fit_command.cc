@@ -105,6 +105,9 @@ int RunFit(int argc, char** argv) {
     }
   }
   const rodfit::FitInput input = rodfit::BuildFitInput(experiment);
+  // A camera behind the rod or looking elsewhere is bad data: said before the fit, naming the
+  // camera file and the case (the fit would only fail to evaluate).
+  rodfit::CheckCamerasSeeTheStart(experiment);
   rodfit::FitOptions options;
   options.loss = LossOf(experiment.fit.loss);
   options.loss_scale = experiment.fit.loss_scale;

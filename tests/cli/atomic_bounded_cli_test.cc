@@ -173,7 +173,7 @@ TEST_F(AtomicBoundedCliTest, InputsThatAreNotRegularFilesOrTooLargeGiveOneLine) 
        {std::pair<std::string, std::string>{folder, "is a directory, not a YAML file"},
         {fifo, "is not a regular file (a device, FIFO or socket); a YAML file must be a file"},
         {"/dev/zero", "is not a regular file"},
-        {big, "is 268435457 bytes, too large for a YAML file (at most 268435456)"}}) {
+        {big, "is 268435457 bytes, too large for a YAML file (at most 4194304)"}}) {
     SCOPED_TRACE(path);
     const RunResult run = Rodfit("fit " + Q(path) + " -o " + Q(profile));
     ExpectOneLineError(run, path + ": " + expected);

@@ -106,14 +106,13 @@ std::vector<ForceRow> ReadForces(const std::string& path) {
 // summary.csv, by column.
 struct Summary {
   std::vector<std::string> names, reasons;
-  std::vector<double> converged, stable, iterations, gradient_norm, seconds;
+  std::vector<double> converged, stable, iterations, gradient_norm;
 };
 
 Summary ReadSummary(const std::string& path) {
   const CsvTable t = CsvTable::Read(path);
   return {t.TextColumn("case"),      t.TextColumn("reason"),    t.Column("converged"),
-          t.Column("stable"),        t.Column("iterations"),    t.Column("gradient_norm"),
-          t.Column("seconds")};
+          t.Column("stable"),        t.Column("iterations"),    t.Column("gradient_norm")};
 }
 
 const CaseShape* Find(const std::vector<CaseShape>& shapes, const std::string& name) {
@@ -212,7 +211,8 @@ TEST_F(HeldPointsBehaviourTest, SummaryCsvSaysHowEachSolveEnded) {
                                        kHeldCase + "  - name: sag\n" + kClamp));
   ASSERT_EQ(run.status, 0) << run.err;
   const std::string text = ReadText(Out("summary.csv"));
-  EXPECT_THAT(text, StartsWith("case,converged,stable,iterations,gradient_norm,seconds,reason\n"));
+  // No wall time in an output (issue 15): simulate prints its time on stdout instead.
+  EXPECT_THAT(text, StartsWith("case,converged,stable,iterations,gradient_norm,reason\n"));
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 3) << text;
   const Summary summary = ReadSummary(Out("summary.csv"));
   EXPECT_EQ(summary.names, std::vector<std::string>({"held", "sag"}));
@@ -225,8 +225,6 @@ TEST_F(HeldPointsBehaviourTest, SummaryCsvSaysHowEachSolveEnded) {
     // Below the default tolerance 1e-9 x the load scale (here at most ~1 N).
     EXPECT_GE(summary.gradient_norm[k], 0.0);
     EXPECT_LT(summary.gradient_norm[k], 1e-8);
-    EXPECT_GE(summary.seconds[k], 0.0);
-    EXPECT_LT(summary.seconds[k], 60.0);
     EXPECT_THAT(summary.reasons[k], StartsWith("converged"));
   }
   // The held points are reached by continuation from the straight rod; the sag needs none.

@@ -282,7 +282,7 @@ TEST_F(HeldPointsCliTest, SolverValueOutOfRange) {
     return Replace(kScene, "cases:\n", "solver: " + solver + "\ncases:\n");  // line 11
   };
   ExpectSimulateFails(with_solver("{max_iterations: 0}"),
-                      At(11, "solver.max_iterations", "must be in [1, 100000], got 0"));
+                      At(11, "solver.max_iterations", "must be an integer in [1, 100000], got 0"));
   ExpectSimulateFails(with_solver("{gradient_tolerance: 0.5}"),
                       At(11, "solver.gradient_tolerance", "must be in [1e-16, 0.01], got 0.5"));
   ExpectSimulateFails(with_solver("{step_tolerance: 0}"),

@@ -166,3 +166,42 @@ TEST_F(ImageObservationsTest, EncodeImageNeedsAKnownExtension) {
 
 }  // namespace
 }  // namespace rodfit
+
+namespace rodfit {
+namespace {
+
+// The header's size is read without decoding (PNG, BMP, JPEG), and an image whose header claims
+// more than the limit is refused before the decoder would allocate it (issue 15).
+TEST(ImageHeader, SizeIsReadFromTheHeaderAndBoundedBeforeDecoding) {
+  TempDir dir;
+  std::vector<uchar> png, jpg, bmp;
+  const cv::Mat image(48, 64, CV_8UC1, cv::Scalar(200));
+  ASSERT_TRUE(cv::imencode(".png", image, png));
+  ASSERT_TRUE(cv::imencode(".jpg", image, jpg));
+  ASSERT_TRUE(cv::imencode(".bmp", image, bmp));
+  for (const auto* bytes : {&png, &jpg, &bmp}) {
+    int w = 0, h = 0;
+    ASSERT_TRUE(ImageHeaderSize(std::string(bytes->begin(), bytes->end()), &w, &h));
+    EXPECT_EQ(w, 64);
+    EXPECT_EQ(h, 48);
+  }
+  int w = 0, h = 0;
+  EXPECT_FALSE(ImageHeaderSize("not an image", &w, &h));
+  // The same PNG with its header claiming 10000 x 10000 (100 M pixels): refused unread.
+  std::string big(png.begin(), png.end());
+  for (int at : {16, 20}) {
+    big[at] = 0, big[at + 1] = 0, big[at + 2] = static_cast<char>(0x27),
+    big[at + 3] = static_cast<char>(0x10);
+  }
+  const std::string path = dir.Write("big.png", big);
+  try {
+    ReadImageFile(path);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("the image is 10000x10000 px, more than 16384 px a side or "
+                                    "67108864 pixels (the limit)"));
+  }
+}
+
+}  // namespace
+}  // namespace rodfit

@@ -75,7 +75,7 @@ TEST(TissueYaml, BadSectionAndPokeValues) {
 cases:
   - clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}
 )"),
-              HasSubstr("tissue.yaml:8: section.nodes: must be in [8, 4096]"));
+              HasSubstr("tissue.yaml:8: section.nodes: must be an integer in [8, 256]"));
   EXPECT_THAT(ErrorOf(std::string(kHead) + ring + R"(section: {radius: 0.012}
 cases:
   - clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}

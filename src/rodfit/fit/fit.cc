@@ -3,10 +3,12 @@
 #include "rodfit/fit/fit.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <thread>
 #include <sstream>
 #include <stdexcept>
 
@@ -201,9 +203,11 @@ class CaseEvaluator {
     std::lock_guard<std::mutex> lock(mutex_);
     return timing_;
   }
-  /// Why the last failed evaluation failed (empty if none did).
-  std::string last_failure() const {
+  /// Why the last failed evaluation failed (empty if none did), and whether the data failed
+  /// (an observation that cannot be evaluated on the solved shape) rather than the solve.
+  std::string last_failure(bool* data = nullptr) const {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (data) *data = data_failure_;
     return last_failure_;
   }
 
@@ -248,6 +252,7 @@ class CaseEvaluator {
       std::lock_guard<std::mutex> lock(mutex_);
       last_failure_ = "case " + case_.load_case.name + ": " +
                       (summary.converged ? "the equilibrium found is unstable" : summary.reason);
+      data_failure_ = false;
       return false;
     }
     const int m = num_parameters();
@@ -296,10 +301,21 @@ class CaseEvaluator {
       Charge(&timing_.jacobian, &t0);
     }
     int row = 0;
-    for (const auto& obs : case_.observations) {
+    for (size_t o = 0; o < case_.observations.size(); ++o) {
+      const auto& obs = case_.observations[o];
       VecX r;
       VertexJacobian J;
-      if (!obs->Evaluate(state.x, &r, jacobian ? &J : nullptr)) return false;
+      if (!obs->Evaluate(state.x, &r, jacobian ? &J : nullptr)) {
+        // A projection that fails (a point behind the camera) or a non-finite residual: the
+        // data, not the solve, so the message names the observation.
+        std::lock_guard<std::mutex> lock(mutex_);
+        last_failure_ = "case " + case_.load_case.name + ": " +
+                        (o < case_.labels.size() ? case_.labels[o] : obs->type()) +
+                        ": the observation model cannot be evaluated on the solved shape (a point "
+                        "behind the camera, or a non-finite residual)";
+        data_failure_ = true;
+        return false;
+      }
       Eigen::MatrixXd Jp;
       if (jacobian) Jp = J.Multiply(dx);
       // Per measurement: the loss sees each marker's / point's residual vector.
@@ -340,8 +356,20 @@ class CaseEvaluator {
         !SurfaceResiduals(*model, state, material, residuals, jacobian, &row))
       return false;
     Charge(&timing_.observation, &t0);
-    for (int i = 0; i < num_residuals_; ++i)
-      if (!std::isfinite(residuals[i])) return false;
+    for (int i = 0; i < num_residuals_; ++i) {
+      bool finite = std::isfinite(residuals[i]);
+      for (int c = 0; finite && jacobian && c < m; ++c) finite = std::isfinite(jacobian[i * m + c]);
+      if (!finite) {
+        // A value beyond what a double can weigh (a reading of 1e308 N, a sigma of 1e-320): bad
+        // data, named by its observation; Ceres would only report a NaN gradient.
+        std::lock_guard<std::mutex> lock(mutex_);
+        last_failure_ = "case " + case_.load_case.name + ": " + ResidualLabel(i) +
+                        ": a residual or its derivative is not finite (a value too large or a "
+                        "sigma too small?)";
+        data_failure_ = true;
+        return false;
+      }
+    }
     // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
     // the start): trial steps start from the last iterate's state but do not replace it, so a
     // rejected trial that slipped onto another equilibrium (an extra twist turn, a flipped
@@ -358,6 +386,24 @@ class CaseEvaluator {
   }
 
  private:
+  // The observation (or force reading, or surface point set) that residual row i belongs to.
+  std::string ResidualLabel(int i) const {
+    int row = 0;
+    for (size_t o = 0; o < case_.observations.size(); ++o) {
+      row += case_.observations[o]->num_residuals();
+      if (i < row) return o < case_.labels.size() ? case_.labels[o] : case_.observations[o]->type();
+    }
+    for (const ForceMeasurement& f : case_.grasp_forces) {
+      row += f.num_residuals();
+      if (i < row) return f.label;
+    }
+    for (const SurfacePoints& sp : case_.surface_points) {
+      row += 3 * static_cast<int>(sp.points.size());
+      if (i < row) return sp.label;
+    }
+    return "a residual";
+  }
+
   // The case's surface points against the deformed ring of its poke (fit.h SurfacePoints), rows
   // from *row on. Only ring parameters have non-zero columns (CheckSurfacePoints refuses rod
   // parameters together with surface points): the ring's d nodes / d log k in section
@@ -450,6 +496,7 @@ class CaseEvaluator {
   StaticsOptions statics_;
   mutable Timing timing_;  // accumulated under mutex_ by Charge
   mutable std::string last_failure_;
+  mutable bool data_failure_ = false;
 
   void Charge(double* bucket, Clock::time_point* t0) const {
     const Clock::time_point now = Clock::now();
@@ -459,21 +506,52 @@ class CaseEvaluator {
   }
 };
 
-class CaseCost final : public ceres::CostFunction {
+/// Every case as one residual block, the cases evaluated on `num_threads` threads, each writing
+/// its own rows. Ceres, on one thread, then sums cost and gradient over the rows in their fixed
+/// order, so results do not depend on the thread count or on which thread took which case
+/// (with a block per case, Ceres' per-thread partial sums changed the last digits; issue 15).
+class AllCasesCost final : public ceres::CostFunction {
  public:
-  explicit CaseCost(const CaseEvaluator* evaluator) : evaluator_(evaluator) {
-    set_num_residuals(evaluator->num_residuals());
-    mutable_parameter_block_sizes()->push_back(evaluator->num_parameters());
+  AllCasesCost(std::vector<const CaseEvaluator*> cases, int num_threads)
+      : cases_(std::move(cases)), num_threads_(std::max(1, num_threads)) {
+    int rows = 0;
+    for (const CaseEvaluator* c : cases_) {
+      first_row_.push_back(rows);
+      rows += c->num_residuals();
+    }
+    set_num_residuals(rows);
+    mutable_parameter_block_sizes()->push_back(cases_.empty() ? 0 : cases_[0]->num_parameters());
   }
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    // A failed solve returns false: Ceres then shortens the step.
-    return evaluator_->Evaluate(parameters[0], residuals, jacobians ? jacobians[0] : nullptr,
-                                nullptr);
+    const int n = static_cast<int>(cases_.size());
+    const int m = parameter_block_sizes()[0];
+    double* jacobian = jacobians ? jacobians[0] : nullptr;
+    std::atomic<int> next{0};
+    std::atomic<bool> ok{true};
+    auto work = [&]() {
+      for (int c = next++; c < n; c = next++) {
+        bool done = false;
+        try {
+          done = cases_[c]->Evaluate(parameters[0], residuals + first_row_[c],
+                                     jacobian ? jacobian + first_row_[c] * m : nullptr, nullptr);
+        } catch (const std::exception&) {
+          done = false;  // e.g. out of memory in one case: a failed evaluation, not a crash
+        }
+        if (!done) ok = false;  // a failed solve: Ceres then shortens the step
+      }
+    };
+    std::vector<std::thread> helpers;
+    for (int t = 1; t < std::min(num_threads_, n); ++t) helpers.emplace_back(work);
+    work();
+    for (std::thread& t : helpers) t.join();
+    return ok;
   }
 
  private:
-  const CaseEvaluator* evaluator_;
+  std::vector<const CaseEvaluator*> cases_;
+  std::vector<int> first_row_;
+  int num_threads_;
 };
 
 std::unique_ptr<ceres::LossFunction> MakeLoss(RobustLoss loss, double scale) {
@@ -734,13 +812,15 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     if (p.min) problem.SetParameterLowerBound(logp.data(), k, std::log(*p.min));
     if (p.max) problem.SetParameterUpperBound(logp.data(), k, std::log(*p.max));
   }
+  std::vector<const CaseEvaluator*> observed;
   for (auto& e : evals)
-    if (e->num_residuals() > 0) problem.AddResidualBlock(new CaseCost(e.get()), nullptr, logp.data());
+    if (e->num_residuals() > 0) observed.push_back(e.get());
+  problem.AddResidualBlock(new AllCasesCost(observed, options.num_threads), nullptr, logp.data());
 
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
   so.max_num_iterations = options.max_iterations;
-  so.num_threads = options.num_threads;
+  so.num_threads = 1;  // the cases run in parallel inside AllCasesCost, in a fixed order
   so.function_tolerance = 1e-12;
   so.parameter_tolerance = 1e-10;
   so.gradient_tolerance = 1e-14;
@@ -777,13 +857,24 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     ceres::Problem::EvaluateOptions eo;
     const bool ok = problem.Evaluate(eo, &cost, &res, nullptr, &crs);
     if (!ok) {
+      // The first case that failed (in case order, whatever thread ran it), and whether its data
+      // or its solve failed: they call for different fixes.
       std::string why;
-      for (const auto& e : evals)
-        if (!e->last_failure().empty()) why = e->last_failure();
+      bool data = false;
+      for (const auto& e : evals) {
+        bool is_data = false;
+        const std::string failure = e->last_failure(&is_data);
+        if (why.empty() && !failure.empty()) why = failure, data = is_data;
+      }
+      const std::string at = result.iterations <= 0 ? "start" : "fitted";
       result.success = false;
-      result.message = (result.iterations <= 0 ? "the forward solve fails at the start values"
-                                                : "the forward solve fails at the fitted values") +
-                       (why.empty() ? std::string() : " (" + why + ")");
+      if (data)
+        result.message = "bad data: " + why + " at the " + at + " values";
+      else
+        result.message = "the forward solve fails at the " + at + " values" +
+                         (why.empty() ? std::string() : " (" + why + ")") +
+                         ": a solver limit, not bad data (start nearer, or raise "
+                         "solver.max_iterations)";
     } else {
       J.setZero(crs.num_rows, crs.num_cols);
       for (int i = 0; i < crs.num_rows; ++i)
@@ -839,7 +930,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
         // Full rank: Ceres' covariance of the parameter block.
         ceres::Covariance::Options co;
         co.algorithm_type = ceres::DENSE_SVD;
-        co.num_threads = options.num_threads;
+        co.num_threads = 1;
         ceres::Covariance covariance(co);
         std::vector<std::pair<const double*, const double*>> blocks = {{logp.data(), logp.data()}};
         cov_sub.resize(m, m);

@@ -17,6 +17,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/model/rod.h"
+#include "rodfit/vision/camera_file.h"
 
 namespace rodfit {
 namespace {
@@ -26,7 +27,6 @@ namespace fs = std::filesystem;
 // Below this sine of the angle between clamp tangent and normal the Gram–Schmidt normal keeps
 // fewer than three significant digits; such an input is taken to be a mistake.
 constexpr double kMinClampSine = 1e-3;
-constexpr int kMaxSegments = 1000000;  // far beyond any thread; guards against typos like 5e7
 constexpr size_t kMaxCaseNameLength = 100;
 
 const std::vector<std::string> kParameterNames = {
@@ -157,6 +157,22 @@ class Reader {
     }
   }
 
+  // An integer in [lo, hi]; text that is no integer (1e9, 3.5, 99999999999999) gets the same
+  // message with the range, so a limit is always named.
+  int IntegerIn(const Field& f, long long lo, long long hi) const {
+    const std::string range =
+        "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    if (!f.node.IsScalar()) Fail(f, range);
+    long long v = 0;
+    try {
+      v = f.node.as<long long>();
+    } catch (const YAML::Exception&) {
+      Fail(f, range + ", got '" + ClipForMessage(f.node.Scalar()) + "'");
+    }
+    if (v < lo || v > hi) Fail(f, range + ", got " + std::to_string(v));
+    return static_cast<int>(v);
+  }
+
   bool Bool(const Field& f) const {
     if (!f.node.IsScalar()) Fail(f, "expected true or false");
     try {
@@ -216,11 +232,7 @@ RodSpec ReadRod(const Reader& r, const Field& f) {
   RodSpec rod;
   rod.length = r.Positive(r.Require(m, f, "length"));
   const Field& segments = r.Require(m, f, "segments");
-  rod.segments = r.Integer(segments);
-  if (rod.segments < 2 || rod.segments > kMaxSegments) {
-    r.Fail(segments, "must be in [2, " + std::to_string(kMaxSegments) + "], got " +
-                         std::to_string(rod.segments));
-  }
+  rod.segments = r.IntegerIn(segments, 2, kMaxSegments);
   rod.radius = r.Positive(r.Require(m, f, "radius"));
   rod.linear_density = r.NonNegative(r.Require(m, f, "linear_density"));
   if (const Field* k = Reader::Find(m, "rest_curvature")) rod.rest_curvature = r.Vector3(*k);
@@ -373,9 +385,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
         r.Fail(*sm, "a moment is measured only at a clamp (clamp or end_clamp), not at " + o.point);
     }
     if (const Field* count = Reader::Find(m, "count")) {
-      o.count = r.Integer(*count);
-      if (o.count < 1 || o.count > 100000)
-        r.Fail(*count, "must be in [1, 100000], got " + std::to_string(o.count));
+      o.count = r.IntegerIn(*count, 1, kMaxSamples);
     }
     return o;
   }
@@ -392,8 +402,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
       r.Fail(*s, "expected one arc length [m] (the grasped point)");
     }
     if (count) {
-      o.count = r.Integer(*count);
-      if (o.count < 1) r.Fail(*count, "must be >= 1, got " + std::to_string(o.count));
+      o.count = r.IntegerIn(*count, 1, kMaxDragSteps);
     }
     if (const Field* v = Reader::Find(m, "max_speed")) o.max_speed = r.Positive(*v);
     return o;
@@ -405,8 +414,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
     for (const Field& item : items) o.s.push_back(r.InRange(item, 0.0, ex.scene.rod.length));
   }
   if (count) {
-    o.count = r.Integer(*count);
-    if (o.count < 1) r.Fail(*count, "must be >= 1, got " + std::to_string(o.count));
+    o.count = r.IntegerIn(*count, 1, kMaxSamples);
   }
   if (const Field* outliers = Reader::Find(m, "outliers")) {
     o.outliers = r.Number(*outliers);
@@ -414,8 +422,8 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
       r.Fail(*outliers, "must be in [0, 1), got " + Show(o.outliers));
     }
   }
-  if (const Field* blur = Reader::Find(m, "blur")) o.blur = r.NonNegative(*blur);
-  if (const Field* noise = Reader::Find(m, "noise")) o.noise = r.NonNegative(*noise);
+  if (const Field* blur = Reader::Find(m, "blur")) o.blur = r.InRange(*blur, 0.0, kMaxBlurPx);
+  if (const Field* noise = Reader::Find(m, "noise")) o.noise = r.InRange(*noise, 0.0, kMaxNoiseGrey);
   return o;
 }
 
@@ -435,9 +443,7 @@ SectionSpec ReadSection(const Reader& r, const Field& f) {
   SectionSpec spec;
   spec.radius = r.Positive(r.Require(m, f, "radius"));
   if (const Field* n = Reader::Find(m, "nodes")) {
-    spec.nodes = r.Integer(*n);
-    if (spec.nodes < 8 || spec.nodes > 4096)
-      r.Fail(*n, "must be in [8, 4096], got " + std::to_string(spec.nodes));
+    spec.nodes = r.IntegerIn(*n, 8, kMaxSectionNodes);
   }
   if (const Field* h = Reader::Find(m, "h_factor")) spec.h_factor = r.Positive(*h);
   if (const Field* st = Reader::Find(m, "stop_factor")) spec.stop_factor = r.Positive(*st);
@@ -797,9 +803,7 @@ StaticsOptions ReadSolver(const Reader& r, const Field& f) {
       r.Map(f, {"max_iterations", "gradient_tolerance", "step_tolerance", "escape_saddles"});
   StaticsOptions o;
   if (const Field* it = Reader::Find(m, "max_iterations")) {
-    o.max_iterations = r.Integer(*it);
-    if (o.max_iterations < 1 || o.max_iterations > 100000)
-      r.Fail(*it, "must be in [1, 100000], got " + std::to_string(o.max_iterations));
+    o.max_iterations = r.IntegerIn(*it, 1, 100000);
   }
   if (const Field* g = Reader::Find(m, "gradient_tolerance")) {
     o.gradient_tolerance = r.InRange(*g, 1e-16, 1e-2);
@@ -862,13 +866,59 @@ FitSpec ReadFit(const Reader& r, const Field& f) {
   if (const Field* scale = Reader::Find(m, "loss_scale")) fit.loss_scale = r.Positive(*scale);
   if (const Field* global = Reader::Find(m, "global")) fit.global = r.Bool(*global);
   if (const Field* iterations = Reader::Find(m, "max_iterations")) {
-    fit.max_iterations = r.Integer(*iterations);
-    if (fit.max_iterations < 1) r.Fail(*iterations, "must be >= 1");
+    fit.max_iterations = r.IntegerIn(*iterations, 1, kMaxFitIterations);
   }
   if (const Field* trusted = Reader::Find(m, "trusted_sigmas")) {
     fit.trusted_sigmas = r.Bool(*trusted);
   }
   return fit;
+}
+
+// Before yaml-cpp sees the text: no control characters (binary data; yaml-cpp's messages for
+// them name an escape that is not in the file) and at most kMaxYamlNesting levels, so the
+// recursive-descent parser never recurses deeper than that.
+void CheckYamlText(const std::string& text, const std::string& path) {
+  int line = 1;
+  for (const char ch : text) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c == '\n') ++line;
+    if ((c < 0x20 && c != '\n' && c != '\r' && c != '\t') || c == 0x7f) {
+      char code[8];
+      std::snprintf(code, sizeof(code), "0x%02x", c);
+      throw InputError(path, line, "",
+                       std::string("control character ") + code + ": not a YAML text (binary data?)");
+    }
+  }
+  const int depth = MarkupNestingDepth(text);
+  if (depth > kMaxYamlNesting) {
+    throw InputError(path, 0, "", "nested " + std::to_string(depth) + " levels deep (at most " +
+                                      std::to_string(kMaxYamlNesting) + ")");
+  }
+}
+
+// After parsing, the tree's size with every alias expanded (as the reader walks it): a few
+// aliases of aliases stand for billions of nodes. Walked with an explicit stack, stopping at the
+// limit, so neither time nor depth grows with what the aliases stand for.
+void CheckYamlNodes(const YAML::Node& root, const std::string& path) {
+  std::vector<YAML::Node> stack = {root};
+  long long count = 1;  // nodes pushed: the stack never holds more than the limit
+  while (!stack.empty()) {
+    const YAML::Node node = stack.back();
+    stack.pop_back();
+    count += static_cast<long long>(node.IsMap() ? 2 * node.size() : node.size());
+    if (count > kMaxYamlNodes) {
+      throw InputError(path, 0, "", "more than " + std::to_string(kMaxYamlNodes) +
+                                        " YAML nodes with aliases expanded (the limit)");
+    }
+    if (node.IsSequence()) {
+      for (const YAML::Node& item : node) stack.push_back(item);
+    } else if (node.IsMap()) {
+      for (const auto& entry : node) {
+        stack.push_back(entry.first);
+        stack.push_back(entry.second);
+      }
+    }
+  }
 }
 
 }  // namespace
@@ -888,6 +938,7 @@ const char* LossTypeName(LossType loss) {
 }
 
 Experiment ParseExperiment(const std::string& text, const std::string& path) {
+  CheckYamlText(text, path);
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -895,6 +946,7 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
     throw InputError(path, e.mark.line >= 0 ? e.mark.line + 1 : 0, "", e.msg);
   }
   if (root.IsNull()) throw InputError(path, 0, "", "empty file");
+  CheckYamlNodes(root, path);
 
   const Reader r(path);
   Experiment ex;
@@ -917,6 +969,10 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
   if (const Field* dynamics = Reader::Find(m, "dynamics")) ex.scene.dynamics = ReadDynamics(r, *dynamics);
 
   const Field& cases = r.Require(m, top, "cases");
+  if (cases.node.IsSequence() && cases.node.size() > static_cast<size_t>(kMaxCases)) {
+    r.Fail(cases, "at most " + std::to_string(kMaxCases) + " cases, got " +
+                      std::to_string(cases.node.size()));
+  }
   const std::vector<Field> items = r.Sequence(cases);
   if (items.empty()) r.Fail(cases, "no cases");
   std::map<std::string, int> name_lines;
@@ -928,7 +984,7 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
 
 Experiment LoadExperiment(const std::string& path) {
   // Bounded before yaml-cpp sees it: a regular file of at most kMaxInputFileBytes.
-  return ParseExperiment(ReadInputFile(path, "a YAML file"), path);
+  return ParseExperiment(ReadInputFile(path, "a YAML file", kMaxYamlBytes), path);
 }
 
 }  // namespace rodfit

@@ -5,6 +5,7 @@
 // never a failure deep inside a solve.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -14,6 +15,21 @@
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
+
+/// Limits of an experiment / scene YAML (docs/formats.md, "Limits"), each checked before the
+/// work it bounds, with a message that gives it. The text is bounded before yaml-cpp parses it.
+inline constexpr std::uintmax_t kMaxYamlBytes = std::uintmax_t{4} << 20;  ///< 4 MiB
+inline constexpr int kMaxYamlNesting = 64;     ///< levels (flow and block); a scene needs 6
+/// YAML nodes with aliases expanded: 2000 aliases of a large case are 2000 cases.
+inline constexpr int kMaxYamlNodes = 1000000;
+inline constexpr int kMaxCases = 1000;         ///< cases in a file
+inline constexpr int kMaxSegments = 100000;    ///< rod.segments (about 1 s per solve there)
+inline constexpr int kMaxSectionNodes = 256;   ///< section.nodes (the ring's solve is dense)
+inline constexpr int kMaxSamples = 100000;     ///< an observation's count (synth's samples)
+inline constexpr int kMaxDragSteps = 1000;     ///< grasp_force count (cases of the fit)
+inline constexpr double kMaxBlurPx = 100.0;    ///< images: blur [px]
+inline constexpr double kMaxNoiseGrey = 255.0; ///< images: noise [grey levels]
+inline constexpr int kMaxFitIterations = 10000;  ///< fit.max_iterations
 
 /// One entry of `parameters:`. Parameters are fitted in log space (docs/solvers.md, "The fit"), so
 /// a fitted value and any bound are > 0.

@@ -1,20 +1,60 @@
 // Observation files to observation models (fit_input.h).
 #include "rodfit/io/fit_input.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <optional>
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/image_observations.h"
+#include "rodfit/solve/case_solve.h"
 #include "rodfit/vision/camera_file.h"
 
 namespace rodfit {
 namespace {
 
+namespace fs = std::filesystem;
+
 std::vector<double> ColumnOf(const CsvTable& t, const std::string& c) { return t.Column(c); }
+
+// A 3-D point more than this many rod lengths from the case's clamp cannot lie on the rod, even
+// as an outlier within its reach: a unit or frame mistake, or a value such as 1e308. Points
+// beyond kAbsurdReachLengths are refused first, by their line (millimetres given as metres lie
+// about 1000 lengths out and are told as such by CheckSpread).
+constexpr double kMaxReachLengths = 100.0;
+constexpr double kAbsurdReachLengths = 1e4;
+
+void CheckReach(const CsvTable& t, int row, const Eigen::Vector3d& p, const Vec3& clamp,
+                double length, const char* column = "x", double lengths = kMaxReachLengths) {
+  const double d = (p - clamp).norm();
+  if (!(d <= lengths * length)) {
+    char b[160];
+    std::snprintf(b, sizeof(b),
+                  "the point lies %.3g m from the clamp, more than %.0f rod lengths (%.6g m): "
+                  "not on the rod (wrong units or frame?)",
+                  d, lengths, length);
+    throw InputError(t.name(), t.line(row), column, b);
+  }
+}
+
+// An observed pixel must lie on its camera's sensor, give or take a quarter of the image (noise
+// added to samples near the border, refinement at the border): one farther out is not a pixel
+// of that camera (another camera's file, a value such as 1e308).
+void CheckOnSensor(const CsvTable& t, int row, const Eigen::Vector2d& uv, const Camera& cam,
+                   const std::string& camera_file) {
+  if (!cam.InImage(uv, -0.25 * std::max(cam.K.width, cam.K.height))) {
+    char b[64];
+    std::snprintf(b, sizeof(b), "pixel (%.6g, %.6g)", uv.x(), uv.y());
+    throw InputError(t.name(), t.line(row), "u",
+                     std::string(b) + " lies outside the " + std::to_string(cam.K.width) + "x" +
+                         std::to_string(cam.K.height) + " image of camera " +
+                         ClipForMessage(camera_file));
+  }
+}
 
 std::string Short(double v) {  // numbers in messages, as a person would type them
   char b[32];
@@ -55,12 +95,16 @@ struct HapticSample {
   Vec3 tool, force;
 };
 
-std::vector<HapticSample> QuasiStaticSamples(const ObservationSpec& spec) {
+std::vector<HapticSample> QuasiStaticSamples(const ObservationSpec& spec, const Vec3& clamp,
+                                             double length) {
   const CsvTable t = CsvTable::Read(spec.file);
   const auto time = t.Column("t"), x = t.Column("tool_x"), y = t.Column("tool_y"),
              z = t.Column("tool_z"), fx = t.Column("fx"), fy = t.Column("fy"), fz = t.Column("fz");
   const int n = t.num_rows();
   if (n < 3) throw InputError(spec.file, 0, "", "a force log needs at least 3 samples");
+  // The instrument holds the rod: a tool position out of its reach is bad data (each quasi-static
+  // sample becomes a held point the solve would chase).
+  for (int r = 0; r < n; ++r) CheckReach(t, r, Vec3(x[r], y[r], z[r]), clamp, length, "tool_x");
   for (int r = 1; r < n; ++r)
     if (!(time[r] > time[r - 1]))
       throw InputError(spec.file, t.line(r), "t",
@@ -73,6 +117,11 @@ std::vector<HapticSample> QuasiStaticSamples(const ObservationSpec& spec) {
     const double speed = (pb - pa).norm() / (time[b] - time[a]);
     if (speed < spec.max_speed) still.push_back({time[r], Vec3(x[r], y[r], z[r]), Vec3(fx[r], fy[r], fz[r])});
   }
+  if (spec.count == 0 && static_cast<int>(still.size()) > kMaxDragSteps)
+    throw InputError(spec.file, 0, "",
+                     std::to_string(still.size()) + " quasi-static samples, each a case of the "
+                     "fit: more than " + std::to_string(kMaxDragSteps) +
+                         " (the limit); give the entry a count to thin them");
   if (still.empty())
     throw InputError(spec.file, 0, "max_speed",
                      "no quasi-static sample: the tool never moves slower than " +
@@ -147,7 +196,8 @@ FitInput BuildFitInput(const Experiment& e) {
     }
     for (const ObservationSpec& spec : e.cases[c].observations) {
       if (spec.type == "grasp_force") {
-        for (const HapticSample& h : QuasiStaticSamples(spec)) {
+        for (const HapticSample& h :
+             QuasiStaticSamples(spec, e.scene.cases[c].clamp.position, L)) {
           FitCase gc;
           gc.load_case = e.scene.cases[c];
           gc.load_case.name += "@t=" + FormatDouble(h.t);
@@ -193,7 +243,10 @@ FitInput BuildFitInput(const Experiment& e) {
         const CsvTable t = CsvTable::Read(spec.file);
         const auto x = ColumnOf(t, "x"), y = ColumnOf(t, "y"), z = ColumnOf(t, "z");
         SurfacePoints sp;
-        for (int r = 0; r < t.num_rows(); ++r) sp.points.emplace_back(x[r], y[r], z[r]);
+        for (int r = 0; r < t.num_rows(); ++r) {
+          sp.points.emplace_back(x[r], y[r], z[r]);
+          CheckReach(t, r, sp.points.back(), fc.load_case.clamp.position, L);
+        }
         if (sp.points.empty()) throw InputError(spec.file, 0, "", "no rows");
         sp.sigma = spec.sigma;
         sp.label = Label(spec);
@@ -214,7 +267,13 @@ FitInput BuildFitInput(const Experiment& e) {
             positions.emplace_back(x[r], y[r], z[r]);
           }
           if (markers.empty()) throw InputError(spec.file, 0, "", "no rows");
+          // An absurd point by its line, then millimetres as metres (the likelier mistake), then
+          // any single point too far.
+          for (int r = 0; r < t.num_rows(); ++r)
+            CheckReach(t, r, positions[r], fc.load_case.clamp.position, L, "x", kAbsurdReachLengths);
           CheckSpread(spec.file, "the markers", positions, L);
+          for (int r = 0; r < t.num_rows(); ++r)
+            CheckReach(t, r, positions[r], fc.load_case.clamp.position, L);
           obs = std::make_shared<Markers3dObservation>(arc, markers, spec.sigma);
         } else if (spec.type == "points3d") {
           const CsvTable t = CsvTable::Read(spec.file);
@@ -222,7 +281,11 @@ FitInput BuildFitInput(const Experiment& e) {
           std::vector<Eigen::Vector3d> pts;
           for (int r = 0; r < t.num_rows(); ++r) pts.emplace_back(x[r], y[r], z[r]);
           if (pts.empty()) throw InputError(spec.file, 0, "", "no rows");
+          for (int r = 0; r < t.num_rows(); ++r)
+            CheckReach(t, r, pts[r], fc.load_case.clamp.position, L, "x", kAbsurdReachLengths);
           CheckSpread(spec.file, "the points", pts, L);
+          for (int r = 0; r < t.num_rows(); ++r)
+            CheckReach(t, r, pts[r], fc.load_case.clamp.position, L);
           obs = std::make_shared<Points3dObservation>(nv, pts, spec.sigma);
         } else if (spec.type == "image_points") {
           const CsvTable t = CsvTable::Read(spec.file);
@@ -234,12 +297,16 @@ FitInput BuildFitInput(const Experiment& e) {
             std::vector<MarkerPixel> px;
             for (int r = 0; r < t.num_rows(); ++r) {
               CheckArcLength(t, r, s[r], L);
+              CheckOnSensor(t, r, Eigen::Vector2d(u[r], v[r]), cam, spec.camera);
               px.push_back({std::min(std::max(s[r], 0.0), L), Eigen::Vector2d(u[r], v[r])});
             }
             obs = std::make_shared<ImageMarkersObservation>(arc, cam, px, spec.sigma);
           } else {
             std::vector<Eigen::Vector2d> px;
-            for (int r = 0; r < t.num_rows(); ++r) px.emplace_back(u[r], v[r]);
+            for (int r = 0; r < t.num_rows(); ++r) {
+              px.emplace_back(u[r], v[r]);
+              CheckOnSensor(t, r, px.back(), cam, spec.camera);
+            }
             obs = std::make_shared<ImageCurveObservation>(nv, cam, px, spec.sigma);
           }
         } else if (spec.type == "images") {
@@ -260,6 +327,61 @@ FitInput BuildFitInput(const Experiment& e) {
   }
   for (FitCase& gc : force_cases) in.cases.push_back(std::move(gc));
   return in;
+}
+
+void CheckCamerasSeeTheStart(const Experiment& e) {
+  const Scene& scene = e.scene;
+  std::optional<CaseSolution> previous;
+  std::map<std::string, Camera> cameras;
+  for (size_t c = 0; c < scene.cases.size(); ++c) {
+    bool seen = false;
+    for (const ObservationSpec& spec : e.cases[c].observations) seen |= !spec.camera.empty();
+    // A later case may start from this one (`start: previous`): solve it when one does.
+    const bool next_needs = c + 1 < scene.cases.size() &&
+                            scene.cases[c + 1].start.kind == StartShape::Kind::kPrevious;
+    if (!seen && !next_needs) {
+      previous.reset();
+      continue;
+    }
+    std::optional<CaseSolution> solved;
+    try {
+      solved = SolveCase(scene, static_cast<int>(c), previous ? &*previous : nullptr, e.statics);
+    } catch (const std::exception&) {
+    }
+    previous = solved;
+    if (!seen || !solved || !solved->summary.converged) continue;  // the fit reports it
+    const Mat3X& x = solved->shape;
+    for (const ObservationSpec& spec : e.cases[c].observations) {
+      if (spec.camera.empty()) continue;
+      auto it = cameras.find(spec.camera);
+      if (it == cameras.end()) it = cameras.emplace(spec.camera, LoadCamera(spec.camera)).first;
+      const Camera& cam = it->second;
+      int behind = 0, inside = 0;
+      for (int k = 0; k < x.cols(); ++k) {
+        const Eigen::Vector3d p = x.col(k);
+        const Eigen::Vector3d p_cam = cam.cam_from_world_R * p + cam.cam_from_world_t;
+        if (!(p_cam.z() > kMinProjectionDepth)) {
+          ++behind;
+          continue;
+        }
+        Eigen::Vector2d uv;
+        if (Project(cam, p, &uv) && cam.InImage(uv)) ++inside;
+      }
+      const std::string where = "case " + scene.cases[c].name + ", " + spec.type + " " +
+                                fs::path(spec.file).filename().string() + ": ";
+      if (behind == x.cols())
+        throw InputError(spec.camera, 0, "",
+                         where + "the rod at the start values lies behind this camera (all " +
+                             std::to_string(behind) + " vertices): a wrong pose (rvec/tvec of "
+                             "world-to-camera, or inverted)?");
+      if (inside == 0)
+        throw InputError(spec.camera, 0, "",
+                         where + "the rod at the start values projects entirely outside the " +
+                             std::to_string(cam.K.width) + "x" + std::to_string(cam.K.height) +
+                             " image: the camera looks elsewhere (a wrong pose?), or its "
+                             "distortion is wrong");
+    }
+  }
 }
 
 }  // namespace rodfit

@@ -17,4 +17,12 @@ std::vector<FitParameter> FitParametersOf(const Experiment& experiment);
 /// that sees none of its points, and an `images` entry nothing can be extracted from.
 FitInput BuildFitInput(const Experiment& experiment);
 
+/// Before a fit: solves every case that has a camera observation at the start values (as
+/// `simulate` does) and projects the solved centre-line into each of its cameras. Throws
+/// InputError naming the camera file and the case when the whole rod lies behind the camera,
+/// or projects entirely outside its image (the camera looks elsewhere): a wrong pose would
+/// otherwise end the fit as a failed evaluation with no file named. Cases that do not solve
+/// are left to the fit, which reports them.
+void CheckCamerasSeeTheStart(const Experiment& experiment);
+
 }  // namespace rodfit

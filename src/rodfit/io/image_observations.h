@@ -21,8 +21,14 @@
 namespace rodfit {
 
 /// Reads an image file as stored (8- or 16-bit; grey, BGR or BGRA). Throws InputError
-/// "PATH: cannot read the image" when it is missing or not an image.
+/// "PATH: cannot read the image" when it is missing or not an image, and names the limit when
+/// its header claims more than kMaxImageSidePx a side or kMaxImagePixels (checked before the
+/// decoder runs; the decoders' own warnings are kept off stderr).
 cv::Mat ReadImageFile(const std::string& path);
+
+/// The width and height a PNG, BMP or JPEG header states (false for other formats or a header
+/// too short to tell), read without decoding.
+bool ImageHeaderSize(const std::string& bytes, int* width, int* height);
 
 /// The bytes of `image` encoded in the format of `path`'s extension (.png, .jpg, .bmp, .tif, ...).
 /// Throws InputError naming `path` for an extension OpenCV cannot write.

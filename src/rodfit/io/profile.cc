@@ -99,7 +99,6 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   fit["sigmas_trusted"] = options.trusted_sigmas;
   fit["loss"] = LossName(options.loss);
   fit["loss_scale"] = options.loss_scale;
-  fit["time_s"] = r.seconds;
   fit["correlation"] = {{"parameters", r.fitted_names}, {"matrix", json::array()}};
   for (int i = 0; i < r.correlation.rows(); ++i) {
     json row = json::array();

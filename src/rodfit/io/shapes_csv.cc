@@ -76,13 +76,14 @@ std::string FormatForcesCsv(const std::vector<CaseForce>& forces) {
 }
 
 std::string FormatSummaryCsv(const std::vector<CaseSummaryRow>& rows) {
-  std::string out = "case,converged,stable,iterations,gradient_norm,seconds,reason\n";
+  // No wall time: the same scene gives the same bytes (issue 15); simulate prints its time.
+  std::string out = "case,converged,stable,iterations,gradient_norm,reason\n";
   for (const CaseSummaryRow& r : rows) {
     std::string reason;
     for (char c : r.reason) reason += (c == '"') ? std::string("\"\"") : std::string(1, c);
     out += r.name + "," + (r.converged ? "1" : "0") + "," + (r.stable ? "1" : "0") + "," +
-           std::to_string(r.iterations) + "," + FormatDouble(r.gradient_norm) + "," +
-           FormatDouble(r.seconds) + ",\"" + reason + "\"\n";
+           std::to_string(r.iterations) + "," + FormatDouble(r.gradient_norm) + ",\"" + reason +
+           "\"\n";
   }
   return out;
 }

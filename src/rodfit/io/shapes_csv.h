@@ -36,8 +36,9 @@ struct CaseForce {
 std::string FormatForcesCsv(const std::vector<CaseForce>& forces);
 void WriteForcesCsv(const std::string& path, const std::vector<CaseForce>& forces);
 
-/// `case,converged,stable,iterations,gradient_norm,seconds,reason`: how each case's solve ended
-/// (gradient_norm [N], seconds of wall time; reason in double quotes).
+/// `case,converged,stable,iterations,gradient_norm,reason`: how each case's solve ended
+/// (gradient_norm [N]; reason in double quotes). `seconds` is not written: outputs hold no wall
+/// time, so a run repeated gives the same bytes.
 struct CaseSummaryRow {
   std::string name;
   bool converged = false, stable = false;

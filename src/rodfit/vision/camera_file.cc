@@ -52,63 +52,6 @@ std::string Clip(const std::string& text) {
   return out;
 }
 
-// The deepest nesting of a YAML, JSON or XML text, as a bound (not a parse): brackets and braces
-// outside quotes; for XML, open elements; for YAML, indentation levels and "- " entries too. It
-// may overestimate odd but valid files, never underestimate the nesting a parser recurses into.
-int NestingDepth(const std::string& text, char first) {
-  int deepest = 0;
-  if (first == '<') {
-    int depth = 0;
-    for (size_t i = text.find('<'); i != std::string::npos; i = text.find('<', i + 1)) {
-      const size_t close = text.find('>', i);
-      if (close == std::string::npos) break;
-      const char next = i + 1 < text.size() ? text[i + 1] : '\0';
-      if (next == '/') {
-        depth = std::max(depth - 1, 0);
-      } else if (next != '?' && next != '!' && text[close - 1] != '/') {
-        deepest = std::max(deepest, ++depth);
-      }
-      i = close;
-    }
-    return deepest;
-  }
-  int flow = 0;                 // open [ and { (JSON, YAML flow collections)
-  std::vector<size_t> blocks;   // YAML: columns of the open block levels
-  size_t pos = 0;
-  while (pos < text.size()) {
-    const size_t end = std::min(text.find('\n', pos), text.size());
-    const std::string line = text.substr(pos, end - pos);
-    pos = end + 1;
-    size_t i = line.find_first_not_of(' ');
-    if (i == std::string::npos || line[i] == '#' || line[i] == '%') continue;
-    if (first != '{' && flow == 0) {
-      while (!blocks.empty() && blocks.back() > i) blocks.pop_back();
-      if (blocks.empty() || blocks.back() < i) blocks.push_back(i);
-      // "- - x": each dash opens a sequence level of its own.
-      while (i + 1 < line.size() && line[i] == '-' && line[i + 1] == ' ') {
-        i = line.find_first_not_of(' ', i + 1);
-        if (i == std::string::npos) break;
-        blocks.push_back(i);
-      }
-    }
-    char quote = '\0';
-    for (const char c : line) {
-      if (quote != '\0') {
-        if (c == quote) quote = '\0';
-      } else if (c == '"' || (c == '\'' && first != '{')) {
-        quote = c;
-      } else if (c == '[' || c == '{') {
-        ++flow;
-      } else if (c == ']' || c == '}') {
-        flow = std::max(flow - 1, 0);
-      }
-      deepest = std::max(deepest, static_cast<int>(blocks.size()) + flow);
-    }
-    deepest = std::max(deepest, static_cast<int>(blocks.size()) + flow);
-  }
-  return deepest;
-}
-
 // One open file: the path for messages and the parsed tree.
 class Document {
  public:
@@ -136,7 +79,7 @@ class Document {
     start = std::min(content.find_first_not_of(" \t\r\n", start), content.size());
     if (start == content.size()) Fail("", "malformed file: empty");
     const char first = content[start];
-    const int depth = NestingDepth(content, first);
+    const int depth = MarkupNestingDepth(content.substr(start));
     if (depth > kMaxNesting) {
       Fail("", "malformed file: nested " + std::to_string(depth) + " levels deep (at most " +
                    std::to_string(kMaxNesting) + ")");
@@ -283,8 +226,19 @@ Eigen::VectorXd Vector(const Document& doc, const cv::FileNode& node, const std:
 
 int ImageDimension(const Document& doc, const cv::FileNode& node, const std::string& key) {
   const double v = Number(doc, node, key);
-  if (!(v >= 1.0) || v != std::floor(v) || v > 1e6) doc.Fail(key, "expected a positive integer");
+  if (!(v >= 1.0) || v != std::floor(v) || v > kMaxImageSidePx) {
+    doc.Fail(key, "expected a positive integer of at most " + std::to_string(kMaxImageSidePx) +
+                      " px, got " + Num(v));
+  }
   return static_cast<int>(v);
+}
+
+// Synth renders, and extract and the fit decode, images of the camera's size.
+void CheckImageArea(const Document& doc, const std::string& key, const CameraIntrinsics& K) {
+  if (static_cast<std::int64_t>(K.width) * K.height > kMaxImagePixels) {
+    doc.Fail(key, "the image is " + std::to_string(K.width) + "x" + std::to_string(K.height) +
+                      " px, more than " + std::to_string(kMaxImagePixels) + " pixels (the limit)");
+  }
 }
 
 void ReadImageSize(const Document& doc, CameraIntrinsics* K) {
@@ -296,12 +250,14 @@ void ReadImageSize(const Document& doc, CameraIntrinsics* K) {
     if (!width.isNone() || !height.isNone()) doc.Fail(size_key, "given together with " + w_key);
     const Eigen::VectorXd wh = Vector(doc, size, size_key, 2);
     for (int i = 0; i < 2; ++i) {
-      if (!(wh(i) >= 1.0 && wh(i) <= 1e6 && wh(i) == std::floor(wh(i)))) {
-        doc.Fail(size_key, "expected [width, height] as positive integers");
+      if (!(wh(i) >= 1.0 && wh(i) <= kMaxImageSidePx && wh(i) == std::floor(wh(i)))) {
+        doc.Fail(size_key, "expected [width, height] as positive integers of at most " +
+                               std::to_string(kMaxImageSidePx) + " px");
       }
     }
     K->width = static_cast<int>(wh(0));
     K->height = static_cast<int>(wh(1));
+    CheckImageArea(doc, size_key, *K);
     return;
   }
   if (width.isNone() && height.isNone()) {
@@ -312,6 +268,7 @@ void ReadImageSize(const Document& doc, CameraIntrinsics* K) {
   if (width.isNone()) doc.Fail(w_key, "missing (image_height is given)");
   K->width = ImageDimension(doc, width, w_key);
   K->height = ImageDimension(doc, height, h_key);
+  CheckImageArea(doc, w_key, *K);
 }
 
 void ReadIntrinsics(const Document& doc, std::initializer_list<const char*> matrix_keys,
@@ -445,6 +402,70 @@ void CheckCamera(const Document& doc, const Camera& camera) {
 }
 
 }  // namespace
+
+// The deepest nesting of a YAML, JSON or XML text, as a bound (not a parse): brackets and braces
+// outside quotes and comments; for XML, open elements; for YAML, indentation levels and "- "
+// entries too. It may overestimate odd but valid files, never underestimate the nesting a
+// parser recurses into.
+int MarkupNestingDepth(const std::string& text) {
+  const size_t begin = std::min(text.find_first_not_of(" \t\r\n"), text.size());
+  if (begin == text.size()) return 0;
+  const char first = text[begin];
+  int deepest = 0;
+  if (first == '<') {
+    int depth = 0;
+    for (size_t i = text.find('<'); i != std::string::npos; i = text.find('<', i + 1)) {
+      const size_t close = text.find('>', i);
+      if (close == std::string::npos) break;
+      const char next = i + 1 < text.size() ? text[i + 1] : '\0';
+      if (next == '/') {
+        depth = std::max(depth - 1, 0);
+      } else if (next != '?' && next != '!' && text[close - 1] != '/') {
+        deepest = std::max(deepest, ++depth);
+      }
+      i = close;
+    }
+    return deepest;
+  }
+  int flow = 0;                 // open [ and { (JSON, YAML flow collections)
+  std::vector<size_t> blocks;   // YAML: columns of the open block levels
+  size_t pos = 0;
+  while (pos < text.size()) {
+    const size_t end = std::min(text.find('\n', pos), text.size());
+    const std::string line = text.substr(pos, end - pos);
+    pos = end + 1;
+    size_t i = line.find_first_not_of(' ');
+    if (i == std::string::npos || line[i] == '#' || line[i] == '%') continue;
+    if (first != '{' && flow == 0) {
+      while (!blocks.empty() && blocks.back() > i) blocks.pop_back();
+      if (blocks.empty() || blocks.back() < i) blocks.push_back(i);
+      // "- - x": each dash opens a sequence level of its own.
+      while (i + 1 < line.size() && line[i] == '-' && line[i + 1] == ' ') {
+        i = line.find_first_not_of(' ', i + 1);
+        if (i == std::string::npos) break;
+        blocks.push_back(i);
+      }
+    }
+    char quote = '\0';
+    for (size_t k = 0; k < line.size(); ++k) {
+      const char c = line[k];
+      if (quote != '\0') {
+        if (c == quote) quote = '\0';
+      } else if (c == '"' || (c == '\'' && first != '{')) {
+        quote = c;
+      } else if (c == '#' && first != '{' && (k == 0 || line[k - 1] == ' ' || line[k - 1] == '\t')) {
+        break;  // a YAML comment: its brackets open nothing
+      } else if (c == '[' || c == '{') {
+        ++flow;
+      } else if (c == ']' || c == '}') {
+        flow = std::max(flow - 1, 0);
+      }
+      deepest = std::max(deepest, static_cast<int>(blocks.size()) + flow);
+    }
+    deepest = std::max(deepest, static_cast<int>(blocks.size()) + flow);
+  }
+  return deepest;
+}
 
 CameraFileError::CameraFileError(const std::string& file_in, const std::string& key_in,
                                  const std::string& message)

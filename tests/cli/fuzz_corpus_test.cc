@@ -1,0 +1,832 @@
+// Issue 15, item 7: every command run on a generated corpus of hostile inputs — missing and
+// unknown keys, wrong types, NaN/inf/1e308, huge counts, truncated rows, binary garbage, deep
+// nesting, aliases, directories and FIFOs as files, unwritable outputs — for every file kind
+// (experiment / scene YAML, CSV observations, start-shape CSV, camera files, images), and on a
+// bounded byte-flip fuzz of every file kind (a fixed seed). Each run is judged as a user would:
+// no signal, no hang past the time limit, on failure exactly one line of at most kMaxLineChars
+// on stderr with a non-zero exit, and nothing left behind in the run's folder (a failed run leaves
+// it as it was; a successful one adds its outputs and no temporary files). The tallies are
+// printed (README, "Reliability").
+//
+// RODFIT_FUZZ_CLI names another rodfit binary to run the same corpus on (scripts/test.sh runs it
+// on the address + undefined-behaviour sanitizer build); RODFIT_FUZZ_TIMEOUT sets the time limit
+// of one run in seconds (default 30).
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <random>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "../io/temp_dir.h"
+#include "run_cli.h"
+
+namespace rodfit {
+namespace {
+
+namespace fs = std::filesystem;
+using test::ReadText;
+using test::TempDir;
+
+/// A message is one line of at most this many characters (issue 15: "at most ~300").
+constexpr size_t kMaxLineChars = 300;
+
+std::string Cli() {
+  const char* other = std::getenv("RODFIT_FUZZ_CLI");
+  return other && *other ? other : RODFIT_CLI;
+}
+
+double TimeLimitSeconds() {
+  const char* t = std::getenv("RODFIT_FUZZ_TIMEOUT");
+  return t && *t ? std::atof(t) : 30.0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The valid inputs every mutation starts from: small, so that a run that succeeds is quick.
+
+// A 320x256 camera 0.4 m in front of the thread (the front camera of tests/data/synth, scaled).
+const char* const kCamera =
+    "%YAML:1.0\n"
+    "---\n"
+    "camera_name: front\n"
+    "image_width: 320\n"
+    "image_height: 256\n"
+    "camera_matrix: !!opencv-matrix\n"
+    "   rows: 3\n"
+    "   cols: 3\n"
+    "   dt: d\n"
+    "   data: [ 500.0, 0.0, 160.8, 0.0, 499.6, 127.0, 0.0, 0.0, 1.0 ]\n"
+    "distortion_coefficients: !!opencv-matrix\n"
+    "   rows: 1\n"
+    "   cols: 5\n"
+    "   dt: d\n"
+    "   data: [ -0.08, 0.05, 0.0001, -0.0002, 0.0 ]\n"
+    "rvec: !!opencv-matrix\n"
+    "   rows: 3\n"
+    "   cols: 1\n"
+    "   dt: d\n"
+    "   data: [ 1.583295675814, 0.0, 0.0 ]\n"
+    "tvec: !!opencv-matrix\n"
+    "   rows: 3\n"
+    "   cols: 1\n"
+    "   dt: d\n"
+    "   data: [ -0.1, -0.004999609421, 0.399968753662 ]\n";
+
+const char* const kRod =
+    "rod: {length: 0.2, segments: 12, radius: 2.5e-4, linear_density: 5.6e-5}\n"
+    "parameters:\n"
+    "  bend_stiffness: {value: 1.0e-5, fit: true, min: 1.0e-7, max: 1.0e-3}\n"
+    "  twist_stiffness: {value: 8.0e-6}\n"
+    "  stretch_stiffness: {value: 245}\n"
+    "gravity: [0, 0, -9.81]\n";
+
+const char* const kClamp =
+    "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"
+    "    tip_force: [0, 2.0e-5, 0]\n";
+
+// synth: every observation kind the corpus feeds the other commands, and an image.
+std::string SynthYaml() {
+  return std::string(kRod) + "cases:\n  - name: sag\n" + kClamp +
+         "    observations:\n"
+         "      - {type: markers3d, file: markers.csv, sigma: 3.0e-4, count: 6}\n"
+         "      - {type: image_points, file: pixels.csv, camera: cam.yaml, sigma: 0.5, count: 8}\n"
+         "      - {type: images, file: front.png, camera: cam.yaml, sigma: 0.5, blur: 0.8, "
+         "noise: 2}\n";
+}
+
+// fit: markers and pixels (the image pipeline is extract's).
+std::string FitYaml() {
+  return std::string(kRod) + "cases:\n  - name: sag\n" + kClamp +
+         "    observations:\n"
+         "      - {type: markers3d, file: markers.csv, sigma: 3.0e-4}\n"
+         "      - {type: image_points, file: pixels.csv, camera: cam.yaml, sigma: 0.5}\n";
+}
+
+// simulate: two cases, one started from a CSV shape, the other from the first.
+std::string SceneYaml() {
+  return std::string(kRod) + "cases:\n  - name: sag\n" + kClamp +
+         "    start: start.csv\n"
+         "  - name: again\n" + kClamp + "    start: previous\n";
+}
+
+const char* const kStartCsv =
+    "# a bowed start shape\n"
+    "x,y,z\n0,0,0\n0.05,0,-0.002\n0.1,0.001,-0.006\n0.15,0.002,-0.012\n0.2,0.003,-0.02\n";
+
+// ---------------------------------------------------------------------------------------------
+// Running one case.
+
+enum class Command { kSimulate, kFit, kFitReport, kSynth, kExtract };
+
+const char* Name(Command c) {
+  switch (c) {
+    case Command::kSimulate: return "simulate";
+    case Command::kFit: return "fit";
+    case Command::kFitReport: return "fit --report";
+    case Command::kSynth: return "synth";
+    case Command::kExtract: return "extract";
+  }
+  return "";
+}
+
+// The command line of a case run in its own folder; `extra` replaces the defaults' options.
+std::vector<std::string> Arguments(Command c, const std::vector<std::string>& extra) {
+  std::vector<std::string> a;
+  switch (c) {
+    case Command::kSimulate: a = {"simulate", "scene.yaml", "-o", "out"}; break;
+    case Command::kFit: a = {"fit", "experiment.yaml", "-o", "out/profile.json", "-q"}; break;
+    case Command::kFitReport:
+      a = {"fit", "experiment.yaml", "-o", "profile.json", "--report", "report", "-q"};
+      break;
+    case Command::kSynth: a = {"synth", "synth.yaml", "-o", "out", "--seed", "7"}; break;
+    case Command::kExtract:
+      a = {"extract", "front.png", "--camera", "cam.yaml", "-o", "out/points.csv", "--overlay",
+           "out/overlay.png"};
+      break;
+  }
+  for (const std::string& e : extra) a.push_back(e);
+  return a;
+}
+
+struct Case {
+  std::string name;
+  Command command;
+  std::function<void(const std::string& dir)> mutate;  // applied to a copy of the base folder
+  std::vector<std::string> extra;                       // more options, or instead of the defaults
+  bool replace_arguments = false;                       // extra is the whole command line
+};
+
+enum class Verdict { kCleanError, kSuccess, kCrash, kHang, kSilent, kNoisy, kPartial };
+
+const char* Name(Verdict v) {
+  switch (v) {
+    case Verdict::kCleanError: return "clean error";
+    case Verdict::kSuccess: return "success";
+    case Verdict::kCrash: return "crash";
+    case Verdict::kHang: return "hang";
+    case Verdict::kSilent: return "silent";
+    case Verdict::kNoisy: return "noisy";
+    case Verdict::kPartial: return "partial output";
+  }
+  return "";
+}
+
+// Every path under `root`, relative, folders marked with a trailing '/'; FIFOs too.
+std::set<std::string> Listing(const std::string& root) {
+  std::set<std::string> out;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(root, fs::directory_options::none, ec), end;
+       !ec && it != end; it.increment(ec)) {
+    const std::string rel = fs::relative(it->path(), root, ec).string();
+    out.insert(it->is_directory(ec) && !it->is_symlink(ec) ? rel + "/" : rel);
+  }
+  return out;
+}
+
+struct Outcome {
+  Verdict verdict = Verdict::kCrash;
+  std::string detail;  // for a failure message: status, stderr
+};
+
+// fork + exec in `dir` with stdout and stderr to files outside it; polls for the end, killing
+// the process group at the time limit.
+Outcome RunCase(const Case& c, const std::string& dir, const std::string& logs) {
+  const std::vector<std::string> args =
+      c.replace_arguments ? c.extra : Arguments(c.command, c.extra);
+  const std::string cli = Cli();
+  std::vector<char*> argv = {const_cast<char*>(cli.c_str())};
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const std::string out_file = logs + ".out", err_file = logs + ".err";
+  const std::set<std::string> before = Listing(dir);
+
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::setpgid(0, 0);
+    if (::chdir(dir.c_str()) != 0) ::_exit(127);
+    const int in = ::open("/dev/null", O_RDONLY);
+    const int out = ::open(out_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int err = ::open(err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (in < 0 || out < 0 || err < 0) ::_exit(127);
+    ::dup2(in, 0);
+    ::dup2(out, 1);
+    ::dup2(err, 2);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  Outcome o;
+  if (pid < 0) {
+    o.detail = "fork failed";
+    return o;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  int raw = 0;
+  bool hung = false;
+  while (true) {
+    const pid_t done = ::waitpid(pid, &raw, WNOHANG);
+    if (done == pid) break;
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (elapsed > TimeLimitSeconds()) {
+      ::kill(-pid, SIGKILL);
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &raw, 0);
+      hung = true;
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const std::string err = ReadText(err_file);
+  const std::set<std::string> after = Listing(dir);
+  const int status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  o.detail = "exit " + (WIFSIGNALED(raw) ? "signal " + std::to_string(WTERMSIG(raw))
+                                         : std::to_string(status)) +
+             ", stderr: " + err.substr(0, 2000);
+  if (hung) {
+    o.verdict = Verdict::kHang;
+    return o;
+  }
+  if (WIFSIGNALED(raw) || status == 127 || status >= 128) {
+    o.verdict = Verdict::kCrash;
+    return o;
+  }
+  // Success: 0, or the fit's 4 (profile written, a parameter not determined).
+  const bool success =
+      status == 0 || (status == 4 && (c.command == Command::kFit || c.command == Command::kFitReport));
+  std::vector<std::string> added, removed;
+  for (const std::string& p : after)
+    if (!before.count(p)) added.push_back(p);
+  for (const std::string& p : before)
+    if (!after.count(p)) removed.push_back(p);
+  auto hidden = [](const std::string& p) {
+    for (const fs::path& part : fs::path(p))
+      if (!part.empty() && part.string()[0] == '.') return true;
+    return false;
+  };
+  if (success) {
+    o.verdict = Verdict::kSuccess;
+    for (const std::string& p : added)
+      if (hidden(p)) {
+        o.verdict = Verdict::kPartial;  // a temporary file left beside the outputs
+        o.detail += " left " + p;
+      }
+    if (!removed.empty()) {
+      o.verdict = Verdict::kPartial;
+      o.detail += " removed " + removed[0];
+    }
+    return o;
+  }
+  if (!added.empty() || !removed.empty()) {
+    o.verdict = Verdict::kPartial;
+    o.detail += " changed " + (added.empty() ? removed[0] : added[0]);
+    return o;
+  }
+  if (err.empty()) {
+    o.verdict = Verdict::kSilent;
+    return o;
+  }
+  const size_t lines = static_cast<size_t>(std::count(err.begin(), err.end(), '\n'));
+  if (lines != 1 || err.back() != '\n' || err.size() - 1 > kMaxLineChars) {
+    o.verdict = Verdict::kNoisy;
+    return o;
+  }
+  o.verdict = Verdict::kCleanError;
+  return o;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The base folder: the inputs above, and the data files synth makes from them.
+
+class FuzzCorpusTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    base_ = new TempDir();
+    const TempDir& b = *base_;
+    b.Write("cam.yaml", kCamera);
+    b.Write("synth.yaml", SynthYaml());
+    b.Write("scene.yaml", SceneYaml());
+    b.Write("start.csv", kStartCsv);
+    const test::RunResult run = test::RunRodfit(
+        b, "synth " + test::Quote(b.File("synth.yaml")) + " -o " + test::Quote(b.File("made")) +
+               " --seed 3");
+    ASSERT_EQ(run.status, 0) << run.err;
+    for (const char* f : {"markers.csv", "pixels.csv", "front.png"})
+      fs::copy_file(b.File(std::string("made/") + f), b.File(f));
+    fs::remove_all(b.File("made"));
+    fs::remove(b.File("stdout.txt"));
+    fs::remove(b.File("stderr.txt"));
+    b.Write("experiment.yaml", FitYaml());
+  }
+  static void TearDownTestSuite() {
+    delete base_;
+    base_ = nullptr;
+  }
+
+  // Runs every case on two threads, each in a fresh copy of the base folder; returns the
+  // tallies printed as one line.
+  static std::map<Verdict, int> RunAll(const std::vector<Case>& cases, const std::string& title) {
+    TempDir work;
+    std::vector<Outcome> outcomes(cases.size());
+    std::atomic<size_t> next{0};
+    auto worker = [&]() {
+      for (size_t k = next++; k < cases.size(); k = next++) {
+        const std::string dir = work.File("case" + std::to_string(k));
+        fs::copy(base_->path(), dir, fs::copy_options::recursive);
+        cases[k].mutate(dir);
+        outcomes[k] = RunCase(cases[k], dir, work.File("log" + std::to_string(k)));
+        std::error_code ec;
+        fs::remove_all(dir, ec);
+      }
+    };
+    std::thread helper(worker);
+    worker();
+    helper.join();
+    std::map<Verdict, int> tally;
+    for (size_t k = 0; k < cases.size(); ++k) {
+      ++tally[outcomes[k].verdict];
+      const Verdict v = outcomes[k].verdict;
+      if (v != Verdict::kCleanError && v != Verdict::kSuccess)
+        ADD_FAILURE() << Name(v) << ": " << cases[k].name << " (" << Name(cases[k].command)
+                      << "): " << outcomes[k].detail;
+    }
+    std::printf("%s: tried %zu: clean error %d, success %d, crash %d, hang %d, silent %d, "
+                "noisy %d, partial output %d\n",
+                title.c_str(), cases.size(), tally[Verdict::kCleanError],
+                tally[Verdict::kSuccess], tally[Verdict::kCrash], tally[Verdict::kHang],
+                tally[Verdict::kSilent], tally[Verdict::kNoisy], tally[Verdict::kPartial]);
+    std::fflush(stdout);
+    return tally;
+  }
+
+  static TempDir* base_;
+};
+
+TempDir* FuzzCorpusTest::base_ = nullptr;
+
+// Mutations of one file of the case folder.
+std::function<void(const std::string&)> WriteFile(const std::string& name,
+                                                  const std::string& text) {
+  return [=](const std::string& dir) {
+    std::ofstream(dir + "/" + name, std::ios::binary | std::ios::trunc) << text;
+  };
+}
+
+std::function<void(const std::string&)> EditFile(const std::string& name,
+                                                 std::function<std::string(std::string)> edit) {
+  return [=](const std::string& dir) {
+    const std::string path = dir + "/" + name;
+    const std::string text = edit(ReadText(path));
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+  };
+}
+
+// `from` replaced by `to` in the file; the case is refused (a test failure) if `from` is absent,
+// so no case runs on an unchanged valid file by mistake.
+std::function<void(const std::string&)> Replace(const std::string& name, const std::string& from,
+                                                const std::string& to) {
+  return EditFile(name, [=](std::string text) {
+    const size_t at = text.find(from);
+    if (at == std::string::npos) {
+      ADD_FAILURE() << "'" << from << "' not in " << name;
+      return text;
+    }
+    return text.replace(at, from.size(), to);
+  });
+}
+
+std::function<void(const std::string&)> MakeDirectory(const std::string& name) {
+  return [=](const std::string& dir) {
+    fs::remove(dir + "/" + name);
+    fs::create_directory(dir + "/" + name);
+  };
+}
+
+std::function<void(const std::string&)> MakeFifo(const std::string& name) {
+  return [=](const std::string& dir) {
+    fs::remove(dir + "/" + name);
+    ::mkfifo((dir + "/" + name).c_str(), 0644);
+  };
+}
+
+std::function<void(const std::string&)> Nothing() {
+  return [](const std::string&) {};
+}
+
+std::string Garbage(size_t n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::string s(n, '\0');
+  for (char& c : s) c = static_cast<char>(rng() & 0xff);
+  return s;
+}
+
+std::string Nested(const std::string& open, const std::string& close, int depth,
+                   const std::string& inner = "1") {
+  std::string s;
+  s.reserve(depth * (open.size() + close.size()) + inner.size());
+  for (int i = 0; i < depth; ++i) s += open;
+  s += inner;
+  for (int i = 0; i < depth; ++i) s += close;
+  return s;
+}
+
+// The hostile corpus of one YAML input (the command's own file).
+void AddYamlCases(Command command, const std::string& file, std::vector<Case>* cases) {
+  const std::string c = std::string(Name(command)) + " " + file + ": ";
+  auto add = [&](const std::string& name, std::function<void(const std::string&)> m) {
+    cases->push_back({c + name, command, std::move(m), {}});
+  };
+  add("empty file", WriteFile(file, ""));
+  add("only a comment", WriteFile(file, "# nothing\n"));
+  add("a scalar", WriteFile(file, "42\n"));
+  add("a list", WriteFile(file, "[1, 2, 3]\n"));
+  add("missing rod", Replace(file, "rod: {length: 0.2, segments: 12, radius: 2.5e-4, "
+                                   "linear_density: 5.6e-5}\n", ""));
+  add("missing cases", EditFile(file, [](std::string t) { return t.substr(0, t.find("cases:")); }));
+  add("missing bend_stiffness",
+      Replace(file, "  bend_stiffness: {value: 1.0e-5, fit: true, min: 1.0e-7, max: 1.0e-3}\n", ""));
+  add("missing clamp", Replace(file, "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], "
+                                     "normal: [0, 0, 1]}\n", ""));
+  add("unknown top-level key", EditFile(file, [](std::string t) { return t + "colour: red\n"; }));
+  add("unknown rod key", Replace(file, "segments: 12", "segments: 12, colour: red"));
+  add("duplicate key", Replace(file, "segments: 12", "segments: 12, segments: 13"));
+  add("length as text", Replace(file, "length: 0.2", "length: abc"));
+  add("segments fractional", Replace(file, "segments: 12", "segments: 3.5"));
+  add("segments a list", Replace(file, "segments: 12", "segments: [1, 2]"));
+  add("segments 1e9", Replace(file, "segments: 12", "segments: 1000000000"));
+  add("segments 1e6", Replace(file, "segments: 12", "segments: 1000000"));
+  add("segments 99999999999999999999", Replace(file, "segments: 12", "segments: 99999999999999999999"));
+  add("segments negative", Replace(file, "segments: 12", "segments: -5"));
+  add("length NaN", Replace(file, "length: 0.2", "length: .nan"));
+  add("length inf", Replace(file, "length: 0.2", "length: .inf"));
+  add("length 1e308", Replace(file, "length: 0.2", "length: 1e308"));
+  add("length 1e-308", Replace(file, "length: 0.2", "length: 1e-308"));
+  add("radius negative", Replace(file, "radius: 2.5e-4", "radius: -1"));
+  add("stiffness 1e308", Replace(file, "value: 245", "value: 1e308"));
+  add("stiffness 1e-300", Replace(file, "value: 8.0e-6", "value: 1e-300"));
+  add("tip force 1e308", Replace(file, "tip_force: [0, 2.0e-5, 0]", "tip_force: [1e308, 0, 0]"));
+  add("tip force NaN", Replace(file, "tip_force: [0, 2.0e-5, 0]", "tip_force: [.nan, 0, 0]"));
+  add("gravity 1e308", Replace(file, "gravity: [0, 0, -9.81]", "gravity: [0, 0, -1e308]"));
+  add("gravity of 2", Replace(file, "gravity: [0, 0, -9.81]", "gravity: [0, 0]"));
+  add("clamp a text", Replace(file, "clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: "
+                                    "[0, 0, 1]}", "clamp: here"));
+  add("tangent zero", Replace(file, "tangent: [1, 0, 0]", "tangent: [0, 0, 0]"));
+  add("cases a number", EditFile(file, [](std::string t) {
+        return t.substr(0, t.find("cases:")) + "cases: 5\n";
+      }));
+  add("case name a path", Replace(file, "name: sag", "name: ../../x"));
+  add("case name 1 MiB", Replace(file, "name: sag", "name: " + std::string(1 << 20, 'n')));
+  add("key 1 MiB", EditFile(file, [](std::string t) {
+        return t + std::string(1 << 20, 'k') + ": 1\n";
+      }));
+  add("tab indentation", Replace(file, "  twist_stiffness", "\ttwist_stiffness"));
+  add("unterminated flow", Replace(file, "gravity: [0, 0, -9.81]", "gravity: [0, 0, -9.81"));
+  add("unterminated quote", Replace(file, "name: sag", "name: \"sag"));
+  add("truncated in half", EditFile(file, [](std::string t) { return t.substr(0, t.size() / 2); }));
+  add("NUL byte", Replace(file, "name: sag", std::string("name: s\0g", 9)));
+  add("escape in a string", Replace(file, "name: sag", "name: \"s\\jg\""));
+  add("binary garbage", WriteFile(file, Garbage(4096, 11)));
+  add("garbage after the document", EditFile(file, [](std::string t) {
+        return t + Garbage(512, 12);
+      }));
+  add("flow nested 50000 deep", EditFile(file, [](std::string t) {
+        return t + "extra: " + Nested("[", "]", 50000) + "\n";
+      }));
+  add("flow maps nested 50000 deep", EditFile(file, [](std::string t) {
+        return t + "extra: " + Nested("{a: ", "}", 50000) + "\n";
+      }));
+  add("sequence entries nested 50000 deep", EditFile(file, [](std::string t) {
+        std::string s = t + "extra:\n  ";
+        for (int i = 0; i < 50000; ++i) s += "- ";
+        return s + "x\n";
+      }));
+  add("block nested 2000 deep", EditFile(file, [](std::string t) {
+        std::string s = t + "extra:\n";
+        for (int i = 1; i < 2000; ++i) s += std::string(i, ' ') + "a:\n";
+        return s;
+      }));
+  add("nested in the rod 100 deep",
+      Replace(file, "linear_density: 5.6e-5}",
+              "linear_density: 5.6e-5, rest_curvature: " + Nested("[", "]", 100, "0") + "}"));
+  add("billion laughs", EditFile(file, [](std::string t) {
+        std::string s = t + "extra:\n  a0: &a0 [x, x, x, x, x, x, x, x, x, x]\n";
+        for (int i = 1; i < 12; ++i) {
+          s += "  a" + std::to_string(i) + ": &a" + std::to_string(i) + " [";
+          for (int k = 0; k < 10; ++k) s += (k ? ", *a" : "*a") + std::to_string(i - 1);
+          s += "]\n";
+        }
+        return s;
+      }));
+  add("2000 aliased cases", EditFile(file, [](std::string t) {
+        const size_t at = t.find("cases:\n");
+        std::string s = t.substr(0, at) + "cases:\n  - &c\n    clamp: {position: [0, 0, 0], "
+                                          "tangent: [1, 0, 0], normal: [0, 0, 1]}\n";
+        for (int i = 0; i < 1999; ++i) s += "  - *c\n";
+        return s;
+      }));
+  add("unknown anchor", EditFile(file, [](std::string t) { return t + "extra: *nowhere\n"; }));
+  add("4 MiB and one byte", EditFile(file, [](std::string t) {
+        return t + "# " + std::string((4u << 20) - t.size() - 2, 'x') + "\n";
+      }));
+  add("a directory", MakeDirectory(file));
+  add("a FIFO", MakeFifo(file));
+  add("missing", [=](const std::string& dir) { fs::remove(dir + "/" + file); });
+}
+
+// The hostile corpus of a CSV input read by `command`.
+void AddCsvCases(Command command, const std::string& file, const std::string& header,
+                 std::vector<Case>* cases) {
+  const std::string c = std::string(Name(command)) + " " + file + ": ";
+  auto add = [&](const std::string& name, std::function<void(const std::string&)> m) {
+    cases->push_back({c + name, command, std::move(m), {}});
+  };
+  auto rows = [=](const std::string& body) { return WriteFile(file, header + "\n" + body); };
+  const int n = static_cast<int>(std::count(header.begin(), header.end(), ',')) + 1;
+  auto row = [n](const std::string& first, const std::string& rest) {
+    std::string r = first;
+    for (int i = 1; i < n; ++i) r += "," + rest;
+    return r + "\n";
+  };
+  add("empty file", WriteFile(file, ""));
+  add("header only", rows(""));
+  add("missing column", WriteFile(file, "a,b\n1,2\n"));
+  add("NaN", rows(row("0.1", "nan")));
+  add("inf", rows(row("0.1", "inf")));
+  add("1e308", rows(row("0.1", "1e308")));
+  add("-1e308 in the first column", rows(row("-1e308", "0.1")));
+  add("a word", rows(row("0.1", "abc")));
+  add("truncated row", EditFile(file, [](std::string t) { return t + "0.1\n"; }));
+  add("extra field", EditFile(file, [n](std::string t) {
+        std::string r = "0.1";
+        for (int i = 0; i < n; ++i) r += ",0.1";
+        return t + r + "\n";
+      }));
+  add("cut mid-row", EditFile(file, [](std::string t) {
+        return t.substr(0, t.size() - 7);
+      }));
+  add("unterminated quote", rows("\"0.1," + row("0", "0")));
+  add("5 MiB field", rows(row(std::string(5 << 20, '7'), "0")));
+  add("binary garbage", WriteFile(file, Garbage(4096, 21)));
+  add("NUL bytes", rows(std::string("0.1\0,0\0\n", 8)));
+  add("CRLF and a BOM", EditFile(file, [](std::string t) {
+        std::string s = "\xEF\xBB\xBF";
+        for (char ch : t) s += ch == '\n' ? std::string("\r\n") : std::string(1, ch);
+        return s;
+      }));
+  add("a directory", MakeDirectory(file));
+  add("a FIFO", MakeFifo(file));
+  add("missing", [=](const std::string& dir) { fs::remove(dir + "/" + file); });
+}
+
+void AddCameraCases(Command command, std::vector<Case>* cases) {
+  const std::string c = std::string(Name(command)) + " cam.yaml: ";
+  auto add = [&](const std::string& name, std::function<void(const std::string&)> m) {
+    cases->push_back({c + name, command, std::move(m), {}});
+  };
+  const std::string f = "cam.yaml";
+  add("empty file", WriteFile(f, ""));
+  add("missing camera_matrix", Replace(f, "camera_matrix", "camera_matrx"));
+  add("missing image size", Replace(f, "image_height: 256\n", ""));
+  add("NaN focal length", Replace(f, "500.0, 0.0, 160.8", ".nan, 0.0, 160.8"));
+  add("zero focal length", Replace(f, "500.0, 0.0, 160.8", "0.0, 0.0, 160.8"));
+  add("k1 = 1e300", Replace(f, "-0.08, 0.05", "1e300, 0.05"));
+  add("k1 = 1e5", Replace(f, "-0.08, 0.05", "1e5, 0.05"));
+  add("image 1e9 wide", Replace(f, "image_width: 320", "image_width: 1000000000"));
+  add("image 16384 x 16384", EditFile(f, [](std::string t) {
+        t.replace(t.find("image_width: 320"), 16, "image_width: 16384");
+        return t.replace(t.find("image_height: 256"), 17, "image_height: 16384");
+      }));
+  add("matrix 2x3", Replace(f, "rows: 3\n   cols: 3", "rows: 2\n   cols: 3"));
+  add("text in the matrix", Replace(f, "500.0, 0.0, 160.8", "abc, 0.0, 160.8"));
+  add("camera behind the rod", Replace(f, "0.399968753662", "-0.399968753662"));
+  add("camera looking elsewhere", Replace(f, "data: [ 1.583295675814, 0.0, 0.0 ]",
+                                          "data: [ -1.583295675814, 0.0, 0.0 ]"));
+  add("nested 50000 deep (YAML)", EditFile(f, [](std::string t) {
+        return t + "extra: " + Nested("[", "]", 50000) + "\n";
+      }));
+  add("nested 50000 deep (JSON)", WriteFile(f, Nested("{\"a\": ", "}", 50000)));
+  add("nested 50000 deep (XML)", WriteFile(f, "<?xml version=\"1.0\"?>\n<opencv_storage>" +
+                                                  Nested("<a>", "</a>", 50000) +
+                                                  "</opencv_storage>\n"));
+  add("malformed JSON", WriteFile(f, "{\"camera_matrix\": [1, 2,\n"));
+  add("malformed XML", WriteFile(f, "<?xml version=\"1.0\"?>\n<opencv_storage><a>\n"));
+  add("binary garbage", WriteFile(f, Garbage(4096, 31)));
+  add("truncated in half", EditFile(f, [](std::string t) { return t.substr(0, t.size() / 2); }));
+  add("2 MiB", EditFile(f, [](std::string t) { return t + "# " + std::string(2 << 20, 'x') + "\n"; }));
+  add("a directory", MakeDirectory(f));
+  add("a FIFO", MakeFifo(f));
+  add("missing", [=](const std::string& dir) { fs::remove(dir + "/" + f); });
+}
+
+std::string Png(std::uint32_t width, std::uint32_t height) {
+  // A PNG whose header claims the size; its data are a few zero bytes (decoding would need
+  // width x height bytes of memory).
+  auto be = [](std::uint32_t v) {
+    return std::string{static_cast<char>(v >> 24), static_cast<char>(v >> 16),
+                       static_cast<char>(v >> 8), static_cast<char>(v)};
+  };
+  std::string ihdr = "IHDR" + be(width) + be(height) + std::string("\x08\x00\x00\x00\x00", 5);
+  return std::string("\x89PNG\r\n\x1a\n", 8) + be(13) + ihdr + be(0) + be(10) + "IDAT" +
+         std::string("\x78\x9c\x63\x00\x00\x00\x01\x00\x01\x00", 10) + be(0) + be(0) + "IEND" +
+         be(0);
+}
+
+void AddImageCases(std::vector<Case>* cases) {
+  const std::string c = "extract front.png: ";
+  auto add = [&](const std::string& name, std::function<void(const std::string&)> m) {
+    cases->push_back({c + name, Command::kExtract, std::move(m), {}});
+  };
+  const std::string f = "front.png";
+  add("empty file", WriteFile(f, ""));
+  add("text", WriteFile(f, "not an image\n"));
+  add("binary garbage", WriteFile(f, Garbage(4096, 41)));
+  add("truncated in half", EditFile(f, [](std::string t) { return t.substr(0, t.size() / 2); }));
+  add("header only", EditFile(f, [](std::string t) { return t.substr(0, 33); }));
+  add("bad checksum", EditFile(f, [](std::string t) {
+        if (t.size() > 29) t.replace(29, 1, 1, static_cast<char>(t[29] ^ 0x55));  // IHDR CRC
+        return t;
+      }));
+  add("60000 x 60000 header", WriteFile(f, Png(60000, 60000)));
+  add("2^31 x 2^31 header", WriteFile(f, Png(0x7fffffffu, 0x7fffffffu)));
+  add("a directory", MakeDirectory(f));
+  add("a FIFO", MakeFifo(f));
+  add("missing", [=](const std::string& dir) { fs::remove(dir + "/" + f); });
+}
+
+// Options and outputs: bad values, outputs that cannot be written, outputs that are inputs.
+void AddOptionCases(std::vector<Case>* cases) {
+  auto add = [&](const std::string& name, Command command, std::vector<std::string> extra,
+                 std::function<void(const std::string&)> m = Nothing(), bool replace = false) {
+    cases->push_back({"options: " + name, command, std::move(m), std::move(extra), replace});
+  };
+  add("no command", Command::kFit, {}, Nothing(), true);
+  add("unknown command", Command::kFit, {"bend"}, Nothing(), true);
+  add("unknown option", Command::kSimulate, {"--colour", "red"});
+  add("missing -o", Command::kSimulate, {"simulate", "scene.yaml"}, Nothing(), true);
+  add("--threads 0", Command::kFit, {"--threads", "0"});
+  add("--threads 2147483647", Command::kFit, {"--threads", "2147483647"});
+  add("--threads 300 digits", Command::kFit, {"--threads", std::string(300, '9')});
+  add("--threads abc", Command::kFit, {"--threads", "abc"});
+  add("--seed -1", Command::kSynth, {"--seed", "-1"});
+  add("--seed 1e99", Command::kSynth, {"--seed", "1e99"});
+  add("--start garbage", Command::kExtract, {"--start", "a,b"});
+  add("--start 1e308", Command::kExtract, {"--start", "1e308,1e308"});
+  add("simulate -o a file's child", Command::kSimulate,
+      {"simulate", "scene.yaml", "-o", "start.csv/out"}, Nothing(), true);
+  add("synth -o a file's child", Command::kSynth,
+      {"synth", "synth.yaml", "-o", "cam.yaml/out"}, Nothing(), true);
+  add("fit -o a file's child", Command::kFit,
+      {"fit", "experiment.yaml", "-o", "cam.yaml/profile.json", "-q"}, Nothing(), true);
+  add("fit -o a directory", Command::kFit, {"fit", "experiment.yaml", "-o", "sub", "-q"},
+      [](const std::string& dir) { fs::create_directory(dir + "/sub"); }, true);
+  add("fit -o its own experiment", Command::kFit,
+      {"fit", "experiment.yaml", "-o", "experiment.yaml", "-q"}, Nothing(), true);
+  add("fit -o its own data", Command::kFit,
+      {"fit", "experiment.yaml", "-o", "markers.csv", "-q"}, Nothing(), true);
+  add("fit --report a file's child", Command::kFit,
+      {"fit", "experiment.yaml", "-o", "profile.json", "--report", "cam.yaml/report", "-q"},
+      Nothing(), true);
+  add("fit --report into /proc", Command::kFit,
+      {"fit", "experiment.yaml", "-o", "profile.json", "--report", "/proc/version/r", "-q"},
+      Nothing(), true);
+  add("extract -o over its image", Command::kExtract,
+      {"extract", "front.png", "--camera", "cam.yaml", "-o", "front.png"}, Nothing(), true);
+  add("extract --overlay over its camera", Command::kExtract,
+      {"extract", "front.png", "--camera", "cam.yaml", "-o", "p.csv", "--overlay", "cam.yaml"},
+      Nothing(), true);
+  add("extract --overlay .xyz", Command::kExtract,
+      {"extract", "front.png", "--camera", "cam.yaml", "-o", "p.csv", "--overlay", "o.xyz"},
+      Nothing(), true);
+  add("extract -o a file's child", Command::kExtract,
+      {"extract", "front.png", "--camera", "cam.yaml", "-o", "start.csv/p.csv"}, Nothing(), true);
+  add("simulate -o /dev/full", Command::kSimulate, {"simulate", "scene.yaml", "-o", "/dev/full"},
+      Nothing(), true);
+  add("simulate /dev/zero", Command::kSimulate, {"simulate", "/dev/zero", "-o", "out"}, Nothing(),
+      true);
+}
+
+// Scene and experiment keys whose limits bound the work (docs/formats.md, "Limits").
+void AddLimitCases(std::vector<Case>* cases) {
+  auto add = [&](const std::string& name, Command command,
+                 std::function<void(const std::string&)> m) {
+    cases->push_back({"limits: " + name, command, std::move(m), {}});
+  };
+  add("synth count 1e9", Command::kSynth, Replace("synth.yaml", "count: 6", "count: 1000000000"));
+  add("synth count 100001", Command::kSynth, Replace("synth.yaml", "count: 6", "count: 100001"));
+  add("synth blur 1e6", Command::kSynth, Replace("synth.yaml", "blur: 0.8", "blur: 1e6"));
+  add("synth noise 1e300", Command::kSynth, Replace("synth.yaml", "noise: 2", "noise: 1e300"));
+  add("section nodes 4096", Command::kSimulate,
+      Replace("scene.yaml", "gravity: [0, 0, -9.81]\n",
+              "gravity: [0, 0, -9.81]\nsection: {radius: 2.5e-4, nodes: 4096}\n"));
+  add("fit max_iterations 1e9", Command::kFit,
+      EditFile("experiment.yaml", [](std::string t) {
+        return t + "fit: {max_iterations: 1000000000}\n";
+      }));
+  add("solver max_iterations 1e9", Command::kSimulate,
+      EditFile("scene.yaml", [](std::string t) {
+        return t + "solver: {max_iterations: 1000000000}\n";
+      }));
+  add("1001 cases", Command::kSimulate, EditFile("scene.yaml", [](std::string t) {
+        std::string s = t.substr(0, t.find("cases:\n")) + "cases:\n";
+        for (int i = 0; i < 1001; ++i)
+          s += "  - {name: c" + std::to_string(i) +
+               ", clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}}\n";
+        return s;
+      }));
+  add("marker at 1e308", Command::kFit, EditFile("markers.csv", [](std::string t) {
+        const size_t line = t.find('\n', t.find('\n') + 1);  // after the first data row
+        return t.substr(0, line + 1) + "0.1,1e308,0,0\n" + t.substr(line + 1);
+      }));
+  add("pixel at 1e308", Command::kFit, EditFile("pixels.csv", [](std::string t) {
+        return t + "1e308,1e308\n";
+      }));
+}
+
+// ---------------------------------------------------------------------------------------------
+
+TEST_F(FuzzCorpusTest, HostileInputsGiveOneLineAndLeaveNothingBehind) {
+  std::vector<Case> cases;
+  AddYamlCases(Command::kSimulate, "scene.yaml", &cases);
+  AddYamlCases(Command::kFit, "experiment.yaml", &cases);
+  AddYamlCases(Command::kSynth, "synth.yaml", &cases);
+  AddCsvCases(Command::kFit, "markers.csv", "s,x,y,z", &cases);
+  AddCsvCases(Command::kFitReport, "pixels.csv", "u,v", &cases);
+  AddCsvCases(Command::kSimulate, "start.csv", "x,y,z", &cases);
+  AddCameraCases(Command::kFit, &cases);
+  AddCameraCases(Command::kExtract, &cases);
+  AddCameraCases(Command::kSynth, &cases);
+  AddImageCases(&cases);
+  AddOptionCases(&cases);
+  AddLimitCases(&cases);
+  // The unchanged inputs succeed: the corpus tests what it changes, not a broken base.
+  for (Command command : {Command::kSimulate, Command::kFit, Command::kFitReport, Command::kSynth,
+                          Command::kExtract})
+    cases.push_back({std::string("unchanged ") + Name(command), command, Nothing(), {}});
+  const std::map<Verdict, int> tally = RunAll(cases, "fuzz corpus");
+  EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
+  EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
+  EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);
+  EXPECT_GE(tally.count(Verdict::kSuccess) ? tally.at(Verdict::kSuccess) : 0, 5);
+}
+
+// Byte flips: for every file kind, mutations from one seed (raw mt19937 output, the same on
+// every standard library): 1-8 bytes set to random values, or a random cut, or a random
+// stretch duplicated.
+TEST_F(FuzzCorpusTest, ByteFlipsOfEveryFileKind) {
+  constexpr int kPerKind = 30;
+  const std::vector<std::pair<std::string, Command>> kinds = {
+      {"scene.yaml", Command::kSimulate}, {"experiment.yaml", Command::kFit},
+      {"synth.yaml", Command::kSynth},    {"markers.csv", Command::kFit},
+      {"pixels.csv", Command::kFit},      {"start.csv", Command::kSimulate},
+      {"cam.yaml", Command::kFit},        {"cam.yaml", Command::kExtract},
+      {"front.png", Command::kExtract}};
+  std::mt19937 rng(15);
+  std::vector<Case> cases;
+  for (const auto& [file, command] : kinds) {
+    const std::string original = ReadText(base_->File(file));
+    ASSERT_FALSE(original.empty()) << file;
+    for (int k = 0; k < kPerKind; ++k) {
+      std::string text = original;
+      const std::uint32_t how = rng() % 10;
+      std::string what;
+      if (how < 7) {
+        const int flips = 1 + static_cast<int>(rng() % 8);
+        for (int i = 0; i < flips; ++i) text[rng() % text.size()] = static_cast<char>(rng() & 0xff);
+        what = std::to_string(flips) + " bytes set";
+      } else if (how < 9) {
+        text.resize(rng() % text.size());
+        what = "cut at " + std::to_string(text.size());
+      } else {
+        const size_t at = rng() % text.size(), n = 1 + rng() % std::min<size_t>(64, text.size() - at);
+        text.insert(at, text.substr(at, n));
+        what = std::to_string(n) + " bytes repeated at " + std::to_string(at);
+      }
+      cases.push_back({std::string(Name(command)) + " " + file + " #" + std::to_string(k) + ": " +
+                           what,
+                       command, WriteFile(file, text), {}});
+    }
+  }
+  const std::map<Verdict, int> tally = RunAll(cases, "byte flips");
+  EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
+  EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
+  EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);
+}
+
+}  // namespace
+}  // namespace rodfit
