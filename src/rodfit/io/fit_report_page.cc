@@ -93,12 +93,14 @@ std::string WithUnit(double v, const std::string& unit, int digits = 4) {
   return HtmlNumber(v, digits) + (unit.empty() ? "" : "&nbsp;" + HtmlUnit(unit));
 }
 
+// Wall times are the only part of the page that changes from run to run: each is marked
+// (class "wall-time") so that a comparison of two runs can leave them out.
 std::string Duration(double seconds) {
-  char b[32];
+  char b[96];
   if (seconds < 1.0)
-    std::snprintf(b, sizeof(b), "%.3g&nbsp;ms", seconds * 1e3);
+    std::snprintf(b, sizeof(b), "<span class=\"wall-time\">%.3g&nbsp;ms</span>", seconds * 1e3);
   else
-    std::snprintf(b, sizeof(b), "%.3g&nbsp;s", seconds);
+    std::snprintf(b, sizeof(b), "<span class=\"wall-time\">%.3g&nbsp;s</span>", seconds);
   return b;
 }
 
@@ -1201,7 +1203,8 @@ class Builder {
          "time</th></tr>\n";
     auto row = [&](const std::string& part, double seconds) {
       h << "<tr><td>" << part << "</td><td class=\"num\">" << Duration(seconds)
-        << "</td><td class=\"num\">" << (r_.seconds > 0 ? Percent(seconds / r_.seconds) : "—")
+        << "</td><td class=\"num\"><span class=\"wall-time\">"
+        << (r_.seconds > 0 ? Percent(seconds / r_.seconds) : "—") << "</span>"
         << "</td></tr>\n";
     };
     row("whole fit (wall time)", r_.seconds);
