@@ -10,6 +10,7 @@
 
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/statics.h"
+#include "rodfit/solve/statics_workspace.h"
 #include "../solve/test_util.h"
 
 namespace rodfit {

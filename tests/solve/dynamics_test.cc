@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {

@@ -11,6 +11,7 @@
 
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
+#include "rodfit/solve/statics_workspace.h"
 #include "test_util.h"
 
 namespace rodfit {

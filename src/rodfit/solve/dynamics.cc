@@ -4,10 +4,13 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 
 #include "rodfit/model/frames.h"
+#include "rodfit/solve/banded.h"
 #include "rodfit/solve/moment_loads.h"
+#include "rodfit/solve/rod_energy.h"
 
 namespace rodfit {
 
@@ -89,8 +92,14 @@ Vec3 Perpendicular(const Vec3& d1, const Vec3& t) {
 
 }  // namespace
 
+struct DynamicsStepper::Scratch {
+  RodFrames frames, trial_frames;
+  BandedSymmetric hessian, damping;
+  BandedCholesky factor;
+};
+
 DynamicsStepper::DynamicsStepper(const RodModel& model, const DynamicsOptions& options)
-    : model_(model), options_(options) {
+    : model_(model), options_(options), scratch_(std::make_unique<Scratch>()) {
   std::string why;
   if (!options_.Check(&why)) throw std::invalid_argument(why);
   const RodSpec& rod = model.rod();
@@ -130,9 +139,11 @@ DynamicsStepper::DynamicsStepper(const RodModel& model, const DynamicsOptions& o
   weights_ = GradientNormWeights(model);
   Drive().PoseAt(model, 0.0, &pose_);
   pose_mid_ = pose_;
-  damping_.Resize(dofs, kRodBandwidth, 4);
-  damping_.SetZero();
+  scratch_->damping.Resize(dofs, kRodBandwidth, 4);
+  scratch_->damping.SetZero();
 }
+
+DynamicsStepper::~DynamicsStepper() = default;
 
 DynamicState DynamicsStepper::AtRest(const RodState& q) const {
   DynamicState s;
@@ -193,15 +204,15 @@ bool DynamicsStepper::Advance(const RodState& q, const VecX& dx, const HeldPose&
 
 void DynamicsStepper::Forces(const RodState& q, const HeldPose& pose, VecX* g) {
   const int n = model_.num_edges();
-  ComputeRodFrames(model_, q, &frames_);
-  AssembleGradient(model_, q, EnergyTerms(), g, &frames_);
-  if (model_.nonconservative()) AddMomentLoads(model_, q, frames_, 1.0, g, nullptr);
+  ComputeRodFrames(model_, q, &scratch_->frames);
+  AssembleGradient(model_, q, EnergyTerms(), g, &scratch_->frames);
+  if (model_.nonconservative()) AddMomentLoads(model_, q, scratch_->frames, 1.0, g, nullptr);
   if (pose.tip_force.squaredNorm() > 0.0) g->segment<3>(RodModel::VertexDof(n)) -= pose.tip_force;
   if (pose.tip_moment.squaredNorm() > 0.0) {
     EdgeMoment em;
     em.edge = n - 1;
     em.moment = pose.tip_moment;
-    const EdgeMomentForce f = EdgeMomentLoad(em, frames_, 1.0);
+    const EdgeMomentForce f = EdgeMomentLoad(em, scratch_->frames, 1.0);
     g->segment<3>(RodModel::VertexDof(n)) -= f.Qe;
     if (n >= 2) g->segment<3>(RodModel::VertexDof(n - 1)) += f.Qe;
     (*g)[RodModel::TwistDof(n - 1)] -= f.Qt;
@@ -220,19 +231,19 @@ void DynamicsStepper::AssembleDamping(const RodState& q) {
   terms.twist = m.twist_damping / m.twist_stiffness;
   terms.stretch = m.stretch_damping / m.stretch_stiffness;
   terms.springs = 0.0;
-  ComputeRodFrames(model_, q, &frames_);
-  AssembleHessian(model_, q, terms, &cv_, &damping_, &frames_);
+  ComputeRodFrames(model_, q, &scratch_->frames);
+  AssembleHessian(model_, q, terms, &cv_, &scratch_->damping, &scratch_->frames);
   // Held rows carry no damping (their dofs do not move freely).
-  for (int k = 0; k < damping_.size(); ++k)
-    if (held_[k]) damping_.At(k, k) = 0.0;
+  for (int k = 0; k < scratch_->damping.size(); ++k)
+    if (held_[k]) scratch_->damping.At(k, k) = 0.0;
 }
 
 double DynamicsStepper::StableTimeStep(const RodState& q) {
-  ComputeRodFrames(model_, q, &frames_);
-  AssembleHessian(model_, q, EnergyTerms(), &g_, &hessian_, &frames_);
+  ComputeRodFrames(model_, q, &scratch_->frames);
+  AssembleHessian(model_, q, EnergyTerms(), &g_, &scratch_->hessian, &scratch_->frames);
   AssembleDamping(q);
   const int N = model_.num_free_dofs();
-  const int p = hessian_.bandwidth();
+  const int p = scratch_->hessian.bandwidth();
   // Gershgorin bounds of the mass-scaled stiffness and damping: every eigenvalue of
   // M^-1/2 K M^-1/2 lies below the largest absolute row sum.
   double lambda_k = 0.0, lambda_c = 0.0;
@@ -242,8 +253,8 @@ double DynamicsStepper::StableTimeStep(const RodState& q) {
     for (int c = std::max(0, r - p); c <= std::min(N - 1, r + p); ++c) {
       if (held_[c]) continue;
       const double scale = 1.0 / std::sqrt(mass_[r] * mass_[c]);
-      sk += std::abs(hessian_.Get(r, c)) * scale;
-      if (internal_damping_) sc += std::abs(damping_.Get(r, c)) * scale;
+      sk += std::abs(scratch_->hessian.Get(r, c)) * scale;
+      if (internal_damping_) sc += std::abs(scratch_->damping.Get(r, c)) * scale;
     }
     lambda_k = std::max(lambda_k, sk);
     lambda_c = std::max(lambda_c, sc);
@@ -315,7 +326,7 @@ DynamicsStepSummary DynamicsStepper::StepExplicit(const Drive& drive, double dt,
   AssembleDamping(s->q);
   auto damping_force = [&](const VecX& v, VecX* out) {
     *out = drag_.cwiseProduct(v);
-    if (internal_damping_) *out += damping_.Multiply(v);
+    if (internal_damping_) *out += scratch_->damping.Multiply(v);
   };
   damping_force(s->v, &cv_);
   step_.resize(N);
@@ -372,7 +383,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
     pose = &pose_mid_;
   }
   AssembleDamping(s->q);
-  const BandedSymmetric& C = damping_;
+  const BandedSymmetric& C = scratch_->damping;
   const RodState& q0 = s->q;
   if (!Advance(q0, y_, *pose, &prev_)) {  // the predictor
     summary.reason = "the predictor folds an edge back: time_step too large for this motion";
@@ -400,8 +411,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
   };
   double force_tol = -1.0, floor_tol = 0.0;
   double energy = 0.0;
-  ComputeRodFrames(model_, q, &frames_);
-  if (!has_moments && !phi(q, frames_, &energy)) {
+  ComputeRodFrames(model_, q, &scratch_->frames);
+  if (!has_moments && !phi(q, scratch_->frames, &energy)) {
     summary.reason = "non-finite energy at the predictor";
     return summary;
   }
@@ -413,19 +424,19 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
   bool chord = false;
   double previous_gnorm = std::numeric_limits<double>::infinity();
   for (int it = 0; it < options_.max_newton_iterations && !converged; ++it) {
-    ComputeRodFrames(model_, q, &frames_);
+    ComputeRodFrames(model_, q, &scratch_->frames);
     if (chord) {
-      AssembleGradient(model_, q, EnergyTerms(), &g_, &frames_);
+      AssembleGradient(model_, q, EnergyTerms(), &g_, &scratch_->frames);
     } else {
-      AssembleHessian(model_, q, EnergyTerms(), &g_, &hessian_, &frames_);
+      AssembleHessian(model_, q, EnergyTerms(), &g_, &scratch_->hessian, &scratch_->frames);
     }
-    if (model_.nonconservative()) AddMomentLoads(model_, q, frames_, 1.0, &g_, nullptr);
+    if (model_.nonconservative()) AddMomentLoads(model_, q, scratch_->frames, 1.0, &g_, nullptr);
     if (pose->tip_force.squaredNorm() > 0.0) g_.segment<3>(RodModel::VertexDof(n)) -= pose->tip_force;
     if (pose->tip_moment.squaredNorm() > 0.0) {
       EdgeMoment em;
       em.edge = n - 1;
       em.moment = pose->tip_moment;
-      const EdgeMomentForce f = EdgeMomentLoad(em, frames_, 1.0);
+      const EdgeMomentForce f = EdgeMomentLoad(em, scratch_->frames, 1.0);
       g_.segment<3>(RodModel::VertexDof(n)) -= f.Qe;
       if (n >= 2) g_.segment<3>(RodModel::VertexDof(n - 1)) += f.Qe;
       g_[RodModel::TwistDof(n - 1)] -= f.Qt;
@@ -449,10 +460,10 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
     if (internal_damping_) cd += C.Multiply(delta0_);
     for (int k = 0; k < N; ++k) g_[k] += a * mass_[k] * (delta_[k] - y_[k]) + c * cd[k];
     if (!chord) {
-      for (int k = 0; k < N; ++k) hessian_.At(k, k) += a * mass_[k] + c * drag_[k];
-      if (internal_damping_) hessian_.band() += c * C.band();
+      for (int k = 0; k < N; ++k) scratch_->hessian.At(k, k) += a * mass_[k] + c * drag_[k];
+      if (internal_damping_) scratch_->hessian.band() += c * C.band();
     }
-    ApplyHeldRows(held_, &g_, chord ? nullptr : &hessian_);
+    ApplyHeldRows(held_, &g_, chord ? nullptr : &scratch_->hessian);
     double gnorm = 0.0;
     for (int k = 0; k < N; ++k) gnorm = std::max(gnorm, weights_[k] * std::abs(g_[k]));
     summary.residual = gnorm;
@@ -473,22 +484,22 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
     }
     previous_gnorm = gnorm;
     bool shifted = false;
-    if (!chord && !factor_.Factor(hessian_)) {
+    if (!chord && !scratch_->factor.Factor(scratch_->hessian)) {
       // Phi is not convex here (compressed edges whose geometric stiffness outweighs a M at this
       // step): a diagonal shift, grown tenfold until the factor exists, gives a descent
       // direction for the line search, as in the statics.
       double max_diagonal = 0.0;
-      for (int k = 0; k < N; ++k) max_diagonal = std::max(max_diagonal, std::abs(hessian_.At(k, k)));
+      for (int k = 0; k < N; ++k) max_diagonal = std::max(max_diagonal, std::abs(scratch_->hessian.At(k, k)));
       double shift = 1e-10 * max_diagonal;
-      while (!factor_.Factor(hessian_, shift) && shift < 1e3 * max_diagonal) shift *= 10.0;
-      if (!factor_.valid()) {
+      while (!scratch_->factor.Factor(scratch_->hessian, shift) && shift < 1e3 * max_diagonal) shift *= 10.0;
+      if (!scratch_->factor.valid()) {
         summary.reason = "the step's Newton matrix cannot be made positive definite";
         return summary;
       }
       shifted = true;
     }
     step_ = -g_;
-    factor_.SolveInPlace(step_);
+    scratch_->factor.SolveInPlace(step_);
     ++summary.newton_iterations;
     double alpha = 1.0;
     const double turn = MaxTangentTurn(model_, q, step_);
@@ -501,10 +512,10 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
         accepted = true;
         break;
       }
-      ComputeRodFrames(model_, trial_, &trial_frames_);
+      ComputeRodFrames(model_, trial_, &scratch_->trial_frames);
       double e_trial = 0.0;
       const double noise = 1e-13 * (std::abs(energy) + model_.force_scale() * L);
-      if (phi(trial_, trial_frames_, &e_trial) && e_trial <= energy + 1e-4 * alpha * slope + noise) {
+      if (phi(trial_, scratch_->trial_frames, &e_trial) && e_trial <= energy + 1e-4 * alpha * slope + noise) {
         energy = e_trial;
         accepted = true;
         break;

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "rodfit/solve/rod_energy.h"
-#include "rodfit/solve/statics.h"
+#include "rodfit/solve/statics_workspace.h"
 
 namespace rodfit {
 

@@ -8,12 +8,14 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 
 #include <Eigen/Geometry>
 
 #include "rodfit/model/frames.h"
 #include "rodfit/solve/moment_loads.h"
 #include "rodfit/solve/rod_energy.h"
+#include "rodfit/solve/statics_workspace.h"
 
 namespace rodfit {
 
@@ -40,6 +42,10 @@ bool StaticsOptions::Check(std::string* why) const {
   if (max_continuation_steps < 1) return fail("max_continuation_steps must be >= 1");
   if (edge_solver_segments < 2) return fail("edge_solver_segments must be >= 2");
   return true;
+}
+
+std::shared_ptr<StaticsWorkspace> NewStaticsWorkspace() {
+  return std::make_shared<StaticsWorkspace>();
 }
 
 std::string StaticsSummary::BriefReport() const {

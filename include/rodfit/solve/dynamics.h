@@ -28,12 +28,11 @@
 // HeldPose given per time by a Drive. Dirichlet rows keep them where the pose puts them.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "rodfit/model/rod.h"
-#include "rodfit/solve/banded.h"
-#include "rodfit/solve/rod_energy.h"
 
 namespace rodfit {
 
@@ -114,6 +113,7 @@ class DynamicsStepper {
   /// Throws std::invalid_argument when the rod cannot move (no linear density) or the explicit
   /// integrator lacks a rotational inertia (radius 0).
   DynamicsStepper(const RodModel& model, const DynamicsOptions& options);
+  ~DynamicsStepper();
 
   const RodModel& model() const { return model_; }
   const DynamicsOptions& options() const { return options_; }
@@ -141,7 +141,7 @@ class DynamicsStepper {
   DynamicsStepSummary StepImplicit(const Drive& drive, DynamicState* s);
   /// Gradient of Pi at q plus the pose's extra tip loads' (held rows zeroed).
   void Forces(const RodState& q, const HeldPose& pose, VecX* g);
-  /// The damping matrix C (external drag and internal viscosities) at q into damping_.
+  /// The damping matrix C (external drag and internal viscosities) at q into the scratch band `damping`.
   void AssembleDamping(const RodState& q);
   /// Free-dof difference b - a (held dofs 0).
   void Delta(const RodState& a, const RodState& b, VecX* d) const;
@@ -156,11 +156,11 @@ class DynamicsStepper {
   VecX weights_;  // ScaledGradientNorm weights
   // Scratch.
   HeldPose pose_, pose_mid_;
-  RodFrames frames_, trial_frames_;
   RodState trial_, prev_;
   VecX g_, step_, delta_, delta0_, force_, cv_, y_, z_;
-  BandedSymmetric hessian_, damping_;
-  BandedCholesky factor_;
+  // The frames, the band matrices and their factor: internal types (dynamics.cc).
+  struct Scratch;
+  std::unique_ptr<Scratch> scratch_;
   bool force_valid_ = false;  // explicit: force_ holds -grad at s->q (cached between steps)
   double force_time_ = -1.0;
   double stable_dt_ = 0.0;
