@@ -20,6 +20,7 @@
 #include "rodfit/io/output_dir.h"
 #include "rodfit/report/svg_plot.h"
 #include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 #include "rodfit/version.h"
 
