@@ -10,26 +10,14 @@
 #include <benchmark/benchmark.h>
 
 #include "rodfit/solve/dynamics.h"
+#include "../solve/suture_fixture.h"
 
 namespace rodfit {
 namespace {
 
-struct SutureSwing {
-  RodSpec rod;
-  Material material;
-  LoadCase load_case;
-  explicit SutureSwing(int segments) {
-    rod.length = 0.2;
-    rod.segments = segments;
-    rod.radius = 1.25e-4;
-    rod.linear_density = 5.6e-5;
-    material.bend_stiffness = 9.6e-7;
-    material.twist_stiffness = 8.0e-7;
-    material.stretch_stiffness = 245.0;
-    material.damping = 1e-5;
-    load_case.clamp.tangent = Vec3::UnitX();
-    load_case.clamp.normal = Vec3::UnitZ();
-  }
+// The suture with air drag.
+struct SutureSwing : testing::Suture {
+  explicit SutureSwing(int segments) : testing::Suture(segments) { material.damping = 1e-5; }
 };
 
 const Vec3 kGravity(0, 0, -9.81);

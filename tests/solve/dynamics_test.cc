@@ -11,33 +11,13 @@
 #include "rodfit/solve/dynamics.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
+#include "solve/suture_fixture.h"
 
 namespace rodfit {
 namespace {
 
-constexpr double kBetaL[3] = {1.875104, 4.694091, 7.854757};
-
-// The nylon suture of data/scenes/cantilever.yaml, without gravity.
-struct Suture {
-  RodSpec rod;
-  Material material;
-  LoadCase load_case;
-  explicit Suture(int segments) {
-    rod.length = 0.2;
-    rod.segments = segments;
-    rod.radius = 1.25e-4;
-    rod.linear_density = 5.6e-5;
-    material.bend_stiffness = 9.6e-7;
-    material.twist_stiffness = 8.0e-7;
-    material.stretch_stiffness = 245.0;
-    load_case.clamp.tangent = Vec3::UnitX();
-    load_case.clamp.normal = Vec3::UnitZ();
-  }
-  double Omega(int mode) const {
-    const double bl = kBetaL[mode];
-    return bl * bl * std::sqrt(material.B1() / (rod.linear_density * std::pow(rod.length, 4)));
-  }
-};
+using testing::kBetaL;
+using testing::Suture;
 
 // Cantilever mode shape n at xi = s / L (unit-free).
 double ModeShape(int mode, double xi) {
