@@ -1,20 +1,16 @@
 // Images -> image_points and points3d (see image_observations.h).
 #include "rodfit/io/image_observations.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/vision/camera_file.h"
+#include "rodfit/vision/image_codec.h"
 
 namespace rodfit {
 namespace {
@@ -24,32 +20,6 @@ std::string Show(double v) {
   std::snprintf(buffer, sizeof(buffer), "%g", v);
   return buffer;
 }
-
-// Stderr sent to /dev/null while alive (the decoders' own warnings; rodfit reports for itself).
-class MutedStderr {
- public:
-  MutedStderr() {
-    std::fflush(stderr);
-    saved_ = ::dup(STDERR_FILENO);
-    const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
-    if (null >= 0) {
-      ::dup2(null, STDERR_FILENO);
-      ::close(null);
-    }
-  }
-  ~MutedStderr() {
-    std::fflush(stderr);
-    if (saved_ >= 0) {
-      ::dup2(saved_, STDERR_FILENO);
-      ::close(saved_);
-    }
-  }
-  MutedStderr(const MutedStderr&) = delete;
-  MutedStderr& operator=(const MutedStderr&) = delete;
-
- private:
-  int saved_ = -1;
-};
 
 std::uint32_t BigEndian(const std::string& b, size_t at, int bytes) {
   std::uint32_t v = 0;
@@ -121,35 +91,25 @@ cv::Mat ReadImageFile(const std::string& path) {
                                       std::to_string(kMaxImagePixels) + " pixels (the limit)");
   }
   cv::Mat image;
-  {
-    // libpng and libjpeg print their warnings on stderr themselves: a second line.
-    const MutedStderr muted;
-    try {
-      const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8U,
-                           const_cast<char*>(bytes.data()));
-      image = cv::imdecode(buffer, cv::IMREAD_UNCHANGED);
-    } catch (const cv::Exception&) {
-      image.release();
-    }
+  std::string why;
+  if (!DecodeImageBytes(bytes, kMaxImageSidePx, kMaxImagePixels, &image, &why)) {
+    throw InputError(path, 0, "", "cannot read the image: " + why);
   }
-  if (image.empty()) throw InputError(path, 0, "", "cannot read the image: not an image OpenCV reads");
   return image;
 }
 
 std::string EncodeImage(const std::string& path, const cv::Mat& image) {
   const std::string extension = std::filesystem::path(path).extension().string();
-  std::vector<uchar> bytes;
-  bool ok = false;
-  try {
-    ok = !extension.empty() && cv::imencode(extension, image, bytes);
-  } catch (const cv::Exception&) {
-    ok = false;
-  }
-  if (!ok) {
+  const ImageFormat format = ImageFormatFromExtension(extension);
+  if (format == ImageFormat::kUnknown) {
     throw InputError(path, 0, "", "cannot encode an image as '" + extension +
-                                      "' (use .png, .jpg, .bmp or .tif)");
+                                      "' (use .png, .jpg, .tif or .bmp)");
   }
-  return std::string(bytes.begin(), bytes.end());
+  std::string bytes, why;
+  if (!EncodeImageBytes(format, image, &bytes, &why)) {
+    throw InputError(path, 0, "", "cannot encode the image: " + why);
+  }
+  return bytes;
 }
 
 void WriteImageFile(const std::string& path, const cv::Mat& image) {

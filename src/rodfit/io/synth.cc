@@ -18,7 +18,6 @@
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include "rodfit/io/csv.h"
@@ -29,6 +28,7 @@
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/version.h"
 #include "rodfit/vision/camera_file.h"
+#include "rodfit/vision/image_codec.h"
 #include "rodfit/vision/render.h"
 
 namespace rodfit {
@@ -349,11 +349,13 @@ std::string SynthImage(const EntryContext& ctx, const std::string& file, std::st
   } catch (const std::invalid_argument& e) {
     ctx.Fail(std::string("cannot render the image: ") + e.what());
   }
-  std::vector<uchar> png;
-  if (!cv::imencode(".png", image, png)) ctx.Fail("cannot encode the image as PNG");
+  std::string png, why;
+  if (!EncodeImageBytes(ImageFormat::kPng, image, &png, &why)) {
+    ctx.Fail("cannot encode the image as PNG: " + why);
+  }
   *report = "case " + ctx.shape->name + ": " + file + ": images, " +
             std::to_string(camera.K.width) + "x" + std::to_string(camera.K.height) + " px";
-  return std::string(png.begin(), png.end());
+  return png;
 }
 
 // Solves `load_case` with its grasp moved to `position` from the case's start and returns the
