@@ -107,7 +107,7 @@ Vec3T<T> VertexCurvatures(const VertexStencilConstants& c, const T* q) {
 /// directors D1 = d1e + d1f, D2 = d2e + d2f and the twist difference dtheta (including the
 /// reference twist). The one formula behind VertexEnergy and the solver's fresh-frame path.
 template <typename T>
-T StencilEnergy(const VertexStencilConstants& c, const Vec3T<T>& te, const Vec3T<T>& tf,
+T StencilEnergy(const VertexStencilConstants& c, const Vec3T<T>& /*te*/, const Vec3T<T>& /*tf*/,
                 const Vec3T<T>& kb, const Vec3T<T>& D1, const Vec3T<T>& D2, const T& dtheta) {
   const double l = c.voronoi_length;
   const T k1 = kb.dot(D1) / Cst<T>(2.0 * l) - Cst<T>(c.rest_curvature[0]);

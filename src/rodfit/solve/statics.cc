@@ -95,14 +95,31 @@ struct Tolerances {
     }
     return worst;
   }
-  bool SmallStep(const VecX& step, double factor = 1.0) const {
-    double dx = 0.0, dtheta = 0.0;
-    for (int k = 0; k < step.size(); ++k) {
-      if (weights[k] == 0.0) continue;  // held dofs
-      double& m = (k % 4 == 3) ? dtheta : dx;
-      m = std::max(m, std::abs(step[k]));
+  /// The largest position and angle entries of `step` (held dofs skipped). One pass with the
+  /// two maxima in registers: selecting the maximum to update through a reference made each
+  /// entry wait on the store before it (a visible part of a warm re-solve).
+  struct StepSize {
+    double x = 0.0;      // [m]
+    double theta = 0.0;  // [rad]
+  };
+  StepSize Size(const VecX& step) const {
+    StepSize s;
+    const int m = static_cast<int>(step.size());
+    for (int k = 0; k < m; ++k) {
+      const double v = weights[k] == 0.0 ? 0.0 : std::abs(step[k]);
+      if (k % 4 == 3) {
+        s.theta = std::max(s.theta, v);
+      } else {
+        s.x = std::max(s.x, v);
+      }
     }
-    return dx <= factor * step_x && dtheta <= factor * step_theta;
+    return s;
+  }
+  bool SmallStep(const StepSize& s, double factor = 1.0) const {
+    return s.x <= factor * step_x && s.theta <= factor * step_theta;
+  }
+  bool SmallStep(const VecX& step, double factor = 1.0) const {
+    return SmallStep(Size(step), factor);
   }
   /// Convergence at a state with gradient norm `gnorm` and unshifted Newton step `step`: the
   /// gradient below the load tolerance; or the step below the step tolerance (1e-9 L: the state
@@ -112,8 +129,10 @@ struct Tolerances {
   /// A small step counts only with a gradient near its floor (within 1e3): a factor that lost
   /// the soft modes to round-off gives small steps far from the solution.
   bool Converged(double gnorm, const VecX& step) const {
-    return gnorm <= strict || (gnorm <= 1e3 * force && SmallStep(step)) ||
-           (gnorm <= force && SmallStep(step, 1e3));
+    if (gnorm <= strict) return true;
+    if (!(gnorm <= 1e3 * force)) return false;
+    const StepSize s = Size(step);
+    return SmallStep(s) || (gnorm <= force && SmallStep(s, 1e3));
   }
 };
 
@@ -230,11 +249,14 @@ double FactorShifted(const BandedSymmetric& H, double base, BandedCholesky* fact
                      double* last_failed) {
   *last_failed = -1.0;
   const double diag_scale = H.band().row(0).cwiseAbs().maxCoeff();
-  if (!std::isfinite(diag_scale) || !AllFinite(H.band())) return -1.0;
+  if (!std::isfinite(diag_scale)) return -1.0;
   const double cap = 1e6 * std::max(diag_scale, 1e-300);
   double shift = 0.0;
   for (int k = 0; k < 80; ++k) {  // 0, then base .. cap in decades
+    // A non-finite entry makes a pivot non-finite (every entry of the band's blocks enters one),
+    // which Factor refuses: the band is checked only after a failure, not before every factor.
     if (factor->Factor(H, shift)) return shift;
+    if (k == 0 && !AllFinite(H.band())) return -1.0;
     *last_failed = shift;
     shift = (shift == 0.0) ? std::min(base, cap) : shift * 10.0;
     if (shift > cap) break;
@@ -543,7 +565,8 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       ws->factor_valid = true;
       return converged(true);
     } else {
-      step = -ws->hessian.Solve(g);
+      step = -g;  // in place: no temporary vector per Newton step
+      ws->hessian.SolveInPlace(step);
     }
     if (!shifted && tol.Converged(gnorm, step)) {
       ws->factor_valid = true;
