@@ -72,6 +72,15 @@ struct ObservationSpec {
   double noise = 0.0;     ///< [grey levels] `images`: pixel noise sigma of synthesized images
   std::string point;      ///< `reaction`: the held point (HeldReaction::point)
   double sigma_moment = 0.0;  ///< [N m] `reaction`: moment sigma; 0: no moment
+  /// grasp_force: how the device logged. A row's tool position p and force f, in the device's
+  /// frame and units, become the scene's p_scene = R (position_scale p) + t and
+  /// f_scene = force_sign R (force_scale f): `unit` (m | mm), `force_unit` (N | mN),
+  /// `device_frame: {rotation, translation}` and `force_on` (instrument: +1 | tissue: -1).
+  double position_scale = 1.0;                             ///< [m per file unit]
+  double force_scale = 1.0;                                ///< [N per file unit]
+  Eigen::Matrix3d device_rotation = Eigen::Matrix3d::Identity();  ///< R: device to scene axes
+  Vec3 device_translation = Vec3::Zero();                  ///< t [m]: device origin in the scene
+  double force_sign = 1.0;  ///< +1: the log holds the force on the instrument; -1: on the tissue
   int line = 0;           ///< 1-based line of the entry
 };
 

@@ -330,11 +330,52 @@ Clamp ReadClamp(const Reader& r, const Field& f) {
   return clamp;
 }
 
+// A haptic device's log as recorded: its length and force units, its frame in the scene and
+// which body's force it holds (docs/formats.md, "Haptic logs as recorded").
+void ReadDeviceConvention(const Reader& r, const Entries& m, ObservationSpec* o) {
+  if (const Field* u = Reader::Find(m, "unit")) {
+    const std::string unit = r.Text(*u);
+    if (unit != "m" && unit != "mm") r.Fail(*u, "must be m or mm, got '" + ClipForMessage(unit) + "'");
+    o->position_scale = unit == "mm" ? 1e-3 : 1.0;
+  }
+  if (const Field* u = Reader::Find(m, "force_unit")) {
+    const std::string unit = r.Text(*u);
+    if (unit != "N" && unit != "mN") r.Fail(*u, "must be N or mN, got '" + ClipForMessage(unit) + "'");
+    o->force_scale = unit == "mN" ? 1e-3 : 1.0;
+  }
+  if (const Field* on = Reader::Find(m, "force_on")) {
+    const std::string body = r.Text(*on);
+    if (body != "instrument" && body != "tissue")
+      r.Fail(*on, "must be instrument (the force on the tool) or tissue (the force the tool "
+                  "applies), got '" + ClipForMessage(body) + "'");
+    o->force_sign = body == "tissue" ? -1.0 : 1.0;
+  }
+  const Field* frame = Reader::Find(m, "device_frame");
+  if (!frame) return;
+  const Entries fm = r.Map(*frame, {"rotation", "translation"});
+  if (const Field* t = Reader::Find(fm, "translation")) o->device_translation = r.Vector3(*t);
+  if (const Field* rot = Reader::Find(fm, "rotation")) {
+    const std::vector<Field> rows = r.Sequence(*rot);
+    if (rows.size() != 3) r.Fail(*rot, "expected 3 rows of 3 numbers (the device's axes in the scene, row by row)");
+    Eigen::Matrix3d R;
+    for (int i = 0; i < 3; ++i) R.row(i) = r.Vector3(rows[i]).transpose();
+    // A rotation to the file's precision: orthonormal (a scaled or sheared matrix would change
+    // the forces' size) with determinant +1 (no mirror image).
+    const double off = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+    if (!(off <= 1e-6) || !(R.determinant() > 0.0)) {
+      r.Fail(*rot, "is not a rotation (R^T R differs from I by " + Show(off) +
+                       ", det R = " + Show(R.determinant()) + ")");
+    }
+    o->device_rotation = R;
+  }
+}
+
 ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex,
                                 bool case_has_poke, const std::vector<std::string>& case_points) {
   const std::vector<std::string> all = {"type",     "file",  "camera", "sigma",
                                         "s",        "count", "outliers", "blur",
-                                        "noise",    "max_speed", "point", "sigma_moment"};
+                                        "noise",    "max_speed", "point", "sigma_moment",
+                                        "unit",     "force_unit", "device_frame", "force_on"};
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
@@ -358,7 +399,8 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   if (o.type != "images") allowed.push_back("count");
   if (o.type != "images" && !force && !surface) allowed.push_back("outliers");
   if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise"});
-  if (force) allowed.push_back("max_speed");
+  if (force) allowed.insert(allowed.end(),
+                            {"max_speed", "unit", "force_unit", "device_frame", "force_on"});
   const bool reaction = o.type == "reaction";
   if (reaction) {
     allowed = {"type", "file", "sigma", "point", "sigma_moment", "count"};
@@ -405,6 +447,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
       o.count = r.IntegerIn(*count, 1, kMaxDragSteps);
     }
     if (const Field* v = Reader::Find(m, "max_speed")) o.max_speed = r.Positive(*v);
+    ReadDeviceConvention(r, m, &o);
     return o;
   }
   if (s && count) r.Fail(count->key_line, count->key, "give either s or count, not both");

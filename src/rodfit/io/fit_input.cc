@@ -102,9 +102,17 @@ std::vector<HapticSample> QuasiStaticSamples(const ObservationSpec& spec, const 
              z = t.Column("tool_z"), fx = t.Column("fx"), fy = t.Column("fy"), fz = t.Column("fz");
   const int n = t.num_rows();
   if (n < 3) throw InputError(spec.file, 0, "", "a force log needs at least 3 samples");
+  // The device's units, frame and sign convention (the entry's unit, force_unit, device_frame,
+  // force_on) to the scene's.
+  std::vector<Vec3> tool(n), force(n);
+  for (int r = 0; r < n; ++r) {
+    tool[r] = spec.device_rotation * (spec.position_scale * Vec3(x[r], y[r], z[r])) +
+              spec.device_translation;
+    force[r] = spec.force_sign * (spec.device_rotation * (spec.force_scale * Vec3(fx[r], fy[r], fz[r])));
+  }
   // The instrument holds the rod: a tool position out of its reach is bad data (each quasi-static
   // sample becomes a held point the solve would chase).
-  for (int r = 0; r < n; ++r) CheckReach(t, r, Vec3(x[r], y[r], z[r]), clamp, length, "tool_x");
+  for (int r = 0; r < n; ++r) CheckReach(t, r, tool[r], clamp, length, "tool_x");
   for (int r = 1; r < n; ++r)
     if (!(time[r] > time[r - 1]))
       throw InputError(spec.file, t.line(r), "t",
@@ -113,9 +121,8 @@ std::vector<HapticSample> QuasiStaticSamples(const ObservationSpec& spec, const 
   std::vector<HapticSample> still;
   for (int r = 0; r < n; ++r) {
     const int a = std::max(0, r - 1), b = std::min(n - 1, r + 1);
-    const Vec3 pa(x[a], y[a], z[a]), pb(x[b], y[b], z[b]);
-    const double speed = (pb - pa).norm() / (time[b] - time[a]);
-    if (speed < spec.max_speed) still.push_back({time[r], Vec3(x[r], y[r], z[r]), Vec3(fx[r], fy[r], fz[r])});
+    const double speed = (tool[b] - tool[a]).norm() / (time[b] - time[a]);  // [m/s]
+    if (speed < spec.max_speed) still.push_back({time[r], tool[r], force[r]});
   }
   if (spec.count == 0 && static_cast<int>(still.size()) > kMaxDragSteps)
     throw InputError(spec.file, 0, "",

@@ -465,6 +465,13 @@ std::string SynthGraspForce(const EntryContext& ctx, const std::string& file, st
       for (int d = 0; d < 3; ++d) row.force(d) += spec.sigma * ctx.random->Normal();
     }
   }
+  // Written as the entry says the device logs (unit, force_unit, device_frame, force_on): the
+  // inverse of what the fit applies when it reads the log.
+  for (HapticLogRow& row : rows) {
+    row.tool = spec.device_rotation.transpose() * (row.tool - spec.device_translation) /
+               spec.position_scale;
+    row.force = spec.force_sign * (spec.device_rotation.transpose() * row.force) / spec.force_scale;
+  }
   char speed[32];
   std::snprintf(speed, sizeof(speed), "%.3g", (end - start).norm() / steps / (intervals * dt));
   *report = "case " + ctx.shape->name + ": " + file + ": grasp_force, " +
