@@ -96,6 +96,35 @@ TEST(CameraFile, StereoSampleKeys) {
   EXPECT_NEAR(second.CentreWorld().x(), 0.12, 0.02);
 }
 
+TEST(CameraFile, StereoKeySpellingsGiveTheSamePair) {
+  // K1 D1 K2 D2 (lab tools, OpenCV's Python examples) and cameraMatrix1/2 with distCoeffs1/2
+  // (cv::stereoCalibrate's names): the same values as the M1/M2 sample give the same cameras.
+  const auto reference = LoadStereoCameras(DataPath("stereo.yaml"));
+  for (const char* file : {"stereo_k.yaml", "stereo_cv.yaml"}) {
+    SCOPED_TRACE(file);
+    const auto pair = LoadStereoCameras(DataPath(file));
+    for (const auto& [a, b] : {std::make_pair(pair.first, reference.first),
+                               std::make_pair(pair.second, reference.second)}) {
+      EXPECT_EQ(a.K.fx, b.K.fx);
+      EXPECT_EQ(a.K.fy, b.K.fy);
+      EXPECT_EQ(a.K.cx, b.K.cx);
+      EXPECT_EQ(a.K.cy, b.K.cy);
+      EXPECT_EQ(a.K.k1, b.K.k1);
+      EXPECT_EQ(a.K.k3, b.K.k3);
+      EXPECT_EQ(a.K.width, b.K.width);
+      EXPECT_EQ(a.cam_from_world_R, b.cam_from_world_R);
+      EXPECT_EQ(a.cam_from_world_t, b.cam_from_world_t);
+    }
+  }
+  // A single-camera load of a K1/K2 file says it is a stereo file.
+  try {
+    LoadCamera(DataPath("stereo_k.yaml"));
+    ADD_FAILURE() << "a stereo file loaded as one camera";
+  } catch (const CameraFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("stereo file (K1)"), std::string::npos) << e.what();
+  }
+}
+
 TEST(CameraFile, FilesWrittenByOpenCVRoundTrip) {
   // YAML, JSON and XML as cv::FileStorage writes them (Mat-valued distortion, Vec3d poses).
   for (const char* ext : {".yaml", ".json", ".xml"}) {

@@ -5,7 +5,8 @@
 //  - OpenCV tutorial: Camera_Matrix, Distortion_Coefficients, image_Width, image_Height;
 //  - ROS camera_info YAML: camera_matrix / distortion_coefficients as {rows, cols, data},
 //    distortion_model plumb_bob (or rational_polynomial with zero extra coefficients);
-//  - OpenCV stereo sample (LoadStereoCameras): M1 D1 M2 D2, R T with x_cam2 = R x_cam1 + T.
+//  - stereo files (LoadStereoCameras): M1 D1 M2 D2 (OpenCV's sample) or K1 D1 K2 D2 or
+//    cameraMatrix1 distCoeffs1 cameraMatrix2 distCoeffs2, and R T with x_cam2 = R x_cam1 + T.
 // Matrices are !!opencv-matrix nodes, {rows, cols, data} maps, flat lists (row-major) or lists of
 // rows. The world-to-camera pose is rvec/tvec (x_cam = R(rvec) x_world + tvec, Rodrigues) or R/T;
 // no pose means the camera frame is the world frame. Distortion is OpenCV's (k1, k2, p1, p2[, k3])
@@ -46,7 +47,7 @@ int MarkupNestingDepth(const std::string& text);
 /// Throws CameraFileError.
 Camera LoadCamera(const std::string& path);
 
-/// Loads a stereo pair (M1 D1 M2 D2 R T and the shared image size). Camera 1 is posed by
+/// Loads a stereo pair (M1|K1 D1 M2|K2 D2 R T and the shared image size). Camera 1 is posed by
 /// rvec/tvec if present (else it is the world frame); camera 2 is [R | T] composed with camera 1.
 /// Names are "STEM[1]" and "STEM[2]". Throws CameraFileError.
 std::pair<Camera, Camera> LoadStereoCameras(const std::string& path);

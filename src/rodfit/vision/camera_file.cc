@@ -275,8 +275,9 @@ void ReadIntrinsics(const Document& doc, std::initializer_list<const char*> matr
                     std::initializer_list<const char*> distortion_keys, CameraIntrinsics* K) {
   std::string key;
   const cv::FileNode k_node = doc.Find(matrix_keys, &key);
-  if (k_node.isNone() && !doc.Find({"M1"}, &key).isNone()) {
-    doc.Fail(*matrix_keys.begin(), "missing; this is a stereo file (M1, M2): load it as a pair");
+  if (k_node.isNone() && !doc.Find({"M1", "K1", "cameraMatrix1"}, &key).isNone()) {
+    doc.Fail(*matrix_keys.begin(), "missing; this is a stereo file (" + key +
+                                       "): load it as a pair (extract --stereo)");
   }
   Eigen::MatrixXd M = Matrix(doc, doc.Require(matrix_keys, &key), key);
   if (M.rows() == 1 && M.cols() == 9) M = Eigen::Map<Eigen::Matrix3d>(M.data()).transpose().eval();
@@ -490,8 +491,10 @@ Camera LoadCamera(const std::string& path) {
 std::pair<Camera, Camera> LoadStereoCameras(const std::string& path) {
   const Document doc(path);
   Camera first, second;
-  ReadIntrinsics(doc, {"M1"}, {"D1"}, &first.K);
-  ReadIntrinsics(doc, {"M2"}, {"D2"}, &second.K);
+  // M1/M2 (OpenCV's stereo_calib sample), K1/K2 (what most lab tools and OpenCV's Python
+  // examples write), cameraMatrix1/2 with distCoeffs1/2 (cv::stereoCalibrate's argument names).
+  ReadIntrinsics(doc, {"M1", "K1", "cameraMatrix1"}, {"D1", "distCoeffs1"}, &first.K);
+  ReadIntrinsics(doc, {"M2", "K2", "cameraMatrix2"}, {"D2", "distCoeffs2"}, &second.K);
   ReadImageSize(doc, &first.K);
   second.K.width = first.K.width;
   second.K.height = first.K.height;
