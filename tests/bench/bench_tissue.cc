@@ -1,4 +1,4 @@
-// Tissue benchmark (issue 5): the cost of a case with springs and a grasp against the same case
+// Tissue benchmark: the cost of a case with springs and a grasp against the same case
 // without them. A scene without springs builds no spring term (RodModel has no zones, the
 // assembly loop over zones is empty), so its cost must equal the plain rod's.
 // Run: build/bench_tissue; one core, Release build.

@@ -1,4 +1,4 @@
-// Hostile input through the command line (issue 15), the bullets this file covers: `fit` and
+// Hostile input through the command line, the kinds this file covers: `fit` and
 // `extract` that fail while writing leave every output (profile, report, points CSV, overlays)
 // as it was; input files that are directories, devices, FIFOs or larger than the limit give one
 // line naming them without being read; running out of memory is reported as such.

@@ -30,7 +30,7 @@ using ::testing::HasSubstr;
 
 const std::string kRecipes = RODFIT_SOURCE_DIR "/calibration/";
 
-/// Results independent of the thread count to this relative tolerance (issue 15).
+/// Results independent of the thread count to this relative tolerance.
 constexpr double kThreadTolerance = 1e-12;
 
 std::string Q(const std::string& s) { return test::Quote(s); }

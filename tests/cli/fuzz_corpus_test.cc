@@ -45,7 +45,7 @@ namespace fs = std::filesystem;
 using test::ReadText;
 using test::TempDir;
 
-/// A message is one line of at most this many characters (issue 15: "at most ~300").
+/// A message is one line of at most this many characters.
 constexpr size_t kMaxLineChars = 300;
 
 std::string Cli() {

@@ -211,7 +211,7 @@ TEST_F(HeldPointsBehaviourTest, SummaryCsvSaysHowEachSolveEnded) {
                                        kHeldCase + "  - name: sag\n" + kClamp));
   ASSERT_EQ(run.status, 0) << run.err;
   const std::string text = ReadText(Out("summary.csv"));
-  // No wall time in an output (issue 15): simulate prints its time on stdout instead.
+  // No wall time in an output (reproducible outputs): simulate prints its time on stdout instead.
   EXPECT_THAT(text, StartsWith("case,converged,stable,iterations,gradient_norm,reason\n"));
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 3) << text;
   const Summary summary = ReadSummary(Out("summary.csv"));

@@ -1,4 +1,4 @@
-// Tests that rodfit's outputs do not mislead (issue 14, "honest outputs"), run as a user would:
+// Tests that rodfit's outputs do not mislead, run as a user would:
 // `rodfit --version` prints the project's version, which the profile and truth.json carry; a
 // fitted parameter the data do not determine is written with no value (null, its start apart)
 // and the fit exits 4; `fit.trusted_sigmas: true` still checks the residual variance and warns

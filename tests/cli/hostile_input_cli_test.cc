@@ -1,4 +1,4 @@
-// Hostile input through the command line (issue 15), each bullet of the issue that this branch
+// Hostile input through the command line, each kind of bad input that this file
 // covers as a test of its own: a poked case named as a path writes nothing anywhere; a camera
 // file nested 50,000 levels deep is a one-line error, not a crash; `fit -o` onto its own
 // experiment or data is refused before anything is written; `simulate` and `synth` that fail

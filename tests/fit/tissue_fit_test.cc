@@ -1,4 +1,4 @@
-// Identification of the tissue terms (issue 5): a single spring stiffness and two zone
+// Identification of the tissue terms: a single spring stiffness and two zone
 // stiffnesses from markers, K from a haptic force log alone, and the force Jacobian against
 // central differences of the forward map.
 #include <cmath>

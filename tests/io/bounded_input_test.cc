@@ -1,4 +1,4 @@
-// Input files bounded before they are parsed (io/csv.h, issue 15): only regular files of at most
+// Input files bounded before they are parsed (io/csv.h): only regular files of at most
 // kMaxInputFileBytes reach a parser (a directory, /dev/zero, a FIFO or a huge file is a one-line
 // error naming it, and nothing is read whole), and a CSV table holds at most kMaxCsvRows rows
 // and kMaxCsvFieldBytes per field.

@@ -1,4 +1,4 @@
-// Hostile input at the io layer (issue 15): case names that would be paths are refused where they
+// Hostile input at the io layer: case names that would be paths are refused where they
 // are read, and echoed values are cut short, so a 1 MiB field makes a short message.
 #include <string>
 

@@ -171,7 +171,7 @@ namespace rodfit {
 namespace {
 
 // The header's size is read without decoding (PNG, BMP, JPEG), and an image whose header claims
-// more than the limit is refused before the decoder would allocate it (issue 15).
+// more than the limit is refused before the decoder would allocate it.
 TEST(ImageHeader, SizeIsReadFromTheHeaderAndBoundedBeforeDecoding) {
   TempDir dir;
   std::vector<uchar> png, jpg, bmp;

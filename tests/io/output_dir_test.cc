@@ -1,4 +1,4 @@
-// Output directories (io/output_dir.h, issue 15): names never leave their directory, no output
+// Output directories (io/output_dir.h): names never leave their directory, no output
 // is one of the run's inputs, and a staged directory appears whole or not at all, a failure
 // leaving an existing one as it was.
 #include "rodfit/io/output_dir.h"

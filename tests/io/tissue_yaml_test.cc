@@ -1,4 +1,4 @@
-// The tissue keys of the experiment YAML (issue 5): section, poke and the ring parameters; each
+// The tissue keys of the experiment YAML: section, poke and the ring parameters; each
 // mistake is an InputError naming the file, the line and the key.
 #include <string>
 

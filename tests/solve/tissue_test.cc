@@ -1,4 +1,4 @@
-// Tissue terms (issue 5): springs tying the rod to its rest position, cuts, and a grasp with its
+// Tissue terms: springs tying the rod to its rest position, cuts, and a grasp with its
 // reaction force. Published references and physics checks, and derivatives.
 #include <cmath>
 #include <random>

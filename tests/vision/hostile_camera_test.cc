@@ -1,4 +1,4 @@
-// Hostile camera files (issue 15): a file nested 50,000 levels deep in YAML, JSON or XML, or one
+// Hostile camera files: a file nested 50,000 levels deep in YAML, JSON or XML, or one
 // larger than a camera file can be, is refused with one line naming the file before it reaches
 // cv::FileStorage (whose parsers overflow the stack on such nesting); absurd distortion
 // coefficients and intrinsics are refused by name instead of failing the fit later.

@@ -509,7 +509,8 @@ class CaseEvaluator {
 /// Every case as one residual block, the cases evaluated on `num_threads` threads, each writing
 /// its own rows. Ceres, on one thread, then sums cost and gradient over the rows in their fixed
 /// order, so results do not depend on the thread count or on which thread took which case
-/// (with a block per case, Ceres' per-thread partial sums changed the last digits; issue 15).
+/// (with a block per case, Ceres' per-thread partial sums changed the last digits; docs/cli.md,
+/// "Reproducible outputs").
 class AllCasesCost final : public ceres::CostFunction {
  public:
   AllCasesCost(std::vector<const CaseEvaluator*> cases, int num_threads)

@@ -1,4 +1,4 @@
-// Where a run's outputs may go (issue 15): every file of a run is staged in a temporary directory
+// Where a run's outputs may go: every file of a run is staged in a temporary directory
 // beside the target and moved into place only when the run succeeds, no output path leaves its
 // output directory, and no output is one of the run's own inputs. Errors are InputErrors naming
 // the output path.

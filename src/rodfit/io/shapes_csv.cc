@@ -76,7 +76,8 @@ std::string FormatForcesCsv(const std::vector<CaseForce>& forces) {
 }
 
 std::string FormatSummaryCsv(const std::vector<CaseSummaryRow>& rows) {
-  // No wall time: the same scene gives the same bytes (issue 15); simulate prints its time.
+  // No wall time: the same scene gives the same bytes (docs/cli.md, "Reproducible outputs");
+  // simulate prints its time.
   std::string out = "case,converged,stable,iterations,gradient_norm,reason\n";
   for (const CaseSummaryRow& r : rows) {
     std::string reason;
