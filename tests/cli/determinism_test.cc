@@ -1,4 +1,4 @@
-// Issue 15, item 6: the same inputs and thread count give byte-identical files, and results do not
+// Reproducible outputs: the same inputs and thread count give byte-identical files, and results do not
 // depend on the thread count beyond 1e-12 relative. Run on the bundled recipes as a user runs them
 // (README, "Calibration recipes"): the tissue_drag fit (two spring zones from markers and a
 // haptic log: 10 cases evaluated in parallel) and the tissue_poke fit with their reports,

@@ -1,4 +1,4 @@
-// Issue 15, the bullets of its first list not covered by hostile_input_cli_test.cc and
+// Limits and diagnoses of hostile input not covered by hostile_input_cli_test.cc and
 // atomic_bounded_cli_test.cc, one named test each, run as a user would: scene YAML nested 50,000
 // levels (flow and block) and YAML aliases (2000 aliased cases, a billion laughs) refused before
 // any work with the limit named; every documented limit (segments, section nodes, synth counts,
