@@ -47,6 +47,9 @@ int RunRollout(int argc, char** argv) {
       ->check(CLI::Range(1, 100000));
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
   app.add_option("--frame-rate", frame_rate, "[Hz] with a frame column")->check(CLI::Range(1e-6, 1e9));
+  std::string unit = "m";
+  app.add_option("--unit", unit, "the recordings' positions: m (default) or mm")
+      ->check(CLI::IsMember({"m", "mm"}));
   app.add_option("--held", held_text, "driven markers, comma separated; negative from the last (default 0,1,-2,-1)");
   app.add_option("--initial", initial, "equilibrium (default) or markers: the start shape")
       ->check(CLI::IsMember({"equilibrium", "markers"}));
@@ -61,7 +64,9 @@ int RunRollout(int argc, char** argv) {
   std::vector<rodfit::MarkerRecording> recs;
   std::vector<rodfit::MotionRecordingData> data;
   for (const std::string& path : recording_paths) {
-    recs.push_back(rodfit::ReadMarkerRecording(path, frame_rate));
+    recs.push_back(rodfit::ReadMarkerRecording(path, frame_rate, unit == "mm" ? 1e-3 : 1.0));
+    rodfit::CheckRecordingScale(recs.back(), experiment.scene.rod.length,
+                                unit == "mm" ? "--unit mm is set" : "give --unit mm");
     data.push_back({recs.back().frame_interval, recs.back().frames});
   }
   rodfit::RolloutOptions options;

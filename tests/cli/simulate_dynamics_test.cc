@@ -206,6 +206,35 @@ TEST(Rollout, PredictsARecordingMadeBySimulate) {
                            " -o " + Quote(dir.File("g")) + " --fit length");
   EXPECT_EQ(run.status, 1);
   EXPECT_THAT(run.err, HasSubstr("--fit: a motion fit cannot fit 'length'"));
+  // The same recording in millimetres: with --unit mm the same rollout; without it, an error
+  // that names the file and the likely cause (and metres given as millimetres likewise).
+  std::string rec_mm = "t,marker,x,y,z\n";
+  for (int r = 0; r < traj.num_rows(); ++r) {
+    if (static_cast<int>(v[r]) % 5 != 0) continue;
+    rec_mm += FormatDouble(t[r]) + "," + std::to_string(static_cast<int>(v[r]) / 5) + "," +
+              FormatDouble(1e3 * x[r]) + "," + FormatDouble(1e3 * y[r]) + "," +
+              FormatDouble(1e3 * z[r]) + "\n";
+  }
+  dir.Write("rec_mm.csv", rec_mm);
+  run = RunRodfit(dir, "rollout " + Quote(scene) + " " + Quote(dir.File("rec_mm.csv")) + " -o " +
+                           Quote(dir.File("mm")) + " --held 0,1,-1 --unit mm");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const CsvTable out_mm = CsvTable::Read(dir.File("mm/rollout.csv"));
+  ASSERT_EQ(out_mm.num_rows(), out.num_rows());
+  const std::vector<double> px_mm = out_mm.Column("x"), ox_mm = out_mm.Column("observed_x");
+  for (int r = 0; r < out.num_rows(); ++r) {
+    EXPECT_NEAR(ox_mm[r], ox[r], 1e-12) << r;
+    EXPECT_NEAR(px_mm[r], px[r], 1e-9) << r;
+  }
+  run = RunRodfit(dir, "rollout " + Quote(scene) + " " + Quote(dir.File("rec_mm.csv")) + " -o " +
+                           Quote(dir.File("mm2")) + " --held 0,1,-1");
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("rec_mm.csv: x: the markers span"));
+  EXPECT_THAT(run.err, HasSubstr("millimetres read as metres? (give --unit mm)"));
+  run = RunRodfit(dir, "rollout " + Quote(scene) + " " + Quote(dir.File("rec.csv")) + " -o " +
+                           Quote(dir.File("mm3")) + " --held 0,1,-1 --unit mm");
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("metres read as millimetres? (--unit mm is set)"));
   // A frame column without its rate is one line naming the file.
   dir.Write("bad.csv", "frame,marker,x,y,z\n0,0,0,0,0\n");
   run = RunRodfit(dir, "rollout " + Quote(scene) + " " + Quote(dir.File("bad.csv")) + " -o " +

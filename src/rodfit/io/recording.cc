@@ -1,6 +1,7 @@
 #include "rodfit/io/recording.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "rodfit/io/csv.h"
@@ -8,7 +9,8 @@
 
 namespace rodfit {
 
-MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate) {
+MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
+                                    double position_scale) {
   constexpr int kMaxFrames = 100000, kMaxMarkers = 10000;
   const CsvTable table = CsvTable::Read(path);
   MarkerRecording rec;
@@ -70,9 +72,43 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate) 
     const int m = static_cast<int>(marker[r]);
     if (fr.col(m).allFinite())
       throw InputError(path, table.line(r), "marker", "this marker is given twice in one frame");
-    fr.col(m) = Eigen::Vector3d(x[r], y[r], z[r]);
+    fr.col(m) = position_scale * Eigen::Vector3d(x[r], y[r], z[r]);
   }
   return rec;
+}
+
+void CheckRecordingScale(const MarkerRecording& recording, double rod_length,
+                         const std::string& hint) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (const Eigen::Matrix3Xd& frame : recording.frames) {
+    for (int m = 0; m < frame.cols(); ++m) {
+      if (!frame.col(m).allFinite()) continue;
+      lo = lo.cwiseMin(frame.col(m));
+      hi = hi.cwiseMax(frame.col(m));
+    }
+  }
+  if (!(hi.x() >= lo.x())) return;  // no marker seen: the rollout says so
+  const double span = (hi - lo).norm();
+  if (span > 100.0 * rod_length) {
+    char text[256];
+    std::snprintf(text, sizeof(text),
+                  "the markers span %.4g m, more than 100 rod lengths (the rod is %.4g m): "
+                  "millimetres read as metres? (%s)",
+                  span, rod_length, hint.c_str());
+    throw InputError(recording.file, 0, "x", text);
+  }
+  int seen = 0;
+  for (int m = 0; m < recording.frames.front().cols(); ++m)
+    seen += recording.frames.front().col(m).allFinite() ? 1 : 0;
+  if (seen >= 2 && span < 0.01 * rod_length) {
+    char text[256];
+    std::snprintf(text, sizeof(text),
+                  "the markers span %.4g m, less than a hundredth of the rod (%.4g m): metres "
+                  "read as millimetres? (%s)",
+                  span, rod_length, hint.c_str());
+    throw InputError(recording.file, 0, "x", text);
+  }
 }
 
 }  // namespace rodfit

@@ -16,9 +16,18 @@ struct MarkerRecording {
   std::vector<Eigen::Matrix3Xd> frames;     ///< 3 x markers per frame [m], NaN where not seen
 };
 
-/// Reads a recording; `frame_rate` [Hz] is required with a `frame` column and ignored with `t`.
+/// Reads a recording; `frame_rate` [Hz] is required with a `frame` column and ignored with `t`;
+/// positions are multiplied by `position_scale` [m per file unit] (1e-3 for millimetres).
 /// Throws InputError naming the file, line and column (markers not 0..M-1 integers, a frame
 /// seen twice for one marker, uneven times, more than 100,000 frames or 10,000 markers).
-MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate);
+MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
+                                    double position_scale = 1.0);
+
+/// The recording's units against the rod: throws InputError naming the file when its markers
+/// span (bounding-box diagonal over all frames) more than 100 rod lengths, the mark of
+/// millimetres read as metres, or less than a hundredth of the rod (two markers or more seen in
+/// the first frame; metres read as millimetres), with the hint `hint` (e.g. the option that sets the unit).
+void CheckRecordingScale(const MarkerRecording& recording, double rod_length,
+                         const std::string& hint);
 
 }  // namespace rodfit
