@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -104,6 +105,7 @@ TEST(SimulateDynamics, ExplicitAboveItsStableStepIsRefusedWithTheLimit) {
 TEST(SimulateDynamics, BadDynamicsInputIsOneLineNamingFileLineAndKey) {
   struct Bad {
     std::string dynamics, extra, message;
+    std::string file = "s.yaml:";  // the file the message names
   };
   const std::vector<Bad> cases = {
       {"{time_step: 0.001, duration: 1, integrator: rk4}", "", "dynamics.integrator: must be"},
@@ -114,16 +116,23 @@ TEST(SimulateDynamics, BadDynamicsInputIsOneLineNamingFileLineAndKey) {
       {"{time_step: 0.001, duration: 1}", "    drive: [{point: end_pin, file: p.csv}]\n",
        "must name a point the case holds"},
       {"{time_step: 0.001, duration: 1}", "    initial: {shape: bent}\n",
-       "must be equilibrium or start"},
+       "must be equilibrium, start or a shape CSV file"},
+      {"{time_step: 0.001, duration: 1}", "    driven: [{s: 0.5, file: q.csv}]\n",
+       "q.csv:2: qw: not a unit quaternion", "q.csv:"},
+      {"{time_step: 0.001, duration: 1}", "    driven: [{s: 1.5, file: p.csv}]\n",
+       "driven[0].s: must be in [0, 1]"},
+      {"{time_step: 0.001, duration: 1}",
+       "    driven: [{s: 0, file: p.csv}, {s: 0, file: p.csv}]\n", "drives the clamp a second time"},
   };
   for (const Bad& bad : cases) {
     TempDir dir;
     dir.Write("p.csv", "t,x,y,z\n0,1,0,0\n");
+    dir.Write("q.csv", "t,x,y,z,qw,qx,qy,qz\n0,0.5,0,0,0,0,0,0\n");
     const std::string scene = dir.Write("s.yaml", Scene(bad.dynamics, bad.extra));
     const RunResult run = RunRodfit(dir, "simulate " + Quote(scene) + " -o " + Quote(dir.File("o")));
     EXPECT_EQ(run.status, 1) << bad.message;
     EXPECT_THAT(run.err, HasSubstr(bad.message));
-    EXPECT_THAT(run.err, HasSubstr("s.yaml:"));
+    EXPECT_THAT(run.err, HasSubstr(bad.file));
     EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
   }
   // A drive without a dynamics block, and a path whose t does not increase.
@@ -156,6 +165,100 @@ namespace {
 // rollout on a recording made by simulate: the cable's vertices every 5th as markers at 100 Hz
 // (t,marker,x,y,z), the same scene: the prediction follows the recording to well under a
 // millimetre except for the start's finite-difference velocity.
+// The contract's spelling of driven points: `driven: [{s, file}]` with the clamp's frame as a
+// quaternion (qw,qx,qy,qz: d3 = R e_z, d1 = R e_x), s = L creating the end pin, `integrator:
+// implicit` and `rod.vertex_s`, against the same motion as `drive:` with tx..nz columns on a
+// declared end_pin: the same trajectory, to the digit (the quaternions written from the frame
+// columns' tangent and normal, so the two files hold the same held frames).
+TEST(SimulateDynamics, DrivenByArcLengthWithQuaternionsMatchesDriveByPointName) {
+  TempDir dir;
+  // The clamp turns 0.3 rad about z over 0.2 s while moving up; the far end slides along y.
+  std::string quaternion = "t,x,y,z,qw,qx,qy,qz\n", frame = "t,x,y,z,tx,ty,tz,nx,ny,nz\n";
+  for (int k = 0; k <= 4; ++k) {
+    const double t = 0.05 * k, a = 0.3 * t / 0.2, z = 0.05 * t / 0.2;
+    // The rotation whose columns are the held directors: d1 (normal) = R e_x, d3 (tangent) =
+    // R e_z; the tangent is x turned by a about z, the normal z.
+    const Eigen::Vector3d tangent(std::cos(a), std::sin(a), 0.0), normal(0, 0, 1);
+    Eigen::Matrix3d R;
+    R.col(0) = normal;
+    R.col(2) = tangent;
+    R.col(1) = tangent.cross(normal);
+    const Eigen::Quaterniond q(R);
+    quaternion += FormatDouble(t) + ",0,0," + FormatDouble(z) + "," + FormatDouble(q.w()) + "," +
+                  FormatDouble(q.x()) + "," + FormatDouble(q.y()) + "," + FormatDouble(q.z()) + "\n";
+    frame += FormatDouble(t) + ",0,0," + FormatDouble(z) + "," + FormatDouble(tangent.x()) + "," +
+             FormatDouble(tangent.y()) + ",0,0,0,1\n";
+  }
+  dir.Write("clamp_q.csv", quaternion);
+  dir.Write("clamp_f.csv", frame);
+  dir.Write("end.csv", "t,x,y,z\n0,0.9,0,0\n0.2,0.85,0.1,0\n");
+  std::string vertex_s = "[0";
+  for (int k = 1; k < 20; ++k) vertex_s += ", " + FormatDouble(k / 20.0 + (k % 2 ? 0.01 : -0.01));
+  vertex_s += ", 1.0]";
+  auto scene = [&](const std::string& integrator, const std::string& extra) {
+    return Replace(Scene("{time_step: 0.005, duration: 0.2, output_every: 4, integrator: " +
+                             integrator + "}",
+                         extra),
+                   "segments: 20", "vertex_s: " + vertex_s);
+  };
+  const std::string a = dir.Write(
+      "a.yaml", scene("implicit", "    driven: [{s: 0, file: clamp_q.csv}, {s: 1.0, file: end.csv}]\n"));
+  const std::string b = dir.Write(
+      "b.yaml", scene("bdf2", "    end_pin: {position: [0.9, 0, 0]}\n"
+                              "    drive: [{point: clamp, file: clamp_f.csv}, "
+                              "{point: end_pin, file: end.csv}]\n"));
+  RunResult run = RunRodfit(dir, "simulate " + Quote(a) + " -o " + Quote(dir.File("oa")));
+  ASSERT_EQ(run.status, 0) << run.err;
+  run = RunRodfit(dir, "simulate " + Quote(b) + " -o " + Quote(dir.File("ob")));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const CsvTable ta = CsvTable::Read(dir.File("oa/trajectory.csv"));
+  const CsvTable tb = CsvTable::Read(dir.File("ob/trajectory.csv"));
+  ASSERT_EQ(ta.num_rows(), tb.num_rows());
+  ASSERT_EQ(ta.num_rows(), 11 * 21);  // 40 steps written every 4th, and t = 0
+  const std::vector<double> sa = ta.Column("s");
+  EXPECT_NEAR(sa[1], 0.06, 1e-12);  // the given vertex_s, not an even spacing
+  double worst = 0.0;
+  for (const char* c : {"x", "y", "z"}) {
+    const std::vector<double> xa = ta.Column(c), xb = tb.Column(c);
+    for (int r = 0; r < ta.num_rows(); ++r) worst = std::max(worst, std::abs(xa[r] - xb[r]));
+  }
+  EXPECT_LT(worst, 1e-9);
+  // A frame on a point that holds only a position is one line naming the key.
+  const std::string bad = dir.Write(
+      "bad.yaml", scene("implicit", "    driven: [{s: 0.5, file: clamp_q.csv}]\n"));
+  run = RunRodfit(dir, "simulate " + Quote(bad) + " -o " + Quote(dir.File("oc")));
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("bad.yaml:"));
+  EXPECT_THAT(run.err, HasSubstr("holds a position only"));
+}
+
+TEST(SimulateDynamics, BadVertexArcLengthsAreOneLineNamingTheKey) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"[0.1, 0.5, 1.0]", "vertex_s[0]: must be 0"},
+      {"[0, 0.5, 0.4, 1.0]", "vertex_s[2]: must be larger than the one before"},
+      {"[0, 0.5, 0.9]", "vertex_s[2]: must be rod.length 1"},
+      {"[0, 1.0]", "rod.vertex_s: expected 3 to"},
+  };
+  for (const auto& [list, message] : cases) {
+    TempDir dir;
+    const std::string scene = dir.Write(
+        "s.yaml", Replace(Scene("{time_step: 0.001, duration: 0.01}", ""), "segments: 20",
+                          "vertex_s: " + list));
+    const RunResult run = RunRodfit(dir, "simulate " + Quote(scene) + " -o " + Quote(dir.File("o")));
+    EXPECT_EQ(run.status, 1) << list;
+    EXPECT_THAT(run.err, HasSubstr("s.yaml:")) << list;
+    EXPECT_THAT(run.err, HasSubstr(message)) << run.err;
+  }
+  // Both keys: they must agree.
+  TempDir dir;
+  const std::string scene = dir.Write(
+      "s.yaml", Replace(Scene("{time_step: 0.001, duration: 0.01}", ""), "segments: 20",
+                        "segments: 3, vertex_s: [0, 0.5, 1.0]"));
+  const RunResult run = RunRodfit(dir, "simulate " + Quote(scene) + " -o " + Quote(dir.File("o")));
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("rod.segments: disagrees with vertex_s (2 segments)"));
+}
+
 TEST(Rollout, PredictsARecordingMadeBySimulate) {
   TempDir dir;
   dir.Write("path.csv", "t,x,y,z\n0,0.9,0,0\n0.3,0.8,0.1,0.05\n");

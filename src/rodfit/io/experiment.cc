@@ -228,11 +228,35 @@ class Reader {
 };
 
 RodSpec ReadRod(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"length", "segments", "radius", "linear_density", "rest_curvature"});
+  const Entries m = r.Map(f, {"length", "segments", "radius", "linear_density", "rest_curvature",
+                              "vertex_s"});
   RodSpec rod;
   rod.length = r.Positive(r.Require(m, f, "length"));
-  const Field& segments = r.Require(m, f, "segments");
-  rod.segments = r.IntegerIn(segments, 2, kMaxSegments);
+  if (const Field* vs = Reader::Find(m, "vertex_s")) {
+    // Vertices at given arc lengths (a vertex at every tracked marker): 0 first, the length
+    // last, increasing; the segment count follows (and must agree when also given).
+    const std::vector<Field> items = r.Sequence(*vs);
+    if (items.size() < 3 || items.size() > static_cast<size_t>(kMaxSegments) + 1)
+      r.Fail(*vs, "expected 3 to " + std::to_string(kMaxSegments + 1) + " arc lengths, got " +
+                      std::to_string(items.size()));
+    for (size_t k = 0; k < items.size(); ++k) {
+      const double v = r.Number(items[k]);
+      if (k == 0 && v != 0.0) r.Fail(items[k], "must be 0 (the clamped end)");
+      if (k + 1 == items.size() && std::abs(v - rod.length) > 1e-12 * rod.length)
+        r.Fail(items[k], "must be rod.length " + Show(rod.length) + " (the last vertex)");
+      if (k > 0 && !(v > rod.vertex_s.back()))
+        r.Fail(items[k], "must be larger than the one before");
+      rod.vertex_s.push_back(k + 1 == items.size() ? rod.length : v);
+    }
+    rod.segments = static_cast<int>(items.size()) - 1;
+    if (const Field* segments = Reader::Find(m, "segments")) {
+      if (r.IntegerIn(*segments, 2, kMaxSegments) != rod.segments)
+        r.Fail(*segments, "disagrees with vertex_s (" + std::to_string(rod.segments) + " segments)");
+    }
+  } else {
+    const Field& segments = r.Require(m, f, "segments");
+    rod.segments = r.IntegerIn(segments, 2, kMaxSegments);
+  }
   rod.radius = r.Positive(r.Require(m, f, "radius"));
   rod.linear_density = r.NonNegative(r.Require(m, f, "linear_density"));
   if (const Field* k = Reader::Find(m, "rest_curvature")) rod.rest_curvature = r.Vector3(*k);
@@ -602,9 +626,29 @@ TimeSeries ReadTimeSeries(const Reader& r, const Field& f, const Experiment& ex,
   triple(a, &series.a);
   triple(b, &series.b);
   triple(c, &series.c);
+  if (!c.empty() && table.HasColumn("qw")) {
+    // A frame as a unit quaternion (w, x, y, z; a robot's or a tracker's pose): the held
+    // material frame is the rotation's columns, d1 = R e_x (the normal), d3 = R e_z (the
+    // tangent), as a Cosserat rod's directors are the columns of its rotation.
+    if (!series.b.empty())
+      throw InputError(series.file, 1, "qw", "give the frame once: tx..nz or qw,qx,qy,qz");
+    const std::vector<double> w = table.Column("qw"), x = table.Column("qx"),
+                              y = table.Column("qy"), z = table.Column("qz");
+    for (int k = 0; k < table.num_rows(); ++k) {
+      Eigen::Quaterniond q(w[k], x[k], y[k], z[k]);
+      const double norm = q.norm();
+      if (!(norm > 0.5 && norm < 2.0))
+        throw InputError(series.file, table.line(k), "qw",
+                         "not a unit quaternion (norm " + Show(norm) + ")");
+      const Eigen::Matrix3d R = q.normalized().toRotationMatrix();
+      series.b.push_back(R.col(2));
+      series.c.push_back(R.col(0));
+    }
+  }
   if (!c.empty() && series.b.empty() != series.c.empty())
     throw InputError(series.file, 1, series.b.empty() ? b[0] : c[0],
-                     "orientation needs both the tangent (tx,ty,tz) and normal (nx,ny,nz) columns");
+                     "orientation needs both the tangent (tx,ty,tz) and normal (nx,ny,nz) columns "
+                     "(or qw,qx,qy,qz)");
   for (size_t k = 0; k < series.c.size(); ++k) {
     const Vec3& t = series.b[k];
     const Vec3& n = series.c[k];
@@ -645,16 +689,83 @@ void ReadDrives(const Reader& r, const Field& f, const Experiment& ex, LoadCase*
   }
 }
 
-// `initial:` {shape: equilibrium | start, velocity: path.csv (s,vx,vy,vz)}.
-void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, LoadCase* c) {
+// `driven:` [{s, file}]: the held point at arc length s follows the path, the point created
+// when the case does not hold it yet. s = 0 is the clamp; s = L the end_clamp or end_pin (an
+// end_clamp when the path has a frame, an end_pin else); any other s the grasp or pin there, or
+// a new pin. A new point starts at the path's first row.
+void ReadDriven(const Reader& r, const Field& f, const Experiment& ex, LoadCase* c) {
+  const double L = ex.scene.rod.length;
+  for (const Field& item : r.Sequence(f)) {
+    const Entries dm = r.Map(item, {"s", "file"});
+    const Field& s_field = r.Require(dm, item, "s");
+    const double s = r.InRange(s_field, 0.0, L);
+    const Field& file = r.Require(dm, item, "file");
+    DrivenPoint d;
+    // Read with frame columns allowed; a point that cannot turn refuses them below.
+    d.path = ReadTimeSeries(r, file, ex, {"x", "y", "z"}, {"tx", "ty", "tz"}, {"nx", "ny", "nz"});
+    const bool has_frame = !d.path.b.empty();
+    if (s == 0.0) {
+      d.point = "clamp";
+    } else if (s == L) {
+      if (c->end_clamp) {
+        d.point = "end_clamp";
+      } else if (c->end_pin) {
+        d.point = "end_pin";
+      } else if (has_frame) {
+        EndClamp ec;
+        ec.position = d.path.a.front();
+        ec.tangent = d.path.b.front();
+        ec.normal = d.path.c.front();
+        c->end_clamp = ec;
+        d.point = "end_clamp";
+      } else {
+        c->end_pin = d.path.a.front();
+        d.point = "end_pin";
+      }
+    } else if (c->grasp && c->grasp->s == s) {
+      d.point = "grasp";
+    } else {
+      size_t k = 0;
+      while (k < c->pins.size() && c->pins[k].s != s) ++k;
+      if (k == c->pins.size()) c->pins.push_back(Pin{s, d.path.a.front()});
+      d.point = "pins[" + std::to_string(k) + "]";
+    }
+    if (has_frame && d.point != "clamp" && d.point != "end_clamp")
+      r.Fail(s_field, "the path has a frame (tx..nz or qw..qz), but the " + d.point +
+                          " at s = " + Show(s) + " holds a position only");
+    if (!has_frame) {
+      d.path.b.clear();
+      d.path.c.clear();
+    }
+    for (const DrivenPoint& other : c->drives)
+      if (other.point == d.point) r.Fail(s_field, "drives the " + d.point + " a second time");
+    c->drives.push_back(std::move(d));
+  }
+}
+
+// `initial:` {shape: equilibrium | start | FILE.csv, velocity: zero | path.csv (s,vx,vy,vz)}.
+// A shape file is the case's start shape (as `start:`, s,x,y,z or x,y,z), taken as it is.
+void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, int index, LoadCase* c) {
   const Entries im = r.Map(f, {"shape", "velocity"});
   if (const Field* shape = Reader::Find(im, "shape")) {
     const std::string text = r.Text(*shape);
-    if (text != "equilibrium" && text != "start")
-      r.Fail(*shape, "must be equilibrium or start, got '" + ClipForMessage(text) + "'");
-    c->initial.equilibrium = text == "equilibrium";
+    if (text == "equilibrium" || text == "start") {
+      c->initial.equilibrium = text == "equilibrium";
+    } else {
+      if (c->start.kind != StartShape::Kind::kStraight)
+        r.Fail(*shape, "the case has a start: already; give the shape once");
+      std::error_code ec;
+      if (text != "straight" && text != "previous" &&
+          !fs::is_regular_file(r.Path(*shape, ex.directory), ec))
+        r.Fail(*shape, "must be equilibrium, start or a shape CSV file (s,x,y,z or x,y,z); no "
+                       "file '" + ClipForMessage(text) + "'");
+      c->start = ReadStart(r, *shape, ex, index);
+      c->initial.equilibrium = false;
+    }
   }
-  if (const Field* v = Reader::Find(im, "velocity")) {
+  const Field* v = Reader::Find(im, "velocity");
+  if (v && v->node.IsScalar() && v->node.Scalar() == "zero") v = nullptr;  // at rest (default)
+  if (v) {
     c->initial.file = r.Path(*v, ex.directory);
     const CsvTable table = CsvTable::Read(c->initial.file);
     if (table.num_rows() < 1) throw InputError(c->initial.file, 0, "", "no rows");
@@ -674,7 +785,7 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   const Entries m =
       r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "tip_moment_follower", "point_forces",
                 "point_moments", "cut", "grasp", "poke", "end_clamp", "end_pin", "pins", "start",
-                "symmetry", "observations", "drive", "tip_load", "initial"});
+                "symmetry", "observations", "drive", "driven", "tip_load", "initial"});
   LoadCase c;
   c.name = "case" + std::to_string(index);
   if (const Field* name = Reader::Find(m, "name")) {
@@ -766,17 +877,18 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     }
   }
   if (const Field* start = Reader::Find(m, "start")) c.start = ReadStart(r, *start, *ex, index);
-  for (const char* key : {"drive", "tip_load", "initial"}) {
+  for (const char* key : {"drive", "driven", "tip_load", "initial"}) {
     if (const Field* d = Reader::Find(m, key); d && !ex->scene.dynamics)
       r.Fail(*d, "only for a moving scene (a top-level dynamics: block)");
   }
   if (const Field* d = Reader::Find(m, "drive")) ReadDrives(r, *d, *ex, &c);
+  if (const Field* d = Reader::Find(m, "driven")) ReadDriven(r, *d, *ex, &c);
   if (const Field* t = Reader::Find(m, "tip_load")) {
     const Entries tm = r.Map(*t, {"file"});
     c.tip_load = ReadTimeSeries(r, r.Require(tm, *t, "file"), *ex, {"fx", "fy", "fz"},
                                 {"mx", "my", "mz"}, {});
   }
-  if (const Field* init = Reader::Find(m, "initial")) ReadInitial(r, *init, *ex, &c);
+  if (const Field* init = Reader::Find(m, "initial")) ReadInitial(r, *init, *ex, index, &c);
   if (const Field* pf = Reader::Find(m, "point_forces")) {
     for (const Field& item : r.Sequence(*pf)) {
       const Entries pm = r.Map(item, {"s", "force"});
@@ -873,9 +985,11 @@ DynamicsSpec ReadDynamics(const Reader& r, const Field& f) {
                    Show(kMaxDynamicSteps));
   if (const Field* integrator = Reader::Find(m, "integrator")) {
     d.integrator = r.Text(*integrator);
+    // `implicit`: the default implicit integrator (BDF2, docs/solvers.md, "Dynamics").
+    if (d.integrator == "implicit") d.integrator = "bdf2";
     if (d.integrator != "explicit" && d.integrator != "backward_euler" &&
         d.integrator != "midpoint" && d.integrator != "bdf2")
-      r.Fail(*integrator, "must be explicit, backward_euler, midpoint or bdf2, got '" +
+      r.Fail(*integrator, "must be explicit, implicit, backward_euler, midpoint or bdf2, got '" +
                               ClipForMessage(d.integrator) + "'");
   }
   if (const Field* every = Reader::Find(m, "output_every")) {
