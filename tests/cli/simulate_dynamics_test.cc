@@ -232,6 +232,55 @@ TEST(SimulateDynamics, DrivenByArcLengthWithQuaternionsMatchesDriveByPointName) 
   EXPECT_THAT(run.err, HasSubstr("holds a position only"));
 }
 
+// initial: {frames: [f0, f1]} starts in f0 with the velocity (f1 - f0) / interval: the same
+// motion as the shape and a velocity CSV given apart (and t columns give the interval).
+TEST(SimulateDynamics, InitialFromTwoFramesIsShapeAndDifferenceVelocity) {
+  TempDir dir;
+  std::string f0 = "s,x,y,z\n", f1 = f0, f0t = "t,s,x,y,z\n", f1t = f0t, v = "s,vx,vy,vz\n";
+  for (int k = 0; k <= 10; ++k) {
+    const double sk = 0.1 * k, bend = 0.02 * sk * sk, dy = 1e-3 * sk;  // [m]
+    f0 += FormatDouble(sk) + "," + FormatDouble(sk) + ",0," + FormatDouble(-bend) + "\n";
+    f1 += FormatDouble(sk) + "," + FormatDouble(sk) + "," + FormatDouble(dy) + "," +
+          FormatDouble(-bend) + "\n";
+    f0t += "0.5," + FormatDouble(sk) + "," + FormatDouble(sk) + ",0," + FormatDouble(-bend) + "\n";
+    f1t += "0.51," + FormatDouble(sk) + "," + FormatDouble(sk) + "," + FormatDouble(dy) + "," +
+           FormatDouble(-bend) + "\n";
+    v += FormatDouble(sk) + ",0," + FormatDouble(dy / 0.01) + ",0\n";
+  }
+  dir.Write("f0.csv", f0);
+  dir.Write("f1.csv", f1);
+  dir.Write("f0t.csv", f0t);
+  dir.Write("f1t.csv", f1t);
+  dir.Write("v.csv", v);
+  const std::string dyn = "{time_step: 0.002, duration: 0.02, output_every: 5}";
+  const std::string a = dir.Write(
+      "a.yaml", Scene(dyn, "    initial: {frames: [f0.csv, f1.csv], frame_interval: 0.01}\n"));
+  const std::string b = dir.Write("b.yaml", Scene(dyn, "    initial: {frames: [f0t.csv, f1t.csv]}\n"));
+  const std::string c = dir.Write("c.yaml", Scene(dyn, "    initial: {shape: f0.csv, velocity: v.csv}\n"));
+  std::vector<std::vector<double>> y;
+  for (const std::string& scene : {a, b, c}) {
+    const std::string out = dir.File("o" + std::to_string(y.size()));
+    const RunResult run = RunRodfit(dir, "simulate " + Quote(scene) + " -o " + Quote(out));
+    ASSERT_EQ(run.status, 0) << run.err;
+    y.push_back(CsvTable::Read(out + "/trajectory.csv").Column("y"));
+  }
+  ASSERT_EQ(y[0].size(), y[2].size());
+  double worst_ab = 0.0, worst_ac = 0.0, moved = 0.0;
+  for (size_t r = 0; r < y[0].size(); ++r) {
+    worst_ab = std::max(worst_ab, std::abs(y[0][r] - y[1][r]));
+    worst_ac = std::max(worst_ac, std::abs(y[0][r] - y[2][r]));
+    moved = std::max(moved, std::abs(y[0][r]));
+  }
+  EXPECT_GT(moved, 1e-4);  // the tip moves sideways at ~0.1 m/s
+  EXPECT_LT(worst_ab, 1e-12);
+  EXPECT_LT(worst_ac, 1e-12);
+  // Frames without an interval (no t column) name the key.
+  const std::string bad = dir.Write("bad.yaml", Scene(dyn, "    initial: {frames: [f0.csv, f1.csv]}\n"));
+  const RunResult run = RunRodfit(dir, "simulate " + Quote(bad) + " -o " + Quote(dir.File("ob")));
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("initial.frames: give frame_interval"));
+}
+
 TEST(SimulateDynamics, BadVertexArcLengthsAreOneLineNamingTheKey) {
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"[0.1, 0.5, 1.0]", "vertex_s[0]: must be 0"},

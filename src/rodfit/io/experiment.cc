@@ -746,7 +746,48 @@ void ReadDriven(const Reader& r, const Field& f, const Experiment& ex, LoadCase*
 // `initial:` {shape: equilibrium | start | FILE.csv, velocity: zero | path.csv (s,vx,vy,vz)}.
 // A shape file is the case's start shape (as `start:`, s,x,y,z or x,y,z), taken as it is.
 void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, int index, LoadCase* c) {
-  const Entries im = r.Map(f, {"shape", "velocity"});
+  const Entries im = r.Map(f, {"shape", "velocity", "frames", "frame_interval"});
+  if (const Field* frames = Reader::Find(im, "frames")) {
+    // Two consecutive frames of a recording: the shape of the first, taken as it is, and the
+    // velocity (second - first) / interval at the same arc lengths.
+    if (Reader::Find(im, "shape") || Reader::Find(im, "velocity"))
+      r.Fail(*frames, "give either frames or shape and velocity");
+    if (c->start.kind != StartShape::Kind::kStraight)
+      r.Fail(*frames, "the case has a start: already; give the shape once");
+    const std::vector<Field> files = r.Sequence(*frames);
+    if (files.size() != 2) r.Fail(*frames, "expected two files: [first.csv, second.csv]");
+    const StartShape a = ReadStart(r, files[0], ex, index);
+    const StartShape b = ReadStart(r, files[1], ex, index);
+    if (a.points.cols() != b.points.cols() || a.s != b.s)
+      r.Fail(files[1], "must hold the same points (rows and s) as " + a.file);
+    double dt = 0.0;
+    if (const Field* fi = Reader::Find(im, "frame_interval")) {
+      dt = r.Positive(*fi);
+    } else {
+      const CsvTable ta = CsvTable::Read(a.file), tb = CsvTable::Read(b.file);
+      if (!ta.HasColumn("t") || !tb.HasColumn("t"))
+        r.Fail(*frames, "give frame_interval [s] (or a t column in both files)");
+      dt = tb.Column("t")[0] - ta.Column("t")[0];
+      if (!(dt > 0.0)) r.Fail(files[1], "its t must be later than the first file's");
+    }
+    c->start = a;
+    c->initial.equilibrium = false;
+    c->initial.file = b.file;
+    c->initial.velocity = (b.points - a.points) / dt;
+    // The velocities' arc lengths: the files' s, else the first polyline's own scaled to the
+    // rod's length (as a start shape without s is placed on the rod).
+    c->initial.velocity_s = a.s;
+    if (c->initial.velocity_s.empty()) {
+      std::vector<double>& vs = c->initial.velocity_s;
+      vs.push_back(0.0);
+      for (int k = 1; k < a.points.cols(); ++k)
+        vs.push_back(vs.back() + (a.points.col(k) - a.points.col(k - 1)).norm());
+      for (double& v : vs) v *= ex.scene.rod.length / vs.back();
+    }
+    return;
+  }
+  if (const Field* fi = Reader::Find(im, "frame_interval"))
+    r.Fail(*fi, "only with frames: [first.csv, second.csv]");
   if (const Field* shape = Reader::Find(im, "shape")) {
     const std::string text = r.Text(*shape);
     if (text == "equilibrium" || text == "start") {
