@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "rodfit/model/scene.h"
+#include "rodfit/observe/camera.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
@@ -62,6 +63,9 @@ struct ObservationSpec {
                           ///< surface_points
   std::string file;       ///< data file (CSV or image), resolved against the YAML's folder
   std::string camera;     ///< camera file, resolved likewise; empty for 3-D types
+  /// Which camera of a stereo calibration file `camera` is (1 or 2; docs/formats.md, "Camera
+  /// files"); 0: the file holds one camera.
+  int camera_index = 0;
   double sigma = 0.0;     ///< measurement standard deviation, > 0
   std::vector<double> s;  ///< [m] arc lengths of the markers to synthesize, in [0, L]
   int count = 0;          ///< number of markers / points to synthesize (0 = not given)
@@ -83,6 +87,14 @@ struct ObservationSpec {
   double force_sign = 1.0;  ///< +1: the log holds the force on the instrument; -1: on the tissue
   int line = 0;           ///< 1-based line of the entry
 };
+
+/// The camera an image entry names, as a key and a label: its file, with "[1]" or "[2]" for a
+/// camera of a stereo file.
+std::string CameraKey(const ObservationSpec& spec);
+
+/// Loads the camera of an image entry (one camera of a stereo file by its camera_index). Throws
+/// CameraFileError (rodfit/vision/camera_file.h).
+Camera LoadObservationCamera(const ObservationSpec& spec);
 
 /// A case beyond its physics (which is Scene::cases at the same index).
 struct CaseSpec {

@@ -399,7 +399,8 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   const std::vector<std::string> all = {"type",     "file",  "camera", "sigma",
                                         "s",        "count", "outliers", "blur",
                                         "noise",    "max_speed", "point", "sigma_moment",
-                                        "unit",     "force_unit", "device_frame", "force_on"};
+                                        "unit",     "force_unit", "device_frame", "force_on",
+                                        "camera_index"};
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
@@ -418,7 +419,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
     r.Fail(type, "surface_points are tracked around a poke, but this case has no poke (add "
                  "poke: {s, force} to the case)");
   }
-  if (image) allowed.push_back("camera");
+  if (image) allowed.insert(allowed.end(), {"camera", "camera_index"});
   if (o.type != "points3d" && o.type != "images" && !surface) allowed.push_back("s");
   if (o.type != "images") allowed.push_back("count");
   if (o.type != "images" && !force && !surface) allowed.push_back("outliers");
@@ -438,6 +439,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
 
   o.file = r.Path(r.Require(m, f, "file"), ex.directory);
   if (image) o.camera = r.Path(r.Require(m, f, "camera"), ex.directory);
+  if (const Field* index = Reader::Find(m, "camera_index")) o.camera_index = r.IntegerIn(*index, 1, 2);
   o.sigma = r.Positive(r.Require(m, f, "sigma"));
   if (reaction) {
     const Field& point = r.Require(m, f, "point");
@@ -1183,6 +1185,17 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
 Experiment LoadExperiment(const std::string& path) {
   // Bounded before yaml-cpp sees it: a regular file of at most kMaxInputFileBytes.
   return ParseExperiment(ReadInputFile(path, "a YAML file", kMaxYamlBytes), path);
+}
+
+std::string CameraKey(const ObservationSpec& spec) {
+  return spec.camera_index > 0 ? spec.camera + "[" + std::to_string(spec.camera_index) + "]"
+                               : spec.camera;
+}
+
+Camera LoadObservationCamera(const ObservationSpec& spec) {
+  if (spec.camera_index == 0) return LoadCamera(spec.camera);
+  const std::pair<Camera, Camera> pair = LoadStereoCameras(spec.camera);
+  return spec.camera_index == 1 ? pair.first : pair.second;
 }
 
 }  // namespace rodfit

@@ -179,8 +179,8 @@ FitInput BuildFitInput(const Experiment& e) {
   const double L = e.scene.rod.length;
   std::map<std::string, Camera> cameras;
   auto camera = [&](const ObservationSpec& spec) -> const Camera& {
-    auto it = cameras.find(spec.camera);
-    if (it == cameras.end()) it = cameras.emplace(spec.camera, LoadCamera(spec.camera)).first;
+    auto it = cameras.find(CameraKey(spec));
+    if (it == cameras.end()) it = cameras.emplace(CameraKey(spec), LoadObservationCamera(spec)).first;
     return it->second;
   };
   // One grasped case per quasi-static haptic sample, appended after the experiment's cases so
@@ -360,8 +360,9 @@ void CheckCamerasSeeTheStart(const Experiment& e) {
     const Mat3X& x = solved->shape;
     for (const ObservationSpec& spec : e.cases[c].observations) {
       if (spec.camera.empty()) continue;
-      auto it = cameras.find(spec.camera);
-      if (it == cameras.end()) it = cameras.emplace(spec.camera, LoadCamera(spec.camera)).first;
+      auto it = cameras.find(CameraKey(spec));
+      if (it == cameras.end())
+        it = cameras.emplace(CameraKey(spec), LoadObservationCamera(spec)).first;
       const Camera& cam = it->second;
       int behind = 0, inside = 0;
       for (int k = 0; k < x.cols(); ++k) {

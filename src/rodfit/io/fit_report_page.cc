@@ -545,12 +545,16 @@ class Builder {
       const Observation* obs = j < fc.observations.size() ? fc.observations[j].get() : nullptr;
       ++j;
       if (spec.camera.empty() || !obs) continue;
-      if (!by_camera.count(spec.camera)) order.push_back(spec.camera);
-      by_camera[spec.camera].push_back({&spec, obs});
+      if (!by_camera.count(CameraKey(spec))) order.push_back(CameraKey(spec));
+      by_camera[CameraKey(spec)].push_back({&spec, obs});
     }
     const Mat3X& shape = r_.shapes[c];
-    for (const std::string& camera_path : order) {
-      const auto& entries = by_camera[camera_path];
+    for (const std::string& camera_key : order) {
+      const auto& entries = by_camera[camera_key];
+      // A camera of a stereo file is "FILE[i]": its name is the file's stem with the index.
+      const size_t bracket = camera_key.back() == ']' ? camera_key.rfind('[') : std::string::npos;
+      const std::string camera_path = camera_key.substr(0, bracket);
+      const std::string camera_index = bracket == std::string::npos ? "" : camera_key.substr(bracket);
       const Camera* cam = nullptr;
       for (const auto& [spec, obs] : entries) {
         if (const auto* m = dynamic_cast<const ImageMarkersObservation*>(obs)) cam = &m->camera();
@@ -558,7 +562,7 @@ class Builder {
       }
       if (!cam) continue;
       svg::Figure f;
-      f.title = e_.scene.cases[c].name + ", camera " + Stem(camera_path);
+      f.title = e_.scene.cases[c].name + ", camera " + Stem(camera_path) + camera_index;
       f.width = 660;
       f.height = 560;
       f.x.label = "u [px]";
@@ -693,10 +697,11 @@ class Builder {
       for (const Eigen::Vector2d& p : curve_pixels)
         if (!(p.x() >= u0 && p.x() <= u1 && p.y() >= v0 && p.y() <= v1)) ++outside;
       page_.Figure(f, "camera-view",
-                   "camera_" + e_.scene.cases[c].name + "_" + Stem(camera_path),
+                   "camera_" + e_.scene.cases[c].name + "_" + Stem(camera_path) +
+                       (camera_index.empty() ? "" : "_" + camera_index.substr(1, 1)),
                    " data-case=\"" + Escape(e_.scene.cases[c].name) + "\" data-camera=\"" +
-                       Escape(Stem(camera_path)) + "\"",
-                   "Camera <code>" + Escape(FileName(camera_path)) + "</code> over the " + what +
+                       Escape(Stem(camera_path) + camera_index) + "\"",
+                   "Camera <code>" + Escape(FileName(camera_path) + camera_index) + "</code> over the " + what +
                        ", zoomed to the thread: observed pixels (circles, with the markers' arc "
                        "length s) and the fitted centre-line projected (line)." +
                        (outside > 0 ? " " + std::to_string(outside) +

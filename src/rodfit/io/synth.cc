@@ -755,7 +755,7 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
     }
   };
   const auto rel = [&](const std::string& p) { return SynthRelativePath(p, ex.directory); };
-  std::map<std::string, Camera> cameras;       // by resolved camera path
+  std::map<std::string, Camera> cameras;       // by CameraKey (path, and index in a stereo file)
   std::vector<std::string> camera_order;       // first use
   for (size_t c = 0; c < ex.cases.size(); ++c) {
     for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
@@ -767,14 +767,16 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
   for (size_t c = 0; c < ex.cases.size(); ++c) {
     for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
       const ObservationSpec& spec = ex.cases[c].observations[o];
-      if (spec.camera.empty() || cameras.count(spec.camera)) continue;
+      if (spec.camera.empty() || cameras.count(CameraKey(spec))) continue;
       const std::string key = EntryKey(static_cast<int>(c), static_cast<int>(o)) + ".camera";
       try {
-        cameras[spec.camera] = LoadCamera(spec.camera);
+        cameras[CameraKey(spec)] = LoadObservationCamera(spec);
       } catch (const CameraFileError& e) {
         throw InputError(ex.path, spec.line, key, e.what());
       }
-      camera_order.push_back(spec.camera);
+      // The file is copied once (both cameras of a stereo file come from one file).
+      if (std::find(camera_order.begin(), camera_order.end(), spec.camera) == camera_order.end())
+        camera_order.push_back(spec.camera);
       claim(rel(spec.camera), "camera " + spec.camera, spec.line, key);
     }
   }
@@ -785,7 +787,7 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
       const std::string file = rel(spec.file);
       Random random(options.seed, file);
       EntryContext ctx{&ex,  &options, &bundle.truth[c], &solutions[c],
-                       &spec, spec.camera.empty() ? nullptr : &cameras.at(spec.camera),
+                       &spec, spec.camera.empty() ? nullptr : &cameras.at(CameraKey(spec)),
                        EntryKey(static_cast<int>(c), static_cast<int>(o)),
                        spec.camera, &random, static_cast<int>(c)};
       std::string report, contents;
