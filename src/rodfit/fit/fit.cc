@@ -177,6 +177,9 @@ class CaseEvaluator {
     num_residuals_ += 3 * NumSurfacePoints(case_);
   }
 
+  /// FitOptions::jacobian_of_fixed_parameters: also compute the fixed stiffnesses' columns.
+  void ComputeFixedColumns(bool on) { fixed_columns_ = on; }
+
   /// The warm start: the state to start from before the first evaluation (the case's start,
   /// e.g. the previous case's solution at the start values).
   void SetWarmStart(const RodState& state) {
@@ -273,12 +276,24 @@ class CaseEvaluator {
           owner.push_back(k);
         }
       }
+      const size_t fitted_terms = terms.size();
+      if (fixed_columns_) {
+        // What the fit would cost without skipping the fixed stiffnesses: their columns are
+        // computed alongside (same factor, one back-substitution each) and dropped.
+        for (int st = 0; st < 4; ++st) {
+          bool driven = false;
+          for (const Fitted& f : fitted_)
+            for (Stiffness d : f.drives) driven = driven || static_cast<int>(d) == st;
+          if (!driven) terms.push_back(EnergyTerms::Only(st));
+        }
+      }
       Eigen::MatrixXd dq_terms;
       Eigen::MatrixXd dq = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
       if (!terms.empty()) {  // ring parameters alone leave the rod unchanged
         if (!TermSensitivities(*model, state, ws, terms, &dq_terms)) return false;
-        for (size_t t = 0; t < terms.size(); ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
+        for (size_t t = 0; t < fitted_terms; ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
       }
+      terms.resize(fitted_terms);
       dx = VertexSensitivities(*model, dq);
       if (!case_.grasp_forces.empty()) {
         // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
@@ -494,6 +509,7 @@ class CaseEvaluator {
   mutable bool has_warm_ = false;
   mutable StaticsWorkspace workspace_;  // the kept factor of the warm state
   StaticsOptions statics_;
+  bool fixed_columns_ = false;
   mutable Timing timing_;  // accumulated under mutex_ by Charge
   mutable std::string last_failure_;
   mutable bool data_failure_ = false;
@@ -734,9 +750,11 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
 
   const std::unique_ptr<ceres::LossFunction> loss = MakeLoss(options.loss, options.loss_scale);
   std::vector<std::unique_ptr<CaseEvaluator>> evals;
-  for (size_t c = 0; c < input.cases.size(); ++c)
+  for (size_t c = 0; c < input.cases.size(); ++c) {
     evals.push_back(
         std::make_unique<CaseEvaluator>(input, static_cast<int>(c), fitted, loss.get()));
+    evals.back()->ComputeFixedColumns(options.jacobian_of_fixed_parameters);
+  }
   WarmStartsAtTheStart(input, fitted, logp, evals);
 
   FitResult result;
