@@ -37,7 +37,7 @@ cores=$(grep -c '^processor' /proc/cpuinfo)
 machine="${cpu:-unknown CPU}, ${cores} logical cores"
 mode=$([[ -n "$quick" ]] && echo "rodfit bench --quick" || echo "rodfit bench")
 
-awk -v machine="$machine" -v mode="$mode" -v day="$(date -u +%Y-%m-%d)" '
+cat > "$work/tables.awk" <<'AWK'
 # One CSV record (quoted fields may hold commas and doubled quotes) into f[1..n].
 function csv(line, f,    n, i, c, q, cur) {
   n = 0; cur = ""; q = 0
@@ -110,7 +110,7 @@ END {
     print "| " s " | " err(E[a]) " | " ms(T[a]) " | " err(E[b]) " | " ms(T[b]) " | " err(E[c]) " | " ms(T[c]) " | " I[c] " |"
   }
   print ""
-  print "The helix at 300 segments over the tolerance ladder, and Mattiasson'"'"'s cantilever at 100 segments over the load (his table has 5 digits):"
+  print "The helix at 300 segments over the tolerance ladder, and Mattiasson's cantilever at 100 segments over the load (his table has 5 digits):"
   print ""
   print "| setting | error [L] | [ms] | iterations |"
   print "|---|---:|---:|---:|"
@@ -137,7 +137,7 @@ END {
     printf "| %d | %.3g | %.2g | %.2g | %.3g | %.3g |\n", n, 1e6 * CT[n, "bdf2"] / 200, CI[n, "bdf2"] / 200, 0.2 / CT[n, "bdf2"], 1e6 * CT[n, "midpoint"] / 200, 1e6 * CT[n, "backward_euler"] / 200
   }
   print ""
-  print "**Fit recovery** of the bundled recipes (`calibration/`): synthesized from each protocol'"'"'s true values with no noise, with its sigmas (1×) and three times them (3×), fitted from the recipe'"'"'s starting values on one thread; error = |fitted / truth − 1|"
+  print "**Fit recovery** of the bundled recipes (`calibration/`): synthesized from each protocol's true values with no noise, with its sigmas (1×) and three times them (3×), fitted from the recipe's starting values on one thread; error = |fitted / truth − 1|"
   print ""
   print "| recipe | parameter | noise 0 | 1× | 3× | fit at 1× [ms] (min–max) | iterations | converged |"
   print "|---|---|---:|---:|---:|---:|---:|---|"
@@ -154,7 +154,9 @@ END {
     printf "| %s | %s | %s | %s | %.1f %% | %s | %s |\n", sk[k], sset[k], ms(swith[k]), ms(swithout[k]), 100 * (1 - swith[k] / swithout[k]), sdiff[k], sverdict[k]
   if (vision != "") print "| vision_for_markers | marker-only fit | — | — | — | — | not measured: " vision " |"
 }
-' "$work/ladder/bench.csv" "$work/skips/bench.csv" > "$work/section.md"
+AWK
+awk -v machine="$machine" -v mode="$mode" -v day="$(date -u +%Y-%m-%d)" -f "$work/tables.awk" \
+  "$work/ladder/bench.csv" "$work/skips/bench.csv" > "$work/section.md"
 
 mkdir -p docs/images
 cp "$work/ladder/pareto.svg" docs/images/pareto.svg
