@@ -216,6 +216,39 @@ TEST(TwistElimination, SensitivitiesAndReactionsUnchanged) {
   }
 }
 
+// Parameters that keep the rod isotropic (B1 and B2 together, GJ, EA) are derived with the kept
+// position-only factor and the twist angles' zero-twist variation (no full Hessian): every row,
+// the twist rows included, equals the full solve's.
+TEST(TwistElimination, IsotropicSensitivitiesFromThePositionFactor) {
+  for (bool held : {false, true}) {
+    Scene s = TipForce3D(40);
+    if (held) {
+      s.cases[0].tip_force = Vec3::Zero();
+      EndClamp end;
+      end.position = Vec3(0.6, 0.3, 0.2);
+      end.tangent = Vec3(0.2, 1.0, 0.0);
+      s.cases[0].end_clamp = end;
+    }
+    const RodModel model(s.rod, s.material, s.gravity, s.cases[0], s.springs);
+    const Solved with = Solve(s, true), without = Solve(s, false);
+    ASSERT_TRUE(with.summary.converged && without.summary.converged);
+    ASSERT_TRUE(with.ws->factor_positions);
+    EnergyTerms bend = EnergyTerms::Only(-1);
+    bend.bend1 = bend.bend2 = 1.0;
+    const std::vector<EnergyTerms> terms = {bend, EnergyTerms::Only(2), EnergyTerms::Only(3)};
+    Eigen::MatrixXd dq_with, dq_without;
+    ASSERT_TRUE(TermSensitivities(model, with.state, *with.ws, terms, &dq_with));
+    ASSERT_TRUE(TermSensitivities(model, without.state, *without.ws, terms, &dq_without));
+    // Positions in L, twist angles in radians: 1e-8, as above.
+    EXPECT_LE((dq_with - dq_without).cwiseAbs().maxCoeff(), 1e-8)
+        << (held ? "end clamp" : "free end") << "\n"
+        << dq_with.topRows(8) << "\n\n" << dq_without.topRows(8);
+    EXPECT_GT(dq_with.col(0).cwiseAbs().maxCoeff(), 1e-3);
+    // GJ moves nothing when nothing twists.
+    EXPECT_LE(dq_with.col(1).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
 // A warm re-solve after a change of dead loads reuses the kept position-only factor and lands
 // where a cold eliminated solve does.
 TEST(TwistElimination, WarmStartFromPositionFactor) {

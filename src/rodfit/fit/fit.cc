@@ -263,12 +263,24 @@ class CaseEvaluator {
     // Per measured holder: d(reaction) / d log p, 6 x m (force rows, then moment rows).
     std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
     if (jacobian) {
-      // One unit-term gradient per driven stiffness; a parameter's column sums its terms.
+      // One unit-term gradient per parameter: the terms of every stiffness it drives together
+      // (U is linear in each), so a tied bend_stiffness scales B1 and B2 alike, which keeps an
+      // isotropic rod isotropic (sensitivities after a twist-eliminated solve need no full
+      // Hessian then, sensitivity.cc).
       std::vector<EnergyTerms> terms;
       std::vector<int> owner;
       for (int k = 0; k < m; ++k) {
-        for (Stiffness st : fitted_[k].drives) {
-          terms.push_back(EnergyTerms::Only(static_cast<int>(st)));
+        if (!fitted_[k].drives.empty()) {
+          EnergyTerms unit = EnergyTerms::Only(-1);
+          for (Stiffness st : fitted_[k].drives) {
+            switch (st) {
+              case Stiffness::kBend1: unit.bend1 = 1.0; break;
+              case Stiffness::kBend2: unit.bend2 = 1.0; break;
+              case Stiffness::kTwist: unit.twist = 1.0; break;
+              case Stiffness::kStretch: unit.stretch = 1.0; break;
+            }
+          }
+          terms.push_back(unit);
           owner.push_back(k);
         }
         if (fitted_[k].spring) {

@@ -524,6 +524,38 @@ void SetZeroTwist(const RodModel& model, RodState* state) {
   if (model.has_end_ghost()) state->end_theta = previous - state->ref_twist[n];
 }
 
+void ZeroTwistVariation(const RodModel& model, const RodState& state, Eigen::Ref<VecX> dq) {
+  const int n = model.num_edges();
+  auto position = [&](int i) -> Vec3 {
+    return i == 0 ? Vec3(Vec3::Zero()) : Vec3(dq.segment<3>(RodModel::VertexDof(i)));
+  };
+  // dt of edge j (-1: the clamp's ghost, n: the end's; both fixed).
+  auto tangent_change = [&](int j, Vec3* t) -> Vec3 {
+    if (j < 0) {
+      *t = state.clamp_t;
+      return Vec3::Zero();
+    }
+    if (j >= n) {
+      *t = state.end_t;
+      return Vec3::Zero();
+    }
+    const double len = state.e.col(j).norm();
+    *t = state.e.col(j) / len;
+    const Vec3 de = position(j + 1) - position(j);
+    return (de - t->dot(de) * *t) / len;
+  };
+  double previous = 0.0;  // the clamp's ghost twist is held
+  const int nb = NumBendingVertices(model);
+  for (int i = 0; i < nb; ++i) {
+    Vec3 te, tf;
+    const Vec3 dte = tangent_change(i - 1, &te), dtf = tangent_change(i, &tf);
+    const Vec3 kb = 2.0 * te.cross(tf) / (1.0 + te.dot(tf));
+    const double dm = 0.5 * kb.dot(dte + dtf);
+    previous -= dm;
+    dq[RodModel::TwistDof(i)] = previous;
+  }
+}
+
 void GatherPositions(const VecX& free, VecX* positions) {
   const int blocks = static_cast<int>(free.size()) / 4;
   positions->resize(3 * blocks);

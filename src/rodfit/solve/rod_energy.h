@@ -138,6 +138,14 @@ bool TwistCanBeEliminated(const RodModel& model);
 /// theta_f - theta_e + reference twist is zero at every vertex, from the clamp on.
 void SetZeroTwist(const RodModel& model, RodState* state);
 
+/// The first-order change of the zero-twist angles (SetZeroTwist) under a change of the
+/// positions: given dq's position rows (free-dof layout), fills its twist rows. At fresh frames
+/// the reference twist at vertex i changes by kb_i . (dt_e + dt_f) / 2 with dt = (I - t t^T) de /
+/// |e| (the clamp's and an end ghost's tangents fixed), and each twist angle follows it from the
+/// clamp on. Exact derivatives of a twist-eliminated equilibrium (sensitivities) are then the
+/// position-only solve and this.
+void ZeroTwistVariation(const RodModel& model, const RodState& state, Eigen::Ref<VecX> dq);
+
 /// The position-only system of a rod whose twist is eliminated: the free dofs without the twist
 /// angles, 3 per block of RodModel::VertexDof (block j = x_{j+1}; an end ghost's vertex last).
 inline int NumPositionDofs(const RodModel& model) { return 3 * (model.num_free_dofs() / 4); }
