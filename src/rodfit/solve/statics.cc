@@ -400,12 +400,12 @@ bool BestAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& ter
 /// at equilibrium. With StartFactor::kExact, ws->hessian already holds the factor of the
 /// (unshifted) Hessian at *state for this model and load, and ws the energy and gradient there
 /// without dead loads, so the first iteration assembles nothing.
-StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_iterations,
+StepResult NewtonAtLoad(const NewtonContext& solve_ctx, double load_scale, int max_iterations,
                         RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
                         std::string* why, StartFactor start) {
-  const RodModel& model = ctx.model;
-  const StaticsOptions& opt = ctx.opt;
-  const Tolerances& tol = ctx.tol;
+  const RodModel& model = solve_ctx.model;
+  const StaticsOptions& opt = solve_ctx.opt;
+  const Tolerances& tol = solve_ctx.tol;
   const int n = model.num_edges();
   EnergyTerms terms;
   terms.load_scale = load_scale;
@@ -427,8 +427,11 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
   // Twist eliminated: Newton's system is over the positions (AssemblePositionHessian), every
   // state has zero twist (on a converged state SetZeroTwist changes nothing, so the kept
   // factor's state is unchanged). The edge-coordinate path keeps the twist.
-  const bool positions = ctx.eliminate_twist && !use_edge;
-  if (ctx.eliminate_twist) SetZeroTwist(model, state);
+  const bool positions = solve_ctx.eliminate_twist && !use_edge;
+  // The steps of this Newton keep zero twist only when it is over the positions.
+  NewtonContext ctx = solve_ctx;
+  ctx.eliminate_twist = positions;
+  if (positions) SetZeroTwist(model, state);
   summary->twist_eliminated = positions;
   if (!factor_at_start) ComputeRodFrames(model, *state, &frames);
   double energy = factor_at_start ? ws->factor_unloaded_energy +
