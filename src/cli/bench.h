@@ -56,6 +56,34 @@ void TimeAtLeast(double min_seconds, int min_repeats, F once, Row* row) {
   row->t_max = t.back();
 }
 
+/// Two variants of one run (a skip with and without): each run once untimed, then alternated,
+/// a then b, until both have run `min_repeats` times and for `min_seconds` together (at most
+/// 10,000 times each), so that a change of the machine's load falls on both alike; the median,
+/// min and max of each.
+template <typename A, typename B>
+void TimeAlternating(double min_seconds, int min_repeats, A a, B b, Row* row_a, Row* row_b) {
+  a();
+  b();
+  std::vector<double> ta, tb;
+  double total = 0.0;
+  auto timed = [](auto& f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    f();
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  while ((total < min_seconds || static_cast<int>(ta.size()) < min_repeats) && ta.size() < 10000) {
+    ta.push_back(timed(a));
+    tb.push_back(timed(b));
+    total += ta.back() + tb.back();
+  }
+  for (auto [t, row] : {std::make_pair(&ta, row_a), std::make_pair(&tb, row_b)}) {
+    std::sort(t->begin(), t->end());
+    row->t_median = (*t)[t->size() / 2];
+    row->t_min = t->front();
+    row->t_max = t->back();
+  }
+}
+
 /// Prints a row as it comes (a full ladder takes minutes).
 void Print(const Row& r);
 

@@ -88,27 +88,38 @@ double MaxDistance(const rodfit::Mat3X& a, const rodfit::Mat3X& b, double L) {
   return (a - b).colwise().norm().maxCoeff() / L;
 }
 
-/// One statics solve of case 0 from the straight rod, timed; `solution` gets the centre-line.
-Row TimeSolve(const rodfit::Scene& scene, const rodfit::StaticsOptions& options, double seconds,
-              rodfit::CaseSolution* solution, const std::function<void()>& extra = {}) {
-  Row row;
-  TimeAtLeast(seconds, 5, [&] {
-    *solution = rodfit::SolveCase(scene, 0, nullptr, options);
-    if (extra) extra();
-  }, &row);
-  row.converged = solution->summary.converged;
-  row.stable = solution->summary.stable;
-  row.iterations = solution->summary.iterations;
-  if (!row.converged) row.note = solution->summary.reason;
-  return row;
+/// One statics solve of case 0 from the straight rod (`extra` run after it).
+struct SolveRun {
+  const rodfit::Scene& scene;
+  rodfit::StaticsOptions options;
+  std::function<void(const rodfit::CaseSolution&)> extra;
+  rodfit::CaseSolution solution;
+  void operator()() {
+    solution = rodfit::SolveCase(scene, 0, nullptr, options);
+    if (extra) extra(solution);
+  }
+  void Fill(Row* row) const {
+    row->converged = solution.summary.converged;
+    row->stable = solution.summary.stable;
+    row->iterations = solution.summary.iterations;
+    if (!row->converged) row->note = solution.summary.reason;
+  }
+};
+
+/// The two solves timed alternately; their rows.
+void TimeSolves(double seconds, SolveRun* a, SolveRun* b, Row* with, Row* without) {
+  TimeAlternating(seconds, 5, [&] { (*a)(); }, [&] { (*b)(); }, with, without);
+  a->Fill(with);
+  b->Fill(without);
 }
 
 Comparison TwistElimination(const std::string& name, const rodfit::Scene& scene, double seconds) {
-  rodfit::StaticsOptions on, off;
+  rodfit::StaticsOptions off;
   off.eliminate_twist = false;
-  rodfit::CaseSolution a, b;
-  const Row with = TimeSolve(scene, on, seconds, &a);
-  const Row without = TimeSolve(scene, off, seconds, &b);
+  SolveRun run_a{scene, {}, {}, {}}, run_b{scene, off, {}, {}};
+  Row with, without;
+  TimeSolves(seconds, &run_a, &run_b, &with, &without);
+  const rodfit::CaseSolution &a = run_a.solution, &b = run_b.solution;
   std::string what = a.summary.twist_eliminated ? "twist angles dropped from Newton's unknowns"
                                                 : "NOT eliminated (the scene can twist)";
   return Compare("twist_elimination", name + " n=" + std::to_string(scene.rod.segments), "L", with,
@@ -149,10 +160,10 @@ Comparison SectionWithoutPoke(int segments, double seconds) {
   const rodfit::Scene plain = Bowel(segments);
   rodfit::Scene poked = plain;
   poked.cases[0].poke = rodfit::Poke{0.075, Vec3::Zero()};
-  rodfit::CaseSolution a, b;
-  const rodfit::StaticsOptions o;
-  const Row with = TimeSolve(plain, o, seconds, &a);
-  const Row without = TimeSolve(poked, o, seconds, &b);
+  SolveRun run_a{plain, {}, {}, {}}, run_b{poked, {}, {}, {}};
+  Row with, without;
+  TimeSolves(seconds, &run_a, &run_b, &with, &without);
+  const rodfit::CaseSolution &a = run_a.solution, &b = run_b.solution;
   std::string what = "ring of " + std::to_string(plain.section->nodes) + " nodes solved";
   if (a.poke || !b.poke) what = "unexpected: " + what + " " + (a.poke ? "with" : "without");
   return Compare("section_without_poke", "bowel n=" + std::to_string(segments), "L", with, without,
@@ -163,13 +174,14 @@ Comparison MassForStatics(int segments, double seconds) {
   // Without the skip a static case would also set up the dynamics: the stepper's lumped mass,
   // drag and damping band.
   const rodfit::Scene scene = HeavyCantilever(segments, false);
-  rodfit::CaseSolution a, b;
-  const rodfit::StaticsOptions o;
-  const Row with = TimeSolve(scene, o, seconds, &a);
-  const Row without = TimeSolve(scene, o, seconds, &b, [&] {
-    const rodfit::DynamicsStepper stepper(*b.model, rodfit::DynamicsOptions());
+  SolveRun run_a{scene, {}, {}, {}};
+  SolveRun run_b{scene, {}, [](const rodfit::CaseSolution& solved) {
+    const rodfit::DynamicsStepper stepper(*solved.model, rodfit::DynamicsOptions());
     (void)stepper;
-  });
+  }, {}};
+  Row with, without;
+  TimeSolves(seconds, &run_a, &run_b, &with, &without);
+  const rodfit::CaseSolution &a = run_a.solution, &b = run_b.solution;
   return Compare("mass_for_statics", "heavy cantilever n=" + std::to_string(segments), "L", with,
                  without, MaxDistance(a.shape, b.shape, scene.rod.length),
                  "lumped (diagonal) mass and damping band of the dynamics built");
@@ -213,15 +225,18 @@ double MaxRelativeDifference(const rodfit::FitResult& a, const rodfit::FitResult
   return worst;
 }
 
-Row TimeFit(const rodfit::FitInput& input, const rodfit::FitOptions& options, double seconds,
-            rodfit::FitResult* result) {
-  Row row;
-  TimeAtLeast(seconds, 3, [&] { *result = rodfit::Fit(input, options); }, &row);
-  row.converged = result->success;
-  row.stable = result->success;
-  row.iterations = result->iterations;
-  if (!result->success) row.note = result->message;
-  return row;
+/// Two fits timed alternately; their rows.
+void TimeFits(double seconds, const rodfit::FitInput& input_a, const rodfit::FitOptions& options_a,
+              const rodfit::FitInput& input_b, const rodfit::FitOptions& options_b,
+              rodfit::FitResult* a, rodfit::FitResult* b, Row* row_a, Row* row_b) {
+  TimeAlternating(seconds, 3, [&] { *a = rodfit::Fit(input_a, options_a); },
+                  [&] { *b = rodfit::Fit(input_b, options_b); }, row_a, row_b);
+  for (auto [result, row] : {std::make_pair(a, row_a), std::make_pair(b, row_b)}) {
+    row->converged = result->success;
+    row->stable = result->success;
+    row->iterations = result->iterations;
+    if (!result->success) row->note = result->message;
+  }
 }
 
 void FitSkips(const std::string& calibration_dir, double seconds, std::vector<Comparison>* out) {
@@ -233,8 +248,8 @@ void FitSkips(const std::string& calibration_dir, double seconds, std::vector<Co
     rodfit::FitOptions all = o;
     all.jacobian_of_fixed_parameters = true;
     rodfit::FitResult a, b;
-    const Row with = TimeFit(suture, o, seconds, &a);
-    const Row without = TimeFit(suture, all, seconds, &b);
+    Row with, without;
+    TimeFits(seconds, suture, o, suture, all, &a, &b, &with, &without);
     out->push_back(Compare("jacobian_fixed_parameters", "suture_cantilever fit", "relative", with,
                            without, MaxRelativeDifference(a, b),
                            "columns of the held GJ and EA computed too"));
@@ -245,8 +260,8 @@ void FitSkips(const std::string& calibration_dir, double seconds, std::vector<Co
     rodfit::FitInput full = drag;
     full.statics.eliminate_twist = false;
     rodfit::FitResult a, b;
-    const Row with = TimeFit(drag, o, seconds, &a);
-    const Row without = TimeFit(full, o, seconds, &b);
+    Row with, without;
+    TimeFits(seconds, drag, o, full, o, &a, &b, &with, &without);
     out->push_back(Compare("twist_elimination", "tissue_drag fit", "relative", with, without,
                            MaxRelativeDifference(a, b),
                            "isotropic bowel on springs; sensitivities factor the full Hessian"));
@@ -258,8 +273,9 @@ void FitSkips(const std::string& calibration_dir, double seconds, std::vector<Co
 }  // namespace
 
 std::vector<Row> Skips(bool quick, const std::string& calibration_dir) {
-  // Each variant runs for at least this long [s] (and 5 times): sub-millisecond solves need many
-  // repeats for a median whose differences are the skip's and not the machine's.
+  // The two variants run alternately for at least this long [s] together (and 5 times each):
+  // sub-millisecond solves need many repeats for a median whose differences are the skip's and
+  // not the machine's.
   const double seconds = quick ? 0.1 : 0.5;
   std::vector<Comparison> comparisons;
   std::vector<int> segments = {10, 30, 100, 300, 1000};
