@@ -26,9 +26,9 @@ grep -q '<!-- performance:begin -->' README.md && grep -q '<!-- performance:end 
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-echo "running rodfit bench $quick (the ladder and the fit rows) ..." >&2
+echo "running rodfit bench${quick:+ $quick} (the ladder and the fit rows) ..." >&2
 "$rodfit" bench $quick --calibration calibration -o "$work/ladder" > "$work/ladder.log"
-echo "running rodfit bench --skips $quick ..." >&2
+echo "running rodfit bench --skips${quick:+ $quick} ..." >&2
 "$rodfit" bench --skips $quick --calibration calibration -o "$work/skips" > "$work/skips.log"
 
 cpu=$(awk -F': *' '/^model name/ { print $2; exit }' /proc/cpuinfo)

@@ -8,6 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "rodfit/fit/fit.h"
+#include "rodfit/io/experiment.h"
+
 namespace bench {
 
 struct Row {
@@ -91,6 +94,14 @@ void Print(const Row& r);
 /// (family "with skip" / "without skip"), error = the largest difference between the two
 /// answers, the saving in the "with" row's note; a table of them on stdout.
 std::vector<Row> Skips(bool quick, const std::string& calibration_dir);
+
+/// A recipe's fit input from synthetic data: `protocol` (its parameter values the truth)
+/// synthesized as `rodfit synth` does into `dir` (seed 7), with Gaussian noise of `noise` times
+/// its sigmas (none at 0), read back with the parameter values of `start` (the recipe's
+/// experiment.yaml) to start the fit from.
+rodfit::FitInput SynthesizedFitInput(const rodfit::Experiment& protocol,
+                                     const rodfit::Experiment& start, double noise,
+                                     const std::string& dir);
 
 /// Fit recovery of the bundled recipes (calibration_dir/<recipe>/protocol.yaml, its parameter
 /// values the truth, synthesized at noise 0, 1x and 3x its sigmas, fitted from the start

@@ -28,17 +28,19 @@ namespace fs = std::filesystem;
 
 constexpr const char* kRecipes[] = {"suture_cantilever", "tissue_drag", "tissue_poke"};
 
-/// Synthesizes the protocol at `noise` times its sigmas into dir, reads it back with the
-/// start values of `start`.
-rodfit::FitInput NoisyInput(const rodfit::Experiment& protocol, const rodfit::Experiment& start,
-                            double noise, const std::string& dir) {
+}  // namespace
+
+rodfit::FitInput SynthesizedFitInput(const rodfit::Experiment& protocol,
+                                     const rodfit::Experiment& start, double noise,
+                                     const std::string& dir) {
   rodfit::Experiment scaled = protocol;
   rodfit::SynthOptions so;
   so.seed = 7;
   so.add_noise = noise > 0.0;
   // The data get `noise` times the sigmas; experiment.yaml keeps the protocol's text, so the fit
-  // weighs them with the 1x sigmas (one scale for every residual of a type: the estimate is the
-  // same, only the reported variance grows).
+  // weighs them with the 1x sigmas. Every sigma is scaled alike, so the relative weights, and
+  // with them the estimate, are those of a fit told the scaled sigmas; only the reported
+  // residual variance grows.
   for (rodfit::CaseSpec& c : scaled.cases)
     for (rodfit::ObservationSpec& o : c.observations) o.sigma *= std::max(noise, 1.0);
   rodfit::Synthesize(scaled, dir, so);
@@ -47,8 +49,6 @@ rodfit::FitInput NoisyInput(const rodfit::Experiment& protocol, const rodfit::Ex
   e.scene.material = start.scene.material;
   return rodfit::BuildFitInput(e);
 }
-
-}  // namespace
 
 std::vector<Row> FitRecovery(bool quick, const std::string& calibration_dir) {
   std::vector<Row> rows;
@@ -81,7 +81,7 @@ std::vector<Row> FitRecovery(bool quick, const std::string& calibration_dir) {
       rodfit::FitResult result;
       try {
         const std::string dir = tmp + "/" + recipe + "_" + std::to_string(static_cast<int>(noise));
-        const rodfit::FitInput input = NoisyInput(protocol, start, noise, dir);
+        const rodfit::FitInput input = SynthesizedFitInput(protocol, start, noise, dir);
         rodfit::FitOptions options;  // the recipe's `fit:` settings, as `rodfit fit` reads them
         switch (start.fit.loss) {
           case rodfit::LossType::kNone: options.loss = rodfit::RobustLoss::kNone; break;

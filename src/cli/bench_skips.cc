@@ -11,7 +11,6 @@
 #include <filesystem>
 #include <functional>
 #include <iostream>
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -19,10 +18,8 @@
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/fit_input.h"
-#include "rodfit/io/synth.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/dynamics.h"
-#include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 
 namespace bench {
@@ -40,7 +37,8 @@ struct Comparison {
 
 /// Fills the two rows of a comparison from their timings and the two answers' difference.
 Comparison Compare(const std::string& skip, const std::string& setting, const std::string& unit,
-                   Row with, Row without, double difference, const std::string& what) {
+                   Row with, Row without, double difference, const std::string& what,
+                   const std::string& what_without) {
   Comparison c{skip, setting, with, without};
   for (Row* r : {&c.with, &c.without}) {
     r->problem = "skip/" + skip;
@@ -55,7 +53,7 @@ Comparison Compare(const std::string& skip, const std::string& setting, const st
   char text[160];
   std::snprintf(text, sizeof(text), "saving %.1f %% (%s)", saving, what.c_str());
   c.with.note = text;
-  c.without.note = what;
+  c.without.note = what_without;
   return c;
 }
 
@@ -120,10 +118,13 @@ Comparison TwistElimination(const std::string& name, const rodfit::Scene& scene,
   Row with, without;
   TimeSolves(seconds, &run_a, &run_b, &with, &without);
   const rodfit::CaseSolution &a = run_a.solution, &b = run_b.solution;
-  std::string what = a.summary.twist_eliminated ? "twist angles dropped from Newton's unknowns"
-                                                : "NOT eliminated (the scene can twist)";
+  const std::string what = a.summary.twist_eliminated ? "twist angles dropped from Newton's unknowns"
+                                                      : "NOT eliminated (the scene can twist)";
+  const std::string what_without = b.summary.twist_eliminated
+                                       ? "NOT kept (eliminate_twist ignored)"
+                                       : "twist angles kept (StaticsOptions::eliminate_twist off)";
   return Compare("twist_elimination", name + " n=" + std::to_string(scene.rod.segments), "L", with,
-                 without, MaxDistance(a.shape, b.shape, scene.rod.length), what);
+                 without, MaxDistance(a.shape, b.shape, scene.rod.length), what, what_without);
 }
 
 // --- the cross-section ring without a poke, the mass matrix for a static case ---
@@ -167,7 +168,8 @@ Comparison SectionWithoutPoke(int segments, double seconds) {
   std::string what = "ring of " + std::to_string(plain.section->nodes) + " nodes solved";
   if (a.poke || !b.poke) what = "unexpected: " + what + " " + (a.poke ? "with" : "without");
   return Compare("section_without_poke", "bowel n=" + std::to_string(segments), "L", with, without,
-                 MaxDistance(a.shape, b.shape, plain.rod.length), what);
+                 MaxDistance(a.shape, b.shape, plain.rod.length), "no poke: no ring solved",
+                 what + " for a poke of zero force");
 }
 
 Comparison MassForStatics(int segments, double seconds) {
@@ -184,34 +186,28 @@ Comparison MassForStatics(int segments, double seconds) {
   const rodfit::CaseSolution &a = run_a.solution, &b = run_b.solution;
   return Compare("mass_for_statics", "heavy cantilever n=" + std::to_string(segments), "L", with,
                  without, MaxDistance(a.shape, b.shape, scene.rod.length),
-                 "lumped (diagonal) mass and damping band of the dynamics built");
+                 "no dynamics set up for a static case",
+                 "lumped (diagonal) mass, drag and damping band of the dynamics built too");
 }
 
 // --- the fit: Jacobian columns of fixed parameters, twist elimination in a fit ---
 
-/// The recipe's protocol synthesized without noise into a temporary folder, then its
-/// experiment read back with the recipe's start values: a fit input. False (and *why) when the
-/// recipe is missing.
+/// The recipe's protocol synthesized without noise into a temporary folder and read back with
+/// the recipe's start values (SynthesizedFitInput). False (and *why) when the recipe is missing.
 bool RecipeFitInput(const std::string& recipe_dir, rodfit::FitInput* input, std::string* why) {
   namespace fs = std::filesystem;
-  if (!fs::exists(recipe_dir + "/protocol.yaml")) {
-    *why = recipe_dir + "/protocol.yaml not found";
+  if (!fs::exists(recipe_dir + "/protocol.yaml") || !fs::exists(recipe_dir + "/experiment.yaml")) {
+    *why = recipe_dir + ": no protocol.yaml and experiment.yaml";
     return false;
   }
-  const rodfit::Experiment protocol = rodfit::LoadExperiment(recipe_dir + "/protocol.yaml");
-  const rodfit::Experiment start = rodfit::LoadExperiment(recipe_dir + "/experiment.yaml");
-  rodfit::SynthOptions so;
-  so.add_noise = false;
   std::string dir = (fs::temp_directory_path() / "rodfit-bench-XXXXXX").string();
   if (!::mkdtemp(dir.data())) {
     *why = "cannot create a temporary folder";
     return false;
   }
-  rodfit::Synthesize(protocol, dir + "/data", so);
-  rodfit::Experiment e = rodfit::LoadExperiment(dir + "/data/experiment.yaml");
-  e.parameters = start.parameters;  // the fit starts where the recipe's experiment does
-  e.scene.material = start.scene.material;
-  *input = rodfit::BuildFitInput(e);
+  *input = SynthesizedFitInput(rodfit::LoadExperiment(recipe_dir + "/protocol.yaml"),
+                               rodfit::LoadExperiment(recipe_dir + "/experiment.yaml"), 0.0,
+                               dir + "/data");
   std::error_code ec;
   fs::remove_all(dir, ec);
   return true;
@@ -252,7 +248,8 @@ void FitSkips(const std::string& calibration_dir, double seconds, std::vector<Co
     TimeFits(seconds, suture, o, suture, all, &a, &b, &with, &without);
     out->push_back(Compare("jacobian_fixed_parameters", "suture_cantilever fit", "relative", with,
                            without, MaxRelativeDifference(a, b),
-                           "columns of the held GJ and EA computed too"));
+                           "Jacobian columns of B1 and B2 only",
+                           "columns of the held GJ and EA computed too, then dropped"));
   } else {
     std::cout << "skip/jacobian_fixed_parameters: not measured (" << why << ")\n";
   }
@@ -264,7 +261,8 @@ void FitSkips(const std::string& calibration_dir, double seconds, std::vector<Co
     TimeFits(seconds, drag, o, full, o, &a, &b, &with, &without);
     out->push_back(Compare("twist_elimination", "tissue_drag fit", "relative", with, without,
                            MaxRelativeDifference(a, b),
-                           "isotropic bowel on springs; sensitivities factor the full Hessian"));
+                           "isotropic bowel on springs and a grasp: every solve position-only",
+                           "twist angles kept (StaticsOptions::eliminate_twist off)"));
   } else {
     std::cout << "skip/twist_elimination (fit): not measured (" << why << ")\n";
   }
