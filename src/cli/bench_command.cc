@@ -601,11 +601,15 @@ std::string ParetoSvg(const std::vector<Row>& rows) {
   if (left.series.empty() || right.series.empty()) return "";
   std::string a = rodfit::svg::RenderSvg(left, "cantilever");
   std::string b = rodfit::svg::RenderSvg(right, "swing");
+  // The rendered heights (a legend may add to Figure::height), from each <svg>'s attribute.
+  auto height = [](const std::string& svg) {
+    const size_t at = svg.find("height=\"");
+    return at == std::string::npos ? 0 : std::atoi(svg.c_str() + at + 8);
+  };
   b.insert(4, " x=\"" + std::to_string(left.width) + "\"");
   return "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" +
          std::to_string(left.width + right.width) + "\" height=\"" +
-         std::to_string(std::max(left.height, right.height)) + "\">\n" + a + "\n" + b +
-         "\n</svg>\n";
+         std::to_string(std::max(height(a), height(b))) + "\">\n" + a + "\n" + b + "\n</svg>\n";
 }
 
 std::string Html(const std::vector<Row>& rows) {
