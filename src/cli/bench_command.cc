@@ -15,6 +15,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "bench.h"
 #include "commands.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/output_dir.h"
@@ -28,31 +29,9 @@ namespace {
 
 using rodfit::Vec3;
 
-struct Row {
-  std::string problem, family, setting;
-  double error = 0.0;
-  std::string error_unit;  // "L" (max vertex distance / length), "relative"
-  double t_median = 0.0, t_min = 0.0, t_max = 0.0;  // [s]
-  int iterations = 0;
-  bool converged = false, stable = false;
-  std::string verdict;  // stress: ok | WRONG
-  std::string note;
-};
-
-// Runs `once` `repeats` times; the median, min and max of its wall times.
-template <typename F>
-void Time(int repeats, F once, Row* row) {
-  std::vector<double> t;
-  for (int k = 0; k < repeats; ++k) {
-    const auto a = std::chrono::steady_clock::now();
-    once();
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count());
-  }
-  std::sort(t.begin(), t.end());
-  row->t_median = t[t.size() / 2];
-  row->t_min = t.front();
-  row->t_max = t.back();
-}
+using bench::Row;
+using bench::Time;
+using bench::Print;
 
 // An isotropic cantilever (L = 1 m, B = 1 N m^2, GJ = 1/1.3, EA = 1e6 N unless changed) clamped
 // at the origin along x with d1 = z.
@@ -312,15 +291,88 @@ Row Decay(const std::string& integrator, double dt_fraction) {
   return row;
 }
 
-void Print(const Row& r) {
-  char line[512];
-  std::snprintf(line, sizeof(line), "%-28s %-26s %-24s error %-10.3g %-8s %9.3g s  %s%s%s\n",
-                r.problem.c_str(), r.family.c_str(), r.setting.c_str(), r.error,
-                r.error_unit.c_str(), r.t_median, r.converged ? "converged" : "failed",
-                r.verdict.empty() ? "" : "  ", r.verdict.c_str());
-  std::cout << line;
-  if (r.verdict == "WRONG") std::cout << "    " << r.note << "\n";
-  std::cout.flush();
+// The suture swing: the suture of data/scenes (50 segments) released horizontal under gravity,
+// its centre-line after 0.2 s (a large-rotation swing down) against a reference solution: the
+// midpoint rule at dt = 1e-5 s, 25 times finer than the ladder's finest step. The ladder's
+// errors fall at least in proportion to dt, so the reference's own error is below 1/25 of the
+// finest row's. Error: max vertex distance / L.
+constexpr double kSwingDuration = 0.2;  // [s]
+
+rodfit::Mat3X Swing(const rodfit::RodModel& model, rodfit::DynamicsOptions options,
+                    Vibration* status) {
+  rodfit::DynamicsStepper stepper(model, options);
+  rodfit::DynamicState s = stepper.AtRest(model.StraightState());
+  const int steps = static_cast<int>(std::lround(kSwingDuration / options.time_step));
+  for (int k = 0; k < steps; ++k) {
+    const rodfit::DynamicsStepSummary r = stepper.Step(rodfit::Drive(), &s);
+    if (!r.ok) {
+      status->reason = r.reason;
+      return s.q.x;
+    }
+    status->newton += r.newton_iterations;
+  }
+  status->ok = true;
+  return s.q.x;
+}
+
+struct SwingReference {
+  rodfit::Mat3X x;
+  bool ok = false;
+};
+
+Row SutureSwing(const std::string& integrator, double dt, const SwingReference& reference,
+               bool quick, int segments = 50) {
+  Row row;
+  row.problem = "suture_swing";
+  row.family = integrator;
+  row.error_unit = "L";
+  const Suture suture(segments);
+  const rodfit::RodModel model(suture.rod, suture.material, Vec3(0, 0, -9.81), suture.load_case);
+  rodfit::DynamicsOptions options;
+  rodfit::ParseIntegrator(integrator, &options.integrator);
+  char text[64];
+  if (options.integrator == rodfit::Integrator::kExplicit) {
+    rodfit::DynamicsStepper probe(model, options);
+    options.time_step = 0.8 * probe.StableTimeStep(model.StraightState());
+    std::snprintf(text, sizeof(text), "dt=%.3g s (0.8 x stable)", options.time_step);
+  } else {
+    options.time_step = dt;
+    std::snprintf(text, sizeof(text), "dt=%.3g s", dt);
+  }
+  row.setting = text;
+  Vibration v;
+  rodfit::Mat3X x;
+  Time(quick ? 1 : 3, [&] {
+    v = Vibration();
+    x = Swing(model, options, &v);
+  }, &row);
+  row.converged = v.ok;
+  row.stable = v.ok;
+  row.iterations = v.newton;
+  const bool compared = v.ok && reference.ok && x.cols() == reference.x.cols();
+  row.error = compared ? (x - reference.x).colwise().norm().maxCoeff() / suture.rod.length : NAN;
+  row.note = v.ok ? "0.2 s of the swing down from horizontal; reference: midpoint at dt = 1e-5 s"
+                  : v.reason;
+  if (segments != 50) {
+    // The cost of a step at other segment counts; no reference solution there.
+    row.problem = "suture_swing_cost";
+    row.setting = "n=" + std::to_string(segments) + ", " + row.setting;
+    if (v.ok) row.note = "0.2 s of the swing; per-step cost only (no reference at this segment count)";
+  }
+  return row;
+}
+
+SwingReference MakeSwingReference() {
+  const Suture suture(50);
+  const rodfit::RodModel model(suture.rod, suture.material, Vec3(0, 0, -9.81), suture.load_case);
+  rodfit::DynamicsOptions options;
+  options.integrator = rodfit::Integrator::kMidpoint;
+  options.time_step = 1e-5;
+  Vibration v;
+  SwingReference r;
+  r.x = Swing(model, options, &v);
+  r.ok = v.ok;
+  return r;
 }
 
 // Rows are printed as they come (a full ladder takes minutes).
@@ -363,6 +415,12 @@ std::vector<Row> Ladder(bool quick) {
     rows.push_back(Decay(integrator, 1.0 / 100));
   }
   if (!quick) rows.push_back(Frequency("explicit", 0.0, quick));
+  const SwingReference reference = MakeSwingReference();
+  for (const char* integrator : {"bdf2", "midpoint", "backward_euler"})
+    for (double dt : {2e-3, 1e-3, 5e-4, 2.5e-4}) rows.push_back(SutureSwing(integrator, dt, reference, quick));
+  if (!quick) rows.push_back(SutureSwing("explicit", 0.0, reference, quick));
+  for (const char* integrator : {"bdf2", "midpoint", "backward_euler"})
+    for (int n : {100, 1000}) rows.push_back(SutureSwing(integrator, 1e-3, reference, quick, n));
   return rows.rows;
 }
 
@@ -471,6 +529,89 @@ std::string Csv(const std::vector<Row>& rows) {
   return out;
 }
 
+// The skips (--skips) as a table: each comparison's two timings, the saving and whether the
+// answers agree.
+std::string SkipTable(const std::vector<Row>& rows) {
+  std::string table;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    const Row& r = rows[k];
+    if (r.problem.rfind("skip/", 0) != 0) continue;
+    char cells[256];
+    if (r.family == "with skip" && k + 1 < rows.size() && rows[k + 1].family == "without skip") {
+      const Row& w = rows[k + 1];
+      std::snprintf(cells, sizeof(cells),
+                    "<td>%.4g</td><td>%.4g</td><td>%.1f %%</td><td>%.2g %s</td><td>%s</td>",
+                    r.t_median, w.t_median, 100.0 * (1.0 - r.t_median / w.t_median), r.error,
+                    r.error_unit.c_str(), r.verdict.c_str());
+    } else if (r.family == "without skip") {
+      continue;
+    } else {
+      std::snprintf(cells, sizeof(cells), "<td colspan=\"5\">%s</td>", r.verdict.c_str());
+    }
+    table += "<tr><td>" + rodfit::svg::Escape(r.problem.substr(5)) + "</td><td>" +
+             rodfit::svg::Escape(r.setting) + "</td>" + cells + "<td style=\"text-align:left\">" +
+             rodfit::svg::Escape(r.note) + "</td></tr>\n";
+  }
+  if (table.empty()) return "";
+  return "<h2>Skips</h2>\n<p>Each skip timed with and without it on the same problem (median "
+         "of repeats); max diff is the largest difference between the two answers.</p>\n"
+         "<table><tr><th>skip</th><th>problem</th><th>with [s]</th><th>without [s]</th>"
+         "<th>saving</th><th>max diff</th><th>answer</th><th>note</th></tr>\n" +
+         table + "</table>\n";
+}
+
+// Error against time for one problem's rows (those of `family` only, unless empty), one series
+// per setting family, log-log.
+rodfit::svg::Figure ParetoFigure(const std::vector<Row>& rows, const std::string& problem,
+                                 const std::string& family, const std::string& title) {
+  const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+  rodfit::svg::Figure f;
+  f.title = title;
+  f.x.label = "time [s]";
+  f.x.log = true;
+  f.y.log = true;
+  std::map<std::string, int> index;
+  for (const Row& r : rows) {
+    if (r.problem != problem || (!family.empty() && r.family != family)) continue;
+    f.y.label = "error [" + r.error_unit + "]";
+    if (!index.count(r.family)) {
+      index[r.family] = static_cast<int>(f.series.size());
+      rodfit::svg::Series s;
+      s.label = r.family;
+      s.colour = colours[f.series.size() % 6];
+      s.marker = rodfit::svg::Marker::kCircle;
+      f.series.push_back(s);
+    }
+    rodfit::svg::Series& s = f.series[index[r.family]];
+    s.x.push_back(r.t_median);
+    s.y.push_back(r.error);
+    s.point_labels.push_back(r.setting);
+  }
+  return f;
+}
+
+// The README's Pareto figure (docs/images/pareto.svg, scripts/performance_table.sh): the
+// cantilever (Mattiasson alpha = 3 over the segment ladder) and the suture swing (per
+// integrator over the time-step ladder) side by side. Empty without their rows.
+std::string ParetoSvg(const std::vector<Row>& rows) {
+  const rodfit::svg::Figure left =
+      ParetoFigure(rows, "mattiasson_alpha3", "segments", "cantilever (Mattiasson alpha = 3): segments");
+  const rodfit::svg::Figure right =
+      ParetoFigure(rows, "suture_swing", "", "suture swing, 0.2 s: integrator and time step");
+  if (left.series.empty() || right.series.empty()) return "";
+  std::string a = rodfit::svg::RenderSvg(left, "cantilever");
+  std::string b = rodfit::svg::RenderSvg(right, "swing");
+  // The rendered heights (a legend may add to Figure::height), from each <svg>'s attribute.
+  auto height = [](const std::string& svg) {
+    const size_t at = svg.find("height=\"");
+    return at == std::string::npos ? 0 : std::atoi(svg.c_str() + at + 8);
+  };
+  b.insert(4, " x=\"" + std::to_string(left.width) + "\"");
+  return "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" +
+         std::to_string(left.width + right.width) + "\" height=\"" +
+         std::to_string(std::max(height(a), height(b))) + "\">\n" + a + "\n" + b + "\n</svg>\n";
+}
+
 std::string Html(const std::vector<Row>& rows) {
   std::string page =
       "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>rodfit bench</title>"
@@ -482,9 +623,11 @@ std::string Html(const std::vector<Row>& rows) {
   std::map<std::string, std::vector<const Row*>> by_problem;
   std::vector<std::string> order;
   for (const Row& r : rows) {
+    if (r.problem.rfind("skip/", 0) == 0) continue;  // a table of their own below
     if (!by_problem.count(r.problem)) order.push_back(r.problem);
     by_problem[r.problem].push_back(&r);
   }
+  page += SkipTable(rows);
   const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
   int id = 0;
   for (const std::string& problem : order) {
@@ -528,33 +671,77 @@ std::string Html(const std::vector<Row>& rows) {
 
 }  // namespace
 
+namespace bench {
+
+void Print(const Row& r) {
+  char line[512];
+  std::snprintf(line, sizeof(line), "%-28s %-26s %-24s error %-10.3g %-8s %9.3g s  %s%s%s\n",
+                r.problem.c_str(), r.family.c_str(), r.setting.c_str(), r.error,
+                r.error_unit.c_str(), r.t_median, r.converged ? "converged" : "failed",
+                r.verdict.empty() ? "" : "  ", r.verdict.c_str());
+  std::cout << line;
+  if (r.verdict == "WRONG") std::cout << "    " << r.note << "\n";
+  std::cout.flush();
+}
+
+}  // namespace bench
+
 int RunBench(int argc, char** argv) {
   CLI::App app(
       "Solve reference problems with exact answers over a ladder of settings (statics: end "
       "moments, circle and helix, segments 10 to 10,000 and tolerances; dynamics: a "
-      "cantilever's first frequency and a damped decay, per integrator and time step); write "
-      "DIR/bench.csv and DIR/index.html (error against time) and print a summary. --stress runs "
-      "the stress suite instead: every row right or failed with a message, else exit 1.",
+      "cantilever's first frequency and a damped decay, per integrator and time step; the fit's "
+      "recovery of the bundled recipes at noise 0, 1x and 3x); write DIR/bench.csv and "
+      "DIR/index.html (error against time) and print a summary. --stress runs the stress suite "
+      "instead: every row right or failed with a message, else exit 1. --skips times each skip "
+      "of work a scene does not need with and without it instead: the same answer to 1e-10, "
+      "else exit 1.",
       "rodfit bench");
-  std::string output_dir;
-  bool quick = false, stress = false;
+  std::string output_dir, calibration_dir = "calibration";
+  bool quick = false, stress = false, skips = false;
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
   app.add_flag("--quick", quick, "a shorter ladder (up to 1000 segments, one repeat, no explicit run)");
   app.add_flag("--stress", stress, "the stress suite");
+  app.add_flag("--skips", skips, "what each skip saves, timed with and without it");
+  app.add_option("--calibration", calibration_dir,
+                 "the bundled recipes' folder, for the fit rows (default: ./calibration)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-  const std::vector<Row> rows = stress ? Stress() : Ladder(quick);
-  int wrong = 0;
-  for (const Row& r : rows) wrong += r.verdict == "WRONG";
+  if (stress && skips) {
+    std::cerr << "rodfit bench: --stress and --skips are separate runs; give one\n";
+    return EXIT_FAILURE;
+  }
+  std::vector<Row> rows;
+  if (stress) {
+    rows = Stress();
+  } else if (skips) {
+    rows = bench::Skips(quick, calibration_dir);
+  } else {
+    rows = Ladder(quick);
+    const std::vector<Row> fits = bench::FitRecovery(quick, calibration_dir);
+    rows.insert(rows.end(), fits.begin(), fits.end());
+  }
+  int wrong = 0, different = 0;
+  for (const Row& r : rows) {
+    wrong += r.verdict == "WRONG";
+    different += r.verdict == "DIFFERENT";
+  }
   rodfit::StagedDirectory out(output_dir);
   out.Write("bench.csv", Csv(rows), "output file name");
   out.Write("index.html", Html(rows), "output file name");
+  const std::string pareto = ParetoSvg(rows);
+  if (!pareto.empty()) out.Write("pareto.svg", pareto, "output file name");
   out.Commit();
   if (wrong > 0) {
     std::cerr << "rodfit bench: " << wrong << " stress row(s) returned a wrong answer as success\n";
+    return EXIT_FAILURE;
+  }
+  if (different > 0) {
+    std::cerr << "rodfit bench: " << different / 2
+              << " skip(s) changed the answer by more than 1e-10\n";
     return EXIT_FAILURE;
   }
   return EXIT_SUCCESS;

@@ -1,5 +1,5 @@
 // Banded symmetric storage and Cholesky (solve/banded.h) against Eigen's dense LLT: the scalar
-// band and the 4 x 4 block form give the same solutions and log-determinant, with a diagonal
+// band and the 4 x 4 and 3 x 3 block forms give the same solutions and log-determinant, with a diagonal
 // shift, several right-hand sides, and the refusal of an indefinite matrix.
 #include <cmath>
 #include <random>
@@ -12,24 +12,26 @@
 namespace rodfit {
 namespace {
 
-// A random symmetric positive definite matrix with 4 x 4 blocks coupling at most `q` block
-// neighbours (bandwidth 4 (q + 1) - 1), like the rod's Hessian; `indefinite` flips the sign of
-// one diagonal entry far enough to make it indefinite.
-BandedSymmetric RandomBlockBanded(int blocks, int q, unsigned seed, bool indefinite = false) {
+// A random symmetric positive definite matrix with b x b blocks (b = 4: the rod's Hessian; 3: its
+// position-only Hessian when the twist is eliminated) coupling at most `q` block neighbours
+// (bandwidth b (q + 1) - 1); `indefinite` flips the sign of one diagonal entry far enough to
+// make it indefinite.
+BandedSymmetric RandomBlockBanded(int blocks, int q, unsigned seed, bool indefinite = false,
+                                  int b = 4) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> U(-1.0, 1.0);
-  const int n = 4 * blocks, p = 4 * (q + 1) - 1;
+  const int n = b * blocks, p = b * (q + 1) - 1;
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
   for (int I = 0; I < blocks; ++I)
     for (int J = std::max(0, I - q); J <= I; ++J)
-      for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) {
-          const int i = 4 * I + r, j = 4 * J + c;
+      for (int r = 0; r < b; ++r)
+        for (int c = 0; c < b; ++c) {
+          const int i = b * I + r, j = b * J + c;
           if (i > j) A(i, j) = A(j, i) = U(rng);
         }
   for (int i = 0; i < n; ++i) A(i, i) = 2.0 * p + U(rng);  // diagonally dominant
   if (indefinite) A(n / 2, n / 2) = -3.0 * p;
-  BandedSymmetric B(n, p, 4);
+  BandedSymmetric B(n, p, b);
   for (int j = 0; j < n; ++j)
     for (int i = j; i <= std::min(n - 1, j + p); ++i) B.At(i, j) = A(i, j);
   return B;
@@ -65,6 +67,21 @@ TEST(BandedCholesky, BlockFormMatchesDense) {
       ExpectMatchesDense(RandomBlockBanded(blocks, q, 11 * q + blocks), 0.0);
       ExpectMatchesDense(RandomBlockBanded(blocks, q, 11 * q + blocks), 0.7);
     }
+}
+
+TEST(BandedCholesky, ThreeByThreeBlockFormMatchesDense) {
+  for (int q : {1, 2}) {
+    for (int blocks : {1, 2, 3, 7, 25}) {
+      SCOPED_TRACE(testing::Message() << "q = " << q << ", blocks = " << blocks);
+      ExpectMatchesDense(RandomBlockBanded(blocks, q, 13 * q + blocks, false, 3), 0.0);
+      ExpectMatchesDense(RandomBlockBanded(blocks, q, 13 * q + blocks, false, 3), 0.7);
+    }
+  }
+  // Indefinite: refused, and accepted once shifted, as the scalar and 4 x 4 forms are.
+  BandedSymmetric A = RandomBlockBanded(9, 2, 5, /*indefinite=*/true, 3);
+  BandedCholesky chol;
+  EXPECT_FALSE(chol.Factor(A));
+  EXPECT_TRUE(chol.Factor(A, 4.0 * A.bandwidth()));
 }
 
 TEST(BandedCholesky, ScalarFormMatchesDense) {

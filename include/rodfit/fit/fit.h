@@ -106,6 +106,10 @@ struct FitOptions {
   /// A parameter whose log has a standard deviation above this is reported as not
   /// identifiable: the data pin it down only within a factor exp(this).
   double max_log_std = 1.0;
+  /// For measuring what a skip saves (`rodfit bench --skips`) and its tests only: also compute
+  /// the Jacobian columns of the rod stiffnesses that are held fixed, and drop them. The fit's
+  /// result is the same; it only costs more.
+  bool jacobian_of_fixed_parameters = false;
   /// Called once per iteration (and per evaluation of the global search).
   std::function<void(const FitIterationInfo&)> progress;
   bool Check(std::string* why) const;

@@ -53,6 +53,12 @@ struct StaticsOptions {
   /// the kept factor and chord steps of warm re-solves); sensitivities, which need every digit,
   /// switch to edge coordinates from kEdgeSensitivitySegments (sensitivity.h).
   int edge_solver_segments = 20000;
+  /// Drop the twist angles from Newton's unknowns when nothing can twist the rod
+  /// (TwistCanBeEliminated: isotropic bending, no rest curvature or twist, no moments, no end
+  /// frame held about its tangent): the equilibrium then has zero twist, and the system over the
+  /// positions alone is exact and smaller (docs/solvers.md, "Twist elimination"). Off: the twist
+  /// is solved for like any scene's (for comparisons; `rodfit bench --skips`).
+  bool eliminate_twist = true;
   bool Check(std::string* why) const;
 };
 
@@ -69,6 +75,7 @@ struct StaticsSummary {
   int load_steps = 1;            ///< load increments used (1 = solved at full load directly)
   int continuation_steps = 0;    ///< steps that moved held points / clamps to their targets
   int saddle_escapes = 0;        ///< steps taken along a negative curvature
+  bool twist_eliminated = false; ///< Newton's last system was over the positions only
   double gradient_norm = 0.0;    ///< [N] ScaledGradientNorm at exit
   double energy = 0.0;           ///< [J] potential energy at exit (conservative part)
   std::string reason;            ///< why the solver stopped

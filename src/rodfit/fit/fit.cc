@@ -177,6 +177,9 @@ class CaseEvaluator {
     num_residuals_ += 3 * NumSurfacePoints(case_);
   }
 
+  /// FitOptions::jacobian_of_fixed_parameters: also compute the fixed stiffnesses' columns.
+  void ComputeFixedColumns(bool on) { fixed_columns_ = on; }
+
   /// The warm start: the state to start from before the first evaluation (the case's start,
   /// e.g. the previous case's solution at the start values).
   void SetWarmStart(const RodState& state) {
@@ -260,12 +263,24 @@ class CaseEvaluator {
     // Per measured holder: d(reaction) / d log p, 6 x m (force rows, then moment rows).
     std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
     if (jacobian) {
-      // One unit-term gradient per driven stiffness; a parameter's column sums its terms.
+      // One unit-term gradient per parameter: the terms of every stiffness it drives together
+      // (U is linear in each), so a tied bend_stiffness scales B1 and B2 alike, which keeps an
+      // isotropic rod isotropic (sensitivities after a twist-eliminated solve need no full
+      // Hessian then, sensitivity.cc).
       std::vector<EnergyTerms> terms;
       std::vector<int> owner;
       for (int k = 0; k < m; ++k) {
-        for (Stiffness st : fitted_[k].drives) {
-          terms.push_back(EnergyTerms::Only(static_cast<int>(st)));
+        if (!fitted_[k].drives.empty()) {
+          EnergyTerms unit = EnergyTerms::Only(-1);
+          for (Stiffness st : fitted_[k].drives) {
+            switch (st) {
+              case Stiffness::kBend1: unit.bend1 = 1.0; break;
+              case Stiffness::kBend2: unit.bend2 = 1.0; break;
+              case Stiffness::kTwist: unit.twist = 1.0; break;
+              case Stiffness::kStretch: unit.stretch = 1.0; break;
+            }
+          }
+          terms.push_back(unit);
           owner.push_back(k);
         }
         if (fitted_[k].spring) {
@@ -273,12 +288,24 @@ class CaseEvaluator {
           owner.push_back(k);
         }
       }
+      const size_t fitted_terms = terms.size();
+      if (fixed_columns_) {
+        // What the fit would cost without skipping the fixed stiffnesses: their columns are
+        // computed alongside (same factor, one back-substitution each) and dropped.
+        for (int st = 0; st < 4; ++st) {
+          bool driven = false;
+          for (const Fitted& f : fitted_)
+            for (Stiffness d : f.drives) driven = driven || static_cast<int>(d) == st;
+          if (!driven) terms.push_back(EnergyTerms::Only(st));
+        }
+      }
       Eigen::MatrixXd dq_terms;
       Eigen::MatrixXd dq = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
       if (!terms.empty()) {  // ring parameters alone leave the rod unchanged
         if (!TermSensitivities(*model, state, ws, terms, &dq_terms)) return false;
-        for (size_t t = 0; t < terms.size(); ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
+        for (size_t t = 0; t < fitted_terms; ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
       }
+      terms.resize(fitted_terms);
       dx = VertexSensitivities(*model, dq);
       if (!case_.grasp_forces.empty()) {
         // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
@@ -494,6 +521,7 @@ class CaseEvaluator {
   mutable bool has_warm_ = false;
   mutable StaticsWorkspace workspace_;  // the kept factor of the warm state
   StaticsOptions statics_;
+  bool fixed_columns_ = false;
   mutable Timing timing_;  // accumulated under mutex_ by Charge
   mutable std::string last_failure_;
   mutable bool data_failure_ = false;
@@ -735,9 +763,11 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
 
   const std::unique_ptr<ceres::LossFunction> loss = MakeLoss(options.loss, options.loss_scale);
   std::vector<std::unique_ptr<CaseEvaluator>> evals;
-  for (size_t c = 0; c < input.cases.size(); ++c)
+  for (size_t c = 0; c < input.cases.size(); ++c) {
     evals.push_back(
         std::make_unique<CaseEvaluator>(input, static_cast<int>(c), fitted, loss.get()));
+    evals.back()->ComputeFixedColumns(options.jacobian_of_fixed_parameters);
+  }
   WarmStartsAtTheStart(input, fitted, logp, evals);
 
   FitResult result;

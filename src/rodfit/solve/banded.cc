@@ -49,10 +49,11 @@ bool BandedCholesky::Factor(const BandedSymmetric& A, double diagonal_shift) {
   n_ = A.size();
   valid_ = false;
   round_off_pivots_ = false;
-  block_mode_ = false;
-  if (A.block_size() == 4 && A.size() % 4 == 0 && (A.bandwidth() + 1) % 4 == 0 &&
-      A.bandwidth() >= 3)
-    return FactorBlocks4(A, diagonal_shift);
+  block_mode_ = 0;
+  const int block = A.block_size();
+  if ((block == 3 || block == 4) && A.size() % block == 0 && (A.bandwidth() + 1) % block == 0 &&
+      A.bandwidth() >= block - 1)
+    return block == 4 ? FactorBlocks<4>(A, diagonal_shift) : FactorBlocks<3>(A, diagonal_shift);
   // Right-looking (outer-product) form: once column j of L is known, it updates the columns
   // j+1..j+p below their diagonal, each a contiguous axpy in the column-major band.
   L_ = A;
@@ -86,30 +87,34 @@ bool BandedCholesky::Factor(const BandedSymmetric& A, double diagonal_shift) {
   return true;
 }
 
-// Block form, left-looking with q = (p + 1) / 4 - 1 block diagonals:
+// Block form, left-looking with q = (p + 1) / b - 1 block diagonals (b = 4: blocks [x_i,
+// theta_i]; b = 3: the position-only system of a rod whose twist is eliminated):
 //   S = A(J,J) - sum_K L(J,K) L(J,K)^T,  L(J,J) = chol(S)  (scalar, same pivot test),
 //   L(I,J) = (A(I,J) - sum_K L(I,K) L(J,K)^T) L(J,J)^{-T}  for I = J+1..J+q,
 // with K over the block columns both rows reach. Fill-in stays inside the block band.
-bool BandedCholesky::FactorBlocks4(const BandedSymmetric& A, double diagonal_shift) {
-  const int nb = n_ / 4, q = (A.bandwidth() + 1) / 4 - 1, stride = q + 1;
+template <int kB>
+bool BandedCholesky::FactorBlocks(const BandedSymmetric& A, double diagonal_shift) {
+  using BlockB = Eigen::Matrix<double, kB, kB>;
+  const int nb = n_ / kB, q = (A.bandwidth() + 1) / kB - 1, stride = q + 1;
   const Eigen::MatrixXd& a = A.band();
-  block_mode_ = true;
+  block_mode_ = kB;
   block_bandwidth_ = q;
-  blocks_.resize(static_cast<size_t>(nb) * stride);
-  // L(I, K) for I > K is blocks_[K * stride + (I - K)].
-  auto L = [&](int I, int K) -> const Block& { return blocks_[K * stride + (I - K)]; };
+  auto& blocks = Blocks<kB>();
+  blocks.resize(static_cast<size_t>(nb) * stride);
+  // L(I, K) for I > K is blocks[K * stride + (I - K)].
+  auto L = [&](int I, int K) -> const BlockB& { return blocks[K * stride + (I - K)]; };
   for (int J = 0; J < nb; ++J) {
-    const int j0 = 4 * J;
-    // Column c of block (I, J) is the contiguous run band(4 (I - J) - c .. + 3, 4 J + c); the
+    const int j0 = kB * J;
+    // Column c of block (I, J) is the contiguous run band(b (I - J) - c .. + b - 1, b J + c); the
     // diagonal block's upper entries fall outside the band and are never read (lower only).
-    Block S;
-    for (int c = 0; c < 4; ++c)
-      S.col(c).tail(4 - c) = a.col(j0 + c).head(4 - c);
+    BlockB S;
+    for (int c = 0; c < kB; ++c)
+      S.col(c).tail(kB - c) = a.col(j0 + c).head(kB - c);
     for (int K = std::max(0, J - q); K < J; ++K) S.noalias() -= L(J, K) * L(J, K).transpose();
     // Cholesky of the diagonal block (lower triangle of S), then its inverse.
-    Block Ljj = Block::Zero();
-    double inv_diag[4];
-    for (int k = 0; k < 4; ++k) {
+    BlockB Ljj = BlockB::Zero();
+    double inv_diag[kB];
+    for (int k = 0; k < kB; ++k) {
       double d = S(k, k) + diagonal_shift;
       for (int m = 0; m < k; ++m) d -= Ljj(k, m) * Ljj(k, m);
       const double floor = kPivotRoundOff * std::abs(a(0, j0 + k) + diagonal_shift);
@@ -121,58 +126,64 @@ bool BandedCholesky::FactorBlocks4(const BandedSymmetric& A, double diagonal_shi
       const double lkk = std::sqrt(d);
       inv_diag[k] = 1.0 / lkk;
       Ljj(k, k) = lkk;
-      for (int r = k + 1; r < 4; ++r) {
+      for (int r = k + 1; r < kB; ++r) {
         double s = S(r, k);
         for (int m = 0; m < k; ++m) s -= Ljj(r, m) * Ljj(k, m);
         Ljj(r, k) = s * inv_diag[k];
       }
     }
-    Block inv = Block::Zero();  // L(J,J)^{-1} by forward substitution on the identity
-    for (int c = 0; c < 4; ++c) {
+    BlockB inv = BlockB::Zero();  // L(J,J)^{-1} by forward substitution on the identity
+    for (int c = 0; c < kB; ++c) {
       inv(c, c) = inv_diag[c];
-      for (int r = c + 1; r < 4; ++r) {
+      for (int r = c + 1; r < kB; ++r) {
         double s = 0.0;
         for (int m = c; m < r; ++m) s -= Ljj(r, m) * inv(m, c);
         inv(r, c) = s * inv_diag[r];
       }
     }
-    blocks_[J * stride] = inv;
+    blocks[J * stride] = inv;
     for (int I = J + 1; I <= std::min(nb - 1, J + q); ++I) {
-      const int d = 4 * (I - J);
-      Block B;
-      for (int c = 0; c < 4; ++c) B.col(c) = a.col(j0 + c).segment<4>(d - c);
+      const int d = kB * (I - J);
+      BlockB B;
+      for (int c = 0; c < kB; ++c) B.col(c) = a.col(j0 + c).template segment<kB>(d - c);
       for (int K = std::max(0, I - q); K < J; ++K) B.noalias() -= L(I, K) * L(J, K).transpose();
-      blocks_[J * stride + (I - J)].noalias() = B * inv.transpose();
+      blocks[J * stride + (I - J)].noalias() = B * inv.transpose();
     }
   }
   valid_ = true;
   return true;
 }
 
-void BandedCholesky::SolveBlocks4(double* x) const {
-  using Vec4 = Eigen::Vector4d;
-  const int nb = n_ / 4, q = block_bandwidth_, stride = q + 1;
+template <int kB>
+void BandedCholesky::SolveBlocks(double* x) const {
+  using VecB = Eigen::Matrix<double, kB, 1>;
+  const auto& blocks = Blocks<kB>();
+  const int nb = n_ / kB, q = block_bandwidth_, stride = q + 1;
   // L y = x: y_J = L(J,J)^{-1} (x_J - sum_K L(J,K) y_K).
   for (int J = 0; J < nb; ++J) {
-    Eigen::Map<Vec4> xJ(x + 4 * J);
-    Vec4 s = xJ;
+    Eigen::Map<VecB> xJ(x + kB * J);
+    VecB s = xJ;
     for (int K = std::max(0, J - q); K < J; ++K)
-      s.noalias() -= blocks_[K * stride + (J - K)] * Eigen::Map<const Vec4>(x + 4 * K);
-    xJ.noalias() = blocks_[J * stride] * s;
+      s.noalias() -= blocks[K * stride + (J - K)] * Eigen::Map<const VecB>(x + kB * K);
+    xJ.noalias() = blocks[J * stride] * s;
   }
   // L^T z = y: z_J = L(J,J)^{-T} (y_J - sum_I L(I,J)^T z_I).
   for (int J = nb - 1; J >= 0; --J) {
-    Eigen::Map<Vec4> xJ(x + 4 * J);
-    Vec4 s = xJ;
+    Eigen::Map<VecB> xJ(x + kB * J);
+    VecB s = xJ;
     for (int I = J + 1; I <= std::min(nb - 1, J + q); ++I)
-      s.noalias() -= blocks_[J * stride + (I - J)].transpose() * Eigen::Map<const Vec4>(x + 4 * I);
-    xJ.noalias() = blocks_[J * stride].transpose() * s;
+      s.noalias() -= blocks[J * stride + (I - J)].transpose() * Eigen::Map<const VecB>(x + kB * I);
+    xJ.noalias() = blocks[J * stride].transpose() * s;
   }
 }
 
 void BandedCholesky::SolveInPlace(Eigen::Ref<Eigen::MatrixXd> x) const {
-  if (block_mode_) {
-    for (int c = 0; c < x.cols(); ++c) SolveBlocks4(&x(0, c));
+  if (block_mode_ == 4) {
+    for (int c = 0; c < x.cols(); ++c) SolveBlocks<4>(&x(0, c));
+    return;
+  }
+  if (block_mode_ == 3) {
+    for (int c = 0; c < x.cols(); ++c) SolveBlocks<3>(&x(0, c));
     return;
   }
   const int n = L_.size(), p = L_.bandwidth();
@@ -204,9 +215,14 @@ Eigen::VectorXd BandedCholesky::Solve(const Eigen::VectorXd& rhs) const {
 
 double BandedCholesky::LogDeterminant() const {
   double s = 0.0;
-  if (block_mode_) {  // the diagonal of L(J,J)^{-1} is 1 / L_jj
+  if (block_mode_ == 4) {  // the diagonal of L(J,J)^{-1} is 1 / L_jj
     for (int J = 0; J < n_ / 4; ++J)
-      for (int k = 0; k < 4; ++k) s -= 2.0 * std::log(blocks_[J * (block_bandwidth_ + 1)](k, k));
+      for (int k = 0; k < 4; ++k) s -= 2.0 * std::log(blocks4_[J * (block_bandwidth_ + 1)](k, k));
+    return s;
+  }
+  if (block_mode_ == 3) {
+    for (int J = 0; J < n_ / 3; ++J)
+      for (int k = 0; k < 3; ++k) s -= 2.0 * std::log(blocks3_[J * (block_bandwidth_ + 1)](k, k));
     return s;
   }
   for (int i = 0; i < L_.size(); ++i) s += 2.0 * std::log(L_.band()(0, i));

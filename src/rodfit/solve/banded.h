@@ -53,9 +53,9 @@ class BandedSymmetric {
 /// the factor flagged (round_off_pivots()): a stiff, fine rod (EA L^2 / EI n ~ 1e15) has soft
 /// global modes whose Schur complements are only known to round-off, and treating them as
 /// indefinite would shift the whole matrix and stall Newton.
-/// When A declares 4 x 4 blocks that tile it and its band (BandedSymmetric::Resize), the factor
-/// is computed and kept as fixed-size blocks (the same L, several times faster to compute and
-/// to solve with); otherwise as a scalar band.
+/// When A declares 4 x 4 or 3 x 3 blocks that tile it and its band (BandedSymmetric::Resize), the
+/// factor is computed and kept as fixed-size blocks (the same L, several times faster to compute
+/// and to solve with); otherwise as a scalar band.
 constexpr double kPivotRoundOff = 64 * 2.220446049250313e-16;
 
 class BandedCholesky {
@@ -72,26 +72,48 @@ class BandedCholesky {
   double LogDeterminant() const;
 
  private:
-  using Block = Eigen::Matrix4d;
-  bool FactorBlocks4(const BandedSymmetric& A, double diagonal_shift);
-  void SolveBlocks4(double* x) const;
+  template <int kB>
+  bool FactorBlocks(const BandedSymmetric& A, double diagonal_shift);
+  template <int kB>
+  void SolveBlocks(double* x) const;
+  template <int kB>
+  std::vector<Eigen::Matrix<double, kB, kB>, Eigen::aligned_allocator<Eigen::Matrix<double, kB, kB>>>&
+  Blocks();
+  template <int kB>
+  const std::vector<Eigen::Matrix<double, kB, kB>,
+                    Eigen::aligned_allocator<Eigen::Matrix<double, kB, kB>>>&
+  Blocks() const {
+    return const_cast<BandedCholesky*>(this)->Blocks<kB>();
+  }
 
   int n_ = 0;
   bool valid_ = false;
   bool round_off_pivots_ = false;
   // Scalar mode: L in band storage.
   BandedSymmetric L_;
-  // Block mode: for block column J, blocks_[J * (q + 1) + d] is
+  // Block mode (the block size, 0: scalar): for block column J, blocks[J * (q + 1) + d] is
   // L(J + d, J) for d = 1..q and the inverse of the diagonal block L(J, J) for d = 0.
-  bool block_mode_ = false;
+  int block_mode_ = 0;
   int block_bandwidth_ = 0;
-  std::vector<Block, Eigen::aligned_allocator<Block>> blocks_;
+  std::vector<Eigen::Matrix4d, Eigen::aligned_allocator<Eigen::Matrix4d>> blocks4_;
+  std::vector<Eigen::Matrix3d, Eigen::aligned_allocator<Eigen::Matrix3d>> blocks3_;
 };
 
 /// A = L D L^T of a symmetric band matrix without pivoting (scalar band), for symmetric
 /// indefinite matrices whose inertia is wanted: by Sylvester's law the signs of D are those of
 /// A's eigenvalues. Factor() fails on a zero or non-finite pivot (an unpivoted LDL^T can break
 /// down where a pivoted one would not; the solver then shifts the diagonal).
+template <>
+inline std::vector<Eigen::Matrix4d, Eigen::aligned_allocator<Eigen::Matrix4d>>&
+BandedCholesky::Blocks<4>() {
+  return blocks4_;
+}
+template <>
+inline std::vector<Eigen::Matrix3d, Eigen::aligned_allocator<Eigen::Matrix3d>>&
+BandedCholesky::Blocks<3>() {
+  return blocks3_;
+}
+
 class BandedLDLT {
  public:
   bool Factor(const BandedSymmetric& A, double diagonal_shift = 0.0);

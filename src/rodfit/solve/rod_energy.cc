@@ -103,6 +103,47 @@ void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gra
   }
 }
 
+// The twist-eliminated stencil (AssemblePositionHessian): vertex i's gradient g8 and Hessian H8
+// in (e, f, theta_e, theta_f), restricted to the motions (de, df) along which the twist stays
+// zero: d theta_e = 0, d theta_f = -d m = -kb . (de / |e| + df / |f|) / 2 (the reference twist's
+// first variation; kb is perpendicular to both tangents). Any split of the twist change between
+// theta_e and theta_f gives the same result: turning both frames alike leaves an isotropic
+// bending energy unchanged. A ghost edge's tangent is fixed (ghost_e: the clamp's, ghost_f: the
+// end's), so its part of d m is zero. With r that row, the restricted Hessian is
+//   H6 = H8[x, x] + H8[x, 7] r^T + r H8[7, x] + H8[7, 7] r r^T;
+// the curvature term dE/dtheta_f d^2 theta_f is zero since dE/dtheta vanishes at zero twist for
+// an isotropic rod. It is added to the position band at the dofs of x_prev, x_mid, x_next:
+// nine consecutive position dofs from 3 (i - 2).
+void AddPositionStencilHessian(int i, const double H8[64], const Vec3& kb, double len_e,
+                               double len_f, bool ghost_e, bool ghost_f, BandedSymmetric* H) {
+  using Mat3 = Eigen::Matrix3d;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  const Eigen::Map<const Eigen::Matrix<double, 8, 8, Eigen::RowMajor>> h(H8);
+  Vec6 r;
+  r.head<3>() = ghost_e ? Vec3::Zero() : Vec3(-0.5 / len_e * kb);
+  r.tail<3>() = ghost_f ? Vec3::Zero() : Vec3(-0.5 / len_f * kb);
+  const Vec6 h7 = h.block<6, 1>(0, 7);
+  const Mat6 H6 = h.block<6, 6>(0, 0) + h7 * r.transpose() + r * h7.transpose() +
+                  h(7, 7) * r * r.transpose();
+  const Mat3 Hee = H6.block<3, 3>(0, 0), Hfe = H6.block<3, 3>(3, 0), Hff = H6.block<3, 3>(3, 3);
+  // A^T H6 A with d/dx_prev = -d/de, d/dx_mid = d/de - d/df, d/dx_next = d/df (lower triangle).
+  Eigen::Matrix<double, 9, 9> L;
+  L.block<3, 3>(0, 0) = Hee;
+  L.block<3, 3>(3, 0) = Hfe - Hee;
+  L.block<3, 3>(3, 3) = Hee - Hfe - Hfe.transpose() + Hff;
+  L.block<3, 3>(6, 0) = -Hfe;
+  L.block<3, 3>(6, 3) = Hfe - Hff;
+  L.block<3, 3>(6, 6) = Hff;
+  const int base = 3 * (i - 2);
+  for (int a = 0; a < 9; ++a) {
+    if (base + a < 0) continue;
+    double* column = &H->At(base + a, base + a);
+    const double* local = &L(a, a);
+    for (int row = 0; row < 9 - a; ++row) column[row] += local[row];
+  }
+}
+
 }  // namespace
 
 void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames) {
@@ -302,13 +343,21 @@ double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
 
 namespace {
 
-template <bool kHessian>
+// kPositions: the Hessian over the positions only, the twist eliminated
+// (AssemblePositionHessian); the gradient keeps the free-dof layout with its twist rows zeroed.
+template <bool kHessian, bool kPositions = false>
 void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& terms,
               VecX* gradient, BandedSymmetric* H, const RodFrames* frames) {
   const int n = model.num_edges(), nb = NumBendingVertices(model);
   gradient->setZero(model.num_free_dofs());
+  // Row of free dof k in the Hessian being assembled.
+  auto row = [](int k) { return kPositions ? PositionDof(k) : k; };
   if (kHessian) {
-    H->Resize(model.num_free_dofs(), kRodBandwidth, 4);  // blocks [x_i, theta_{i-1}]
+    if (kPositions) {
+      H->Resize(NumPositionDofs(model), kRodPositionBandwidth, 3);  // blocks [x_i]
+    } else {
+      H->Resize(model.num_free_dofs(), kRodBandwidth, 4);  // blocks [x_i, theta_{i-1}]
+    }
     H->SetZero();
   }
   double q[11];
@@ -361,7 +410,23 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
         }
       }
       if (i == n && model.symmetric()) DropGhostEdge(g8, H8);
-      AddStencilHessian(i, g8, H8, gradient, H);
+      if (kPositions) {
+        // kb and the edge lengths of the stencil, from its frames or its edges.
+        Vec3 te, tf;
+        double len_e, len_f;
+        if (fresh) {
+          te = fr[i].t, tf = fr[i + 1].t, len_e = fr[i].len, len_f = fr[i + 1].len;
+        } else {
+          const Vec3 e(q[3] - q[0], q[4] - q[1], q[5] - q[2]), f(q[6] - q[3], q[7] - q[4], q[8] - q[5]);
+          len_e = e.norm(), len_f = f.norm();
+          te = e / len_e, tf = f / len_f;
+        }
+        const Vec3 kb = 2.0 * te.cross(tf) / (1.0 + te.dot(tf));
+        AddStencilGradient(i, g8, gradient);
+        AddPositionStencilHessian(i, H8, kb, len_e, len_f, i == 0, i == n, H);
+      } else {
+        AddStencilHessian(i, g8, H8, gradient, H);
+      }
       continue;
     }
     if (!bend_twist) continue;
@@ -401,7 +466,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
         const int d = RodModel::VertexDof(i);
         gradient->segment<3>(d) += k * (state.x.col(i) - model.spring_anchor(i));
         if (kHessian)
-          for (int r = 0; r < 3; ++r) H->At(d + r, d + r) += k;
+          for (int r = 0; r < 3; ++r) H->At(row(d + r), row(d + r)) += k;
       }
     }
   }
@@ -414,24 +479,109 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
     gradient->segment<3>(d) -= dE * nrm;
     if (kHessian)
       for (int r = 0; r < 3; ++r)
-        for (int k = 0; k <= r; ++k) H->At(d + r, d + k) += d2E * nrm[r] * nrm[k];
+        for (int k = 0; k <= r; ++k) H->At(row(d + r), row(d + k)) += d2E * nrm[r] * nrm[k];
   }
   if (terms.loads) AddDeadLoadGradient(model, terms.load_scale, /*hold=*/false, gradient);
   if (terms.hold) {
     // Dirichlet rows: held vertices do not move; their gradient is the constraint force.
-    ApplyHeldRows(HeldDofs(model), gradient, kHessian ? H : nullptr);
+    if (kPositions) {
+      ApplyHeldRows(HeldDofs(model), gradient, nullptr);
+      if (kHessian) ApplyHeldRows(HeldPositionDofs(model), nullptr, H);
+    } else {
+      ApplyHeldRows(HeldDofs(model), gradient, kHessian ? H : nullptr);
+    }
   }
+  if (kPositions)
+    for (int j = 0; j < model.num_free_dofs() / 4; ++j) (*gradient)[4 * j + 3] = 0.0;
 }
 
 }  // namespace
 
 const std::vector<char>& HeldDofs(const RodModel& model) { return model.held_dofs(); }
 
+// The held rows of the position-only system (AssemblePositionHessian).
+std::vector<char> HeldPositionDofs(const RodModel& model) {
+  const std::vector<char>& held = HeldDofs(model);
+  std::vector<char> out(NumPositionDofs(model), 0);
+  for (int k = 0; k < static_cast<int>(held.size()); ++k)
+    if (k % 4 != 3 && held[k]) out[PositionDof(k)] = 1;
+  return out;
+}
+
+bool TwistCanBeEliminated(const RodModel& model) {
+  const Material& m = model.material();
+  return m.B1() == m.B2() && model.rod().rest_curvature == Vec3::Zero() &&
+         model.edge_moments().empty() && !(model.has_end_ghost() && model.end_twist_held());
+}
+
+void SetZeroTwist(const RodModel& model, RodState* state) {
+  const int n = model.num_edges();
+  double previous = 0.0;  // the clamp's ghost edge carries the clamp frame untwisted
+  for (int j = 0; j < n; ++j) {
+    state->theta[j] = previous - state->ref_twist[j];
+    previous = state->theta[j];
+  }
+  if (model.has_end_ghost()) state->end_theta = previous - state->ref_twist[n];
+}
+
+void ZeroTwistVariation(const RodModel& model, const RodState& state, Eigen::Ref<VecX> dq) {
+  const int n = model.num_edges();
+  auto position = [&](int i) -> Vec3 {
+    return i == 0 ? Vec3(Vec3::Zero()) : Vec3(dq.segment<3>(RodModel::VertexDof(i)));
+  };
+  // dt of edge j (-1: the clamp's ghost, n: the end's; both fixed).
+  auto tangent_change = [&](int j, Vec3* t) -> Vec3 {
+    if (j < 0) {
+      *t = state.clamp_t;
+      return Vec3::Zero();
+    }
+    if (j >= n) {
+      *t = state.end_t;
+      return Vec3::Zero();
+    }
+    const double len = state.e.col(j).norm();
+    *t = state.e.col(j) / len;
+    const Vec3 de = position(j + 1) - position(j);
+    return (de - t->dot(de) * *t) / len;
+  };
+  double previous = 0.0;  // the clamp's ghost twist is held
+  const int nb = NumBendingVertices(model);
+  for (int i = 0; i < nb; ++i) {
+    Vec3 te, tf;
+    const Vec3 dte = tangent_change(i - 1, &te), dtf = tangent_change(i, &tf);
+    const Vec3 kb = 2.0 * te.cross(tf) / (1.0 + te.dot(tf));
+    const double dm = 0.5 * kb.dot(dte + dtf);
+    previous -= dm;
+    dq[RodModel::TwistDof(i)] = previous;
+  }
+}
+
+void GatherPositions(const VecX& free, VecX* positions) {
+  const int blocks = static_cast<int>(free.size()) / 4;
+  positions->resize(3 * blocks);
+  for (int j = 0; j < blocks; ++j) positions->segment<3>(3 * j) = free.segment<3>(4 * j);
+}
+
+void ScatterPositions(const VecX& positions, VecX* free) {
+  const int blocks = static_cast<int>(positions.size()) / 3;
+  free->resize(4 * blocks);
+  for (int j = 0; j < blocks; ++j) {
+    free->segment<3>(4 * j) = positions.segment<3>(3 * j);
+    (*free)[4 * j + 3] = 0.0;
+  }
+}
+
+void AssemblePositionHessian(const RodModel& model, const RodState& state,
+                             const EnergyTerms& terms, VecX* gradient, BandedSymmetric* hessian,
+                             const RodFrames* frames) {
+  Assemble<true, true>(model, state, terms, gradient, hessian, frames);
+}
+
 void ApplyHeldRows(const std::vector<char>& held, VecX* gradient, BandedSymmetric* H) {
   const int size = static_cast<int>(held.size());
   for (int r = 0; r < size; ++r) {
     if (!held[r]) continue;
-    (*gradient)[r] = 0.0;
+    if (gradient) (*gradient)[r] = 0.0;
     if (!H) continue;
     const int p = H->bandwidth();
     for (int c = std::max(0, r - p); c <= std::min(size - 1, r + p); ++c)

@@ -18,6 +18,9 @@ namespace rodfit {
 
 /// Half bandwidth of the Hessian in the block ordering of RodModel::VertexDof/TwistDof.
 constexpr int kRodBandwidth = 11;
+/// Half bandwidth of the position-only Hessian (twist eliminated): blocks [x_i], each term
+/// coupling three consecutive vertices.
+constexpr int kRodPositionBandwidth = 8;
 
 /// Which parts of the energy to include. The load factor scales every external load (load
 /// continuation); the stiffness factors scale the model's B1, B2, GJ, EA. U is linear in each
@@ -124,11 +127,52 @@ void AssembleHessian(const RodModel& model, const RodState& state, const EnergyT
                      VecX* gradient, BandedSymmetric* hessian,
                      const RodFrames* frames = nullptr);
 
+/// Twist elimination (docs/solvers.md, "Twist elimination"). When nothing can twist the rod,
+/// its equilibrium has zero material twist at every vertex, and the twist angles follow from
+/// the positions (SetZeroTwist): isotropic bending (B1 == B2), no rest curvature or rest twist,
+/// no moment loads, and no end frame held about its tangent (an end clamp without a normal, an
+/// end pin or a free end). The statics solver then carries the positions only.
+bool TwistCanBeEliminated(const RodModel& model);
+
+/// Sets every twist angle (and a free end ghost's) so that the material twist
+/// theta_f - theta_e + reference twist is zero at every vertex, from the clamp on.
+void SetZeroTwist(const RodModel& model, RodState* state);
+
+/// The first-order change of the zero-twist angles (SetZeroTwist) under a change of the
+/// positions: given dq's position rows (free-dof layout), fills its twist rows. At fresh frames
+/// the reference twist at vertex i changes by kb_i . (dt_e + dt_f) / 2 with dt = (I - t t^T) de /
+/// |e| (the clamp's and an end ghost's tangents fixed), and each twist angle follows it from the
+/// clamp on. Exact derivatives of a twist-eliminated equilibrium (sensitivities) are then the
+/// position-only solve and this.
+void ZeroTwistVariation(const RodModel& model, const RodState& state, Eigen::Ref<VecX> dq);
+
+/// The position-only system of a rod whose twist is eliminated: the free dofs without the twist
+/// angles, 3 per block of RodModel::VertexDof (block j = x_{j+1}; an end ghost's vertex last).
+inline int NumPositionDofs(const RodModel& model) { return 3 * (model.num_free_dofs() / 4); }
+/// The position-only index of free dof k (k not a twist dof).
+inline int PositionDof(int k) { return 3 * (k / 4) + k % 4; }
+/// The position rows of a free-dof vector, and back (twist rows zero).
+void GatherPositions(const VecX& free, VecX* positions);
+void ScatterPositions(const VecX& positions, VecX* free);
+
+/// Gradient of Pi over the free dofs with its twist rows zeroed, and the Hessian of the
+/// twist-eliminated energy over the positions (NumPositionDofs, 3 x 3 blocks): each vertex
+/// stencil's Hessian restricted to the motions that keep its twist zero (the twist angles
+/// follow the reference twist), which is exact where the twist is zero and the rod isotropic
+/// (the stencil's twist gradient vanishes there). `state` must have zero twist (SetZeroTwist).
+void AssemblePositionHessian(const RodModel& model, const RodState& state,
+                             const EnergyTerms& terms, VecX* gradient, BandedSymmetric* hessian,
+                             const RodFrames* frames = nullptr);
+
 /// Whether free dof k is held (a held vertex's coordinate, an end ghost's vertex, or a held
 /// ghost twist): such dofs have Dirichlet rows.
 const std::vector<char>& HeldDofs(const RodModel& model);
 
-/// Dirichlet rows and columns for the held dofs: zero gradient, identity diagonal.
+/// HeldDofs for the position-only system (NumPositionDofs).
+std::vector<char> HeldPositionDofs(const RodModel& model);
+
+/// Dirichlet rows and columns for the held dofs: zero gradient, identity diagonal (either may be
+/// null).
 void ApplyHeldRows(const std::vector<char>& held, VecX* gradient, BandedSymmetric* H);
 
 /// state + alpha * step over the free dofs, with reference frames transported in time to the

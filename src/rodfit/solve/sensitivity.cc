@@ -22,8 +22,15 @@ bool TermSensitivities(const RodModel& model, const RodState& state,
   // factor of its (non-symmetric) tangent. The moments do not depend on the stiffnesses, so
   // dg/dlog p is the unit term's gradient either way.
   const bool lu = workspace.tangent_valid && workspace.tangent.size() == model.num_free_dofs();
-  const bool chol = workspace.factor_valid && workspace.hessian.size() == model.num_free_dofs();
-  if (!workspace.edge_valid && !lu && !chol) return false;
+  const bool chol = workspace.factor_valid && !workspace.factor_positions &&
+                    workspace.hessian.size() == model.num_free_dofs();
+  // A solve with its twist eliminated kept the factor of the position-only Hessian. A parameter
+  // that breaks what made the twist vanish (B1 alone makes the rod anisotropic) needs the full
+  // Hessian: it is then assembled and factored here, once, at the solution (which has zero twist
+  // and is an equilibrium of the full problem).
+  const bool positions = workspace.factor_valid && workspace.factor_positions &&
+                         workspace.hessian.size() == NumPositionDofs(model);
+  if (!workspace.edge_valid && !lu && !chol && !positions) return false;
   // A fine rod's sensitivities in edge coordinates: the solve's own edge factor, or one made
   // here at the (stable) solution.
   EdgeSolver fine;
@@ -43,6 +50,28 @@ bool TermSensitivities(const RodModel& model, const RodState& state,
   }
   if (edge) {
     edge->SolveInPlace(*dq_dlogp);
+  } else if (positions) {
+    // A term that keeps the rod isotropic (B1 and B2 scaled alike, or neither) has no twist
+    // force at zero twist: its derivative keeps the twist zero, so the kept position-only factor
+    // and ZeroTwistVariation give it exactly. One that does not needs the full Hessian.
+    bool keeps_isotropy = true;
+    for (const EnergyTerms& t : terms) keeps_isotropy = keeps_isotropy && t.bend1 == t.bend2;
+    if (keeps_isotropy) {
+      VecX column, p;
+      for (int k = 0; k < dq_dlogp->cols(); ++k) {
+        GatherPositions(dq_dlogp->col(k), &p);
+        workspace.hessian.SolveInPlace(p);
+        ScatterPositions(p, &column);
+        ZeroTwistVariation(model, state, column);
+        dq_dlogp->col(k) = column;
+      }
+    } else {
+      BandedSymmetric H;
+      BandedCholesky full;
+      AssembleHessian(model, state, EnergyTerms(), &g, &H);
+      if (!full.Factor(H)) return false;
+      full.SolveInPlace(*dq_dlogp);
+    }
   } else if (lu) {
     workspace.tangent.SolveInPlace(*dq_dlogp);
   } else {

@@ -161,6 +161,20 @@ double EnergyNoise(const RodModel& model, double energy) {
   return 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
 }
 
+// Solves H s = b in place with the kept factor: over every free dof, or over the positions
+// only when the twist is eliminated (the twist rows of s come back zero; SetZeroTwist makes
+// the twist angles follow the step).
+void SolveWithFactor(const BandedCholesky& factor, bool positions, VecX* s) {
+  if (!positions) {
+    factor.SolveInPlace(*s);
+    return;
+  }
+  VecX p;
+  GatherPositions(*s, &p);
+  factor.SolveInPlace(p);
+  ScatterPositions(p, s);
+}
+
 // Chord steps. A Newton step needs the Hessian at the current state; a chord step reuses the
 // factor of a nearby basis state. Plain reuse fails on a suture: the stretch stiffness EA / l
 // exceeds the bending stiffness EI / l^3 by ~1e7, and its stiff directions are the edges, which
@@ -175,10 +189,11 @@ double EnergyNoise(const RodModel& model, double energy) {
 // of those since the basis state (about the size of the last Newton step). Solving with H~ is
 // the factor's solve wrapped in O(n) suffix sums, rotations and prefix sums. Returns false
 // when a tangent has turned too far for the transport (> 60 degrees).
-bool ChordStep(const BandedCholesky& factor, const Eigen::Matrix3Xd& basis_tangents,
+bool ChordStep(const BandedCholesky& factor, bool positions, const Eigen::Matrix3Xd& basis_tangents,
                const RodFrames& frames, const VecX& g, VecX* step) {
   const int n = static_cast<int>(basis_tangents.cols());
-  if (static_cast<int>(frames.edges.size()) != n + 1 || factor.size() != g.size()) return false;
+  const int factor_size = positions ? 3 * (static_cast<int>(g.size()) / 4) : static_cast<int>(g.size());
+  if (static_cast<int>(frames.edges.size()) != n + 1 || factor.size() != factor_size) return false;
   for (int j = 0; j < n; ++j)
     if (!(basis_tangents.col(j).dot(frames.edges[j + 1].t) > 0.5)) return false;
   *step = g;
@@ -192,7 +207,7 @@ bool ChordStep(const BandedCholesky& factor, const Eigen::Matrix3Xd& basis_tange
     s.segment<3>(RodModel::VertexDof(j + 1)) = rotated - rotated_next;
     rotated_next = rotated;
   }
-  factor.SolveInPlace(s);
+  SolveWithFactor(factor, positions, &s);
   s = -s;
   // A (edge steps), R, then A^-1 (prefix sums from the clamp).
   Vec3 previous = Vec3::Zero(), position = Vec3::Zero();
@@ -306,12 +321,36 @@ double NegativeCurvature(const BandedSymmetric& H, double shift_ok, double shift
   return rq;
 }
 
+/// NegativeCurvature of H over the free dofs, or over the positions when H is the position-only
+/// Hessian (g and the direction d in the free-dof layout either way).
+double NegativeCurvatureOf(const BandedSymmetric& H, bool positions, double shift_ok,
+                           double shift_failed, BandedCholesky* factor, VecX* d, int bisections,
+                           const VecX& g) {
+  if (!positions) return NegativeCurvature(H, shift_ok, shift_failed, factor, d, bisections, g);
+  VecX gp, dp;
+  GatherPositions(g, &gp);
+  const double rq = NegativeCurvature(H, shift_ok, shift_failed, factor, &dp, bisections, gp);
+  ScatterPositions(dp, d);
+  return rq;
+}
+
 struct NewtonContext {
   const RodModel& model;
   const StaticsOptions& opt;
   const Tolerances& tol;
   const std::vector<char>& held;
+  /// The twist is eliminated (TwistCanBeEliminated and StaticsOptions::eliminate_twist): every
+  /// state the solver makes has zero twist, and Newton's system is over the positions.
+  bool eliminate_twist = false;
 };
+
+/// ApplyStep, then the twist angles set to zero twist when it is eliminated.
+bool ApplyNewtonStep(const NewtonContext& ctx, const RodState& state, const VecX& step,
+                     double alpha, RodState* out) {
+  if (!ApplyStep(ctx.model, state, step, alpha, out)) return false;
+  if (ctx.eliminate_twist) SetZeroTwist(ctx.model, out);
+  return true;
+}
 
 /// Tries to leave a saddle along d (negative curvature): the first step along +-d, from 0.1 L
 /// down, that lowers Pi beyond round-off. True when taken (*state, *frames and *energy moved).
@@ -327,7 +366,7 @@ bool StepAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& ter
   RodFrames trial_frames;
   for (double a = 0.1 * ctx.model.length(); a > 1e-9 * ctx.model.length(); a *= 0.5) {
     for (double sgn : {1.0, -1.0}) {
-      if (!ApplyStep(ctx.model, *state, d, sgn * a, &trial)) continue;
+      if (!ApplyNewtonStep(ctx, *state, d, sgn * a, &trial)) continue;
       ComputeRodFrames(ctx.model, trial, &trial_frames);
       const double e_trial = PotentialEnergyFreshFrames(ctx.model, trial, terms, &trial_frames);
       if (std::isfinite(e_trial) && e_trial < *energy - 10.0 * noise) {
@@ -359,7 +398,7 @@ bool BestAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& ter
   for (double sgn : {1.0, -1.0}) {
     double previous = std::numeric_limits<double>::infinity();
     for (double a = 0.2 * ctx.model.length(); a > 1e-6 * ctx.model.length(); a *= 0.5) {
-      if (!ApplyStep(ctx.model, *state, d, sgn * a, &trial)) continue;
+      if (!ApplyNewtonStep(ctx, *state, d, sgn * a, &trial)) continue;
       ComputeRodFrames(ctx.model, trial, &trial_frames);
       const double e = PotentialEnergyFreshFrames(ctx.model, trial, terms, &trial_frames);
       if (!std::isfinite(e)) continue;
@@ -383,12 +422,12 @@ bool BestAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& ter
 /// at equilibrium. With StartFactor::kExact, ws->hessian already holds the factor of the
 /// (unshifted) Hessian at *state for this model and load, and ws the energy and gradient there
 /// without dead loads, so the first iteration assembles nothing.
-StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_iterations,
+StepResult NewtonAtLoad(const NewtonContext& solve_ctx, double load_scale, int max_iterations,
                         RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
                         std::string* why, StartFactor start) {
-  const RodModel& model = ctx.model;
-  const StaticsOptions& opt = ctx.opt;
-  const Tolerances& tol = ctx.tol;
+  const RodModel& model = solve_ctx.model;
+  const StaticsOptions& opt = solve_ctx.opt;
+  const Tolerances& tol = solve_ctx.tol;
   const int n = model.num_edges();
   EnergyTerms terms;
   terms.load_scale = load_scale;
@@ -404,6 +443,18 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
   // and the assembly at that state. (With the kept factor the first iteration needs no frames;
   // later states arrive with theirs.)
   RodFrames frames, trial_frames;
+  // A fine rod's steps come from the edge-coordinate factor (edge_solver.h); the vertex factor
+  // still tells definiteness. Chord steps and the kept factor's reuse are for the vertex path.
+  const bool use_edge = n >= opt.edge_solver_segments && EdgeSolver::Applies(model);
+  // Twist eliminated: Newton's system is over the positions (AssemblePositionHessian), every
+  // state has zero twist (on a converged state SetZeroTwist changes nothing, so the kept
+  // factor's state is unchanged). The edge-coordinate path keeps the twist.
+  const bool positions = solve_ctx.eliminate_twist && !use_edge;
+  // The steps of this Newton keep zero twist only when it is over the positions.
+  NewtonContext ctx = solve_ctx;
+  ctx.eliminate_twist = positions;
+  if (positions) SetZeroTwist(model, state);
+  summary->twist_eliminated = positions;
   if (!factor_at_start) ComputeRodFrames(model, *state, &frames);
   double energy = factor_at_start ? ws->factor_unloaded_energy +
                                         DeadLoadEnergy(model, *state, load_scale)
@@ -434,9 +485,6 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
   auto chord_pays = [&](double rate, double gnorm) {
     return rate <= kChordRate && rate * gnorm <= force_tol;
   };
-  // A fine rod's steps come from the edge-coordinate factor (edge_solver.h); the vertex factor
-  // still tells definiteness. Chord steps and the kept factor's reuse are for the vertex path.
-  const bool use_edge = n >= opt.edge_solver_segments && EdgeSolver::Applies(model);
   const bool chords_allowed =
       opt.chord_steps && model.held().empty() && !model.has_end_ghost() && !use_edge;
   bool chord_basis = chords_allowed && start != StartFactor::kNone &&
@@ -473,11 +521,11 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       const bool progress = std::isnan(g_last) || chord_pays(gnorm / g_last, gnorm);
       bool taken = false;
       if (std::isfinite(gnorm) && gnorm > force_tol && progress &&
-          ChordStep(ws->hessian, ws->factor_tangents, frames, g, &step)) {
+          ChordStep(ws->hessian, ws->factor_positions, ws->factor_tangents, frames, g, &step)) {
         const double slope = g.dot(step);
         const double noise = EnergyNoise(model, energy);
         if (slope < 0.0 && MaxTangentTurn(model, *state, step) <= opt.max_rotation_per_step &&
-            ApplyStep(model, *state, step, 1.0, &trial)) {
+            ApplyNewtonStep(ctx, *state, step, 1.0, &trial)) {
           ComputeRodFrames(model, trial, &trial_frames);
           const double e_trial = PotentialEnergyFreshFrames(model, trial, terms, &trial_frames);
           if (std::isfinite(e_trial) && e_trial <= energy + opt.armijo * slope + noise) {
@@ -505,6 +553,8 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       AddDeadLoadGradient(model, load_scale, /*hold=*/true, &g);
     } else if (use_edge) {
       AssembleGradient(model, *state, terms, &g, &frames);
+    } else if (positions) {
+      AssemblePositionHessian(model, *state, terms, &g, &H, &frames);
     } else {
       AssembleHessian(model, *state, terms, &g, &H, &frames);
     }
@@ -546,6 +596,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
     if (!reuse && !use_edge) {
       // The new factor is the chord basis from here on, if it is the Hessian's own.
       KeepTangents(frames, n, &ws->factor_tangents);
+      ws->factor_positions = positions;
       chord_basis = chords_allowed && !shifted;
     }
     ws->edge_valid = use_edge && !shifted;
@@ -565,8 +616,8 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       ws->factor_valid = true;
       return converged(true);
     } else {
-      step = -g;  // in place: no temporary vector per Newton step
-      ws->hessian.SolveInPlace(step);
+      step = -g;  // solved in place: no temporary vector per Newton step
+      SolveWithFactor(ws->hessian, positions, &step);
     }
     if (!shifted && tol.Converged(gnorm, step)) {
       ws->factor_valid = true;
@@ -581,7 +632,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       // its load axis): stable, though the factor is then not the Hessian's own.
       VecX d;
       BandedCholesky probe;
-      const double rq = NegativeCurvature(H, shift, shift_failed, &probe, &d, 12, g);
+      const double rq = NegativeCurvatureOf(H, positions, shift, shift_failed, &probe, &d, 12, g);
       const double amplitude = 0.01 * model.length() / std::max(d.cwiseAbs().maxCoeff(), 1e-300);
       const bool clearly_negative =
           rq < 0.0 && 0.5 * -rq * d.squaredNorm() * amplitude * amplitude >
@@ -610,7 +661,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
     const double noise = EnergyNoise(model, energy);
     bool accepted = false;
     for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
-      if (!ApplyStep(model, *state, step, alpha, &trial)) continue;
+      if (!ApplyNewtonStep(ctx, *state, step, alpha, &trial)) continue;
       ComputeRodFrames(model, trial, &trial_frames);
       const double e_trial = PotentialEnergyFreshFrames(model, trial, terms, &trial_frames);
       if (std::isfinite(e_trial) && e_trial <= energy + opt.armijo * alpha * slope + noise) {
@@ -623,7 +674,7 @@ StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_ite
       // Compare with the best step along the negative curvature (BestAlongNegativeCurvature).
       VecX d;
       BandedCholesky probe;
-      if (NegativeCurvature(H, shift, shift_failed, &probe, &d, 5, g) < 0.0) {
+      if (NegativeCurvatureOf(H, positions, shift, shift_failed, &probe, &d, 5, g) < 0.0) {
         RodState nc_state = *state;
         RodFrames nc_frames = frames;
         double nc_energy = energy;
@@ -1178,13 +1229,14 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
   StaticsWorkspace* ws = workspace ? workspace : &local;
   const Tolerances tol = MakeTolerances(model, options);
   const std::vector<char>& held = HeldDofs(model);
-  const NewtonContext ctx{model, options, tol, held};
+  const bool eliminate = options.eliminate_twist && TwistCanBeEliminated(model);
+  const NewtonContext ctx{model, options, tol, held, eliminate};
   // The kept factor belongs to factor_state: from exactly that state it is the Hessian there
   // (same digest) or a chord basis (a model with other stiffnesses).
   StartFactor start_factor = StartFactor::kNone;
   const bool fine = model.num_edges() >= options.edge_solver_segments;
   if (!fine && ws->factor_valid && !model.nonconservative() &&
-      SameState(ws->factor_state, *state))
+      ws->factor_positions == eliminate && SameState(ws->factor_state, *state))
     start_factor = (ws->factor_digest == model.hessian_digest()) ? StartFactor::kExact
                                                                  : StartFactor::kChord;
   ws->factor_valid = false;
@@ -1228,7 +1280,7 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     StaticsOptions moving_options = options;
     moving_options.edge_solver_segments =
         std::min(options.edge_solver_segments, kEdgeContinuationSegments);
-    const NewtonContext moving{model, moving_options, tol, held};
+    const NewtonContext moving{model, moving_options, tol, held, eliminate};
     {
       RodState at_start = *state;
       StaticsSummary attempt = summary;

@@ -20,6 +20,9 @@ namespace rodfit {
 struct StaticsWorkspace {
   BandedCholesky hessian;
   bool factor_valid = false;
+  /// `hessian` is the factor of the position-only Hessian (StaticsOptions::eliminate_twist):
+  /// its size is NumPositionDofs, and sensitivities factor the full Hessian themselves.
+  bool factor_positions = false;
   BandedLU tangent;
   bool tangent_valid = false;
   /// A fine rod's factor in edge coordinates (StaticsOptions::edge_solver_segments): when valid,
