@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -26,6 +27,9 @@ using Clock = std::chrono::steady_clock;
 // it the edge-wise retraction is far from the linearisation and the step is shortened.
 constexpr double kMaxTurnPerStep = 0.5;
 constexpr int kMaxLineSearchSteps = 30;
+// The predictor's finite-difference move, as a fraction of the rod's length: small enough that
+// the gradient is linear in it, large enough that its change is far above round-off.
+constexpr double kPredictorProbe = 1e-7;
 constexpr double kArmijo = 1e-4;
 // Relative round-off of the potential energy: an Armijo test between two values equal to this
 // precision is decided by noise, so a step that does not raise Pi beyond it is accepted.
@@ -89,18 +93,29 @@ struct Runtime::Impl {
   Vec3 tool_force = Vec3::Zero();  // poke force [N]
   Vec3 reaction = Vec3::Zero();    // last good force on the tool [N]
   double force_tolerance = 0.0;    // [N]
+  double floor_tolerance = 0.0;    // [N] the residual's round-off floor
   // Quasi-static scratch, sized once.
-  RodState state, last_good, trial;
+  RodState state, last_good, trial, moved;
   RodFrames frames;
   VecX g, g_free, step, weights;
   BandedSymmetric hessian;
   BandedCholesky factor;
+  // The factor was made at (or one Newton step before) the current state: the predictor's.
+  bool factor_near_state = false;
   double shift_base = 0.0;
   // Dynamic.
   std::unique_ptr<ToolDrive> drive;
   std::unique_ptr<DynamicsStepper> stepper;
   DynamicState dynamic, dynamic_good;
 
+  // *out = s with the grasped vertex at p and its two edges following it.
+  void MoveGrasp(const RodState& s, const Vec3& p, RodState* out) const {
+    const int v = tool_vertex;
+    *out = s;
+    out->x.col(v) = p;
+    out->e.col(v - 1) = out->x.col(v) - out->x.col(v - 1);
+    if (v < model->num_edges()) out->e.col(v) = out->x.col(v + 1) - out->x.col(v);
+  }
   double PokeWork(const RodState& s) const {
     if (options.tool != ToolKind::kPoke) return 0.0;
     const Vec3 x = (1.0 - poke_weight) * s.x.col(tool_vertex) + poke_weight * s.x.col(tool_vertex + 1);
@@ -137,6 +152,8 @@ struct Runtime::Impl {
     reaction = options.tool == ToolKind::kGrasp ? GraspForce(s) : Vec3(-tool_force);
   }
   StepReport StepQuasiStatic(Clock::time_point start);
+  // Newton from `state` until converged, `max_iterations` or the time budget from `start`.
+  StepStatus Newton(Clock::time_point start, int max_iterations, StepReport* report);
   StepReport StepDynamic();
 };
 
@@ -185,6 +202,10 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   }
   m.force_tolerance = options.gradient_tolerance * model.force_scale();
   m.weights = GradientNormWeights(model);
+  // The stretch forces' round-off, ~eps EA per edge, in the residual's measure (the dynamic
+  // stepper's floor).
+  m.floor_tolerance = 64.0 * std::numeric_limits<double>::epsilon() *
+                      scene.material.stretch_stiffness * m.weights.maxCoeff();
   const double l = model.min_rest_edge_length();
   const Material& mat = scene.material;
   // The statics solver's first diagonal shift for an indefinite Hessian.
@@ -198,9 +219,10 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   // Size every buffer now: the assembly resizes only when a size changes.
   m.last_good = m.state;
   m.trial = m.state;
+  m.moved = m.state;
   ComputeRodFrames(model, m.state, &m.frames);
   AssembleHessian(model, m.state, EnergyTerms(), &m.g, &m.hessian, &m.frames);
-  m.factor.Factor(m.hessian, 0.0);
+  m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
   m.step = m.g;
   m.g_free = m.g;
   if (options.mode == RuntimeMode::kDynamic) {
@@ -214,10 +236,22 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     dyn.max_newton_iterations = options.dynamic_newton_iterations;
     m.stepper = std::make_unique<DynamicsStepper>(model, dyn);
     m.dynamic = m.stepper->AtRest(m.state);
-    // One step sizes the stepper's scratch and BDF2's history; at rest with the tool where it
-    // is, it leaves the rod at rest.
+    // A throwaway step with the tool nudged sizes every buffer of the stepper (a step at rest
+    // converges before it factors anything); the rod is then put back at rest.
+    m.dynamic_good = m.dynamic;
+    const Vec3 home = m.tool;
+    m.tool += Vec3::Constant(1e-6 * model.length());
     const DynamicsStepSummary warm = m.stepper->Step(*m.drive, &m.dynamic);
+    m.tool = home;
     if (!warm.ok) throw std::runtime_error("the first dynamic step failed: " + warm.reason);
+    // Back at rest, the history's buffers kept at their size (BDF2 starts with a backward
+    // Euler step without history).
+    m.dynamic.q = m.dynamic_good.q;
+    m.dynamic.v = m.dynamic_good.v;
+    m.dynamic.t = m.dynamic_good.t;
+    m.dynamic.has_history = false;
+    m.dynamic.last_step.setZero();
+    m.dynamic.last_v.setZero();
     m.dynamic_good = m.dynamic;
   }
   m.UpdateReaction();
@@ -242,86 +276,127 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   const RodModel& m = *model;
   auto give_up = [&](StepStatus status) {
     state = last_good;  // same sizes: no allocation
+    factor_near_state = false;  // the factor may belong to a state far from last_good
     report.status = status;
     return report;
   };
   last_good = state;
+  bool predicted_start = false;
   const bool finite_tool = tool.allFinite() && tool_force.allFinite();
   if (!finite_tool) return give_up(StepStatus::kNotConverged);
   if (options.tool == ToolKind::kGrasp) {
-    // Move the held vertex to the tool; its two edges follow (the rest of the rod is where the
-    // last tick left it, Newton brings it along).
+    // Predict the rod's answer to the tool's move d from the factor kept at the last
+    // equilibrium: x_free += -K_ff^-1 K_fh d, the linear response with the grasped vertex as a
+    // Dirichlet boundary. K_fh d is the gradient's directional derivative, a finite difference
+    // over a move small enough to be linear. Moving the grasped vertex alone would compress or
+    // stretch its two edges by the whole move: for a thread, EA / l times it is a force many
+    // orders above the loads, and Newton would start far from the solution on an indefinite
+    // Hessian.
     const int v = tool_vertex;
-    trial = state;
-    trial.x.col(v) = tool;
-    trial.e.col(v - 1) = trial.x.col(v) - trial.x.col(v - 1);
-    if (v < m.num_edges()) trial.e.col(v) = trial.x.col(v + 1) - trial.x.col(v);
-    if (!UpdateReferenceFrames(m, state, &trial)) return give_up(StepStatus::kNotConverged);
-    std::swap(state, trial);
+    const Vec3 d = tool - state.x.col(v);
+    const double d_norm = d.norm();
+    bool predicted = false;
+    if (factor_near_state && factor.valid() && d_norm > 0.0) {
+      const double eta = std::min(1.0, kPredictorProbe * m.length() / d_norm);
+      ComputeRodFrames(m, state, &frames);
+      AssembleGradient(m, state, EnergyTerms(), &g_free, &frames);
+      MoveGrasp(state, state.x.col(v) + eta * d, &trial);
+      if (UpdateReferenceFrames(m, state, &trial)) {
+        ComputeRodFrames(m, trial, &frames);
+        AssembleGradient(m, trial, EnergyTerms(), &g, &frames);
+        step = -(g - g_free) / eta;
+        factor.SolveInPlace(step);
+        // The free vertices move from the last equilibrium (whose edges are consistent), then
+        // the grasped vertex, its two edges spanning the predicted neighbours.
+        const double turn = MaxTangentTurn(m, state, step);
+        const double scale = turn > kMaxTurnPerStep ? kMaxTurnPerStep / turn : 1.0;
+        if (ApplyStep(m, state, step, scale, &moved)) {
+          MoveGrasp(moved, tool, &trial);
+          if (UpdateReferenceFrames(m, moved, &trial)) {
+            std::swap(state, trial);
+            predicted = state.x.allFinite();
+            predicted_start = predicted;
+          }
+        }
+      }
+    }
+    if (!predicted) {
+      // No usable factor: the grasped vertex alone moves, Newton brings the rest along.
+      MoveGrasp(last_good, tool, &trial);
+      if (!UpdateReferenceFrames(m, last_good, &trial)) return give_up(StepStatus::kNotConverged);
+      state = trial;
+    }
   }
+  StepStatus status = Newton(start, options.max_iterations, &report);
+  if (status == StepStatus::kNotConverged && predicted_start) {
+    // The prediction led Newton astray (a move too large for the linear response): again from
+    // the grasped vertex moved alone, with the iterations left.
+    MoveGrasp(last_good, tool, &state);
+    if (UpdateReferenceFrames(m, last_good, &state))
+      status = Newton(start, options.max_iterations - report.iterations, &report);
+    else
+      status = StepStatus::kNotConverged;
+  }
+  if (status != StepStatus::kConverged) return give_up(status);
+  factor_near_state = report.iterations > 0 || factor_near_state;
+  report.status = StepStatus::kConverged;
+  return report;
+}
+
+StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, StepReport* report) {
+  const RodModel& m = *model;
   const double budget = options.time_budget;
-  // The first step of a tick is a chord step with the factor kept from the last tick (the
-  // Hessian of a state next to this one): it carries the tool's move into the whole rod along the
-  // last equilibrium's stiffness, which a Hessian assembled at the just-moved state (one edge
-  // pulled out of line) would not. Newton steps follow.
-  bool chord = factor.valid();
   for (int it = 0;; ++it) {
     ComputeRodFrames(m, state, &frames);
-    if (chord) {
-      AssembleGradient(m, state, EnergyTerms(), &g, &frames);
-    } else {
-      AssembleHessian(m, state, EnergyTerms(), &g, &hessian, &frames);
-    }
+    AssembleHessian(m, state, EnergyTerms(), &g, &hessian, &frames);
     AddPokeGradient(&g);
-    report.residual = Residual(g);
-    if (!std::isfinite(report.residual)) return give_up(StepStatus::kNotConverged);
-    if (report.residual <= force_tolerance) break;
-    if (it >= options.max_iterations) return give_up(StepStatus::kNotConverged);
+    report->residual = Residual(g);
+    if (!std::isfinite(report->residual)) return StepStatus::kNotConverged;
+    if (report->residual <= force_tolerance) break;
+    if (it >= max_iterations) return StepStatus::kNotConverged;
     if (budget > 0.0 && std::chrono::duration<double>(Clock::now() - start).count() > budget)
-      return give_up(StepStatus::kTimeBudget);
+      return StepStatus::kTimeBudget;
+    // Factor, shifting the diagonal tenfold at a time while the Hessian is indefinite (the
+    // state a tool's move leads to often is, before Newton has carried the move into the rod).
     double shift = 0.0;
-    if (!chord) {
-      // Factor, shifting the diagonal tenfold at a time while the Hessian is indefinite.
-      bool factored = false;
-      for (int k = 0; k < 16 && !factored; ++k) {
-        factored = factor.Factor(hessian, shift);
-        if (!factored) shift = shift == 0.0 ? shift_base : 10.0 * shift;
-      }
-      if (!factored) return give_up(StepStatus::kNotConverged);
+    bool factored = false;
+    for (int k = 0; k < 16 && !factored; ++k) {
+      factored = factor.Factor(hessian, shift);
+      if (!factored) shift = shift == 0.0 ? shift_base : 10.0 * shift;
     }
+    if (!factored) return StepStatus::kNotConverged;
     step = -g;
     factor.SolveInPlace(step);
     double alpha = 1.0;
     const double turn = MaxTangentTurn(m, state, step);
     if (turn > kMaxTurnPerStep) alpha = kMaxTurnPerStep / turn;
     const double e0 = Energy(state);
+    // Pi's round-off: relative to its size and to the work of the loads over the rod (Pi of a
+    // hanging rod can be near zero while its terms are not).
+    const double energy_noise = kEnergyRoundOff * (std::abs(e0) + m.force_scale() * m.length());
     const double slope = g.dot(step);
     bool accepted = false;
     for (int ls = 0; ls < kMaxLineSearchSteps && !accepted; ++ls, alpha *= 0.5) {
       if (!ApplyStep(m, state, step, alpha, &trial)) continue;
       const double e1 = Energy(trial);
-      accepted = std::isfinite(e1) &&
-                 e1 <= e0 + kArmijo * alpha * slope + kEnergyRoundOff * std::abs(e0);
+      accepted = std::isfinite(e1) && e1 <= e0 + kArmijo * alpha * slope + energy_noise;
     }
     alpha *= 2.0;  // the accepted one
-    const bool was_chord = chord;
-    chord = false;
-    if (!accepted) {
-      if (was_chord) continue;  // the kept factor does not help here: Newton from this state
-      return give_up(StepStatus::kNotConverged);
-    }
+    if (!accepted) return StepStatus::kNotConverged;
     std::swap(state, trial);
-    ++report.iterations;
+    ++report->iterations;
     // A full, unshifted Newton step below the step tolerance: Newton converges quadratically
     // here, so the state after it is far closer than the step (the statics solver's second
     // test; a stiff stretch leaves a gradient floor of ~eps EA the first test may not pass).
-    if (!was_chord && alpha == 1.0 && shift == 0.0 &&
-        step.lpNorm<Eigen::Infinity>() <= options.step_tolerance * std::min(1.0, m.length()))
+    // At the residual's round-off floor (~eps EA per edge) the test is relaxed a thousandfold,
+    // as in the statics.
+    const double step_tol = options.step_tolerance * std::min(1.0, m.length()) *
+                            (report->residual <= floor_tolerance ? 1e3 : 1.0);
+    if (alpha == 1.0 && shift == 0.0 &&
+        step.lpNorm<Eigen::Infinity>() <= step_tol)
       break;
   }
-  if (!state.x.allFinite()) return give_up(StepStatus::kNotConverged);
-  report.status = StepStatus::kConverged;
-  return report;
+  return state.x.allFinite() ? StepStatus::kConverged : StepStatus::kNotConverged;
 }
 
 StepReport Runtime::Impl::StepDynamic() {
