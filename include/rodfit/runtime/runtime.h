@@ -54,6 +54,12 @@ struct RuntimeOptions {
   double step_tolerance = 1e-9;
   /// [s] wall time a step may take before it gives up (0: no limit; the iteration cap holds).
   double time_budget = 0.0;
+  /// Quasi-static grasp: the largest move of the grasped point in one tick, as a fraction of
+  /// the shortest rest edge [-]. A tool that ran further ahead (a device glitch, a tick lost to
+  /// the time budget) is followed over several ticks (StepReport::tool_lag), so that one far
+  /// jump cannot keep every later tick from converging. After a tick that did not converge the
+  /// next ones move a quarter as far (down to 1/64), growing back twofold per converged tick.
+  double max_tool_move = 0.25;
   double time_step = 1e-3;          ///< [s] dynamic mode: the step of one tick
   int dynamic_newton_iterations = 25;  ///< dynamic mode: Newton iterations per step
   int mesh_ring_vertices = 16;      ///< Mesh(): vertices per ring of the tube (>= 3)
@@ -72,6 +78,7 @@ struct StepReport {
   int iterations = 0;      ///< Newton iterations
   double residual = 0.0;   ///< [N] scaled residual at exit
   double seconds = 0.0;    ///< wall time of the step
+  double tool_lag = 0.0;   ///< [m] how far the grasped point is from the tool after the step
   bool ok() const { return status == StepStatus::kConverged; }
 };
 

@@ -27,6 +27,8 @@ using Clock = std::chrono::steady_clock;
 // it the edge-wise retraction is far from the linearisation and the step is shortened.
 constexpr double kMaxTurnPerStep = 0.5;
 constexpr int kMaxLineSearchSteps = 30;
+// The smallest fraction of max_tool_move a tick falls back to after failed ticks.
+constexpr double kMinMoveScale = 1.0 / 64.0;
 // The predictor's finite-difference move, as a fraction of the rod's length: small enough that
 // the gradient is linear in it, large enough that its change is far above round-off.
 constexpr double kPredictorProbe = 1e-7;
@@ -67,6 +69,7 @@ bool RuntimeOptions::Check(std::string* why) const {
   if (!(step_tolerance > 0.0)) return *why = "step_tolerance must be > 0", false;
   if (!(time_budget >= 0.0)) return *why = "time_budget must be >= 0", false;
   if (!(time_step > 0.0)) return *why = "time_step must be > 0", false;
+  if (!(max_tool_move > 0.0)) return *why = "max_tool_move must be > 0", false;
   if (dynamic_newton_iterations < 1) return *why = "dynamic_newton_iterations must be >= 1", false;
   if (mesh_ring_vertices < 3) return *why = "mesh_ring_vertices must be >= 3", false;
   if (tool == ToolKind::kPoke && mode == RuntimeMode::kDynamic)
@@ -90,6 +93,8 @@ struct Runtime::Impl {
   int tool_vertex = -1;  // grasp: the held vertex; poke: the lower vertex of the bracket
   double poke_weight = 0.0;
   Vec3 tool = Vec3::Zero();        // grasp target [m]
+  Vec3 target = Vec3::Zero();      // this tick's: the tool, or max_tool_move towards it [m]
+  double move_scale = 1.0;         // of max_tool_move: cut after a failed tick, regrown after
   Vec3 tool_force = Vec3::Zero();  // poke force [N]
   Vec3 reaction = Vec3::Zero();    // last good force on the tool [N]
   double force_tolerance = 0.0;    // [N]
@@ -267,6 +272,9 @@ StepReport Runtime::Step() {
   StepReport report = impl_->options.mode == RuntimeMode::kDynamic ? impl_->StepDynamic()
                                                                    : impl_->StepQuasiStatic(start);
   if (report.ok()) impl_->UpdateReaction();
+  if (impl_->options.tool == ToolKind::kGrasp)
+    report.tool_lag = impl_->tool.allFinite() ? (impl_->tool - ToolPosition()).norm()
+                                              : std::numeric_limits<double>::infinity();
   report.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return report;
 }
@@ -276,6 +284,9 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   const RodModel& m = *model;
   auto give_up = [&](StepStatus status) {
     state = last_good;  // same sizes: no allocation
+    // The next tick tries a smaller move: a tick lost to the budget leaves the tool further
+    // ahead, and trying the whole way again would lose the next one too.
+    move_scale = std::max(move_scale * 0.25, kMinMoveScale);
     factor_near_state = false;  // the factor may belong to a state far from last_good
     report.status = status;
     return report;
@@ -293,8 +304,14 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     // orders above the loads, and Newton would start far from the solution on an indefinite
     // Hessian.
     const int v = tool_vertex;
-    const Vec3 d = tool - state.x.col(v);
-    const double d_norm = d.norm();
+    Vec3 d = tool - state.x.col(v);
+    double d_norm = d.norm();
+    const double max_move = options.max_tool_move * move_scale * m.min_rest_edge_length();
+    if (d_norm > max_move) {
+      d *= max_move / d_norm;
+      d_norm = max_move;
+    }
+    target = state.x.col(v) + d;
     bool predicted = false;
     if (factor_near_state && factor.valid() && d_norm > 0.0) {
       const double eta = std::min(1.0, kPredictorProbe * m.length() / d_norm);
@@ -311,7 +328,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
         const double turn = MaxTangentTurn(m, state, step);
         const double scale = turn > kMaxTurnPerStep ? kMaxTurnPerStep / turn : 1.0;
         if (ApplyStep(m, state, step, scale, &moved)) {
-          MoveGrasp(moved, tool, &trial);
+          MoveGrasp(moved, target, &trial);
           if (UpdateReferenceFrames(m, moved, &trial)) {
             std::swap(state, trial);
             predicted = state.x.allFinite();
@@ -322,7 +339,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     }
     if (!predicted) {
       // No usable factor: the grasped vertex alone moves, Newton brings the rest along.
-      MoveGrasp(last_good, tool, &trial);
+      MoveGrasp(last_good, target, &trial);
       if (!UpdateReferenceFrames(m, last_good, &trial)) return give_up(StepStatus::kNotConverged);
       state = trial;
     }
@@ -331,7 +348,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   if (status == StepStatus::kNotConverged && predicted_start) {
     // The prediction led Newton astray (a move too large for the linear response): again from
     // the grasped vertex moved alone, with the iterations left.
-    MoveGrasp(last_good, tool, &state);
+    MoveGrasp(last_good, target, &state);
     if (UpdateReferenceFrames(m, last_good, &state))
       status = Newton(start, options.max_iterations - report.iterations, &report);
     else
@@ -339,6 +356,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   }
   if (status != StepStatus::kConverged) return give_up(status);
   factor_near_state = report.iterations > 0 || factor_near_state;
+  move_scale = std::min(1.0, 2.0 * move_scale);
   report.status = StepStatus::kConverged;
   return report;
 }
