@@ -13,10 +13,12 @@
 // the vertex's cell) [N/m].
 #include "rodfit/runtime/export.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include "rodfit/model/material_parameters.h"
@@ -49,7 +51,7 @@ std::string FormatSofaSnippet(const Profile& p) {
   const RoundSectionConstants c = DeriveRoundSection(m, rod.radius);
   const double mass_density = rod.linear_density / (M_PI * rod.radius * rod.radius);
   std::ostringstream out;
-  out << "<!-- rodfit export --format sofa of " << p.path << " (profile version " << p.version
+  out << "<!-- rodfit export (format sofa) of " << p.path << " (profile version " << p.version
       << ", fitted by rodfit " << p.rodfit_version << "). SI units: m, kg, s, N, Pa.\n"
       << "     Constants of a solid round section of radius " << Num(rod.radius)
       << " m with the fitted stiffnesses:\n"
@@ -68,14 +70,23 @@ std::string FormatSofaSnippet(const Profile& p) {
   out << "  <SparseLDLSolver/>\n";
   out << "  <!-- " << model.num_edges() << " segments, " << model.num_vertices()
       << " vertices: the rest shape from the clamp. -->\n";
-  out << "  <EdgeSetTopologyContainer name=\"topology\" position=\"";
-  for (int i = 0; i < model.num_vertices(); ++i)
-    out << (i ? " " : "") << Num(rest.x(0, i)) << " " << Num(rest.x(1, i)) << " "
-        << Num(rest.x(2, i));
-  out << "\" edges=\"";
+  out << "  <EdgeSetTopologyContainer name=\"topology\" edges=\"";
   for (int j = 0; j < model.num_edges(); ++j) out << (j ? " " : "") << j << " " << j + 1;
   out << "\"/>\n";
-  out << "  <MechanicalObject template=\"Rigid3d\" name=\"frames\" position=\"@topology.position\"/>\n";
+  // Rigid3d: position and orientation (qx qy qz qw) per vertex; a SOFA beam runs along its
+  // local x, so the frame's columns are (d3, d1, d2) of the edge leaving the vertex (the last
+  // vertex: the edge arriving).
+  out << "  <MechanicalObject template=\"Rigid3d\" name=\"frames\" position=\"";
+  for (int i = 0; i < model.num_vertices(); ++i) {
+    const EdgeFrame f = model.MaterialFrame(rest, std::min(i, model.num_edges() - 1));
+    Eigen::Matrix3d r;
+    r << f.d3, f.d1, f.d2;
+    const Eigen::Quaterniond q(r);
+    out << (i ? "  " : "") << Num(rest.x(0, i)) << " " << Num(rest.x(1, i)) << " "
+        << Num(rest.x(2, i)) << " " << Num(q.x()) << " " << Num(q.y()) << " " << Num(q.z())
+        << " " << Num(q.w());
+  }
+  out << "\"/>\n";
   out << "  <UniformMass totalMass=\"" << Num(rod.linear_density * rod.length) << "\"/>\n";
   out << "  <!-- massDensity [kg/m^3] = linear_density / (pi r^2) -->\n";
   out << "  <BeamFEMForceField name=\"beam\" youngModulus=\"" << Num(c.youngs_modulus)
