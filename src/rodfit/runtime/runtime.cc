@@ -101,7 +101,7 @@ struct Runtime::Impl {
   double floor_tolerance = 0.0;    // [N] the residual's round-off floor
   // Quasi-static scratch, sized once.
   RodState state, last_good, trial, moved;
-  RodFrames frames;
+  RodFrames frames, trial_frames;
   VecX g, g_free, step, weights;
   BandedSymmetric hessian;
   BandedCholesky factor;
@@ -127,6 +127,10 @@ struct Runtime::Impl {
     return tool_force.dot(x);
   }
   double Energy(const RodState& s) const { return PotentialEnergy(*model, s) - PokeWork(s); }
+  // The same for a state whose frames `f` are fresh (as ApplyStep leaves them): no transports.
+  double Energy(const RodState& s, const RodFrames& f) const {
+    return PotentialEnergyFreshFrames(*model, s, EnergyTerms(), &f) - PokeWork(s);
+  }
   // The poke's dead force on the free rows of its two vertices.
   void AddPokeGradient(VecX* gradient) const {
     if (options.tool != ToolKind::kPoke) return;
@@ -226,6 +230,7 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.trial = m.state;
   m.moved = m.state;
   ComputeRodFrames(model, m.state, &m.frames);
+  m.trial_frames = m.frames;
   AssembleHessian(model, m.state, EnergyTerms(), &m.g, &m.hessian, &m.frames);
   m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
   m.step = m.g;
@@ -388,7 +393,7 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     double alpha = 1.0;
     const double turn = MaxTangentTurn(m, state, step);
     if (turn > kMaxTurnPerStep) alpha = kMaxTurnPerStep / turn;
-    const double e0 = Energy(state);
+    const double e0 = Energy(state, frames);
     // Pi's round-off: relative to its size and to the work of the loads over the rod (Pi of a
     // hanging rod can be near zero while its terms are not).
     const double energy_noise = kEnergyRoundOff * (std::abs(e0) + m.force_scale() * m.length());
@@ -396,7 +401,8 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     bool accepted = false;
     for (int ls = 0; ls < kMaxLineSearchSteps && !accepted; ++ls, alpha *= 0.5) {
       if (!ApplyStep(m, state, step, alpha, &trial)) continue;
-      const double e1 = Energy(trial);
+      ComputeRodFrames(m, trial, &trial_frames);
+      const double e1 = Energy(trial, trial_frames);
       accepted = std::isfinite(e1) && e1 <= e0 + kArmijo * alpha * slope + energy_noise;
     }
     alpha *= 2.0;  // the accepted one
