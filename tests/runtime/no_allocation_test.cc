@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstddef>
 #include <functional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -82,6 +83,14 @@ struct Mode {
   double s;
 };
 
+void PrintTo(const Mode& m, std::ostream* os) { *os << m.profile << " s = " << m.s; }
+std::string ModeName(const ::testing::TestParamInfo<Mode>& info) {
+  std::string name = info.param.profile;
+  name = name.substr(0, name.find('.'));
+  name += info.param.mode == RuntimeMode::kDynamic ? "_dynamic" : "_quasi_static";
+  return name + (info.param.tool == ToolKind::kPoke ? "_poke" : "_grasp");
+}
+
 class NoAllocation : public ::testing::TestWithParam<Mode> {};
 
 TEST_P(NoAllocation, InStep) {
@@ -119,7 +128,8 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Mode{"suture.json", RuntimeMode::kQuasiStatic, ToolKind::kGrasp, 0.2},
                       Mode{"bowel_drag.json", RuntimeMode::kQuasiStatic, ToolKind::kGrasp, 0.1},
                       Mode{"bowel_drag.json", RuntimeMode::kDynamic, ToolKind::kGrasp, 0.1},
-                      Mode{"bowel_poke.json", RuntimeMode::kQuasiStatic, ToolKind::kPoke, 0.075}));
+                      Mode{"bowel_poke.json", RuntimeMode::kQuasiStatic, ToolKind::kPoke, 0.075}),
+    ModeName);
 
 }  // namespace
 }  // namespace rodfit

@@ -4,6 +4,7 @@
 // last good state, nothing turns non-finite).
 #include <algorithm>
 #include <cmath>
+#include <ostream>
 #include <vector>
 #include <string>
 
@@ -52,6 +53,13 @@ struct DragCase {
   Vec3 target;
 };
 
+// Test names and messages by profile (not the struct's bytes).
+void PrintTo(const DragCase& c, std::ostream* os) { *os << c.profile << " at s = " << c.s; }
+std::string DragCaseName(const ::testing::TestParamInfo<DragCase>& info) {
+  std::string name = info.param.profile;
+  return name.substr(0, name.find('.'));
+}
+
 class RoundTrip : public ::testing::TestWithParam<DragCase> {};
 
 // Profile -> runtime -> the shape `rodfit simulate` finds for the same grasp (SolveCase is the
@@ -88,7 +96,8 @@ INSTANTIATE_TEST_SUITE_P(
     Bundled, RoundTrip,
     ::testing::Values(DragCase{"bowel_drag.json", 0.1, Vec3(0.1, 0.015, 0.02)},
                       DragCase{"suture.json", 0.2, Vec3(0.17, 0.05, 0.03)},
-                      DragCase{"bowel_poke.json", 0.06, Vec3(0.06, 0.0, 0.01)}));
+                      DragCase{"bowel_poke.json", 0.06, Vec3(0.06, 0.0, 0.01)}),
+    DragCaseName);
 
 // The force on the tool is -dPi*/dp, Pi* the equilibrium energy as a function of the tool's
 // position (the envelope theorem): central differences over each axis.
