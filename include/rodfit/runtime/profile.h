@@ -9,6 +9,7 @@
 // ProfileReadOptions::overrides (the CLI's `--set name=value`), or the read fails.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <stdexcept>
