@@ -6,6 +6,7 @@
 int RunFit(int argc, char** argv);
 int RunRollout(int argc, char** argv);
 int RunBench(int argc, char** argv);
+int RunExport(int argc, char** argv);
 
 namespace rodfit {
 struct Experiment;

@@ -24,6 +24,7 @@
 #include "rodfit/io/synth.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/solve/case_solve.h"
+#include "rodfit/runtime/profile.h"
 #include "rodfit/version.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/centreline.h"
@@ -78,9 +79,29 @@ int RunSimulate(int argc, char** argv) {
   app.add_option("--seed", markers.seed, "random seed of the marker noise and drops");
   app.add_flag("--keep-going", keep_going,
                "write the cases that converged and summary.csv even when one fails (exit 3)");
+  std::string profile_path;
+  std::vector<std::string> sets;
+  app.add_option("--profile", profile_path,
+                 "profile JSON (rodfit fit) whose parameters replace the scene's parameters: "
+                 "block, which may then be left out; the scene's rod must be the profile's");
+  app.add_option("--set", sets,
+                 "NAME=VALUE [SI]: with --profile, a value for a parameter the profile leaves "
+                 "undetermined (value null) or one to replace (repeatable)");
   if (const int status = Parse(app, argc, argv); status >= 0) return status;
+  if (!sets.empty() && profile_path.empty())
+    throw std::invalid_argument("--set needs --profile");
 
-  const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
+  rodfit::Experiment experiment =
+      rodfit::LoadExperiment(scene_path, /*parameters_optional=*/!profile_path.empty());
+  if (!profile_path.empty()) {
+    rodfit::ProfileReadOptions read;
+    for (const std::string& set : sets) {
+      std::string why;
+      if (!rodfit::ParseOverride(set, &read.overrides, &why))
+        throw std::invalid_argument("--set " + why);
+    }
+    rodfit::UseProfileMaterial(rodfit::LoadProfile(profile_path, read), &experiment.scene);
+  }
   if (experiment.scene.dynamics)
     return SimulateMotion(experiment, scene_path, output_dir, keep_going, markers);
   if (markers.count > 0)
@@ -361,6 +382,7 @@ const std::vector<Command>& Commands() {
       {"rollout", "predict a recorded motion open-loop from its first frames; its error",
        &RunRollout},
       {"bench", "reference problems: error against time over settings; --stress", &RunBench},
+      {"export", "a fitted profile for another simulator: sofa, xpbd or json", &RunExport},
   };
   return commands;
 }

@@ -159,7 +159,7 @@ TEST_F(FitCliTest, SynthesizedExperimentIsRecoveredAndTheProfileIsComplete) {
 
   const json p = json::parse(ReadText(profile_path));
   EXPECT_EQ(p["format"], "rodfit-profile");
-  EXPECT_EQ(p["version"], 1);
+  EXPECT_EQ(p["version"], 2);
   EXPECT_EQ(p["rod"]["segments"], 30);
   EXPECT_DOUBLE_EQ(p["rod"]["length"].get<double>(), 0.2);
 
@@ -174,7 +174,8 @@ TEST_F(FitCliTest, SynthesizedExperimentIsRecoveredAndTheProfileIsComplete) {
     SCOPED_TRACE(name);
     ASSERT_TRUE(p["parameters"].contains(name));
     const json& q = p["parameters"][name];
-    for (const char* key : {"value", "std", "fitted", "unit"}) EXPECT_TRUE(q.contains(key)) << key;
+    for (const char* key : {"value", "std", "fitted", "identifiable", "unit"})
+      EXPECT_TRUE(q.contains(key)) << key;
     EXPECT_EQ(q["unit"], unit);
     const bool fitted = name == "bend_stiffness" || name == "bend_stiffness_2";
     EXPECT_EQ(q["fitted"], fitted);

@@ -5,9 +5,9 @@
 # must exit 0). Also checks that the internal headers under src/ were not installed and that the
 # installed public headers compile on their own.
 #
-# Usage (CTest test `install_examples`): install_test.sh CMAKE BUILD_DIR SOURCE_DIR CXX
+# Usage (CTest test `install_examples`): install_test.sh CMAKE BUILD_DIR SOURCE_DIR CXX [CC]
 set -euo pipefail
-cmake_bin=$1 build_dir=$2 source_dir=$3 cxx=$4
+cmake_bin=$1 build_dir=$2 source_dir=$3 cxx=$4 cc=${5:-cc}
 
 work=$(mktemp -d "${build_dir}/install_test.XXXXXX")
 trap 'rm -rf "$work"' EXIT
@@ -48,14 +48,15 @@ CMAKE
 
 # The examples, as a separate project.
 "$cmake_bin" -S "$source_dir/examples" -B "$work/examples" -DCMAKE_BUILD_TYPE=Release \
-  -DCMAKE_CXX_COMPILER="$cxx" -DCMAKE_PREFIX_PATH="$prefix" >"$work/configure.log" ||
+  -DCMAKE_CXX_COMPILER="$cxx" -DCMAKE_C_COMPILER="$cc" -DCMAKE_PREFIX_PATH="$prefix" \
+  >"$work/configure.log" ||
   { cat "$work/configure.log" >&2; exit 1; }
 "$cmake_bin" --build "$work/examples" -j2 >"$work/build.log" 2>&1 ||
   { cat "$work/build.log" >&2; exit 1; }
 
 cd "$source_dir"
-for source in examples/*.cc; do
-  example=$(basename "$source" .cc)
+for source in examples/*.cc examples/*.c; do
+  example=$(basename "${source%.*}")
   echo "== $example"
   "$work/examples/$example"
 done

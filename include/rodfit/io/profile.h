@@ -12,6 +12,10 @@
 
 namespace rodfit {
 
+/// The profile format's version that ProfileJson writes (2: the held ends, spring zones, section
+/// and derived constants; the runtime reads 1 and 2).
+inline constexpr int kProfileVersion = 2;
+
 /// FNV-1a 64-bit digest of a file's bytes as 16 hex digits (identifies the inputs of a fit; not
 /// a cryptographic hash). Throws InputError when the file cannot be read or is not a regular file
 /// of at most kMaxInputFileBytes (never reads a device or FIFO).

@@ -16,6 +16,7 @@
 #include <ceres/ceres.h>
 #include <nlopt.hpp>
 
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/poke.h"
 #include "rodfit/solve/reactions.h"
@@ -690,11 +691,8 @@ VarianceBand ResidualVarianceBand(int dof) {
 }
 
 const char* ParameterUnit(const std::string& name) {
-  if (name == "stretch_stiffness" || name == "ring_stretch_stiffness") return "N";
-  if (name == "bend_stiffness" || name == "bend_stiffness_2" || name == "twist_stiffness" ||
-      name == "ring_bend_stiffness")
-    return "N m^2";
-  return "N/m^2";  // spring_stiffness and spring zones' own parameters
+  // The parameter table's unit (spring zones' own parameters: N/m^2, like spring_stiffness).
+  return MaterialParameterUnit(name);
 }
 
 bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,

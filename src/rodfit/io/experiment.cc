@@ -1137,7 +1137,8 @@ const char* LossTypeName(LossType loss) {
   return "none";
 }
 
-Experiment ParseExperiment(const std::string& text, const std::string& path) {
+Experiment ParseExperiment(const std::string& text, const std::string& path,
+                           bool parameters_optional) {
   CheckYamlText(text, path);
   YAML::Node root;
   try {
@@ -1162,7 +1163,9 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
   if (const Field* springs = Reader::Find(m, "springs")) {
     zone_parameters = ReadSprings(r, *springs, &ex);
   }
-  ReadParameters(r, r.Require(m, top, "parameters"), &ex, zone_parameters);
+  // With a profile supplying the material (`simulate --profile`) the block may be left out.
+  if (const Field* params = Reader::Find(m, "parameters"); params || !parameters_optional)
+    ReadParameters(r, params ? *params : r.Require(m, top, "parameters"), &ex, zone_parameters);
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
   if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
@@ -1182,9 +1185,10 @@ Experiment ParseExperiment(const std::string& text, const std::string& path) {
   return ex;
 }
 
-Experiment LoadExperiment(const std::string& path) {
+Experiment LoadExperiment(const std::string& path, bool parameters_optional) {
   // Bounded before yaml-cpp sees it: a regular file of at most kMaxInputFileBytes.
-  return ParseExperiment(ReadInputFile(path, "a YAML file", kMaxYamlBytes), path);
+  return ParseExperiment(ReadInputFile(path, "a YAML file", kMaxYamlBytes), path,
+                         parameters_optional);
 }
 
 std::string CameraKey(const ObservationSpec& spec) {

@@ -1,6 +1,7 @@
 // Profile JSON (profile.h).
 #include "rodfit/io/profile.h"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -9,6 +10,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/version.h"
 
 namespace rodfit {
@@ -25,6 +27,59 @@ const char* LossName(RobustLoss l) {
 }
 
 nlohmann::json Vec(const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
+
+// The held boundary of the rod as mounted: the first case's clamp, end clamp or end pin,
+// interior pins and cuts. An instrument's grasp or poke is the simulator's tool, not the rod's.
+nlohmann::json HeldJson(const LoadCase& c) {
+  using nlohmann::json;
+  json held;
+  held["case"] = c.name;
+  held["clamp"] = {{"position", Vec(c.clamp.position)},
+                   {"tangent", Vec(c.clamp.tangent)},
+                   {"normal", Vec(c.clamp.normal)}};
+  if (c.end_clamp) {
+    json end = {{"position", Vec(c.end_clamp->position)}, {"tangent", Vec(c.end_clamp->tangent)}};
+    if (c.end_clamp->normal) end["normal"] = Vec(*c.end_clamp->normal);
+    held["end_clamp"] = end;
+  }
+  if (c.end_pin) held["end_pin"] = Vec(*c.end_pin);
+  json pins = json::array();
+  for (const Pin& pin : c.pins) pins.push_back({{"s", pin.s}, {"position", Vec(pin.position)}});
+  held["pins"] = pins;
+  json cuts = json::array();
+  for (const Interval& cut : c.cuts) cuts.push_back({{"from", cut.from}, {"to", cut.to}});
+  held["cuts"] = cuts;
+  return held;
+}
+
+// Engineering constants of a solid round section (DeriveRoundSection), or null with the reason
+// when a stiffness they need is not determined.
+nlohmann::json DerivedJson(const Material& m, const RodSpec& rod,
+                           const std::set<std::string>& undetermined) {
+  using nlohmann::json;
+  json derived;
+  derived["mass_density"] =
+      rod.radius > 0.0 ? json(rod.linear_density / (M_PI * rod.radius * rod.radius)) : json(nullptr);
+  for (const char* name : {"bend_stiffness", "bend_stiffness_2", "twist_stiffness",
+                           "stretch_stiffness"}) {
+    if (undetermined.count(name) || !(rod.radius > 0.0)) {
+      derived["round_section"] = nullptr;
+      derived["round_section_missing"] =
+          rod.radius > 0.0 ? std::string(name) + " is not determined" : "the rod has no radius";
+      return derived;
+    }
+  }
+  const RoundSectionConstants c = DeriveRoundSection(m, rod.radius);
+  json round = {{"radius", c.radius},
+                {"youngs_modulus", c.youngs_modulus},
+                {"youngs_modulus_stretch", c.youngs_modulus_stretch},
+                {"shear_modulus", c.shear_modulus},
+                {"poisson_ratio", c.poisson_ratio},
+                {"consistent", c.consistent}};
+  if (!c.consistent) round["inconsistency"] = c.inconsistency;
+  derived["round_section"] = round;
+  return derived;
+}
 
 }  // namespace
 
@@ -49,16 +104,38 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   using nlohmann::json;
   json p;
   p["format"] = "rodfit-profile";
-  p["version"] = 1;
+  p["version"] = kProfileVersion;
   p["rodfit_version"] = RODFIT_VERSION;
-  const RodSpec& rod = e.scene.rod;
+  const Scene& scene = e.scene;
+  const RodSpec& rod = scene.rod;
   p["rod"] = {{"length", rod.length},
               {"segments", rod.segments},
               {"radius", rod.radius},
               {"linear_density", rod.linear_density},
               {"rest_curvature", Vec(rod.rest_curvature)}};
-  p["gravity"] = Vec(e.scene.gravity);
+  if (!rod.vertex_s.empty()) p["rod"]["vertex_s"] = rod.vertex_s;
+  p["gravity"] = Vec(scene.gravity);
+  if (!scene.cases.empty()) p["held"] = HeldJson(scene.cases.front());
+  json springs = json::array();
+  for (const SpringZone& z : scene.springs) {
+    json zone = {{"from", z.from}, {"to", z.to}};
+    if (!z.parameter.empty()) zone["parameter"] = z.parameter;
+    springs.push_back(zone);
+  }
+  p["springs"] = springs;
+  if (scene.section) {
+    const SectionSpec& sec = *scene.section;
+    p["section"] = {{"radius", sec.radius},
+                    {"nodes", sec.nodes},
+                    {"h_factor", sec.h_factor},
+                    {"stop_factor", sec.stop_factor}};
+  }
+
+  // The material as fitted: a parameter the data do not determine has no value.
+  Material fitted = scene.material;
+  std::set<std::string> undetermined;
   json params = json::object();
+  std::set<std::string> listed;
   for (const ParameterEstimate& est : r.parameters) {
     // A parameter the data do not determine has no value: where the fit stopped (often a bound)
     // would be imported as if measured. Its start is kept apart, under "start".
@@ -66,14 +143,21 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
     json q = {{"value", determined ? json(est.value) : json(nullptr)},
               {"std", est.std ? json(*est.std) : json(nullptr)},
               {"fitted", est.fitted},
-              {"unit", est.unit}};
+              {"identifiable", determined},
+              {"unit", MaterialParameterUnit(est.name)}};
     if (est.fitted) {
       q["start"] = est.start;
-      q["identifiable"] = est.identifiable;
       if (!est.identifiable) q["reason"] = est.reason;
       if (est.at_bound) q["at_bound"] = true;
     }
     params[est.name] = q;
+    listed.insert(est.name);
+    if (determined) {
+      if (est.name != "bend_stiffness_2" || scene.material.bend_stiffness_2 || est.fitted)
+        AssignMaterialParameter(est.name, est.value, &fitted);
+    } else {
+      undetermined.insert(est.name);
+    }
   }
   if (!params.contains("bend_stiffness_2") && params.contains("bend_stiffness")) {
     // Absent in the experiment: isotropic, tied to bend_stiffness (docs/model.md, "Stiffnesses").
@@ -81,12 +165,23 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
     q["fitted"] = false;
     q["tied_to"] = "bend_stiffness";
     q.erase("start");
-    q.erase("identifiable");
     q.erase("reason");
     q.erase("at_bound");
     params["bend_stiffness_2"] = q;
+    listed.insert("bend_stiffness_2");
+    if (undetermined.count("bend_stiffness")) undetermined.insert("bend_stiffness_2");
+  }
+  // Every other row of the parameter table the model reads, at the scene's value: a simulator
+  // gets damping and the rest explicitly rather than by a default of its own.
+  for (const MaterialParameterInfo& row : MaterialParameters()) {
+    if (listed.count(row.name) || (row.needs_section && !scene.section)) continue;
+    const std::optional<double> v = MaterialParameterValue(scene.material, row.name);
+    if (!v) continue;
+    params[row.name] = {{"value", *v}, {"std", nullptr}, {"fitted", false},
+                        {"identifiable", true}, {"unit", row.unit}};
   }
   p["parameters"] = params;
+  p["derived"] = DerivedJson(fitted, rod, undetermined);
   json fit;
   fit["success"] = r.success;
   fit["termination"] = r.message;

@@ -21,7 +21,14 @@ double BandedSymmetric::Get(int i, int j) const {
 }
 
 Eigen::VectorXd BandedSymmetric::Multiply(const Eigen::VectorXd& x) const {
-  Eigen::VectorXd y = Eigen::VectorXd::Zero(n_);
+  Eigen::VectorXd y;
+  MultiplyInto(x, &y);
+  return y;
+}
+
+void BandedSymmetric::MultiplyInto(const Eigen::VectorXd& x, Eigen::VectorXd* out) const {
+  Eigen::VectorXd& y = *out;
+  y.setZero(n_);
   for (int j = 0; j < n_; ++j) {
     y[j] += band_(0, j) * x[j];
     const int iend = std::min(n_ - 1, j + p_);
@@ -31,7 +38,6 @@ Eigen::VectorXd BandedSymmetric::Multiply(const Eigen::VectorXd& x) const {
       y[j] += a * x[i];
     }
   }
-  return y;
 }
 
 Eigen::MatrixXd BandedSymmetric::ToDense() const {

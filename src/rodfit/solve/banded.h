@@ -38,6 +38,8 @@ class BandedSymmetric {
   double Get(int i, int j) const;
   /// y = A x.
   Eigen::VectorXd Multiply(const Eigen::VectorXd& x) const;
+  /// The same into *y (no allocation once y has the size: the dynamics' inner loop).
+  void MultiplyInto(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
   Eigen::MatrixXd ToDense() const;
   const Eigen::MatrixXd& band() const { return band_; }
   Eigen::MatrixXd& band() { return band_; }
@@ -144,6 +146,8 @@ class BandedMatrix {
   void SetFromSymmetric(const BandedSymmetric& A);
   /// y = A x.
   Eigen::VectorXd Multiply(const Eigen::VectorXd& x) const;
+  /// The same into *y (no allocation once y has the size: the dynamics' inner loop).
+  void MultiplyInto(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
   /// y = A^T x.
   Eigen::VectorXd MultiplyTransposed(const Eigen::VectorXd& x) const;
   /// The symmetric part (A + A^T) / 2 as a symmetric band (block size `block_size`).

@@ -405,7 +405,10 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
       inertia += mass_[k] * r[k] * r[k];
       damp += drag_[k] * delta0_[k] * delta0_[k];
     }
-    if (internal_damping_) damp += delta0_.dot(C.Multiply(delta0_));
+    if (internal_damping_) {
+      C.MultiplyInto(delta0_, &cd_);
+      damp += delta0_.dot(cd_);
+    }
     *value = e + 0.5 * a * inertia + 0.5 * c * damp;
     return std::isfinite(*value);
   };
@@ -456,9 +459,15 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
     }
     Delta(q0, q, &delta_);
     delta0_ = delta_ - z_;
-    VecX cd = drag_.cwiseProduct(delta0_);
-    if (internal_damping_) cd += C.Multiply(delta0_);
-    for (int k = 0; k < N; ++k) g_[k] += a * mass_[k] * (delta_[k] - y_[k]) + c * cd[k];
+    // Into kept scratch: a step allocates nothing once the stepper has taken one (the runtime's
+    // haptic loop relies on it).
+    if (internal_damping_) {
+      C.MultiplyInto(delta0_, &cd_);
+      cd_ += drag_.cwiseProduct(delta0_);
+    } else {
+      cd_ = drag_.cwiseProduct(delta0_);
+    }
+    for (int k = 0; k < N; ++k) g_[k] += a * mass_[k] * (delta_[k] - y_[k]) + c * cd_[k];
     if (!chord) {
       for (int k = 0; k < N; ++k) scratch_->hessian.At(k, k) += a * mass_[k] + c * drag_[k];
       if (internal_damping_) scratch_->hessian.band() += c * C.band();

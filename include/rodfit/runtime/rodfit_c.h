@@ -1,0 +1,90 @@
+/* The runtime's C interface (docs/library.md, "C API"): rodfit/runtime/runtime.h behind an
+ * opaque handle, for game engines and other languages (Unity, Unreal, Python ctypes). Every
+ * function returns a status code; no C++ exception crosses it. A failed call on a handle leaves
+ * its message in rodfit_last_error(handle); a failed rodfit_create writes its message into the
+ * caller's buffer. Units are SI, vectors are 3 doubles (x, y, z), shapes are packed xyz per
+ * vertex.
+ *
+ * Thread-safety: one handle per thread (or guard it); distinct handles are independent.
+ * rodfit_step allocates no memory (rodfit_get_mesh does). */
+#ifndef RODFIT_RUNTIME_RODFIT_C_H_
+#define RODFIT_RUNTIME_RODFIT_C_H_
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct rodfit_runtime rodfit_runtime;
+
+typedef enum rodfit_status {
+  RODFIT_OK = 0,
+  RODFIT_NOT_CONVERGED = 1,        /* step: last good state kept (rodfit_last_error says why) */
+  RODFIT_TIME_BUDGET = 2,          /* step: budget ran out, last good state kept */
+  RODFIT_INVALID_ARGUMENT = 3,     /* a null pointer, a bad option, a small buffer */
+  RODFIT_PROFILE_ERROR = 4,        /* the profile could not be read or is invalid */
+  RODFIT_SOLVE_ERROR = 5,          /* the first equilibrium was not found, or a mesh failed */
+  RODFIT_OUT_OF_MEMORY = 6,
+  RODFIT_INTERNAL_ERROR = 7
+} rodfit_status;
+
+enum { RODFIT_MODE_QUASI_STATIC = 0, RODFIT_MODE_DYNAMIC = 1 };
+enum { RODFIT_TOOL_GRASP = 0, RODFIT_TOOL_POKE = 1 };
+
+/* RuntimeOptions' fields (rodfit/runtime/runtime.h); fill with rodfit_default_options. */
+typedef struct rodfit_options {
+  int mode;                   /* RODFIT_MODE_* */
+  int tool;                   /* RODFIT_TOOL_* */
+  double tool_s;              /* [m] the tool's arc length, in (0, L]; required */
+  int max_iterations;         /* Newton iterations per quasi-static step */
+  double gradient_tolerance;  /* relative to the rod's load scale */
+  double time_budget;         /* [s] per step, 0: none */
+  double time_step;           /* [s] dynamic mode */
+  int mesh_ring_vertices;     /* rodfit_get_mesh: vertices per ring */
+} rodfit_options;
+
+typedef struct rodfit_step_info {
+  int status;        /* rodfit_status of the step */
+  int iterations;    /* Newton iterations */
+  double residual;   /* [N] scaled residual at exit */
+  double seconds;    /* wall time of the step */
+} rodfit_step_info;
+
+void rodfit_default_options(rodfit_options* options);
+
+/* Loads the profile and builds the rod. `set_names`/`set_values` (num_sets entries, may be
+ * NULL when 0) give values for parameters the profile leaves undetermined, or replace its own.
+ * On failure *out is NULL and `error` (capacity bytes, may be NULL) holds one line. */
+rodfit_status rodfit_create(const char* profile_path, const rodfit_options* options,
+                            const char* const* set_names, const double* set_values, int num_sets,
+                            rodfit_runtime** out, char* error, size_t error_capacity);
+void rodfit_destroy(rodfit_runtime* runtime);
+
+rodfit_status rodfit_set_tool_position(rodfit_runtime* runtime, const double position[3]);
+rodfit_status rodfit_set_tool_force(rodfit_runtime* runtime, const double force[3]);
+/* One tick; `info` may be NULL. */
+rodfit_status rodfit_step(rodfit_runtime* runtime, rodfit_step_info* info);
+
+int rodfit_num_vertices(const rodfit_runtime* runtime);
+/* Writes 3 * rodfit_num_vertices doubles; capacity in doubles. */
+rodfit_status rodfit_get_shape(rodfit_runtime* runtime, double* xyz, size_t capacity);
+/* Force [N] and torque [N m] the rod exerts on the tool; either may be NULL. */
+rodfit_status rodfit_get_tool_force(rodfit_runtime* runtime, double force[3], double torque[3]);
+/* The tube mesh (with a poke's dent): counts first (vertices, triangles), then, when the
+ * buffers are large enough (3 doubles per vertex, 3 ints per triangle), the data. Pass NULL
+ * buffers to ask for the counts only. */
+rodfit_status rodfit_get_mesh(rodfit_runtime* runtime, int* num_vertices, int* num_triangles,
+                              double* vertices, size_t vertex_capacity, int* triangles,
+                              size_t triangle_capacity);
+
+/* The message of the handle's last failed call ("" when none); valid until the next call. */
+const char* rodfit_last_error(const rodfit_runtime* runtime);
+/* A status code's name, e.g. "RODFIT_NOT_CONVERGED". */
+const char* rodfit_status_name(rodfit_status status);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* RODFIT_RUNTIME_RODFIT_C_H_ */

@@ -1,0 +1,130 @@
+// The interactive runtime (docs/library.md, "Runtime"): what a surgical simulator links to run a
+// fitted rod at haptic rate. It loads a profile (rodfit/runtime/profile.h), builds the rod with
+// its held ends and an instrument (the tool) at one arc length, and each tick takes the tool's
+// position (a grasp) or force (a poke), advances the rod by one step — a quasi-static Newton
+// re-solve warm-started from the last tick, or one implicit dynamic step (solve/dynamics.h) — and
+// gives back the centre-line, the reaction force and torque on the tool, and on request the
+// tissue's tube mesh with the local dent of a poke (model/tube_mesh.h, tissue paper eqs. 12–13).
+//
+// Real-time guarantees:
+//  - Step() does not allocate heap memory: every buffer is sized at construction. (Mesh() does:
+//    it is meant for the graphics rate, not the haptic loop.)
+//  - Step() never returns a non-finite state and never loops without a cap: Newton stops at
+//    RuntimeOptions::max_iterations or the wall-time budget, and a step that did not converge
+//    restores the last good state and says so in its status (the tool force stays the last good
+//    one, so a haptic device never sees a jump to NaN).
+//
+// Thread-safety: a Runtime is not thread-safe; use one per thread (or guard it). Distinct
+// instances share nothing mutable and may step concurrently on different threads.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "rodfit/model/rod.h"
+#include "rodfit/model/tube_mesh.h"
+#include "rodfit/runtime/profile.h"
+
+namespace rodfit {
+
+/// How a tick advances the rod.
+enum class RuntimeMode {
+  kQuasiStatic,  ///< the equilibrium at the tool's new position (Newton, warm-started)
+  kDynamic,      ///< one implicit time step (BDF2) of the rod with its mass and damping
+};
+
+/// What the tool does at arc length RuntimeOptions::tool_s.
+enum class ToolKind {
+  kGrasp,  ///< holds the material point at tool_s at the tool's position (free to turn)
+  kPoke,   ///< pushes the tissue there with a force (quasi-static only); dents the section
+};
+
+struct RuntimeOptions {
+  RuntimeMode mode = RuntimeMode::kQuasiStatic;
+  ToolKind tool = ToolKind::kGrasp;
+  double tool_s = -1.0;             ///< [m] the tool's arc length, in (0, L]; required
+  int max_iterations = 20;          ///< Newton iterations per quasi-static step
+  /// Converged when the scaled residual (RodModel's convergence measure) is below this times
+  /// the rod's load scale [-] (the statics solver's default).
+  double gradient_tolerance = 1e-9;
+  /// ... or when a full Newton step moves no vertex by more than this times min(L, 1 m) (and no
+  /// twist by more than that in radians) [-]: the statics solver's step test.
+  double step_tolerance = 1e-9;
+  /// [s] wall time a step may take before it gives up (0: no limit; the iteration cap holds).
+  double time_budget = 0.0;
+  /// Quasi-static grasp: the largest move of the grasped point in one tick, as a fraction of
+  /// the shortest rest edge [-]. A tool that ran further ahead (a device glitch, a tick lost to
+  /// the time budget) is followed over several ticks (StepReport::tool_lag), so that one far
+  /// jump cannot keep every later tick from converging. After a tick that did not converge the
+  /// next ones move a quarter as far (down to 1/64), growing back twofold per converged tick.
+  double max_tool_move = 0.25;
+  double time_step = 1e-3;          ///< [s] dynamic mode: the step of one tick
+  int dynamic_newton_iterations = 25;  ///< dynamic mode: Newton iterations per step
+  int mesh_ring_vertices = 16;      ///< Mesh(): vertices per ring of the tube (>= 3)
+  bool Check(std::string* why) const;
+};
+
+enum class StepStatus {
+  kConverged,      ///< the new state is the step's solution
+  kNotConverged,   ///< iteration cap or failed step: the last good state is kept
+  kTimeBudget,     ///< the wall-time budget ran out: the last good state is kept
+};
+const char* ToString(StepStatus status);
+
+struct StepReport {
+  StepStatus status = StepStatus::kConverged;
+  int iterations = 0;      ///< Newton iterations
+  double residual = 0.0;   ///< [N] scaled residual at exit
+  double seconds = 0.0;    ///< wall time of the step
+  double tool_lag = 0.0;   ///< [m] how far the grasped point is from the tool after the step
+  bool ok() const { return status == StepStatus::kConverged; }
+};
+
+class Runtime {
+ public:
+  /// Builds the rod of `profile` with the tool at options.tool_s and solves its equilibrium
+  /// (the tool where the rest shape puts that point, or, for a poke, no force). Throws
+  /// std::invalid_argument with the reason for invalid options or a rod that cannot be built,
+  /// std::runtime_error when the first equilibrium is not found.
+  Runtime(const Profile& profile, const RuntimeOptions& options);
+  ~Runtime();
+  Runtime(const Runtime&) = delete;
+  Runtime& operator=(const Runtime&) = delete;
+
+  /// Grasp: where the tool holds its point from the next Step() on [m].
+  void SetToolPosition(const Vec3& position_world);
+  /// Poke: the force the tool applies to the tissue from the next Step() on [N].
+  void SetToolForce(const Vec3& force_world);
+
+  /// One tick. Never allocates; see the file comment.
+  StepReport Step();
+
+  /// Centre-line, column per vertex [m] (the current state).
+  const Mat3X& Shape() const;
+  /// Force [N] and torque [N m] the rod exerts on the tool (a grasp holds no torque: zero).
+  Vec3 ToolForce() const;
+  Vec3 ToolTorque() const;
+  /// Where the tool is: the grasped point, or the poked point of the centre-line [m].
+  Vec3 ToolPosition() const;
+  /// Potential energy of the rod at the current state, the tool's work included [J].
+  double Energy() const;
+  /// Kinetic energy [J] (dynamic mode; 0 in quasi-static mode).
+  double KineticEnergy() const;
+  /// The tissue's surface: the tube swept along the rod (radius: the section's, else the rod's)
+  /// with, for a poke and a section, the dent of the section ring under the tool's force.
+  /// Allocates; call it at the graphics rate.
+  TubeMesh Mesh() const;
+
+  const RodModel& model() const;
+  const RodState& state() const;
+  const RuntimeOptions& options() const;
+  double time() const;  ///< [s] simulated time (dynamic mode)
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rodfit

@@ -1,0 +1,495 @@
+// The interactive runtime (rodfit/runtime/runtime.h). Quasi-static ticks run their own Newton
+// loop on the solve layer's assembly (rod_energy.h) and banded Cholesky (banded.h) with every
+// buffer sized at construction, because SolveStatics builds strings, copies states and resizes
+// scratch as it goes: right for a fit, not for a 1 kHz loop. Dynamic ticks are one step of the
+// DynamicsStepper, which keeps its scratch between steps.
+#include "rodfit/runtime/runtime.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+#include "rodfit/model/cross_section.h"
+#include "rodfit/solve/banded.h"
+#include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/rod_energy.h"
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Largest turn of an edge tangent in one Newton step [rad] (the statics solver's cap): beyond
+// it the edge-wise retraction is far from the linearisation and the step is shortened.
+constexpr double kMaxTurnPerStep = 0.5;
+constexpr int kMaxLineSearchSteps = 30;
+// The smallest fraction of max_tool_move a tick falls back to after failed ticks.
+constexpr double kMinMoveScale = 1.0 / 64.0;
+// The predictor's finite-difference move, as a fraction of the rod's length: small enough that
+// the gradient is linear in it, large enough that its change is far above round-off.
+constexpr double kPredictorProbe = 1e-7;
+constexpr double kArmijo = 1e-4;
+// Relative round-off of the potential energy: an Armijo test between two values equal to this
+// precision is decided by noise, so a step that does not raise Pi beyond it is accepted.
+constexpr double kEnergyRoundOff = 1e-13;
+
+// The tool's grasp held in the dynamic stepper's pose: every other held point at its target.
+class ToolDrive : public Drive {
+ public:
+  ToolDrive(int held_index, const Vec3* tool) : held_index_(held_index), tool_(tool) {}
+  void PoseAt(const RodModel& model, double t, HeldPose* pose) const override {
+    Drive::PoseAt(model, t, pose);
+    if (held_index_ >= 0) pose->held[held_index_] = *tool_;
+  }
+
+ private:
+  int held_index_;
+  const Vec3* tool_;
+};
+
+// The vertices around arc length s and their linear weights (a point force's share).
+void Bracket(const RodModel& model, double s, int* j, double* w) {
+  const std::vector<double>& arc = model.arc_lengths();
+  int k = static_cast<int>(std::upper_bound(arc.begin(), arc.end(), s) - arc.begin()) - 1;
+  k = std::max(0, std::min(k, model.num_edges() - 1));
+  *j = k;
+  *w = (s - arc[k]) / (arc[k + 1] - arc[k]);  // weight of vertex k + 1
+}
+
+}  // namespace
+
+bool RuntimeOptions::Check(std::string* why) const {
+  if (!(tool_s > 0.0)) return *why = "tool_s must be > 0 (the tool's arc length)", false;
+  if (max_iterations < 1) return *why = "max_iterations must be >= 1", false;
+  if (!(gradient_tolerance > 0.0)) return *why = "gradient_tolerance must be > 0", false;
+  if (!(step_tolerance > 0.0)) return *why = "step_tolerance must be > 0", false;
+  if (!(time_budget >= 0.0)) return *why = "time_budget must be >= 0", false;
+  if (!(time_step > 0.0)) return *why = "time_step must be > 0", false;
+  if (!(max_tool_move > 0.0)) return *why = "max_tool_move must be > 0", false;
+  if (dynamic_newton_iterations < 1) return *why = "dynamic_newton_iterations must be >= 1", false;
+  if (mesh_ring_vertices < 3) return *why = "mesh_ring_vertices must be >= 3", false;
+  if (tool == ToolKind::kPoke && mode == RuntimeMode::kDynamic)
+    return *why = "a poke is quasi-static only (the dynamic stepper has no point loads)", false;
+  return true;
+}
+
+const char* ToString(StepStatus status) {
+  switch (status) {
+    case StepStatus::kConverged: return "converged";
+    case StepStatus::kNotConverged: return "not converged (last good state kept)";
+    case StepStatus::kTimeBudget: return "time budget exceeded (last good state kept)";
+  }
+  return "unknown";
+}
+
+struct Runtime::Impl {
+  Profile profile;
+  RuntimeOptions options;
+  std::unique_ptr<RodModel> model;
+  int tool_vertex = -1;  // grasp: the held vertex; poke: the lower vertex of the bracket
+  double poke_weight = 0.0;
+  Vec3 tool = Vec3::Zero();        // grasp target [m]
+  Vec3 target = Vec3::Zero();      // this tick's: the tool, or max_tool_move towards it [m]
+  double move_scale = 1.0;         // of max_tool_move: cut after a failed tick, regrown after
+  Vec3 tool_force = Vec3::Zero();  // poke force [N]
+  Vec3 reaction = Vec3::Zero();    // last good force on the tool [N]
+  double force_tolerance = 0.0;    // [N]
+  double floor_tolerance = 0.0;    // [N] the residual's round-off floor
+  // Quasi-static scratch, sized once.
+  RodState state, last_good, trial, moved;
+  RodFrames frames, trial_frames;
+  VecX g, g_free, step, weights;
+  BandedSymmetric hessian;
+  BandedCholesky factor;
+  // The factor was made at (or one Newton step before) the current state: the predictor's.
+  bool factor_near_state = false;
+  double shift_base = 0.0;
+  // Dynamic.
+  std::unique_ptr<ToolDrive> drive;
+  std::unique_ptr<DynamicsStepper> stepper;
+  DynamicState dynamic, dynamic_good;
+
+  // *out = s with the grasped vertex at p and its two edges following it.
+  void MoveGrasp(const RodState& s, const Vec3& p, RodState* out) const {
+    const int v = tool_vertex;
+    *out = s;
+    out->x.col(v) = p;
+    out->e.col(v - 1) = out->x.col(v) - out->x.col(v - 1);
+    if (v < model->num_edges()) out->e.col(v) = out->x.col(v + 1) - out->x.col(v);
+  }
+  double PokeWork(const RodState& s) const {
+    if (options.tool != ToolKind::kPoke) return 0.0;
+    const Vec3 x = (1.0 - poke_weight) * s.x.col(tool_vertex) + poke_weight * s.x.col(tool_vertex + 1);
+    return tool_force.dot(x);
+  }
+  double Energy(const RodState& s) const { return PotentialEnergy(*model, s) - PokeWork(s); }
+  // The same for a state whose frames `f` are fresh (as ApplyStep leaves them): no transports.
+  double Energy(const RodState& s, const RodFrames& f) const {
+    return PotentialEnergyFreshFrames(*model, s, EnergyTerms(), &f) - PokeWork(s);
+  }
+  // The poke's dead force on the free rows of its two vertices.
+  void AddPokeGradient(VecX* gradient) const {
+    if (options.tool != ToolKind::kPoke) return;
+    const std::vector<char>& held = model->held_dofs();
+    for (int k = 0; k < 2; ++k) {
+      const int i = tool_vertex + k;
+      if (i < 1) continue;  // vertex 0 is the clamp's
+      const double w = k == 0 ? 1.0 - poke_weight : poke_weight;
+      for (int c = 0; c < 3; ++c) {
+        const int dof = RodModel::VertexDof(i) + c;
+        if (!held[dof]) (*gradient)[dof] -= w * tool_force[c];
+      }
+    }
+  }
+  double Residual(const VecX& gradient) const {
+    return (weights.array() * gradient.array().abs()).maxCoeff();
+  }
+  Vec3 GraspForce(const RodState& s) {
+    // -dPi/dx at the grasped vertex with the hold off: the constraint force's opposite.
+    EnergyTerms terms;
+    terms.hold = false;
+    ComputeRodFrames(*model, s, &frames);
+    AssembleGradient(*model, s, terms, &g_free, &frames);
+    return -g_free.segment<3>(RodModel::VertexDof(tool_vertex));
+  }
+  void UpdateReaction() {
+    const RodState& s = options.mode == RuntimeMode::kDynamic ? dynamic.q : state;
+    reaction = options.tool == ToolKind::kGrasp ? GraspForce(s) : Vec3(-tool_force);
+  }
+  StepReport StepQuasiStatic(Clock::time_point start);
+  // Newton from `state` until converged, `max_iterations` or the time budget from `start`.
+  StepStatus Newton(Clock::time_point start, int max_iterations, StepReport* report);
+  StepReport StepDynamic();
+};
+
+Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.profile = profile;
+  m.options = options;
+  std::string why;
+  if (!options.Check(&why)) throw std::invalid_argument("runtime options: " + why);
+  const Scene& scene = profile.scene;
+  if (scene.cases.empty()) throw std::invalid_argument("the profile has no held boundary");
+  if (!(options.tool_s <= scene.rod.length))
+    throw std::invalid_argument("tool_s must not exceed the rod's length");
+  LoadCase held = scene.cases.front();
+  StaticsOptions statics;
+  statics.gradient_tolerance = options.gradient_tolerance;
+  RodState start;
+  if (options.tool == ToolKind::kGrasp) {
+    // The tool takes hold of the rod where it lies: the equilibrium without the tool, on the
+    // vertices of the grasped model (which moves its nearest vertex onto tool_s), is also the
+    // grasped rod's equilibrium with the tool there, and the loop starts from rest. (Holding it
+    // where the unloaded rest shape has it would start a sagging thread pulled taut.)
+    held.grasp = Grasp{options.tool_s, scene.cases.front().clamp.position};
+    const RodModel probe(scene.rod, scene.material, scene.gravity, held, scene.springs);
+    RodSpec rod = scene.rod;
+    rod.vertex_s = probe.arc_lengths();
+    LoadCase free_case = scene.cases.front();
+    const RodModel free_model(rod, scene.material, scene.gravity, free_case, scene.springs);
+    start = free_model.RestState();
+    const StaticsSummary free_solve = SolveStatics(free_model, statics, &start);
+    if (!free_solve.converged)
+      throw std::runtime_error("the rod's equilibrium without the tool was not found: " +
+                               free_solve.reason);
+    held.grasp->position = start.x.col(probe.grasp_vertex());
+  }
+  m.model = std::make_unique<RodModel>(scene.rod, scene.material, scene.gravity, held,
+                                       scene.springs);
+  const RodModel& model = *m.model;
+  if (options.tool == ToolKind::kPoke) start = model.RestState();
+  if (options.tool == ToolKind::kGrasp) {
+    m.tool_vertex = model.grasp_vertex();
+    m.tool = model.grasp_position();
+  } else {
+    Bracket(model, options.tool_s, &m.tool_vertex, &m.poke_weight);
+  }
+  m.force_tolerance = options.gradient_tolerance * model.force_scale();
+  m.weights = GradientNormWeights(model);
+  // The stretch forces' round-off, ~eps EA per edge, in the residual's measure (the dynamic
+  // stepper's floor).
+  m.floor_tolerance = 64.0 * std::numeric_limits<double>::epsilon() *
+                      scene.material.stretch_stiffness * m.weights.maxCoeff();
+  const double l = model.min_rest_edge_length();
+  const Material& mat = scene.material;
+  // The statics solver's first diagonal shift for an indefinite Hessian.
+  m.shift_base = 1e-6 * std::min({mat.B1(), mat.B2(), mat.twist_stiffness}) / (l * l * l);
+
+  // The first equilibrium, by the statics solver (allocation is fine here).
+  m.state = start;
+  const StaticsSummary first = SolveStatics(model, statics, &m.state);
+  if (!first.converged)
+    throw std::runtime_error("the rod's first equilibrium was not found: " + first.reason);
+  // Size every buffer now: the assembly resizes only when a size changes.
+  m.last_good = m.state;
+  m.trial = m.state;
+  m.moved = m.state;
+  ComputeRodFrames(model, m.state, &m.frames);
+  m.trial_frames = m.frames;
+  AssembleHessian(model, m.state, EnergyTerms(), &m.g, &m.hessian, &m.frames);
+  m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
+  m.step = m.g;
+  m.g_free = m.g;
+  if (options.mode == RuntimeMode::kDynamic) {
+    int held_index = -1;
+    for (size_t k = 0; k < model.held().size(); ++k)
+      if (model.held()[k].kind == HeldVertex::Kind::kGrasp) held_index = static_cast<int>(k);
+    m.drive = std::make_unique<ToolDrive>(held_index, &m.tool);
+    DynamicsOptions dyn;
+    dyn.time_step = options.time_step;
+    dyn.integrator = Integrator::kBdf2;
+    dyn.max_newton_iterations = options.dynamic_newton_iterations;
+    m.stepper = std::make_unique<DynamicsStepper>(model, dyn);
+    m.dynamic = m.stepper->AtRest(m.state);
+    // A throwaway step with the tool nudged sizes every buffer of the stepper (a step at rest
+    // converges before it factors anything); the rod is then put back at rest.
+    m.dynamic_good = m.dynamic;
+    const Vec3 home = m.tool;
+    m.tool += Vec3::Constant(1e-6 * model.length());
+    const DynamicsStepSummary warm = m.stepper->Step(*m.drive, &m.dynamic);
+    m.tool = home;
+    if (!warm.ok) throw std::runtime_error("the first dynamic step failed: " + warm.reason);
+    // Back at rest, the history's buffers kept at their size (BDF2 starts with a backward
+    // Euler step without history).
+    m.dynamic.q = m.dynamic_good.q;
+    m.dynamic.v = m.dynamic_good.v;
+    m.dynamic.t = m.dynamic_good.t;
+    m.dynamic.has_history = false;
+    m.dynamic.last_step.setZero();
+    m.dynamic.last_v.setZero();
+    m.dynamic_good = m.dynamic;
+  }
+  m.UpdateReaction();
+}
+
+Runtime::~Runtime() = default;
+
+void Runtime::SetToolPosition(const Vec3& position_world) { impl_->tool = position_world; }
+void Runtime::SetToolForce(const Vec3& force_world) { impl_->tool_force = force_world; }
+
+StepReport Runtime::Step() {
+  const Clock::time_point start = Clock::now();
+  StepReport report = impl_->options.mode == RuntimeMode::kDynamic ? impl_->StepDynamic()
+                                                                   : impl_->StepQuasiStatic(start);
+  if (report.ok()) impl_->UpdateReaction();
+  if (impl_->options.tool == ToolKind::kGrasp)
+    report.tool_lag = impl_->tool.allFinite() ? (impl_->tool - ToolPosition()).norm()
+                                              : std::numeric_limits<double>::infinity();
+  report.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return report;
+}
+
+StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
+  StepReport report;
+  const RodModel& m = *model;
+  auto give_up = [&](StepStatus status) {
+    state = last_good;  // same sizes: no allocation
+    // The next tick tries a smaller move: a tick lost to the budget leaves the tool further
+    // ahead, and trying the whole way again would lose the next one too.
+    move_scale = std::max(move_scale * 0.25, kMinMoveScale);
+    factor_near_state = false;  // the factor may belong to a state far from last_good
+    report.status = status;
+    return report;
+  };
+  last_good = state;
+  bool predicted_start = false;
+  const bool finite_tool = tool.allFinite() && tool_force.allFinite();
+  if (!finite_tool) return give_up(StepStatus::kNotConverged);
+  if (options.tool == ToolKind::kGrasp) {
+    // Predict the rod's answer to the tool's move d from the factor kept at the last
+    // equilibrium: x_free += -K_ff^-1 K_fh d, the linear response with the grasped vertex as a
+    // Dirichlet boundary. K_fh d is the gradient's directional derivative, a finite difference
+    // over a move small enough to be linear. Moving the grasped vertex alone would compress or
+    // stretch its two edges by the whole move: for a thread, EA / l times it is a force many
+    // orders above the loads, and Newton would start far from the solution on an indefinite
+    // Hessian.
+    const int v = tool_vertex;
+    Vec3 d = tool - state.x.col(v);
+    double d_norm = d.norm();
+    const double max_move = options.max_tool_move * move_scale * m.min_rest_edge_length();
+    if (d_norm > max_move) {
+      d *= max_move / d_norm;
+      d_norm = max_move;
+    }
+    target = state.x.col(v) + d;
+    bool predicted = false;
+    if (factor_near_state && factor.valid() && d_norm > 0.0) {
+      const double eta = std::min(1.0, kPredictorProbe * m.length() / d_norm);
+      ComputeRodFrames(m, state, &frames);
+      AssembleGradient(m, state, EnergyTerms(), &g_free, &frames);
+      MoveGrasp(state, state.x.col(v) + eta * d, &trial);
+      if (UpdateReferenceFrames(m, state, &trial)) {
+        ComputeRodFrames(m, trial, &frames);
+        AssembleGradient(m, trial, EnergyTerms(), &g, &frames);
+        step = -(g - g_free) / eta;
+        factor.SolveInPlace(step);
+        // The free vertices move from the last equilibrium (whose edges are consistent), then
+        // the grasped vertex, its two edges spanning the predicted neighbours.
+        const double turn = MaxTangentTurn(m, state, step);
+        const double scale = turn > kMaxTurnPerStep ? kMaxTurnPerStep / turn : 1.0;
+        if (ApplyStep(m, state, step, scale, &moved)) {
+          MoveGrasp(moved, target, &trial);
+          if (UpdateReferenceFrames(m, moved, &trial)) {
+            std::swap(state, trial);
+            predicted = state.x.allFinite();
+            predicted_start = predicted;
+          }
+        }
+      }
+    }
+    if (!predicted) {
+      // No usable factor: the grasped vertex alone moves, Newton brings the rest along.
+      MoveGrasp(last_good, target, &trial);
+      if (!UpdateReferenceFrames(m, last_good, &trial)) return give_up(StepStatus::kNotConverged);
+      state = trial;
+    }
+  }
+  StepStatus status = Newton(start, options.max_iterations, &report);
+  if (status == StepStatus::kNotConverged && predicted_start) {
+    // The prediction led Newton astray (a move too large for the linear response): again from
+    // the grasped vertex moved alone, with the iterations left.
+    MoveGrasp(last_good, target, &state);
+    if (UpdateReferenceFrames(m, last_good, &state))
+      status = Newton(start, options.max_iterations - report.iterations, &report);
+    else
+      status = StepStatus::kNotConverged;
+  }
+  if (status != StepStatus::kConverged) return give_up(status);
+  factor_near_state = report.iterations > 0 || factor_near_state;
+  move_scale = std::min(1.0, 2.0 * move_scale);
+  report.status = StepStatus::kConverged;
+  return report;
+}
+
+StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, StepReport* report) {
+  const RodModel& m = *model;
+  const double budget = options.time_budget;
+  for (int it = 0;; ++it) {
+    ComputeRodFrames(m, state, &frames);
+    AssembleHessian(m, state, EnergyTerms(), &g, &hessian, &frames);
+    AddPokeGradient(&g);
+    report->residual = Residual(g);
+    if (!std::isfinite(report->residual)) return StepStatus::kNotConverged;
+    if (report->residual <= force_tolerance) break;
+    if (it >= max_iterations) return StepStatus::kNotConverged;
+    if (budget > 0.0 && std::chrono::duration<double>(Clock::now() - start).count() > budget)
+      return StepStatus::kTimeBudget;
+    // Factor, shifting the diagonal tenfold at a time while the Hessian is indefinite (the
+    // state a tool's move leads to often is, before Newton has carried the move into the rod).
+    double shift = 0.0;
+    bool factored = false;
+    for (int k = 0; k < 16 && !factored; ++k) {
+      factored = factor.Factor(hessian, shift);
+      if (!factored) shift = shift == 0.0 ? shift_base : 10.0 * shift;
+    }
+    if (!factored) return StepStatus::kNotConverged;
+    step = -g;
+    factor.SolveInPlace(step);
+    double alpha = 1.0;
+    const double turn = MaxTangentTurn(m, state, step);
+    if (turn > kMaxTurnPerStep) alpha = kMaxTurnPerStep / turn;
+    const double e0 = Energy(state, frames);
+    // Pi's round-off: relative to its size and to the work of the loads over the rod (Pi of a
+    // hanging rod can be near zero while its terms are not).
+    const double energy_noise = kEnergyRoundOff * (std::abs(e0) + m.force_scale() * m.length());
+    const double slope = g.dot(step);
+    bool accepted = false;
+    for (int ls = 0; ls < kMaxLineSearchSteps && !accepted; ++ls, alpha *= 0.5) {
+      if (!ApplyStep(m, state, step, alpha, &trial)) continue;
+      ComputeRodFrames(m, trial, &trial_frames);
+      const double e1 = Energy(trial, trial_frames);
+      accepted = std::isfinite(e1) && e1 <= e0 + kArmijo * alpha * slope + energy_noise;
+    }
+    alpha *= 2.0;  // the accepted one
+    if (!accepted) return StepStatus::kNotConverged;
+    std::swap(state, trial);
+    ++report->iterations;
+    // A full, unshifted Newton step below the step tolerance: Newton converges quadratically
+    // here, so the state after it is far closer than the step (the statics solver's second
+    // test; a stiff stretch leaves a gradient floor of ~eps EA the first test may not pass).
+    // At the residual's round-off floor (~eps EA per edge) the test is relaxed a thousandfold,
+    // as in the statics.
+    const double step_tol = options.step_tolerance * std::min(1.0, m.length()) *
+                            (report->residual <= floor_tolerance ? 1e3 : 1.0);
+    if (alpha == 1.0 && shift == 0.0 &&
+        step.lpNorm<Eigen::Infinity>() <= step_tol)
+      break;
+  }
+  return state.x.allFinite() ? StepStatus::kConverged : StepStatus::kNotConverged;
+}
+
+StepReport Runtime::Impl::StepDynamic() {
+  StepReport report;
+  dynamic_good = dynamic;  // same sizes: no allocation
+  if (!tool.allFinite()) {
+    report.status = StepStatus::kNotConverged;
+    return report;
+  }
+  const DynamicsStepSummary s = stepper->Step(*drive, &dynamic);
+  report.iterations = s.newton_iterations;
+  report.residual = s.residual;
+  if (!s.ok || !dynamic.q.x.allFinite() || !dynamic.v.allFinite()) {
+    dynamic = dynamic_good;
+    report.status = StepStatus::kNotConverged;
+    return report;
+  }
+  report.status = StepStatus::kConverged;
+  return report;
+}
+
+const Mat3X& Runtime::Shape() const { return state().x; }
+Vec3 Runtime::ToolForce() const { return impl_->reaction; }
+Vec3 Runtime::ToolTorque() const { return Vec3::Zero(); }
+
+Vec3 Runtime::ToolPosition() const {
+  const RodState& s = state();
+  if (impl_->options.tool == ToolKind::kGrasp) return s.x.col(impl_->tool_vertex);
+  const double w = impl_->poke_weight;
+  return (1.0 - w) * s.x.col(impl_->tool_vertex) + w * s.x.col(impl_->tool_vertex + 1);
+}
+
+double Runtime::Energy() const {
+  if (impl_->options.mode == RuntimeMode::kDynamic)
+    return impl_->stepper->PotentialEnergy(impl_->dynamic.q);
+  return impl_->Energy(impl_->state);
+}
+
+double Runtime::KineticEnergy() const {
+  return impl_->stepper ? impl_->stepper->KineticEnergy(impl_->dynamic) : 0.0;
+}
+
+TubeMesh Runtime::Mesh() const {
+  const Impl& m = *impl_;
+  const RodModel& model = *m.model;
+  const RodState& s = state();
+  const std::optional<SectionSpec>& section = m.profile.scene.section;
+  const double radius = section ? section->radius : model.rod().radius;
+  if (!(radius > 0.0)) throw std::invalid_argument("the profile's rod has no radius for a mesh");
+  TubeMesh tube = BuildTube(model, s, radius, m.options.mesh_ring_vertices);
+  if (m.options.tool != ToolKind::kPoke || !section || m.tool_force.isZero(0.0)) return tube;
+  // The dent: the section ring at the tool under the force's in-plane part (tissue §4), then
+  // propagated onto the tube by eqs. 12–13.
+  const SectionPlacement placement = SectionAt(model, s, m.options.tool_s);
+  const RingStiffness stiffness{model.material().ring_bend_stiffness,
+                                model.material().ring_stretch_stiffness};
+  RingSolveOptions ring_options;
+  ring_options.compute_sensitivities = false;
+  const RingResult ring = SolveRing(*section, stiffness, ProjectToSection(m.tool_force, placement),
+                                    ring_options);
+  if (!ring.summary.IsUsable()) return tube;
+  return PropagateLocalDeformation(tube, placement, *section, ring).mesh;
+}
+
+const RodModel& Runtime::model() const { return *impl_->model; }
+const RodState& Runtime::state() const {
+  return impl_->options.mode == RuntimeMode::kDynamic ? impl_->dynamic.q : impl_->state;
+}
+const RuntimeOptions& Runtime::options() const { return impl_->options; }
+double Runtime::time() const { return impl_->options.mode == RuntimeMode::kDynamic ? impl_->dynamic.t : 0.0; }
+
+}  // namespace rodfit

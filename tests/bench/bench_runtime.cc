@@ -1,0 +1,68 @@
+// The interactive runtime's tick (rodfit/runtime/runtime.h) at 50, 100 and 200 segments: the
+// fitted bowel segment of data/profiles/bowel_drag.json grasped at 2/3 of its length and dragged
+// along a horizontal circle (1 cm radius, one turn per 1000 ticks: 6 cm/s at 1 kHz), quasi-static
+// and dynamic (BDF2, 1 ms), and the poked bowel of data/profiles/bowel_poke.json pushed with a
+// force that rises and falls, each tick followed by the tube mesh with the section's dent.
+// Setup (loading, the first equilibrium) is outside the timed loop; the time is per tick.
+#include <cmath>
+#include <string>
+
+#include <benchmark/benchmark.h>
+
+#include "rodfit/runtime/profile.h"
+#include "rodfit/runtime/runtime.h"
+
+namespace {
+
+rodfit::Profile Bowel(const char* name, int segments) {
+  rodfit::Profile p =
+      rodfit::LoadProfile(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + name);
+  p.scene.rod.segments = segments;  // the fitted material on a finer or coarser rod
+  p.scene.rod.vertex_s.clear();
+  return p;
+}
+
+void BM_Drag(benchmark::State& state) {
+  const int segments = static_cast<int>(state.range(0));
+  rodfit::RuntimeOptions options;
+  options.mode = state.range(1) ? rodfit::RuntimeMode::kDynamic : rodfit::RuntimeMode::kQuasiStatic;
+  options.tool_s = 0.1;
+  rodfit::Runtime rt(Bowel("bowel_drag.json", segments), options);
+  const rodfit::Vec3 home = rt.ToolPosition();
+  long tick = 0, missed = 0, iterations = 0;
+  for (auto _ : state) {
+    const double phase = 2.0 * M_PI * static_cast<double>(++tick) / 1000.0;
+    rt.SetToolPosition(home + 0.01 * rodfit::Vec3(std::cos(phase) - 1.0, std::sin(phase), 0.0));
+    const rodfit::StepReport r = rt.Step();
+    if (!r.ok()) ++missed;
+    iterations += r.iterations;
+    benchmark::DoNotOptimize(rt.ToolForce());
+  }
+  state.counters["missed"] = static_cast<double>(missed);
+  state.counters["iterations"] = static_cast<double>(iterations) / static_cast<double>(tick);
+  state.SetLabel(state.range(1) ? "dynamic" : "quasi-static");
+}
+BENCHMARK(BM_Drag)
+    ->ArgsProduct({{50, 100, 200}, {0, 1}})
+    ->Unit(benchmark::kMicrosecond);
+
+void BM_PokeWithMesh(benchmark::State& state) {
+  const int segments = static_cast<int>(state.range(0));
+  rodfit::RuntimeOptions options;
+  options.tool = rodfit::ToolKind::kPoke;
+  options.tool_s = 0.075;
+  rodfit::Runtime rt(Bowel("bowel_poke.json", segments), options);
+  long tick = 0, missed = 0;
+  for (auto _ : state) {
+    const double phase = 2.0 * M_PI * static_cast<double>(++tick) / 1000.0;
+    rt.SetToolForce(rodfit::Vec3(0.0, 0.0, -0.015 * (1.0 - std::cos(phase))));
+    if (!rt.Step().ok()) ++missed;
+    benchmark::DoNotOptimize(rt.Mesh().vertices.data());
+  }
+  state.counters["missed"] = static_cast<double>(missed);
+}
+BENCHMARK(BM_PokeWithMesh)->Arg(50)->Arg(100)->Arg(200)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,135 @@
+// Runtime::Step does not allocate: this test program interposes malloc and its family (glibc
+// resolves them to the executable's definitions first; operator new and Eigen's dynamic
+// matrices both allocate through malloc) and counts calls while a flag is up, around ticks of a
+// drag (quasi-static and dynamic) and of a poke. Every other test of the program runs with the
+// flag down.
+#include <atomic>
+#include <cstdlib>
+#include <cmath>
+#include <cstddef>
+#include <functional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "rodfit/runtime/profile.h"
+#include "rodfit/runtime/runtime.h"
+
+extern "C" {
+void* __libc_malloc(std::size_t size);
+void* __libc_calloc(std::size_t count, std::size_t size);
+void* __libc_realloc(void* p, std::size_t size);
+void* __libc_memalign(std::size_t alignment, std::size_t size);
+void __libc_free(void* p);
+}
+
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+void Count() {
+  if (g_counting.load(std::memory_order_relaxed)) {
+    g_allocations.fetch_add(1);
+    if (std::getenv("RODFIT_TRAP_ALLOCATION")) __builtin_trap();  // debugging: where from
+  }
+}
+}  // namespace
+
+extern "C" {
+void* malloc(std::size_t size) {
+  Count();
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t count, std::size_t size) {
+  Count();
+  return __libc_calloc(count, size);
+}
+void* realloc(void* p, std::size_t size) {
+  Count();
+  return __libc_realloc(p, size);
+}
+void* memalign(std::size_t alignment, std::size_t size) {
+  Count();
+  return __libc_memalign(alignment, size);
+}
+void* aligned_alloc(std::size_t alignment, std::size_t size) {
+  Count();
+  return __libc_memalign(alignment, size);
+}
+int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
+  Count();
+  *out = __libc_memalign(alignment, size);
+  return *out ? 0 : 12;  // ENOMEM
+}
+void free(void* p) { __libc_free(p); }
+}
+
+namespace rodfit {
+namespace {
+
+long AllocationsDuring(const std::function<void(int)>& tick, int ticks) {
+  g_allocations = 0;
+  g_counting = true;
+  for (int k = 0; k < ticks; ++k) tick(k);
+  g_counting = false;
+  return g_allocations.load();
+}
+
+struct Mode {
+  const char* profile;
+  RuntimeMode mode;
+  ToolKind tool;
+  double s;
+};
+
+void PrintTo(const Mode& m, std::ostream* os) { *os << m.profile << " s = " << m.s; }
+std::string ModeName(const ::testing::TestParamInfo<Mode>& info) {
+  std::string name = info.param.profile;
+  name = name.substr(0, name.find('.'));
+  name += info.param.mode == RuntimeMode::kDynamic ? "_dynamic" : "_quasi_static";
+  return name + (info.param.tool == ToolKind::kPoke ? "_poke" : "_grasp");
+}
+
+class NoAllocation : public ::testing::TestWithParam<Mode> {};
+
+TEST_P(NoAllocation, InStep) {
+  const Mode m = GetParam();
+  const Profile p = LoadProfile(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + m.profile);
+  RuntimeOptions options;
+  options.mode = m.mode;
+  options.tool = m.tool;
+  options.tool_s = m.s;
+  Runtime rt(p, options);
+  const Vec3 home = rt.ToolPosition();
+  int failed = 0;
+  const long count = AllocationsDuring(
+      [&](int k) {
+        const double phase = 0.01 * k;
+        if (m.tool == ToolKind::kGrasp)
+          rt.SetToolPosition(home + 0.005 * Vec3(0.0, std::sin(phase), 1.0 - std::cos(phase)));
+        else
+          rt.SetToolForce(Vec3(0.0, 0.0, -0.05 * (1.0 - std::cos(phase))));
+        if (!rt.Step().ok()) ++failed;
+      },
+      300);
+  EXPECT_EQ(failed, 0);
+  EXPECT_EQ(count, 0) << "operator new called " << count << " times in 300 steps";
+  // The counter works: an allocation with the flag up is seen.
+  g_counting = true;
+  auto* probe = new std::vector<double>(10);
+  g_counting = false;
+  delete probe;
+  EXPECT_GE(g_allocations.load(), 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Ticks, NoAllocation,
+    ::testing::Values(Mode{"suture.json", RuntimeMode::kQuasiStatic, ToolKind::kGrasp, 0.2},
+                      Mode{"bowel_drag.json", RuntimeMode::kQuasiStatic, ToolKind::kGrasp, 0.1},
+                      Mode{"bowel_drag.json", RuntimeMode::kDynamic, ToolKind::kGrasp, 0.1},
+                      Mode{"bowel_poke.json", RuntimeMode::kQuasiStatic, ToolKind::kPoke, 0.075}),
+    ModeName);
+
+}  // namespace
+}  // namespace rodfit

@@ -1,0 +1,171 @@
+// The validating profile reader (rodfit/runtime/profile.h): the bundled fitted profiles read
+// back into the rod they describe, and every kind of mistake fails with one line naming the
+// file and the JSON key.
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "rodfit/model/material_parameters.h"
+#include "rodfit/runtime/profile.h"
+
+namespace rodfit {
+namespace {
+
+using ::testing::HasSubstr;
+using nlohmann::json;
+
+std::string ProfilePath(const std::string& name) {
+  return std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + name;
+}
+
+json ReadJson(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return json::parse(text.str());
+}
+
+// The message of the ProfileError that parsing `doc` throws ("" when none).
+std::string ErrorOf(const json& doc, const ProfileReadOptions& options = {}) {
+  try {
+    ParseProfile(doc.dump(), "p.json", options);
+  } catch (const ProfileError& e) {
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ProfileReader, BundledProfilesRebuildTheirRods) {
+  for (const char* name : {"suture.json", "bowel_drag.json", "bowel_poke.json"}) {
+    SCOPED_TRACE(name);
+    const json doc = ReadJson(ProfilePath(name));
+    const Profile p = LoadProfile(ProfilePath(name));
+    EXPECT_EQ(p.version, 2);
+    EXPECT_EQ(p.scene.rod.length, doc["rod"]["length"].get<double>());
+    EXPECT_EQ(p.scene.rod.segments, doc["rod"]["segments"].get<int>());
+    EXPECT_EQ(p.scene.rod.radius, doc["rod"]["radius"].get<double>());
+    ASSERT_EQ(p.scene.cases.size(), 1u);
+    EXPECT_EQ(p.scene.springs.size(), doc["springs"].size());
+    EXPECT_EQ(p.scene.section.has_value(), doc.contains("section"));
+    // Every parameter's value is the profile's, to the bit, in the material the rod reads.
+    for (const auto& item : doc["parameters"].items()) {
+      if (item.value().contains("tied_to")) continue;
+      const std::optional<double> v = MaterialParameterValue(p.scene.material, item.key());
+      ASSERT_TRUE(v.has_value()) << item.key();
+      EXPECT_EQ(*v, item.value()["value"].get<double>()) << item.key();
+    }
+  }
+}
+
+TEST(ProfileReader, DerivedConstantsFollowFromTheStiffnesses) {
+  const json doc = ReadJson(ProfilePath("suture.json"));
+  const json& round = doc["derived"]["round_section"];
+  const double r = doc["rod"]["radius"].get<double>();
+  const double b1 = doc["parameters"]["bend_stiffness"]["value"].get<double>();
+  const double b2 = doc["parameters"]["bend_stiffness_2"]["value"].get<double>();
+  const double gj = doc["parameters"]["twist_stiffness"]["value"].get<double>();
+  const double i = M_PI * std::pow(r, 4) / 4.0;
+  EXPECT_NEAR(round["youngs_modulus"].get<double>(), 0.5 * (b1 + b2) / i, 1e-12 * (b1 / i));
+  EXPECT_NEAR(round["shear_modulus"].get<double>(), gj / (2.0 * i), 1e-12 * gj / i);
+  const double e = round["youngs_modulus"].get<double>(), g = round["shear_modulus"].get<double>();
+  EXPECT_NEAR(round["poisson_ratio"].get<double>(), e / (2.0 * g) - 1.0, 1e-12);
+  // The bowel is a soft tube, not a solid round section of one material: flagged.
+  const json bowel = ReadJson(ProfilePath("bowel_drag.json"));
+  EXPECT_FALSE(bowel["derived"]["round_section"]["consistent"].get<bool>());
+  EXPECT_FALSE(bowel["derived"]["round_section"]["inconsistency"].get<std::string>().empty());
+}
+
+TEST(ProfileReader, VersionOneStillReads) {
+  json doc = ReadJson(ProfilePath("suture.json"));
+  doc["version"] = 1;
+  for (const char* key : {"held", "springs", "section", "derived"}) doc.erase(key);
+  const Profile p = ParseProfile(doc.dump(), "v1.json");
+  EXPECT_EQ(p.version, 1);
+  EXPECT_EQ(p.scene.material.bend_stiffness,
+            doc["parameters"]["bend_stiffness"]["value"].get<double>());
+}
+
+TEST(ProfileReader, MistakesNameTheFileAndKey) {
+  const json good = ReadJson(ProfilePath("suture.json"));
+  ASSERT_EQ(ErrorOf(good), "");
+  struct Case {
+    std::function<void(json*)> edit;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {[](json* d) { (*d)["format"] = "other"; }, "p.json: format: must be \"rodfit-profile\""},
+      {[](json* d) { (*d)["version"] = 3; }, "p.json: version: 3 is not supported"},
+      {[](json* d) { (*d)["parameters"]["bend_stiffness"]["value"] = -1.0; },
+       "p.json: parameters.bend_stiffness.value: must be > 0"},
+      {[](json* d) { (*d)["parameters"]["bend_stiffness"]["unit"] = "N m"; },
+       "p.json: parameters.bend_stiffness.unit: must be \"N m^2\""},
+      {[](json* d) { (*d)["parameters"]["twist_stiffness"]["value"] = "1e-6"; },
+       "p.json: parameters.twist_stiffness.value: must be a number"},
+      {[](json* d) { (*d)["parameters"].erase("stretch_stiffness"); },
+       "p.json: parameters.stretch_stiffness: missing"},
+      {[](json* d) { (*d)["rod"]["segments"] = 1; }, "p.json: rod.segments: must be in [2, "},
+      {[](json* d) { (*d)["rod"]["length"] = 0.0; }, "p.json: rod.length: must be > 0"},
+      {[](json* d) { (*d)["rod"].erase("length"); }, "p.json: rod.length: missing"},
+      {[](json* d) { (*d)["gravity"] = json::array({0, 0}); }, "p.json: gravity: must be an array"},
+      {[](json* d) { (*d)["held"]["clamp"]["normal"] = json::array({1, 0, 0}); },
+       "p.json: held.clamp.normal: is (nearly) parallel to the tangent"},
+      {[](json* d) { (*d)["held"]["cuts"] = json::array({{{"from", 0.1}, {"to", 0.05}}}); },
+       "p.json: held.cuts[0].to: must be greater than from"},
+      {[](json* d) { (*d)["parameters"]["bend_stiffness"]["bogus"] = 1; },
+       "p.json: parameters.bend_stiffness.bogus: unknown key"},
+      {[](json* d) { (*d)["parameters"]["made_up"] = (*d)["parameters"]["bend_stiffness"]; },
+       "p.json: parameters.made_up: unknown parameter"},
+  };
+  for (const Case& c : cases) {
+    json doc = good;
+    c.edit(&doc);
+    EXPECT_THAT(ErrorOf(doc), HasSubstr(c.message));
+  }
+  EXPECT_THAT(ErrorOf(json::parse("[1, 2]")), HasSubstr("p.json: must be an object"));
+  EXPECT_THAT(ErrorOf(json::parse("{}")), HasSubstr("p.json: format: missing"));
+  try {
+    ParseProfile("{not json", "p.json");
+    ADD_FAILURE() << "no error";
+  } catch (const ProfileError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("p.json: not a JSON document"));
+  }
+  try {
+    LoadProfile(ProfilePath("no_such_profile.json"));
+    ADD_FAILURE() << "no error";
+  } catch (const ProfileError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("no_such_profile.json: cannot read the file"));
+  }
+}
+
+TEST(ProfileReader, UndeterminedParameterNeedsAnOverride) {
+  json doc = ReadJson(ProfilePath("suture.json"));
+  json& b2 = doc["parameters"]["bend_stiffness_2"];
+  b2["value"] = nullptr;
+  b2["std"] = nullptr;
+  b2["identifiable"] = false;
+  b2["reason"] = "not separable from bend_stiffness";
+  EXPECT_THAT(ErrorOf(doc), HasSubstr("p.json: parameters.bend_stiffness_2.value: is null (not "
+                                      "identifiable by the fit); rodfit does not invent one: "
+                                      "give it with --set bend_stiffness_2=VALUE"));
+  ProfileReadOptions options;
+  options.overrides["bend_stiffness_2"] = 2.5e-6;
+  const Profile p = ParseProfile(doc.dump(), "p.json", options);
+  EXPECT_EQ(p.scene.material.B2(), 2.5e-6);
+  EXPECT_TRUE(p.Find("bend_stiffness_2")->overridden);
+  // An override is checked like a value, and must name a listed parameter.
+  options.overrides["bend_stiffness_2"] = -1.0;
+  EXPECT_THAT(ErrorOf(doc, options),
+              HasSubstr("parameters.bend_stiffness_2.value (--set bend_stiffness_2): must be > 0"));
+  options.overrides = {{"bend_stifness", 1.0}};
+  EXPECT_THAT(ErrorOf(ReadJson(ProfilePath("suture.json")), options), HasSubstr("parameters.bend_stifness: --set names"));
+}
+
+}  // namespace
+}  // namespace rodfit

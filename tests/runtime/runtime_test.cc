@@ -1,0 +1,308 @@
+// The interactive runtime (rodfit/runtime/runtime.h) against the statics solver that `rodfit
+// simulate` runs: the same equilibrium after a drag, the same reaction, the reaction as the
+// derivative of the equilibrium energy, and the haptic-loop guarantees (a failed step keeps the
+// last good state, nothing turns non-finite).
+#include <algorithm>
+#include <cmath>
+#include <ostream>
+#include <vector>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "rodfit/runtime/profile.h"
+#include "rodfit/runtime/runtime.h"
+#include "rodfit/solve/case_solve.h"
+#include "rodfit/solve/reactions.h"
+
+namespace rodfit {
+namespace {
+
+Profile Bundled(const std::string& name) {
+  return LoadProfile(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + name);
+}
+
+// The scene `rodfit simulate` would solve: the profile's rod and held ends, grasped at s.
+Scene GraspScene(const Profile& p, double s, const Vec3& position) {
+  Scene scene = p.scene;
+  scene.cases.front().grasp = Grasp{s, position};
+  return scene;
+}
+
+// Moves the tool from where it is to `target` in `ticks` equal steps, each followed until the
+// grasped point is at the tool.
+void Drag(Runtime* rt, const Vec3& target, int ticks) {
+  const Vec3 from = rt->ToolPosition();
+  for (int k = 1; k <= ticks; ++k) {
+    rt->SetToolPosition(from + (target - from) * (static_cast<double>(k) / ticks));
+    StepReport r = rt->Step();
+    ASSERT_TRUE(r.ok()) << "tick " << k << ": " << ToString(r.status) << " after "
+                        << r.iterations << " iterations, residual " << r.residual << " N";
+    // A tick moves the grasped point by at most max_tool_move: catch up before the next.
+    for (int extra = 0; r.tool_lag > 0.0 && extra < 100; ++extra) {
+      r = rt->Step();
+      ASSERT_TRUE(r.ok());
+    }
+    ASSERT_EQ(r.tool_lag, 0.0);
+  }
+}
+
+struct DragCase {
+  const char* profile;
+  double s;
+  Vec3 target;
+};
+
+// Test names and messages by profile (not the struct's bytes).
+void PrintTo(const DragCase& c, std::ostream* os) { *os << c.profile << " at s = " << c.s; }
+std::string DragCaseName(const ::testing::TestParamInfo<DragCase>& info) {
+  std::string name = info.param.profile;
+  return name.substr(0, name.find('.'));
+}
+
+class RoundTrip : public ::testing::TestWithParam<DragCase> {};
+
+// Profile -> runtime -> the shape `rodfit simulate` finds for the same grasp (SolveCase is the
+// path simulate runs), to 1e-10 of the rod's length, and the same force on the tool.
+TEST_P(RoundTrip, DragEndsInTheStaticsEquilibrium) {
+  const DragCase c = GetParam();
+  const Profile p = Bundled(c.profile);
+  RuntimeOptions options;
+  options.tool_s = c.s;
+  Runtime rt(p, options);
+  // At most 0.2 mm per tick: a hand moving the tool at 0.2 m/s in a 1 kHz loop.
+  Drag(&rt, c.target, static_cast<int>(std::ceil((c.target - rt.ToolPosition()).norm() / 2e-4)));
+
+  StaticsOptions statics;
+  statics.gradient_tolerance = 1e-12;
+  const CaseSolution ref = SolveCase(GraspScene(p, c.s, c.target), 0, nullptr, statics);
+  ASSERT_TRUE(ref.ok()) << ref.summary.reason;
+  const double length = p.scene.rod.length;
+  const double shape_error = (rt.Shape() - ref.state.x).cwiseAbs().maxCoeff();
+  std::printf("%s: max |x_runtime - x_simulate| = %.3e m (%.3e L)\n", c.profile, shape_error,
+              shape_error / length);
+  // Both solves stop at their gradient tolerance; the shapes then agree to ~1e-12 L.
+  EXPECT_LT(shape_error, 1e-10 * length);
+  Vec3 grasp_force = Vec3::Zero();
+  for (const HeldReaction& r : ref.reactions)
+    if (r.point == "grasp") grasp_force = r.force;
+  ASSERT_GT(grasp_force.norm(), 0.0);
+  EXPECT_LT((rt.ToolForce() - grasp_force).norm(), 1e-7 * grasp_force.norm())
+      << rt.ToolForce().transpose() << " vs " << grasp_force.transpose();
+  EXPECT_EQ(rt.ToolTorque(), Vec3::Zero());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Bundled, RoundTrip,
+    ::testing::Values(DragCase{"bowel_drag.json", 0.1, Vec3(0.1, 0.015, 0.02)},
+                      DragCase{"suture.json", 0.2, Vec3(0.17, 0.05, 0.03)},
+                      DragCase{"bowel_poke.json", 0.06, Vec3(0.06, 0.0, 0.01)}),
+    DragCaseName);
+
+// The force on the tool is -dPi*/dp, Pi* the equilibrium energy as a function of the tool's
+// position (the envelope theorem): central differences over each axis.
+TEST(Runtime, ToolForceIsMinusTheEnergyGradient) {
+  const Profile p = Bundled("bowel_drag.json");
+  RuntimeOptions options;
+  options.tool_s = 0.1;
+  Runtime rt(p, options);
+  const Vec3 at(0.1, 0.012, 0.015);
+  Drag(&rt, at, 30);
+  const Vec3 force = rt.ToolForce();
+  // h: the force changes by ~1e-6 of itself over h, so the central difference's truncation
+  // (~h^2 f'') and round-off (eps Pi / h) are both far below the 1e-5 asked.
+  const double h = 1e-6;
+  Vec3 gradient;
+  for (int a = 0; a < 3; ++a) {
+    double energy[2];
+    for (int side = 0; side < 2; ++side) {
+      Vec3 q = at;
+      q[a] += side == 0 ? h : -h;
+      rt.SetToolPosition(q);
+      ASSERT_TRUE(rt.Step().ok());
+      energy[side] = rt.Energy();
+    }
+    gradient[a] = (energy[0] - energy[1]) / (2.0 * h);
+  }
+  EXPECT_LT((force + gradient).norm(), 1e-5 * force.norm())
+      << "force " << force.transpose() << ", -dPi/dp " << (-gradient).transpose();
+}
+
+// The reactions close the balance: tool, clamp, weight and springs.
+TEST(Runtime, ReactionsCloseTheForceBalance) {
+  const Profile p = Bundled("suture.json");
+  RuntimeOptions options;
+  options.tool_s = 0.2;
+  Runtime rt(p, options);
+  Drag(&rt, Vec3(0.15, 0.04, -0.02), 400);
+  const RodModel& model = rt.model();
+  Vec3 weight = Vec3::Zero();
+  for (int i = 0; i < model.num_vertices(); ++i) weight += model.vertex_weight(i);
+  Vec3 clamp = Vec3::Zero(), tool = Vec3::Zero();
+  for (const HeldReaction& r : HeldReactions(model, rt.state())) {
+    if (r.point == "clamp") clamp = r.force;
+    if (r.point == "grasp") tool = r.force;
+  }
+  EXPECT_LT((tool - rt.ToolForce()).norm(), 1e-9 * tool.norm());
+  // The holders carry the weight: what the rod exerts on them sums to its weight.
+  EXPECT_LT((clamp + tool - weight).norm(), 1e-8 * weight.norm())
+      << (clamp + tool).transpose() << " vs " << weight.transpose();
+}
+
+TEST(Runtime, FailedStepKeepsTheLastGoodState) {
+  const Profile p = Bundled("suture.json");
+  RuntimeOptions options;
+  options.tool_s = 0.2;
+  options.max_iterations = 1;  // a tool move needs several Newton iterations
+  Runtime rt(p, options);
+  const Mat3X good = rt.Shape();
+  const Vec3 good_force = rt.ToolForce();
+  const Vec3 home = rt.ToolPosition();
+  rt.SetToolPosition(home + Vec3(-2e-4, 1e-4, 0.0));
+  StepReport r = rt.Step();
+  EXPECT_EQ(r.status, StepStatus::kNotConverged);
+  EXPECT_EQ(rt.Shape(), good);
+  EXPECT_EQ(rt.ToolForce(), good_force);
+  // A non-finite tool position from a glitching device: refused, state kept.
+  rt.SetToolPosition(Vec3(std::nan(""), 0.0, 0.0));
+  r = rt.Step();
+  EXPECT_EQ(r.status, StepStatus::kNotConverged);
+  EXPECT_EQ(rt.Shape(), good);
+  EXPECT_TRUE(std::isinf(r.tool_lag));
+  // Back where the rod is in equilibrium, the loop carries on.
+  rt.SetToolPosition(home);
+  r = rt.Step();
+  EXPECT_TRUE(r.ok());
+  EXPECT_EQ(r.tool_lag, 0.0);
+}
+
+// A tool that jumps far ahead (a lost tracking frame) is followed at max_tool_move per tick:
+// every tick converges, and the lag closes.
+TEST(Runtime, FarJumpIsFollowedOverSeveralTicks) {
+  const Profile p = Bundled("bowel_drag.json");
+  RuntimeOptions options;
+  options.tool_s = 0.1;
+  Runtime rt(p, options);
+  const Vec3 target = rt.ToolPosition() + Vec3(0.0, 0.01, 0.005);
+  rt.SetToolPosition(target);
+  const double max_move = options.max_tool_move * rt.model().min_rest_edge_length();
+  double lag = (target - rt.ToolPosition()).norm();
+  int ticks = 0;
+  while (lag > 0.0 && ticks < 1000) {
+    const StepReport r = rt.Step();
+    ASSERT_TRUE(r.ok()) << "tick " << ticks;
+    EXPECT_NEAR(r.tool_lag, std::max(0.0, lag - max_move), 1e-12);
+    lag = r.tool_lag;
+    ++ticks;
+  }
+  EXPECT_EQ(lag, 0.0);
+  EXPECT_EQ(ticks, static_cast<int>(std::ceil(0.0111803398875 / max_move - 1e-9)));
+}
+
+TEST(Runtime, TimeBudgetReturnsTheLastGoodState) {
+  const Profile p = Bundled("bowel_drag.json");
+  RuntimeOptions options;
+  options.tool_s = 0.1;
+  options.time_budget = 1e-12;  // below any Newton iteration's cost
+  Runtime rt(p, options);
+  const Mat3X before = rt.Shape();
+  rt.SetToolPosition(rt.ToolPosition() + Vec3(0.0, 0.01, 0.0));
+  const StepReport r = rt.Step();
+  EXPECT_EQ(r.status, StepStatus::kTimeBudget);
+  EXPECT_EQ(rt.Shape(), before);
+}
+
+// A poke: the force on the tool is the tissue pushing back, and the mesh carries the dent.
+TEST(Runtime, PokeDentsTheMesh) {
+  const Profile p = Bundled("bowel_poke.json");
+  ASSERT_TRUE(p.scene.section.has_value());
+  RuntimeOptions options;
+  options.tool = ToolKind::kPoke;
+  options.tool_s = 0.075;
+  Runtime rt(p, options);
+  const TubeMesh before = rt.Mesh();
+  const Vec3 push(0.0, -0.03, 0.0);
+  rt.SetToolForce(push);
+  ASSERT_TRUE(rt.Step().ok());
+  EXPECT_EQ(rt.ToolForce(), -push);
+  const TubeMesh after = rt.Mesh();
+  ASSERT_EQ(after.num_vertices(), before.num_vertices());
+  // The dent: the mesh moves more than the centre-line does near the tool.
+  const TubeMesh swept = BuildTube(rt.model(), rt.state(), p.scene.section->radius,
+                                   options.mesh_ring_vertices);
+  EXPECT_GT((after.vertices - swept.vertices).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_TRUE(after.vertices.allFinite());
+}
+
+// A closed tool path, one turn per second at 1 kHz, in the tool's y-z plane.
+Vec3 Circle(const Vec3& centre, double radius, int tick, int ticks_per_turn) {
+  const double phase = 2.0 * M_PI * tick / ticks_per_turn;
+  return centre + radius * Vec3(0.0, std::sin(phase), 1.0 - std::cos(phase));
+}
+
+// Quasi-static ticks: the equilibrium energy is a function of the tool's position, so every
+// turn of a closed path ends at the same energy — no drift over 10^4 ticks.
+TEST(Runtime, QuasiStaticClosedPathReturnsToItsEnergy) {
+  const Profile p = Bundled("bowel_drag.json");
+  RuntimeOptions options;
+  options.tool_s = 0.1;
+  Runtime rt(p, options);
+  const Vec3 centre = rt.ToolPosition();
+  const double e_start = rt.Energy();
+  const int ticks_per_turn = 1000;
+  double worst = 0.0;
+  for (int turn = 1; turn <= 10; ++turn) {
+    for (int k = 1; k <= ticks_per_turn; ++k) {
+      rt.SetToolPosition(Circle(centre, 0.01, k, ticks_per_turn));
+      ASSERT_TRUE(rt.Step().ok()) << "turn " << turn << " tick " << k;
+    }
+    worst = std::max(worst, std::abs(rt.Energy() - e_start));
+  }
+  std::printf("bowel quasi-static: |E(turn) - E(0)| <= %.3e J of %.3e J over 10^4 ticks\n", worst,
+              std::abs(e_start));
+  // Each turn ends at the start's equilibrium, solved to the gradient tolerance: the energy
+  // error is second order in the state's, far below 1e-10 of the energy.
+  EXPECT_LT(worst, 1e-10 * std::abs(e_start));
+}
+
+// Dynamic ticks: the tool does work on the rod along the path, but the energy at the end of each
+// turn must not grow from turn to turn (BDF2 and the damping only take energy out; a growing
+// energy would be the integrator going unstable), over 10^5 ticks.
+TEST(Runtime, DynamicClosedPathDoesNotGainEnergy) {
+  const Profile p = Bundled("bowel_drag.json");
+  RuntimeOptions options;
+  options.tool_s = 0.1;
+  options.mode = RuntimeMode::kDynamic;
+  Runtime rt(p, options);
+  const Vec3 centre = rt.ToolPosition();
+  const int ticks_per_turn = 1000;
+  std::vector<double> energy;  // at the end of each turn, the tool back at its start
+  for (int turn = 1; turn <= 100; ++turn) {
+    for (int k = 1; k <= ticks_per_turn; ++k) {
+      rt.SetToolPosition(Circle(centre, 0.01, k, ticks_per_turn));
+      ASSERT_TRUE(rt.Step().ok()) << "turn " << turn << " tick " << k;
+    }
+    energy.push_back(rt.Energy() + rt.KineticEnergy());
+  }
+  const double first = *std::max_element(energy.begin(), energy.begin() + 5);
+  const double last = *std::max_element(energy.end() - 5, energy.end());
+  std::printf("bowel dynamic: energy at a turn's end %.6e J (turns 1-5, max), %.6e J (turns "
+              "96-100, max)\n", first, last);
+  EXPECT_LE(last, first + 1e-6 * std::abs(first));
+  EXPECT_TRUE(rt.Shape().allFinite());
+}
+
+TEST(Runtime, InvalidOptionsAreRefused) {
+  const Profile p = Bundled("suture.json");
+  RuntimeOptions options;  // tool_s missing
+  EXPECT_THROW(Runtime(p, options), std::invalid_argument);
+  options.tool_s = 0.5;  // beyond L = 0.2
+  EXPECT_THROW(Runtime(p, options), std::invalid_argument);
+  options.tool_s = 0.1;
+  options.tool = ToolKind::kPoke;
+  options.mode = RuntimeMode::kDynamic;
+  EXPECT_THROW(Runtime(p, options), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace rodfit
