@@ -370,7 +370,7 @@ struct Command {
   int (*run)(int argc, char** argv);
 };
 
-// A `bench` command is not in the table yet.
+// Every command, in the order --help lists them (docs/cli.md has one section each).
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
       {"simulate", "solve every case of a scene; write DIR/shapes.csv", &RunSimulate},
