@@ -391,7 +391,12 @@ void PrintUsage(std::ostream& out) {
   out << "Usage: rodfit COMMAND [OPTIONS]   (rodfit COMMAND --help for its options)\n"
       << "       rodfit --version\n\n"
       << "Commands:\n";
-  for (const Command& c : Commands()) out << "  " << c.name << "    " << c.help << "\n";
+  // Names padded to one column, so the descriptions line up.
+  for (const Command& c : Commands()) {
+    const std::string name = c.name;
+    out << "  " << name << std::string(name.size() < 10 ? 10 - name.size() : 1, ' ') << c.help
+        << "\n";
+  }
 }
 
 }  // namespace
