@@ -90,28 +90,30 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
     Fitted f;
     f.input_index = static_cast<int>(k);
     f.name = p.name;
-    if (p.name == "bend_stiffness") {
-      f.drives = {Stiffness::kBend1};
-      if (tied) f.drives.push_back(Stiffness::kBend2);
-    } else if (p.name == "bend_stiffness_2") {
-      if (tied) throw std::invalid_argument("bend_stiffness_2: fitted but tied to bend_stiffness");
-      f.drives = {Stiffness::kBend2};
-    } else if (p.name == "twist_stiffness") {
-      f.drives = {Stiffness::kTwist};
-    } else if (p.name == "stretch_stiffness") {
-      f.drives = {Stiffness::kStretch};
-    } else if (p.name == "ring_bend_stiffness" || p.name == "ring_stretch_stiffness") {
-      f.ring = p.name == "ring_bend_stiffness" ? 1 : 2;
-    } else if (p.name == "spring_stiffness" || in.material.spring_parameters.count(p.name)) {
+    const MaterialParameterInfo* row = FindMaterialParameter(p.name);
+    const bool zone_parameter = in.material.spring_parameters.count(p.name) > 0;
+    if (!row && !zone_parameter)
+      throw std::invalid_argument(p.name + ": not a parameter of the rod model");
+    if (row && row->kind == ParameterKind::kDamping)
+      throw std::invalid_argument(p.name + ": damping is seen only in motion, not by a static fit");
+    if (row && row->kind == ParameterKind::kRodStiffness) {
+      if (row->tied_to && tied)
+        throw std::invalid_argument(p.name + ": fitted but tied to " + row->tied_to);
+      f.drives = {static_cast<Stiffness>(row->term)};
+      // The row a tied one follows drives it too (bend_stiffness moves B2 when isotropic).
+      for (const MaterialParameterInfo& other : MaterialParameters())
+        if (tied && other.tied_to && p.name == other.tied_to)
+          f.drives.push_back(static_cast<Stiffness>(other.term));
+    } else if (row && row->kind == ParameterKind::kRing) {
+      f.ring = row->term;
+    } else {  // spring_stiffness or a zone's own parameter
       f.spring = true;
-      f.spring_zone_name = p.name == "spring_stiffness" ? "" : p.name;
+      f.spring_zone_name = row ? "" : p.name;
       if (in.springs.empty())
         throw std::invalid_argument(p.name +
                                     ": fitted, but the scene has no springs for it to act on");
       if (!ZonesUse(in, f.spring_zone_name))
         throw std::invalid_argument(p.name + ": fitted, but no spring zone uses it");
-    } else {
-      throw std::invalid_argument(p.name + ": not a parameter of the rod model");
     }
     out.push_back(f);
   }
@@ -121,20 +123,8 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
 
 Material MaterialAt(const FitInput& in, const std::vector<Fitted>& fitted, const double* logp) {
   Material m = in.material;
-  for (size_t k = 0; k < fitted.size(); ++k) {
-    const double v = std::exp(logp[k]);
-    const std::string& name = fitted[k].name;
-    if (name == "bend_stiffness") m.bend_stiffness = v;
-    if (name == "bend_stiffness_2") m.bend_stiffness_2 = v;
-    if (name == "twist_stiffness") m.twist_stiffness = v;
-    if (name == "stretch_stiffness") m.stretch_stiffness = v;
-    if (name == "ring_bend_stiffness") m.ring_bend_stiffness = v;
-    if (name == "ring_stretch_stiffness") m.ring_stretch_stiffness = v;
-    if (fitted[k].spring) {
-      if (fitted[k].spring_zone_name.empty()) m.spring_stiffness = v;
-      else m.spring_parameters[fitted[k].spring_zone_name] = v;
-    }
-  }
+  for (size_t k = 0; k < fitted.size(); ++k)
+    AssignMaterialParameter(fitted[k].name, std::exp(logp[k]), &m);
   return m;
 }
 
@@ -690,11 +680,6 @@ VarianceBand ResidualVarianceBand(int dof) {
   return {low * low * low, high * high * high};
 }
 
-const char* ParameterUnit(const std::string& name) {
-  // The parameter table's unit (spring zones' own parameters: N/m^2, like spring_stiffness).
-  return MaterialParameterUnit(name);
-}
-
 bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,
                         Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) {
   const std::vector<Fitted> fitted = FittedParameters(input);
@@ -1003,7 +988,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     const FitParameter& p = input.parameters[k];
     ParameterEstimate e;
     e.name = p.name;
-    e.unit = ParameterUnit(p.name);
+    e.unit = MaterialParameterUnit(p.name);
     e.value = p.value;
     e.start = p.value;
     e.fitted = p.fit;
@@ -1017,8 +1002,10 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
                    (p.max && std::abs(logp[f] - std::log(*p.max)) < 1e-6);
       result.fitted_names.push_back(p.name);
     }
-    if (p.name == "bend_stiffness_2" && !p.fit && !input.material.bend_stiffness_2)
-      e.value = final_material.B2();
+    // A tied row held in the fit reports the value it follows (B2 = B1 when isotropic).
+    const MaterialParameterInfo* row = FindMaterialParameter(p.name);
+    if (row && row->tied_to && !p.fit && !MaterialParameterValue(input.material, p.name))
+      e.value = EffectiveMaterialParameter(final_material, p.name);
     result.parameters.push_back(e);
   }
 

@@ -6,6 +6,8 @@
 
 #include <nlopt.hpp>
 
+#include "rodfit/model/material_parameters.h"
+
 namespace rodfit {
 namespace {
 
@@ -40,38 +42,25 @@ double MeanRolloutError(const std::vector<double>& logp, Ctx* c) {
 
 }  // namespace
 
-void SetMaterialParameter(const std::string& name, double value, Material* m) {
-  if (name == "bend_stiffness") {
-    m->bend_stiffness = value;
-  } else if (name == "bend_stiffness_2") {
-    m->bend_stiffness_2 = value;
-  } else if (name == "twist_stiffness") {
-    m->twist_stiffness = value;
-  } else if (name == "stretch_stiffness") {
-    m->stretch_stiffness = value;
-  } else if (name == "damping") {
-    m->damping = value;
-  } else if (name == "bend_damping") {
-    m->bend_damping = value;
-  } else if (name == "twist_damping") {
-    m->twist_damping = value;
-  } else if (name == "stretch_damping") {
-    m->stretch_damping = value;
-  } else {
+namespace {
+
+// The rows a motion sees: the rod's stiffnesses and its damping (springs and the ring are not
+// part of a moving thread's model).
+const MaterialParameterInfo& MotionRow(const std::string& name) {
+  const MaterialParameterInfo* row = FindMaterialParameter(name);
+  if (!row || (row->kind != ParameterKind::kRodStiffness && row->kind != ParameterKind::kDamping))
     throw std::invalid_argument("a motion fit cannot fit '" + name.substr(0, 60) + "'");
-  }
+  return *row;
+}
+
+}  // namespace
+
+void SetMaterialParameter(const std::string& name, double value, Material* m) {
+  AssignMaterialParameter(MotionRow(name).name, value, m);
 }
 
 double MaterialParameter(const std::string& name, const Material& m) {
-  if (name == "bend_stiffness") return m.bend_stiffness;
-  if (name == "bend_stiffness_2") return m.B2();
-  if (name == "twist_stiffness") return m.twist_stiffness;
-  if (name == "stretch_stiffness") return m.stretch_stiffness;
-  if (name == "damping") return m.damping;
-  if (name == "bend_damping") return m.bend_damping;
-  if (name == "twist_damping") return m.twist_damping;
-  if (name == "stretch_damping") return m.stretch_damping;
-  throw std::invalid_argument("a motion fit cannot fit '" + name.substr(0, 60) + "'");
+  return EffectiveMaterialParameter(m, MotionRow(name).name);
 }
 
 MotionFitResult FitToRecordings(const Scene& scene, const std::vector<MotionRecordingData>& recordings,
