@@ -15,6 +15,7 @@
 #include "rodfit/model/cross_section.h"
 #include "rodfit/solve/banded.h"
 #include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/ring.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 
