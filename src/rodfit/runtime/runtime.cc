@@ -29,13 +29,16 @@ constexpr double kMaxTurnPerStep = 0.5;
 constexpr int kMaxLineSearchSteps = 30;
 // The smallest fraction of max_tool_move a tick falls back to after failed ticks.
 constexpr double kMinMoveScale = 1.0 / 64.0;
-// The predictor's finite-difference move, as a fraction of the rod's length: small enough that
-// the gradient is linear in it, large enough that its change is far above round-off.
-constexpr double kPredictorProbe = 1e-7;
 constexpr double kArmijo = 1e-4;
 // Relative round-off of the potential energy: an Armijo test between two values equal to this
 // precision is decided by noise, so a step that does not raise Pi beyond it is accepted.
 constexpr double kEnergyRoundOff = 1e-13;
+// A chord step (the kept factor, no new Hessian) must cut the residual at least this much, or
+// the tick refactors: the kept factor then belongs to a state too far from this one.
+constexpr double kChordContraction = 0.25;
+// A chord step that cut the residual by less than this is followed by a Newton iteration, which
+// renews the kept factor.
+constexpr double kChordRefresh = 1e-3;
 
 // The tool's grasp held in the dynamic stepper's pose: every other held point at its target.
 class ToolDrive : public Drive {
@@ -103,10 +106,21 @@ struct Runtime::Impl {
   RodState state, last_good, trial, moved;
   RodFrames frames, trial_frames;
   VecX g, g_free, step, weights;
-  BandedSymmetric hessian;
+  // The Hessian of the factor's state with the held rows left in (K_fh, the predictor's), and
+  // the same with Dirichlet rows (what is factored).
+  BandedSymmetric hessian_full, hessian;
   BandedCholesky factor;
-  // The factor was made at (or one Newton step before) the current state: the predictor's.
+  // The factor is unshifted and was made at a state of this converged branch (this tick's or an
+  // earlier one's): the predictor and the chord steps may use it; a chord step that does not
+  // contract fast enough refactors.
   bool factor_near_state = false;
+  // `frames` are those of `state` (a line search left them), so the next check need not
+  // recompute them.
+  bool frames_current = false;
+  // The grasp's reaction at the state of the last residual check (its hold-free rows), and
+  // whether that check was at the final state.
+  Vec3 checked_force = Vec3::Zero();
+  bool reaction_current = false;
   double shift_base = 0.0;
   // Dynamic.
   std::unique_ptr<ToolDrive> drive;
@@ -231,7 +245,11 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.moved = m.state;
   ComputeRodFrames(model, m.state, &m.frames);
   m.trial_frames = m.frames;
-  AssembleHessian(model, m.state, EnergyTerms(), &m.g, &m.hessian, &m.frames);
+  EnergyTerms free_terms;
+  free_terms.hold = false;
+  AssembleHessian(model, m.state, free_terms, &m.g, &m.hessian_full, &m.frames);
+  m.hessian = m.hessian_full;
+  ApplyHeldRows(model.held_dofs(), &m.g, &m.hessian);
   m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
   m.step = m.g;
   m.g_free = m.g;
@@ -276,7 +294,15 @@ StepReport Runtime::Step() {
   const Clock::time_point start = Clock::now();
   StepReport report = impl_->options.mode == RuntimeMode::kDynamic ? impl_->StepDynamic()
                                                                    : impl_->StepQuasiStatic(start);
-  if (report.ok()) impl_->UpdateReaction();
+  if (report.ok()) {
+    // A quasi-static tick that ended on its residual check has the grasp's reaction from that
+    // check's gradient; otherwise it is evaluated at the state.
+    if (impl_->options.mode == RuntimeMode::kQuasiStatic && impl_->reaction_current &&
+        impl_->options.tool == ToolKind::kGrasp)
+      impl_->reaction = impl_->checked_force;
+    else
+      impl_->UpdateReaction();
+  }
   if (impl_->options.tool == ToolKind::kGrasp)
     report.tool_lag = impl_->tool.allFinite() ? (impl_->tool - ToolPosition()).norm()
                                               : std::numeric_limits<double>::infinity();
@@ -297,6 +323,8 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     return report;
   };
   last_good = state;
+  reaction_current = false;
+  frames_current = false;
   bool predicted_start = false;
   const bool finite_tool = tool.allFinite() && tool_force.allFinite();
   if (!finite_tool) return give_up(StepStatus::kNotConverged);
@@ -319,26 +347,33 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     target = state.x.col(v) + d;
     bool predicted = false;
     if (factor_near_state && factor.valid() && d_norm > 0.0) {
-      const double eta = std::min(1.0, kPredictorProbe * m.length() / d_norm);
-      ComputeRodFrames(m, state, &frames);
-      AssembleGradient(m, state, EnergyTerms(), &g_free, &frames);
-      MoveGrasp(state, state.x.col(v) + eta * d, &trial);
-      if (UpdateReferenceFrames(m, state, &trial)) {
-        ComputeRodFrames(m, trial, &frames);
-        AssembleGradient(m, trial, EnergyTerms(), &g, &frames);
-        step = -(g - g_free) / eta;
-        factor.SolveInPlace(step);
-        // The free vertices move from the last equilibrium (whose edges are consistent), then
-        // the grasped vertex, its two edges spanning the predicted neighbours.
-        const double turn = MaxTangentTurn(m, state, step);
-        const double scale = turn > kMaxTurnPerStep ? kMaxTurnPerStep / turn : 1.0;
-        if (ApplyStep(m, state, step, scale, &moved)) {
-          MoveGrasp(moved, target, &trial);
-          if (UpdateReferenceFrames(m, moved, &trial)) {
-            std::swap(state, trial);
-            predicted = state.x.allFinite();
-            predicted_start = predicted;
-          }
+      // K_fh d from the kept Hessian's columns of the grasped vertex (held rows left in), the
+      // Hessian the kept factor was made from: the band couples them to 2 blocks either side.
+      step.setZero();
+      const int c0 = RodModel::VertexDof(v);
+      const int p = hessian_full.bandwidth();
+      const int rows = static_cast<int>(step.size());
+      for (int c = 0; c < 3; ++c)
+        for (int i = std::max(0, c0 + c - p); i <= std::min(rows - 1, c0 + c + p); ++i)
+          step[i] -= hessian_full.Get(i, c0 + c) * d[c];
+      ApplyHeldRows(m.held_dofs(), &step, nullptr);
+      factor.SolveInPlace(step);
+      // The whole predicted motion, the grasp's own move included, goes through one edge-wise
+      // retraction from the last equilibrium, which changes every edge's length by its linear
+      // part only. (Moving the free vertices first and then the grasped vertex would pin it at
+      // its old place during the retraction, whose closure pulls the rod before it back by d,
+      // and then stretch its edge by the whole move: against a stiff EA a force of EA d / l that
+      // Newton must first undo.) ApplyStep keeps held vertices where its input state has them
+      // and reads no other vertex position but x_0, so its input is the last equilibrium with
+      // the grasped vertex already at the target.
+      step.segment<3>(RodModel::VertexDof(v)) = d;
+      if (MaxTangentTurn(m, state, step) <= kMaxTurnPerStep) {
+        moved = state;  // same sizes: no allocation
+        moved.x.col(v) = target;
+        if (ApplyStep(m, moved, step, 1.0, &trial) && trial.x.allFinite()) {
+          std::swap(state, trial);
+          predicted = true;
+          predicted_start = true;
         }
       }
     }
@@ -360,7 +395,6 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
       status = StepStatus::kNotConverged;
   }
   if (status != StepStatus::kConverged) return give_up(status);
-  factor_near_state = report.iterations > 0 || factor_near_state;
   move_scale = std::min(1.0, 2.0 * move_scale);
   report.status = StepStatus::kConverged;
   return report;
@@ -369,16 +403,76 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
 StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, StepReport* report) {
   const RodModel& m = *model;
   const double budget = options.time_budget;
+  const std::vector<char>& held = m.held_dofs();
+  EnergyTerms free_terms;  // the held rows are kept to read the grasp's reaction, then cleared
+  free_terms.hold = false;
+  // Chord steps reuse the kept factor: a tick moves the tool by a fraction of an edge, so the
+  // Hessian of the last tick's solve still contracts the residual by orders of magnitude per
+  // step, and a step then costs a gradient and a back-substitution instead of an assembly of
+  // the Hessian and its factorisation. Convergence is decided by the same residual test as a
+  // Newton iteration's, so the answer is to the same tolerance.
+  bool chord = factor_near_state && factor.valid();
+  frames_current = false;  // the caller has moved the state
+  double previous_residual = std::numeric_limits<double>::infinity();
   for (int it = 0;; ++it) {
-    ComputeRodFrames(m, state, &frames);
-    AssembleHessian(m, state, EnergyTerms(), &g, &hessian, &frames);
+    if (!frames_current) ComputeRodFrames(m, state, &frames);
+    frames_current = false;
+    if (chord) {
+      AssembleGradient(m, state, free_terms, &g, &frames);
+    } else {
+      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
+    }
+    if (tool_vertex >= 1 && options.tool == ToolKind::kGrasp)
+      checked_force = -g.segment<3>(RodModel::VertexDof(tool_vertex));
+    ApplyHeldRows(held, &g, nullptr);
     AddPokeGradient(&g);
     report->residual = Residual(g);
     if (!std::isfinite(report->residual)) return StepStatus::kNotConverged;
-    if (report->residual <= force_tolerance) break;
+    if (report->residual <= force_tolerance) {
+      reaction_current = true;
+      break;
+    }
     if (it >= max_iterations) return StepStatus::kNotConverged;
     if (budget > 0.0 && std::chrono::duration<double>(Clock::now() - start).count() > budget)
       return StepStatus::kTimeBudget;
+    if (chord && report->residual > kChordContraction * previous_residual) {
+      // The kept factor no longer contracts fast: a Newton iteration, from the state before the
+      // chord step if that step did not even lower the residual.
+      chord = false;
+      if (report->residual > previous_residual) {
+        std::swap(state, moved);
+        --report->iterations;
+        ComputeRodFrames(m, state, &frames);
+      }
+      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
+      ApplyHeldRows(held, &g, nullptr);
+      AddPokeGradient(&g);
+      report->residual = Residual(g);
+    }
+    const bool refresh = chord && report->residual > kChordRefresh * previous_residual;
+    previous_residual = report->residual;
+    if (chord) {
+      // A chord step is checked by the residual at the next check (above), and undone there if
+      // it made it worse; its cost is a back-substitution, a retraction and that check.
+      step = -g;
+      factor.SolveInPlace(step);
+      if (MaxTangentTurn(m, state, step) <= kMaxTurnPerStep &&
+          ApplyStep(m, state, step, 1.0, &trial)) {
+        std::swap(moved, state);  // kept to undo the step
+        std::swap(state, trial);
+        ++report->iterations;
+        // A factor that contracts only slowly is renewed on the next iteration, so that the
+        // next ticks start from a fresh one (their predictor is made with it too).
+        if (refresh) chord = false;
+        continue;
+      }
+      chord = false;
+      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
+      ApplyHeldRows(held, &g, nullptr);
+      AddPokeGradient(&g);
+    }
+    hessian = hessian_full;  // same size: a copy, no allocation
+    ApplyHeldRows(held, nullptr, &hessian);
     // Factor, shifting the diagonal tenfold at a time while the Hessian is indefinite (the
     // state a tool's move leads to often is, before Newton has carried the move into the rod).
     double shift = 0.0;
@@ -387,6 +481,7 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
       factored = factor.Factor(hessian, shift);
       if (!factored) shift = shift == 0.0 ? shift_base : 10.0 * shift;
     }
+    factor_near_state = factored && shift == 0.0;
     if (!factored) return StepStatus::kNotConverged;
     step = -g;
     factor.SolveInPlace(step);
@@ -408,6 +503,8 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     alpha *= 2.0;  // the accepted one
     if (!accepted) return StepStatus::kNotConverged;
     std::swap(state, trial);
+    std::swap(frames, trial_frames);  // the new state's, computed by the line search
+    frames_current = true;
     ++report->iterations;
     // A full, unshifted Newton step below the step tolerance: Newton converges quadratically
     // here, so the state after it is far closer than the step (the statics solver's second
@@ -417,8 +514,12 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     const double step_tol = options.step_tolerance * std::min(1.0, m.length()) *
                             (report->residual <= floor_tolerance ? 1e3 : 1.0);
     if (alpha == 1.0 && shift == 0.0 &&
-        step.lpNorm<Eigen::Infinity>() <= step_tol)
+        step.lpNorm<Eigen::Infinity>() <= step_tol) {
+      reaction_current = false;  // the last check was at the state before the step
       break;
+    }
+    // The next iterations may chord on this factor, if it gave a whole, unshifted step.
+    chord = alpha == 1.0 && shift == 0.0;
   }
   return state.x.allFinite() ? StepStatus::kConverged : StepStatus::kNotConverged;
 }
