@@ -8,7 +8,7 @@
 // Run from the repository root, no arguments; exits 0 when the fit succeeds.
 //
 // Public API used: rodfit/io/experiment.h (LoadExperiment), rodfit/io/fit_input.h
-// (BuildFitInput), rodfit/fit/fit.h (Fit, FitOptions, FitResult).
+// (BuildFitInput, FitOptionsOf), rodfit/fit/fit.h (Fit, FitOptions, FitResult).
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -17,20 +17,6 @@
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/fit_input.h"
 
-namespace {
-
-rodfit::RobustLoss LossOf(rodfit::LossType loss) {
-  switch (loss) {
-    case rodfit::LossType::kNone: return rodfit::RobustLoss::kNone;
-    case rodfit::LossType::kHuber: return rodfit::RobustLoss::kHuber;
-    case rodfit::LossType::kCauchy: return rodfit::RobustLoss::kCauchy;
-    case rodfit::LossType::kSoftL1: return rodfit::RobustLoss::kSoftL1;
-  }
-  return rodfit::RobustLoss::kNone;
-}
-
-}  // namespace
-
 int main() {
   const char* path = "calibration/suture_cantilever/experiment.yaml";
   try {
@@ -38,12 +24,7 @@ int main() {
     // Reads every observation's CSV and camera file (paths relative to the YAML's folder).
     const rodfit::FitInput input = rodfit::BuildFitInput(experiment);
     // The file's optional `fit:` block (docs/formats.md); defaults otherwise.
-    rodfit::FitOptions options;
-    options.loss = LossOf(experiment.fit.loss);
-    options.loss_scale = experiment.fit.loss_scale;
-    options.global = experiment.fit.global;
-    options.max_iterations = experiment.fit.max_iterations;
-    options.trusted_sigmas = experiment.fit.trusted_sigmas;
+    const rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
 
     const rodfit::FitResult result = rodfit::Fit(input, options);
     if (!result.success) {

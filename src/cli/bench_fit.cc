@@ -82,17 +82,8 @@ std::vector<Row> FitRecovery(bool quick, const std::string& calibration_dir) {
       try {
         const std::string dir = tmp + "/" + recipe + "_" + std::to_string(static_cast<int>(noise));
         const rodfit::FitInput input = SynthesizedFitInput(protocol, start, noise, dir);
-        rodfit::FitOptions options;  // the recipe's `fit:` settings, as `rodfit fit` reads them
-        switch (start.fit.loss) {
-          case rodfit::LossType::kNone: options.loss = rodfit::RobustLoss::kNone; break;
-          case rodfit::LossType::kHuber: options.loss = rodfit::RobustLoss::kHuber; break;
-          case rodfit::LossType::kCauchy: options.loss = rodfit::RobustLoss::kCauchy; break;
-          case rodfit::LossType::kSoftL1: options.loss = rodfit::RobustLoss::kSoftL1; break;
-        }
-        options.loss_scale = start.fit.loss_scale;
-        options.global = start.fit.global;
-        options.max_iterations = start.fit.max_iterations;
-        options.trusted_sigmas = start.fit.trusted_sigmas;
+        // The recipe's `fit:` settings, as `rodfit fit` reads them.
+        rodfit::FitOptions options = rodfit::FitOptionsOf(start);
         options.num_threads = 1;  // timings without the threads' scheduling noise
         Time(repeats, [&] { result = rodfit::Fit(input, options); }, &base);
       } catch (const std::exception& e) {

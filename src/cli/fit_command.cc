@@ -32,16 +32,6 @@ namespace {
 // cannot take a profile with null values for a complete one.
 constexpr int kNotAllDetermined = 4;
 
-rodfit::RobustLoss LossOf(rodfit::LossType t) {
-  switch (t) {
-    case rodfit::LossType::kNone: return rodfit::RobustLoss::kNone;
-    case rodfit::LossType::kHuber: return rodfit::RobustLoss::kHuber;
-    case rodfit::LossType::kCauchy: return rodfit::RobustLoss::kCauchy;
-    case rodfit::LossType::kSoftL1: return rodfit::RobustLoss::kSoftL1;
-  }
-  return rodfit::RobustLoss::kNone;
-}
-
 // Ceres runs one thread per requested thread; far more than the cases (or the cores) gains
 // nothing, and 2^31 of them end in std::bad_alloc.
 constexpr int kMaxThreads = 256;
@@ -108,12 +98,7 @@ int RunFit(int argc, char** argv) {
   // A camera behind the rod or looking elsewhere is bad data: said before the fit, naming the
   // camera file and the case (the fit would only fail to evaluate).
   rodfit::CheckCamerasSeeTheStart(experiment);
-  rodfit::FitOptions options;
-  options.loss = LossOf(experiment.fit.loss);
-  options.loss_scale = experiment.fit.loss_scale;
-  options.global = experiment.fit.global;
-  options.max_iterations = experiment.fit.max_iterations;
-  options.trusted_sigmas = experiment.fit.trusted_sigmas;
+  rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
   options.num_threads = threads;
   // The global search has a budget of evaluations, so its line has an ETA; Levenberg–Marquardt
   // stops when it converges, so its line has none.

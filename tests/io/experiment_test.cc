@@ -361,7 +361,7 @@ cases:
   EXPECT_EQ(obs[1].camera, dir_.File("lab/cam0.yaml"));
   EXPECT_EQ(obs[1].sigma, 0.5);
   EXPECT_EQ(ex.fit.line, 0);  // no fit: block, defaults
-  EXPECT_EQ(ex.fit.loss, LossType::kNone);
+  EXPECT_EQ(ex.fit.loss, RobustLoss::kNone);
 }
 
 TEST_F(ExperimentTest, PathsResolveAgainstTheYamlFolder) {
@@ -414,7 +414,7 @@ TEST_F(ExperimentTest, FitBlock) {
                            "  max_iterations: 40\n"
                            "  trusted_sigmas: true\n";
   const Experiment ex = LoadExperiment(dir_.Write("scene.yaml", yaml));
-  EXPECT_EQ(ex.fit.loss, LossType::kSoftL1);
+  EXPECT_EQ(ex.fit.loss, RobustLoss::kSoftL1);
   EXPECT_EQ(ex.fit.loss_scale, 2.5);
   EXPECT_TRUE(ex.fit.global);
   EXPECT_EQ(ex.fit.max_iterations, 40);

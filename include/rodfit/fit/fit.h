@@ -83,6 +83,9 @@ struct FitInput {
 
 enum class RobustLoss { kNone, kHuber, kCauchy, kSoftL1 };
 
+/// The loss as files spell it: none, huber, cauchy, soft_l1.
+const char* RobustLossName(RobustLoss loss);
+
 struct FitIterationInfo {
   int iteration = 0;
   double cost = 0.0;

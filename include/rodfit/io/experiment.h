@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "rodfit/fit/fit.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/solve/statics.h"
@@ -102,11 +103,9 @@ struct CaseSpec {
   int line = 0;  ///< 1-based line of the case's entry
 };
 
-enum class LossType { kNone, kHuber, kCauchy, kSoftL1 };
-
 /// The optional top-level `fit:` block; defaults apply when it or a key is absent.
 struct FitSpec {
-  LossType loss = LossType::kNone;  ///< robust loss: none | huber | cauchy | soft_l1
+  RobustLoss loss = RobustLoss::kNone;  ///< robust loss: none | huber | cauchy | soft_l1
   double loss_scale = 1.0;          ///< residual (in sigmas) where the loss turns robust, > 0
   bool global = false;              ///< NLopt global search before Ceres
   int max_iterations = 100;         ///< Ceres iterations, >= 1
@@ -139,7 +138,5 @@ Experiment LoadExperiment(const std::string& path, bool parameters_optional = fa
 /// The file text variant; `path` names the file in messages and anchors relative paths.
 Experiment ParseExperiment(const std::string& text, const std::string& path,
                            bool parameters_optional = false);
-
-const char* LossTypeName(LossType loss);
 
 }  // namespace rodfit

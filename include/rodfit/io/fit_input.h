@@ -17,6 +17,10 @@ std::vector<FitParameter> FitParametersOf(const Experiment& experiment);
 /// that sees none of its points, and an `images` entry nothing can be extracted from.
 FitInput BuildFitInput(const Experiment& experiment);
 
+/// The fit options the experiment's `fit:` block states (loss, loss_scale, global,
+/// max_iterations, trusted_sigmas); the rest at FitOptions' defaults.
+FitOptions FitOptionsOf(const Experiment& experiment);
+
 /// Before a fit: solves every case that has a camera observation at the start values (as
 /// `simulate` does) and projects the solved centre-line into each of its cameras. Throws
 /// InputError naming the camera file and the case when the whole rod lies behind the camera,

@@ -1029,8 +1029,9 @@ FitSpec ReadFit(const Reader& r, const Field& f) {
   if (const Field* loss = Reader::Find(m, "loss")) {
     const std::string name = r.Text(*loss);
     bool known = false;
-    for (LossType t : {LossType::kNone, LossType::kHuber, LossType::kCauchy, LossType::kSoftL1}) {
-      if (name == LossTypeName(t)) {
+    for (RobustLoss t :
+         {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy, RobustLoss::kSoftL1}) {
+      if (name == RobustLossName(t)) {
         fit.loss = t;
         known = true;
       }
@@ -1100,19 +1101,6 @@ void CheckYamlNodes(const YAML::Node& root, const std::string& path) {
 
 }  // namespace
 
-const char* LossTypeName(LossType loss) {
-  switch (loss) {
-    case LossType::kNone:
-      return "none";
-    case LossType::kHuber:
-      return "huber";
-    case LossType::kCauchy:
-      return "cauchy";
-    case LossType::kSoftL1:
-      return "soft_l1";
-  }
-  return "none";
-}
 
 Experiment ParseExperiment(const std::string& text, const std::string& path,
                            bool parameters_optional) {

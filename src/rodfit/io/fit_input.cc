@@ -170,6 +170,16 @@ std::vector<FitParameter> FitParametersOf(const Experiment& e) {
   return out;
 }
 
+FitOptions FitOptionsOf(const Experiment& e) {
+  FitOptions options;
+  options.loss = e.fit.loss;
+  options.loss_scale = e.fit.loss_scale;
+  options.global = e.fit.global;
+  options.max_iterations = e.fit.max_iterations;
+  options.trusted_sigmas = e.fit.trusted_sigmas;
+  return options;
+}
+
 FitInput BuildFitInput(const Experiment& e) {
   FitInput in;
   in.rod = e.scene.rod;

@@ -16,15 +16,6 @@
 namespace rodfit {
 namespace {
 
-const char* LossName(RobustLoss l) {
-  switch (l) {
-    case RobustLoss::kNone: return "none";
-    case RobustLoss::kHuber: return "huber";
-    case RobustLoss::kCauchy: return "cauchy";
-    case RobustLoss::kSoftL1: return "soft_l1";
-  }
-  return "none";
-}
 
 nlohmann::json Vec(const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
 
@@ -196,7 +187,7 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   fit["num_residuals"] = r.num_residuals;
   fit["residual_variance"] = r.residual_variance;
   fit["sigmas_trusted"] = options.trusted_sigmas;
-  fit["loss"] = LossName(options.loss);
+  fit["loss"] = RobustLossName(options.loss);
   fit["loss_scale"] = options.loss_scale;
   fit["correlation"] = {{"parameters", r.fitted_names}, {"matrix", json::array()}};
   for (int i = 0; i < r.correlation.rows(); ++i) {

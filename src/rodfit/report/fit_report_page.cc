@@ -419,8 +419,8 @@ class Builder {
       << HtmlNumber(r_.residual_variance, 3) << " (expected " << HtmlNumber(band.low, 2) << " to "
       << HtmlNumber(band.high, 2) << " for correct sigmas"
       << (plausible ? ")" : ") <span class=\"warn\">outside</span>") << "</td></tr>\n";
-    h << "<tr><th>loss</th><td>" << LossTypeName(e_.fit.loss);
-    if (e_.fit.loss != LossType::kNone)
+    h << "<tr><th>loss</th><td>" << RobustLossName(e_.fit.loss);
+    if (e_.fit.loss != RobustLoss::kNone)
       h << ", scale " << HtmlNumber(e_.fit.loss_scale, 3) << "&nbsp;σ";
     h << (e_.fit.trusted_sigmas ? "; sigmas trusted (covariance not rescaled)" : "")
       << "</td></tr>\n";
