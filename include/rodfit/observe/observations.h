@@ -161,6 +161,12 @@ class Observation {
   virtual const char* type() const = 0;
   virtual int num_measurements() const = 0;
   virtual int num_residuals() const = 0;
+  /// Residuals that carry noise: a closest-point residual is perpendicular to the curve, so a
+  /// 3-D point carries 2 of its 3 and a pixel of an image curve 1 of its 2. The residual
+  /// variance 2 cost / (N - m) counts these, or it underestimates the noise.
+  virtual int num_noise_residuals() const { return num_residuals(); }
+  /// The measurement's unit: "m" (3-D) or "px" (pixels).
+  virtual const char* unit() const { return "m"; }
   int num_vertices() const { return num_vertices_; }
   /// Measurement standard deviation [m] or [px].
   double sigma() const { return sigma_; }
@@ -231,6 +237,7 @@ class Points3dObservation final : public Observation {
   const char* type() const override { return "points3d"; }
   int num_measurements() const override { return static_cast<int>(samples_.size()); }
   int num_residuals() const override { return 3 * num_measurements(); }
+  int num_noise_residuals() const override { return 2 * num_measurements(); }
   const std::vector<Eigen::Vector3d>& samples() const { return samples_; }
 
   template <typename T>
@@ -260,6 +267,7 @@ class ImageMarkersObservation final : public Observation {
   const char* type() const override { return "image_points"; }
   int num_measurements() const override { return static_cast<int>(markers_.size()); }
   int num_residuals() const override { return 2 * num_measurements(); }
+  const char* unit() const override { return "px"; }
   const std::vector<MarkerPixel>& markers() const { return markers_; }
   const Camera& camera() const { return camera_; }
 
@@ -288,6 +296,8 @@ class ImageCurveObservation final : public Observation {
   const char* type() const override { return "image_points"; }
   int num_measurements() const override { return static_cast<int>(pixels_.size()); }
   int num_residuals() const override { return 2 * num_measurements(); }
+  int num_noise_residuals() const override { return num_measurements(); }
+  const char* unit() const override { return "px"; }
   const std::vector<Eigen::Vector2d>& pixels() const { return pixels_; }
   const Camera& camera() const { return camera_; }
 

@@ -103,10 +103,10 @@ void SearchBox(const FitParameter& p, double* lo, double* hi) {
 // Residual counts of a fit: all rows, and those that carry noise.
 struct ResidualCounts {
   int total = 0;
-  // A closest-point residual is perpendicular to the curve, so a 3-D point (points3d,
-  // surface_points) carries 2 and a pixel of an image curve 1. The residual variance
-  // 2 cost / (N - m) must count these, or it underestimates the noise and the reported std by
-  // up to sqrt(3/2) (points) or sqrt(2) (pixels).
+  // Those that carry noise (Observation::num_noise_residuals; a surface point, the closest
+  // point on the ring, carries 2 of its 3): without this the residual variance would
+  // underestimate the noise and the reported std by up to sqrt(3/2) (points) or sqrt(2)
+  // (pixels).
   int effective = 0;
 };
 
@@ -115,9 +115,7 @@ ResidualCounts CountResiduals(const FitInput& input) {
   for (const FitCase& c : input.cases) {
     for (const auto& o : c.observations) {
       n.total += o->num_residuals();
-      const bool curve = dynamic_cast<const Points3dObservation*>(o.get()) ||
-                         dynamic_cast<const ImageCurveObservation*>(o.get());
-      n.effective += o->num_residuals() - (curve ? o->num_measurements() : 0);
+      n.effective += o->num_noise_residuals();
     }
     int force_residuals = 0;
     for (const ForceMeasurement& f : c.grasp_forces) force_residuals += f.num_residuals();
@@ -411,7 +409,7 @@ void ReportCases(const FitInput& input, const std::vector<Fitted>& fitted,
       of.case_name = fc.load_case.name;
       of.label = o < fc.labels.size() ? fc.labels[o] : fc.observations[o]->type();
       of.type = fc.observations[o]->type();
-      of.unit = of.type == "image_points" || of.type == "images" ? "px" : "m";
+      of.unit = fc.observations[o]->unit();
       of.num_measurements = fc.observations[o]->num_measurements();
       fc.observations[o]->RmsError(shape, &of.rms);
       result->observations.push_back(of);

@@ -35,7 +35,6 @@ void WriteFitReport(StagedDirectory* out, const Experiment& e, const FitInput& i
       VecX r;
       if (!obs.Evaluate(result.shapes[c], &r)) continue;
       const int dim = obs.num_residuals() / std::max(1, obs.num_measurements());
-      const bool px = dim == 2;
       for (int m = 0; m < obs.num_measurements(); ++m) {
         double err[3] = {0, 0, 0}, n2 = 0;
         for (int i = 0; i < dim; ++i) {
@@ -43,7 +42,7 @@ void WriteFitReport(StagedDirectory* out, const Experiment& e, const FitInput& i
           n2 += err[i] * err[i];
         }
         const double norm = std::sqrt(n2);
-        residuals << fc.load_case.name << "," << fc.labels[k] << "," << (px ? "px" : "m") << ","
+        residuals << fc.load_case.name << "," << fc.labels[k] << "," << obs.unit() << ","
                   << m << "," << FormatDouble(err[0]) << "," << FormatDouble(err[1]) << ","
                   << FormatDouble(err[2]) << "," << FormatDouble(norm) << ","
                   << FormatDouble(norm / obs.sigma()) << "\n";
