@@ -268,6 +268,33 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     Charge(&timing_.jacobian, &t0);
   }
   int row = 0;
+  if (!ObservationResiduals(state, dx, residuals, jacobian, &row)) return false;
+  if (!ForceResiduals(solved.reactions, d_reactions, residuals, jacobian, &row)) return false;
+  if (!case_.surface_points.empty() &&
+      !SurfaceResiduals(*model, state, material, residuals, jacobian, &row))
+    return false;
+  Charge(&timing_.observation, &t0);
+  if (!AllFinite(residuals, jacobian)) return false;
+  // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
+  // the start): trial steps start from the last iterate's state but do not replace it, so a
+  // rejected trial that slipped onto another equilibrium (an extra twist turn, a flipped
+  // loop) cannot carry the fit onto that branch.
+  if (jacobian) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    warm_ = state;
+    has_warm_ = true;
+    workspace_ = ws;
+  }
+  if (shape) *shape = state.x;
+  if (final_state) *final_state = state;
+  return true;
+}
+
+// The observations' residuals and Jacobian rows (dx: the vertices' sensitivities), from *row
+// on; false, with the failure recorded, when an observation cannot be evaluated.
+bool CaseEvaluator::ObservationResiduals(const RodState& state, const Eigen::MatrixXd& dx,
+                                         double* residuals, double* jacobian, int* row) const {
+  const int m = num_parameters();
   for (size_t o = 0; o < case_.observations.size(); ++o) {
     const auto& obs = case_.observations[o];
     VecX r;
@@ -288,41 +315,53 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     // Per measurement: the loss sees each marker's / point's residual vector.
     const int dim = obs->num_residuals() / std::max(1, obs->num_measurements());
     for (int k = 0; k < obs->num_measurements(); ++k) {
-      double* rk = residuals + row + k * dim;
+      double* rk = residuals + *row + k * dim;
       for (int i = 0; i < dim; ++i) rk[i] = r[k * dim + i];
-      double* Jk = jacobian ? jacobian + (row + k * dim) * m : nullptr;
+      double* Jk = jacobian ? jacobian + (*row + k * dim) * m : nullptr;
       if (Jk)
         for (int i = 0; i < dim; ++i)
           for (int c = 0; c < m; ++c) Jk[i * m + c] = Jp(k * dim + i, c);
       ApplyLoss(loss_, dim, rk, Jk, m);
     }
-    row += obs->num_residuals();
+    *row += obs->num_residuals();
   }
+  return true;
+}
+
+// The measured reactions' residuals and Jacobian rows (d_reactions: per held point, 6 x m),
+// from *row on; false for a reading at a point the case does not hold.
+bool CaseEvaluator::ForceResiduals(
+    const std::vector<HeldReaction>& reactions,
+    const std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>>& d_reactions, double* residuals,
+    double* jacobian, int* row) const {
+  const int m = num_parameters();
   if (!case_.grasp_forces.empty()) {
     for (const ForceMeasurement& f : case_.grasp_forces) {
       int which = -1;
-      for (size_t h = 0; h < solved.reactions.size(); ++h)
-        if (solved.reactions[h].point == f.point) which = static_cast<int>(h);
-      if (which < 0) return false;  // CheckReactions refuses this up front
-      const HeldReaction& reaction = solved.reactions[which];
+      for (size_t h = 0; h < reactions.size(); ++h)
+        if (reactions[h].point == f.point) which = static_cast<int>(h);
+      if (which < 0) return false;  // CheckHeldPoints refuses this up front
+      const HeldReaction& reaction = reactions[which];
       const int dim = f.num_residuals();
-      double* rk = residuals + row;
+      double* rk = residuals + *row;
       for (int i = 0; i < 3; ++i) rk[i] = (reaction.force[i] - f.force[i]) / f.sigma;
       if (f.moment)
         for (int i = 0; i < 3; ++i) rk[3 + i] = (reaction.moment[i] - (*f.moment)[i]) / f.sigma_moment;
-      double* Jk = jacobian ? jacobian + row * m : nullptr;
+      double* Jk = jacobian ? jacobian + *row * m : nullptr;
       if (Jk)
         for (int i = 0; i < dim; ++i)
           for (int c = 0; c < m; ++c)
             Jk[i * m + c] = d_reactions[which](i, c) / (i < 3 ? f.sigma : f.sigma_moment);
       ApplyLoss(loss_, dim, rk, Jk, m);
-      row += dim;
+      *row += dim;
     }
   }
-  if (!case_.surface_points.empty() &&
-      !SurfaceResiduals(*model, state, material, residuals, jacobian, &row))
-    return false;
-  Charge(&timing_.observation, &t0);
+  return true;
+}
+
+// False, with the failure recorded, when a residual or a Jacobian entry is not finite.
+bool CaseEvaluator::AllFinite(const double* residuals, const double* jacobian) const {
+  const int m = num_parameters();
   for (int i = 0; i < num_residuals_; ++i) {
     bool finite = std::isfinite(residuals[i]);
     for (int c = 0; finite && jacobian && c < m; ++c) finite = std::isfinite(jacobian[i * m + c]);
@@ -337,18 +376,6 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
       return false;
     }
   }
-  // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
-  // the start): trial steps start from the last iterate's state but do not replace it, so a
-  // rejected trial that slipped onto another equilibrium (an extra twist turn, a flipped
-  // loop) cannot carry the fit onto that branch.
-  if (jacobian) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    warm_ = state;
-    has_warm_ = true;
-    workspace_ = ws;
-  }
-  if (shape) *shape = state.x;
-  if (final_state) *final_state = state;
   return true;
 }
 

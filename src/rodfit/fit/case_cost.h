@@ -14,6 +14,7 @@
 #include <ceres/ceres.h>
 
 #include "rodfit/fit/fit.h"
+#include "rodfit/solve/reactions.h"
 #include "rodfit/solve/sensitivity.h"
 #include "rodfit/solve/statics.h"
 
@@ -101,6 +102,12 @@ class CaseEvaluator {
  private:
   // The observation (or force reading, or surface point set) that residual row i belongs to.
   std::string ResidualLabel(int i) const;
+  bool ObservationResiduals(const RodState& state, const Eigen::MatrixXd& dx, double* residuals,
+                            double* jacobian, int* row) const;
+  bool ForceResiduals(const std::vector<HeldReaction>& reactions,
+                      const std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>>& d_reactions,
+                      double* residuals, double* jacobian, int* row) const;
+  bool AllFinite(const double* residuals, const double* jacobian) const;
 
   // The case's surface points against the deformed ring of its poke (fit.h SurfacePoints), rows
   // from *row on. Only ring parameters have non-zero columns (CheckSurfacePoints refuses rod
