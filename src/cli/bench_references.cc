@@ -89,9 +89,10 @@ rodfit::Scene ClampedClampedScene(int segments) {
   return s;
 }
 
-// Shooting at 2000 RK4 steps in 4 segments, continued from an arc: its self-test
-// (tests/reference) checks this very solution's mirror symmetry, and 4000 steps change it by
-// < 1e-13 L, far below the finest row.
+// Shooting at 2000 RK4 steps in 4 segments, continued from an arc in 10 steps (20, as in
+// tests/solve/exact_references_test.cc, give the same solution to 1e-15 L; its self-test in
+// tests/reference checks the solution's mirror symmetry): 4000 steps change it by < 1e-13 L, far
+// below the finest row.
 const ref::ShootingResult& ClampedClampedReference() {
   static const ref::ShootingResult r = [] {
     const rodfit::Scene s = ClampedClampedScene(2);
@@ -106,7 +107,7 @@ const ref::ShootingResult& ClampedClampedReference() {
     ref::ShootingOptions o;
     o.steps = 2000;
     o.segments = 4;
-    o.continuation_steps = 20;
+    o.continuation_steps = 10;
     Eigen::Matrix<double, 6, 1> guess;
     guess << 0, 0, 0, 0, -3.0, 0;  // a clamp moment that bends the rod downwards
     return ref::SolveKirchhoff(
