@@ -56,6 +56,8 @@ function csv(line, f,    n, i, c, q, cur) {
 }
 function ms(s) { return sprintf("%.3g", 1000 * s) }
 function err(e) { return (e == "nan" || e == "") ? "—" : sprintf("%.2g", e) }
+# "error | ms" of a row, or dashes where the ladder has no such row.
+function cells(k) { return (k in E) ? err(E[k]) " | " ms(T[k]) : "— | —" }
 # The time step [s] of a setting "dt=0.001 s" or "dt=1.31e-06 s (0.8 x stable)".
 function dt_of(setting,    s) { s = setting; sub(/^dt=/, "", s); sub(/ .*/, "", s); return s + 0 }
 FNR == 1 { file++; next }
@@ -75,6 +77,8 @@ FNR == 1 { file++; next }
     if (fam == "segments" && !(set in seen_n)) { seen_n[set] = 1; nn[++nseg] = set }
   }
   if (p == "end_moment_helix" && fam ~ /^tolerance/) tol[++ntol] = set
+  if ((p == "clamped_clamped_sag" || p == "rest_curved_3d" || p == "winkler_point_load") && !(set in seen_ref)) { seen_ref[set] = 1; refn[++nref] = set }
+  if (p == "ring_point_load") ring[++nring] = set
   if (p ~ /^mattiasson_alpha/ && fam ~ /^alpha/) { alpha[++nalpha] = p }
   if (p == "cantilever_frequency" || p == "damped_decay" || p == "suture_swing") { dyn[++ndyn] = key }
   # Per-step cost at dt = 1 ms: the swing at 50 segments and the cost rows at other counts.
@@ -116,6 +120,21 @@ END {
   print "|---|---:|---:|---:|"
   for (i = 1; i <= ntol; i++) { k = "end_moment_helix" SUBSEP "tolerance (300 segments)" SUBSEP tol[i]; print "| helix, " tol[i] " | " err(E[k]) " | " ms(T[k]) " | " I[k] " |" }
   for (i = 1; i <= nalpha; i++) { p = alpha[i]; k = p SUBSEP "alpha (100 segments)" SUBSEP "n=100"; a = p; sub(/^mattiasson_alpha/, "", a); print "| Mattiasson α = " a " | " err(E[k]) " | " ms(T[k]) " | " I[k] " |" }
+  print ""
+  print "**Statics against independent references**: a heavy rod clamped at both ends (sag from a sag-shaped start) and a rest-curved anisotropic rod in 3-D against the Kirchhoff shooting solver (error / L), a rod on tissue springs under a point load against Hetényi's beam on an elastic foundation (error relative to the peak)"
+  print ""
+  print "| segments | clamped–clamped sag error | [ms] | rest-curved 3-D error | [ms] | Winkler point load error | [ms] |"
+  print "|---:|---:|---:|---:|---:|---:|---:|"
+  for (i = 1; i <= nref; i++) {
+    s = refn[i]; n = s; sub(/^n=/, "", n)
+    print "| " n " | " cells("clamped_clamped_sag" SUBSEP "segments" SUBSEP s) " | " cells("rest_curved_3d" SUBSEP "segments" SUBSEP s) " | " cells("winkler_point_load" SUBSEP "segments" SUBSEP s) " |"
+  }
+  print ""
+  print "The cross-section ring under a point load over its node count, against the thin-ring closed form (error relative):"
+  print ""
+  print "| nodes | error | [ms] | iterations |"
+  print "|---:|---:|---:|---:|"
+  for (i = 1; i <= nring; i++) { k = "ring_point_load" SUBSEP "nodes" SUBSEP ring[i]; n = ring[i]; sub(/^N=/, "", n); print "| " n " | " err(E[k]) " | " ms(T[k]) " | " I[k] " |" }
   print ""
   print "**Dynamics** (the suture, 50 segments): the first bending frequency (error relative to Euler–Bernoulli), the logarithmic decrement of a damped mode (relative), and the swing down under gravity (0.2 s; error: largest vertex distance / L against the midpoint rule at dt = 1e-5 s)"
   print ""

@@ -90,6 +90,17 @@ void TimeAlternating(double min_seconds, int min_repeats, A a, B b, Row* row_a, 
 /// Prints a row as it comes (a full ladder takes minutes).
 void Print(const Row& r);
 
+/// Statics rows against independent references (bench_references.cc), one solve of one
+/// setting each: a heavy rod clamped at both ends and a rest-curved anisotropic rod in 3-D against
+/// the Kirchhoff shooting solver (error: max vertex distance / L; family "segments"), a rod on
+/// tissue springs under a point load against Hetenyi's beam on an elastic foundation (max
+/// deflection error / peak; "segments") and the cross-section ring under a point load against
+/// the thin-ring closed form (relative error of the diameter changes; "nodes").
+Row HeavyClampedClamped(int segments, int repeats);
+Row RestCurved3D(int segments, int repeats);
+Row WinklerPointLoad(int segments, int repeats);
+Row RingPointLoad(int nodes, int repeats);
+
 /// `--skips`: each skip timed with and without on the same problem, two rows per comparison
 /// (family "with skip" / "without skip"), error = the largest difference between the two
 /// answers, the saving in the "with" row's note; a table of them on stdout.

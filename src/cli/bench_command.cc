@@ -410,6 +410,17 @@ std::vector<Row> Ladder(bool quick) {
     rows.push_back(EndMoment("end_moment_helix", "tolerance (300 segments)", text, Rod(300), helix,
                              o, repeats));
   }
+  // The references' families: the full segment ladder, or two cheap settings in --quick (two,
+  // so that the order of convergence shows). The Winkler rod is 30 / beta long, so its error
+  // falls at second order only once a segment is well below 1 / beta: from 100 segments.
+  const std::vector<int> reference_segments = quick ? std::vector<int>{30, 100} : segments;
+  for (int n : reference_segments) rows.push_back(bench::HeavyClampedClamped(n, repeats));
+  for (int n : reference_segments) rows.push_back(bench::RestCurved3D(n, repeats));
+  for (int n : quick ? std::vector<int>{100, 300} : segments)
+    rows.push_back(bench::WinklerPointLoad(n, repeats));
+  const std::vector<int> ring_nodes =
+      quick ? std::vector<int>{32, 64} : std::vector<int>{16, 32, 64, 128, 256, 512};
+  for (int n : ring_nodes) rows.push_back(bench::RingPointLoad(n, repeats));
   for (const char* integrator : {"bdf2", "midpoint", "backward_euler"}) {
     for (double f : {1.0 / 25, 1.0 / 50, 1.0 / 100, 1.0 / 200}) rows.push_back(Frequency(integrator, f, quick));
     rows.push_back(Decay(integrator, 1.0 / 100));
@@ -689,7 +700,9 @@ void Print(const Row& r) {
 int RunBench(int argc, char** argv) {
   CLI::App app(
       "Solve reference problems with exact answers over a ladder of settings (statics: end "
-      "moments, circle and helix, segments 10 to 10,000 and tolerances; dynamics: a "
+      "moments, circle and helix, segments 10 to 10,000 and tolerances; a heavy rod clamped at "
+      "both ends, a rest-curved 3-D rod, a rod on a Winkler foundation and the cross-section "
+      "ring against independent references; dynamics: a "
       "cantilever's first frequency and a damped decay, per integrator and time step; the fit's "
       "recovery of the bundled recipes at noise 0, 1x and 3x); write DIR/bench.csv and "
       "DIR/index.html (error against time) and print a summary. --stress runs the stress suite "

@@ -1,7 +1,7 @@
 // The statics stress table: extreme stiffness ratios, a vanishing stiffness, absurd loads,
 // 100 to 100,000 segments, a 2 pi roll-up and a column at ten times its Euler load, each solved
 // from the straight rod as `rodfit simulate` would and checked against an independent reference
-// (the continuous Kirchhoff-rod shooting solver of tests/reference, or a closed form). Each row
+// (the continuous Kirchhoff-rod shooting solver of src/rodfit/reference, or a closed form). Each row
 // ends "ok" (converged and right, or refused with a message) or "WRONG" (an answer returned as
 // converged that is not the reference's, or stable when it is not); any WRONG row makes the
 // program exit 1. Prints a Markdown table (the README's stress table).
@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "../reference/kirchhoff_shooting.h"
+#include "rodfit/reference/kirchhoff_shooting.h"
 #include "../solve/shooting_compare.h"
 #include "rodfit/solve/case_solve.h"
 

@@ -1,6 +1,7 @@
 // `rodfit bench --quick` and `--stress` (docs/cli.md, "bench"): every row of the ladder within
 // the accuracy its reference and discretisation allow, the files written, and a stress suite
 // where no row returns a wrong answer as success.
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -44,6 +45,54 @@ TEST(BenchCli, QuickLadderWritesCsvAndHtmlWithErrorsThatFallWithSegments) {
   EXPECT_THAT(html, HasSubstr("<svg"));
   EXPECT_THAT(html, HasSubstr("time [s]"));
   EXPECT_THAT(html, HasSubstr("cantilever_frequency"));
+}
+
+// The statics rows against independent references (docs/cli.md, "bench"): each family's two
+// --quick settings converged and stable, the finer within a bound above its measured error, and
+// the error falling with the discretisation at second order (~4x per doubling: > 3x per doubling
+// asserted) where the discretisation error is far above the reference's floor.
+TEST(BenchCli, QuickLadderHasTheReferenceStaticsRowsConvergingAtSecondOrder) {
+  TempDir dir;
+  const RunResult run = RunRodfit(dir, "bench --quick -o " + Quote(dir.File("b")));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const CsvTable t = CsvTable::Read(dir.File("b/bench.csv"));
+  const std::vector<std::string> problem = t.TextColumn("problem"), setting = t.TextColumn("setting"),
+                                 unit = t.TextColumn("error_unit");
+  std::vector<double> error;
+  for (const std::string& e : t.TextColumn("error")) error.push_back(std::stod(e));
+  const std::vector<double> converged = t.Column("converged"), stable = t.Column("stable");
+  std::map<std::string, double> e;  // "problem setting" -> error
+  for (int r = 0; r < t.num_rows(); ++r) {
+    const std::string key = problem[r] + " " + setting[r];
+    if (problem[r] != "clamped_clamped_sag" && problem[r] != "rest_curved_3d" &&
+        problem[r] != "winkler_point_load" && problem[r] != "ring_point_load")
+      continue;
+    EXPECT_EQ(converged[r], 1.0) << key;
+    EXPECT_EQ(stable[r], 1.0) << key;
+    EXPECT_EQ(unit[r], problem[r] == "winkler_point_load" || problem[r] == "ring_point_load"
+                           ? "relative" : "L") << key;
+    e[key] = error[r];
+  }
+  ASSERT_EQ(e.size(), 8u) << "two --quick settings of each of the four problems";
+  // Bounds about twice the measured errors of the finer setting (the errors are deterministic):
+  // 4.8e-5 L, 8.9e-6 L, 2.5e-3 and 1.6e-3. The floors (reference, finite Winkler rod, the
+  // ring's nonlinearity at its load: docs/cli.md, "bench") are at least 100 times lower, so the
+  // ratios measure the discretisation: ~11x, 11x, 8.7x and 3.8x.
+  struct Family {
+    const char *problem, *coarse, *fine;
+    double refinement;  // fine / coarse segments or nodes
+    double bound;       // on the finer setting's error
+  };
+  for (const Family& f : {Family{"clamped_clamped_sag", "n=30", "n=100", 100.0 / 30, 1e-4},
+                          Family{"rest_curved_3d", "n=30", "n=100", 100.0 / 30, 2e-5},
+                          Family{"winkler_point_load", "n=100", "n=300", 3.0, 5e-3},
+                          Family{"ring_point_load", "N=32", "N=64", 2.0, 3e-3}}) {
+    const double coarse = e[std::string(f.problem) + " " + f.coarse];
+    const double fine = e[std::string(f.problem) + " " + f.fine];
+    EXPECT_LT(fine, f.bound) << f.problem;
+    // Second order: 4x per doubling; more than 3x per doubling asserted.
+    EXPECT_GT(coarse / fine, std::pow(3.0, std::log2(f.refinement))) << f.problem;
+  }
 }
 
 TEST(BenchCli, QuickLadderHasFitRecoveryRowsAndTheParetoFigure) {

@@ -1,6 +1,6 @@
 // Self-tests of the continuous Kirchhoff-rod reference solver against closed forms and
 // published tables (see kirchhoff_shooting.h for the model and sign conventions).
-#include "reference/kirchhoff_shooting.h"
+#include "rodfit/reference/kirchhoff_shooting.h"
 
 #include <gtest/gtest.h>
 

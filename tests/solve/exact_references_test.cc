@@ -1,6 +1,6 @@
 // Validation of the discrete statics against exact and independent references, in full 3-D:
 // closed forms (the isotropic helix, Euler's critical loads) and the continuous Kirchhoff-rod
-// shooting solver of tests/reference/kirchhoff_shooting.h (RK4 + Newton, written independently
+// shooting solver of src/rodfit/reference/kirchhoff_shooting.h (RK4 + Newton, written independently
 // of the discrete rod; its own self-tests are tests/reference/kirchhoff_shooting_test.cc).
 //
 // Conventions shared by both models (checked in the headers): the clamp has d3 = tangent and
@@ -28,7 +28,7 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
-#include "reference/kirchhoff_shooting.h"
+#include "rodfit/reference/kirchhoff_shooting.h"
 #include "rodfit/solve/banded.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/rod_energy.h"

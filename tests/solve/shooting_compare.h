@@ -1,11 +1,11 @@
-// The discrete rod against the Kirchhoff shooting reference (tests/reference): the reference's
+// The discrete rod against the Kirchhoff shooting reference (rodfit/reference): the reference's
 // clamp from a case's, and the largest vertex distance between a solution and the reference
 // centre-line. Shared by the exact-reference tests and the stress table (tests/bench).
 #pragma once
 
 #include <algorithm>
 
-#include "../reference/kirchhoff_shooting.h"
+#include "rodfit/reference/kirchhoff_shooting.h"
 #include "rodfit/solve/case_solve.h"
 
 namespace rodfit::testing {

@@ -51,7 +51,7 @@
 //   ShootingResult IntegrateFromClamp(props, clamp, n0, m0, steps): a single forward shot
 //       (no end condition), for initial value tests.
 //   Eigen::Matrix3d FrameFromTangentNormal(t, n);
-// ACCURACY (kirchhoff_shooting_test.cc): with the default 4000 steps the closed-form helix
+// ACCURACY (tests/reference/kirchhoff_shooting_test.cc): with the default 4000 steps the closed-form helix
 // (4 rad of precession) is reproduced to 6e-14 L and the 2 pi circle closes to 3e-15 L; the
 // hanging loop and a cantilever at P L^2/EI = 10 change by < 1e-12 L between 4000 and 8000
 // steps (RK4 error ~ 16/15 of that difference).
