@@ -156,6 +156,8 @@ CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fit
   num_residuals_ += 3 * NumSurfacePoints(case_);
 }
 
+// One function, though long: solve, sensitivities and the residual passes share the solved
+// state, the kept factor and the timing; the residual passes are methods of their own.
 bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape,
               RodState* final_state) const {
   const Material material = MaterialAt(in_, fitted_, logp);

@@ -800,6 +800,8 @@ void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, int inde
   }
 }
 
+// One function, though long: a case's keys are read in the order the format lists them
+// (docs/formats.md), each with its own one-line check; splitting them would scatter that list.
 void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
               std::map<std::string, int>* name_lines) {
   const Entries m =

@@ -180,6 +180,8 @@ FitOptions FitOptionsOf(const Experiment& e) {
   return options;
 }
 
+// One function, though long: one branch per observation type, each reading its file and
+// camera into the case's observation list in the order the YAML lists them.
 FitInput BuildFitInput(const Experiment& e) {
   FitInput in;
   in.rod = e.scene.rod;

@@ -92,6 +92,8 @@ std::string FileDigest(const std::string& path) {
   return out;
 }
 
+// One function, though long: it writes the profile's keys in the order docs/formats.md lists
+// them, so that the code reads as the format.
 nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const FitResult& r) {
   using nlohmann::json;
   json p;

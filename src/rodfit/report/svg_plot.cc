@@ -276,6 +276,8 @@ bool HasData(const Figure& f) {
   return false;
 }
 
+// One function, though long: the figure is drawn in painting order (frame, grid, bands, series,
+// axes, legend), each stage a few lines sharing the same coordinate mapping.
 std::string RenderSvg(const Figure& f, const std::string& raw_id) {
   const std::string id = SafeId(raw_id);
   const bool has_data = HasData(f);

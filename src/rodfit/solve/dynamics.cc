@@ -353,6 +353,9 @@ DynamicsStepSummary DynamicsStepper::StepExplicit(const Drive& drive, double dt,
   return summary;
 }
 
+// One function, though long: the Newton loop of one implicit step, its mass, damping and
+// elastic terms assembled into one band, shares that band, the predictor and the line search
+// state between its stages.
 DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicState* s) {
   DynamicsStepSummary summary;
   const int n = model_.num_edges();

@@ -16,6 +16,8 @@ constexpr int kEdgeBandwidth = 7;  // two consecutive blocks [e_j, theta_j]
 
 }  // namespace
 
+// One function, though long: the edge-coordinate Hessian's blocks are assembled and factored
+// in one pass over the edges, which keeps the band in cache.
 bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodFrames& frames,
                         const EnergyTerms& terms, double moment_scale, double shift) {
   valid_ = false;

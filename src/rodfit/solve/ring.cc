@@ -29,6 +29,8 @@ bool RingSolveOptions::Check(std::string* why) const {
   return w.empty();
 }
 
+// One function, though long: the constrained Newton loop shares its null-space basis, factor
+// and line search state; the sensitivities reuse the last factor.
 RingResult SolveRing(const SectionSpec& spec, const RingStiffness& stiffness,
                      const Vec2& force_in_plane, const RingSolveOptions& options,
                      const Eigen::Matrix2Xd* warm_start) {

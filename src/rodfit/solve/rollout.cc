@@ -59,6 +59,8 @@ void Smooth(TimeSeries* path, double frame_interval, int half_window) {
 
 }  // namespace
 
+// One function, though long: set-up from the recording, the stepping loop and the scoring read
+// in the order they run, sharing the markers' arc lengths and the held-marker drive.
 RolloutResult Rollout(const Scene& scene, double frame_interval,
                       const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
                       const StaticsOptions& statics) {

@@ -422,6 +422,9 @@ bool BestAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& ter
 /// at equilibrium. With StartFactor::kExact, ws->hessian already holds the factor of the
 /// (unshifted) Hessian at *state for this model and load, and ws the energy and gradient there
 /// without dead loads, so the first iteration assembles nothing.
+// One function, though long: the iteration's steps (assemble, shift, factor, solve, line search,
+// the convergence proof) share the workspace's factor and energies, and each step's shortcut
+// depends on what the previous one left valid; split, that state would pass through every call.
 StepResult NewtonAtLoad(const NewtonContext& solve_ctx, double load_scale, int max_iterations,
                         RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
                         std::string* why, StartFactor start) {
@@ -1207,6 +1210,8 @@ void BalanceResidual(const RodModel& model, const RodState& state, VecX* residua
   AssembleBalance(model, state, frames, 1.0, residual, nullptr, nullptr);
 }
 
+// One function, though long: the choice of path (positions or edge coordinates, warm or
+// continuation), the retries and the summary are read top to bottom as the order they run in.
 StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options, RodState* state,
                             StaticsWorkspace* workspace) {
   StaticsSummary summary;
