@@ -161,10 +161,12 @@ class DynamicsStepper {
   /// differentiated, dq_n+1/dp = -H^-1 (dg/dp + dg/dq_n dq_n/dp + dg/d(history) d(history)/dp),
   /// with H = K(q_n+1) + a M + c C(q_n) the Newton matrix at the solution (assembled and
   /// factored here: the step's own factor may be a chord iteration's older one). Backward Euler
-  /// and BDF2 only; the derivative of the lagged damping matrix C(q_n) along dq_n is a central
-  /// difference of its assembly (relative accuracy ~1e-9; the energy has no third derivatives).
-  /// On failure (midpoint or explicit integrator, moment loads, an indefinite H) returns false
-  /// with the reason and leaves *ds unchanged.
+  /// and BDF2 only. Central differences of the assembly (relative accuracy ~1e-9) stand in
+  /// where the assembly has no exact derivative: the lagged damping matrix C(q_n) along dq_n
+  /// (a third derivative of the energy), and the bending and twist Hessians' missing second
+  /// derivative of the reference twist. On failure (midpoint or explicit integrator, moment
+  /// loads, an indefinite H, corrections that do not settle) returns false with the reason; *ds
+  /// is then unusable.
   bool StepSensitivity(const Drive& drive, const DynamicState& before, const DynamicState& after,
                        const std::vector<ParameterDirection>& directions, DynamicSensitivity* ds,
                        std::string* why);

@@ -64,6 +64,34 @@ bool Moved(const RodModel& model, const std::vector<char>& held, const RodState&
   return UpdateReferenceFrames(model, q, out);
 }
 
+// The part of a step's twist increments that a change of the positions adds through the
+// transport: d = q_n+1 - q_n counts each twist angle against its reference director transported
+// in time from t_n to t_n+1, and moving t_n (or t_n+1) by dt changes that transport by the
+// rotation of the small loop it makes, kb . dt / 2 about the tangent with kb = 2 t_n x t_n+1 /
+// (1 + t_n . t_n+1) (the same geometry as the reference twist's variation, ZeroTwistVariation).
+// `at` is the state whose tangents dq moves (q_n or q_n+1); the twist rows of *out are set, the
+// others zero. Neither end ghost's tangent moves with the parameters (both are driven).
+void TransportTwist(const RodModel& model, const std::vector<char>& held, const RodState& from,
+                    const RodState& to, const RodState& at, const Eigen::MatrixXd& dq,
+                    Eigen::MatrixXd* out) {
+  const int n = model.num_edges();
+  out->setZero(dq.rows(), dq.cols());
+  for (int j = 0; j < n; ++j) {
+    const int k = RodModel::TwistDof(j);
+    if (held[k]) continue;
+    const Vec3 ta = from.e.col(j).normalized(), tb = to.e.col(j).normalized();
+    const Vec3 half_kb = ta.cross(tb) / (1.0 + ta.dot(tb));
+    const double len = at.e.col(j).norm();
+    const Vec3 t = at.e.col(j) / len;
+    for (int c = 0; c < dq.cols(); ++c) {
+      const Vec3 next = dq.block<3, 1>(RodModel::VertexDof(j + 1), c);
+      const Vec3 prev = j == 0 ? Vec3(Vec3::Zero()) : Vec3(dq.block<3, 1>(RodModel::VertexDof(j), c));
+      const Vec3 de = next - prev;
+      (*out)(k, c) = half_kb.dot(de - t.dot(de) * t) / len;
+    }
+  }
+}
+
 // The weights' part of grad Pi (its derivative with respect to the log of the linear density).
 void WeightGradient(const RodModel& model, const std::vector<char>& held, VecX* g) {
   g->setZero(model.num_free_dofs());
@@ -201,6 +229,15 @@ bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& be
   VecX weights;
   WeightGradient(model_, held_, &weights);
   const double L = model_.length();
+  // A v = (a M + c (D + C)) v: how the step's residual weighs its increment d.
+  auto apply_a = [&](const VecX& v) {
+    VecX out = a * mass_.cwiseProduct(v) + c * drag_.cwiseProduct(v);
+    if (internal_damping_) out += c * C.Multiply(v);
+    return out;
+  };
+  // The increment's twist rows gained from moving the start's tangents.
+  Eigen::MatrixXd twist_from_start, twist_from_end;
+  TransportTwist(model_, held_, before.q, after.q, before.q, ds->dq, &twist_from_start);
   Eigen::MatrixXd rhs(N, m);
   VecX dy, dz, col, tmp;
   for (int k = 0; k < m; ++k) {
@@ -215,7 +252,8 @@ bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& be
       dz.setZero(N);
     }
     // Inertia and damping carried from the state before.
-    col = a * mass_.cwiseProduct(dq + dy) + c * drag_.cwiseProduct(dq + dz);
+    col = a * mass_.cwiseProduct(dq + dy) + c * drag_.cwiseProduct(dq + dz) -
+          apply_a(twist_from_start.col(k));
     if (internal_damping_) {
       col += c * C.Multiply(dq + dz);
       // dC[dq] w, the lagged damping matrix moved with the state: a central difference of its
@@ -255,13 +293,64 @@ bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& be
       if (held_[r]) col[r] = 0.0;
     rhs.col(k) = col;
   }
-  factor.SolveInPlace(rhs);
-  if (!rhs.allFinite()) {
-    *why = "non-finite sensitivities in the step";
+  // Two parts of the step's Jacobian are not in H, and are added by iterating
+  // H dq_n+1 = rhs - E dq_n+1 from E = 0. Both are small against H, so each pass gains a factor
+  // ~1e-3 or better:
+  //  - the end state's tangents move the transport too (TransportTwist): A P dq_n+1;
+  //  - the bending and twist Hessians of the assembly are exact at zero twist moment but drop
+  //    the second derivative of the reference twist (relative error ~1e-3 in a rod that twists
+  //    as it moves): the exact product is a central difference of their gradient, the state
+  //    moved by 1e-6 L, less the assembled one.
+  BandedSymmetric K_bend_twist;
+  EnergyTerms bend_twist = EnergyTerms::Only(-1);
+  bend_twist.bend1 = bend_twist.bend2 = bend_twist.twist = 1.0;
+  AssembleHessian(model_, after.q, bend_twist, &g, &K_bend_twist);
+  VecX gp, gm;
+  RodState qp, qm;
+  auto missing = [&](const VecX& v, VecX* out) {
+    *out = -K_bend_twist.Multiply(v);
+    double scale = 0.0;
+    for (int r = 0; r < N; ++r)
+      if (!held_[r]) scale = std::max(scale, r % 4 == 3 ? std::abs(v[r]) : std::abs(v[r]) / L);
+    if (scale == 0.0) return true;
+    const double eps = 1e-6 / scale;
+    if (!Moved(model_, held_, after.q, v, eps, &qp) || !Moved(model_, held_, after.q, v, -eps, &qm))
+      return false;
+    AssembleGradient(model_, qp, bend_twist, &gp);
+    AssembleGradient(model_, qm, bend_twist, &gm);
+    *out += (gp - gm) / (2.0 * eps);
+    for (int r = 0; r < N; ++r)
+      if (held_[r]) (*out)[r] = 0.0;
+    return true;
+  };
+  Eigen::MatrixXd next = rhs;
+  factor.SolveInPlace(next);
+  bool settled = false;
+  VecX extra;
+  for (int pass = 0; pass < 30 && !settled; ++pass) {
+    TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
+    Eigen::MatrixXd again = rhs;
+    for (int k = 0; k < m; ++k) {
+      if (!missing(next.col(k), &extra)) {
+        *why = "the step's sensitivities: a perturbed state folds an edge back";
+        return false;
+      }
+      again.col(k) -= apply_a(twist_from_end.col(k)) + extra;
+    }
+    for (int r = 0; r < N; ++r)
+      if (held_[r]) again.row(r).setZero();
+    factor.SolveInPlace(again);
+    // The central differences' round-off (~1e-10 relative) bounds how far the passes settle.
+    settled = (again - next).cwiseAbs().maxCoeff() <= 1e-9 * next.cwiseAbs().maxCoeff();
+    next = again;
+  }
+  if (!settled || !next.allFinite()) {
+    *why = "the step's sensitivities did not settle (the rod turns or twists too far in one step)";
     return false;
   }
+  TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
   // The rates and BDF2's history follow the step's increment d (dynamics.cc: v = c (d - z)).
-  Eigen::MatrixXd dd = rhs - ds->dq;
+  Eigen::MatrixXd dd = next - ds->dq + twist_from_start + twist_from_end;
   Eigen::MatrixXd dz_all = bdf2 ? Eigen::MatrixXd(ds->dlast_step / 3.0) : Eigen::MatrixXd::Zero(N, m);
   Eigen::MatrixXd dv_new = c * (dd - dz_all);
   for (int r = 0; r < N; ++r)
@@ -271,7 +360,7 @@ bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& be
     ds->dlast_step = dd;
   }
   ds->dv = dv_new;
-  ds->dq = rhs;
+  ds->dq = next;
   return true;
 }
 
