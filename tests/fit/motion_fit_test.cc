@@ -4,6 +4,10 @@
 // and drag. A fit started 3x off in both finds them again. (Fitted to the gripper sequence
 // itself, whose clamps the rollout stands in for by pins at markers 1 and n-2, the same fit
 // lands at 0.75 of the bending stiffness: that model difference, not the fit.)
+#include <cmath>
+#include <cstdio>
+#include <random>
+
 #include <gtest/gtest.h>
 
 #include "rodfit/fit/motion_fit.h"
@@ -50,6 +54,63 @@ TEST(MotionFit, RefusesAParameterWithoutAStartValueOrUnknown) {
                std::invalid_argument);
   EXPECT_THROW(FitToRecordings(s, {rec}, {"length"}, RolloutOptions(), StaticsOptions()),
                std::invalid_argument);
+}
+
+// A recording the rollout's own model explains to the noise: its frames 0 and 1 (the start the
+// rollout rebuilds) and its held markers are the gripper sequence's, the free markers of later
+// frames the rollout's prediction at the truth plus 0.5 mm of Gaussian noise. Only frame 1's
+// free markers (the gripper model's, 10 ms in) are not the rollout's.
+std::vector<Eigen::Matrix3Xd> SelfConsistentRecording(const Scene& truth, double seconds,
+                                                      double noise, unsigned seed) {
+  const std::vector<Eigen::Matrix3Xd> source = testing::Recording(seconds, 0.0, 0.0, 3, &truth.material);
+  const RolloutResult made = Rollout(truth, testing::kFrameInterval, source, RolloutOptions());
+  EXPECT_TRUE(made.ok) << made.reason;
+  std::vector<Eigen::Matrix3Xd> frames = source;
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, noise);
+  for (size_t k = 2; k < frames.size(); ++k)
+    for (int m = 0; m < static_cast<int>(frames[k].cols()); ++m) {
+      if (made.held[m]) continue;
+      frames[k].col(m) = made.predicted[k].col(m) + Vec3(gauss(rng), gauss(rng), gauss(rng));
+    }
+  return frames;
+}
+
+TEST(MotionFit, LeastSquaresRecoversStiffnessAndDragWithinThreeStdInFewRollouts) {
+  Scene truth = testing::Cable();
+  truth.material.bend_damping = 0.0;
+  truth.material.damping = 0.2;
+  truth.material.bend_stiffness = 2e-2;
+  const double noise = 5e-4;
+  MotionRecordingData rec;
+  rec.frame_interval = testing::kFrameInterval;
+  rec.frames = SelfConsistentRecording(truth, 0.6, noise, 11);
+  Scene start = truth;
+  start.material.bend_stiffness = 2.5 * truth.material.bend_stiffness;
+  start.material.damping = truth.material.damping / 3.0;
+  const std::vector<std::string> names = {"bend_stiffness", "damping"};
+  const std::vector<double> want = {truth.material.bend_stiffness, truth.material.damping};
+  MotionFitOptions lm;
+  lm.marker_sigma = noise;
+  const MotionFitResult r = FitMotion(start, {rec}, names, RolloutOptions(), StaticsOptions(), lm);
+  ASSERT_TRUE(r.converged) << r.message;
+  MotionFitOptions bobyqa = lm;
+  bobyqa.method = MotionFitMethod::kBobyqa;
+  const MotionFitResult b = FitMotion(start, {rec}, names, RolloutOptions(), StaticsOptions(), bobyqa);
+  for (int k = 0; k < 2; ++k) {
+    std::printf("%-15s truth %.5g  LM %.5g +- %.3g (%.2f std off)  BOBYQA %.5g\n", names[k].c_str(),
+                want[k], r.values[k], r.std[k], (r.values[k] - want[k]) / r.std[k], b.values[k]);
+    ASSERT_TRUE(r.identifiable[k]) << r.reason[k];
+    EXPECT_LT(std::abs(r.values[k] - want[k]), 3.0 * r.std[k]) << names[k];
+    EXPECT_LT(r.std[k], 0.05 * want[k]) << names[k];  // the data do pin them down
+  }
+  std::printf("LM: %d rollouts, %d iterations, %.2f s, residual variance %.3f; BOBYQA: %d "
+              "rollouts, %.2f s\n",
+              r.evaluations, r.iterations, r.seconds, r.residual_variance, b.evaluations, b.seconds);
+  // The noise is the markers' sigma, so the residual variance is ~1.
+  EXPECT_NEAR(r.residual_variance, 1.0, 0.2);
+  EXPECT_LT(r.error_fitted, 0.5 * r.error_start);
+  EXPECT_LT(3 * r.evaluations, b.evaluations);
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include <ceres/ceres.h>
 #include <nlopt.hpp>
 
+#include "rodfit/fit/identifiability.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/poke.h"
@@ -919,79 +920,27 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   const double covariance_scale = options.trusted_sigmas ? 1.0 : result.residual_variance;
 
   // Identifiability: columns the residuals do not depend on, directions of J's null space, and
-  // parameters whose log is determined only within max_log_std.
-  std::vector<bool> identifiable(m, true);
-  std::vector<std::string> reason(m);
-  Eigen::MatrixXd cov_log = Eigen::MatrixXd::Constant(m, m, std::numeric_limits<double>::quiet_NaN());
-  if (J.size() > 0) {
-    const Eigen::VectorXd colnorm = J.colwise().norm();
-    const double jmax = std::max(colnorm.maxCoeff(), 1e-300);
-    for (int k = 0; k < m; ++k)
-      if (colnorm[k] <= 1e-9 * jmax || colnorm[k] == 0.0) {
-        identifiable[k] = false;
-        reason[k] = "the observations do not depend on it in these cases";
-      }
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeFullV);
-    const Eigen::VectorXd sv = svd.singularValues();
-    for (int i = 0; i < sv.size(); ++i) {
-      if (sv[i] > 1e-8 * sv[0]) continue;
-      const Eigen::VectorXd v = svd.matrixV().col(i);
-      std::vector<int> involved;
-      for (int k = 0; k < m; ++k)
-        if (std::abs(v[k]) > 0.2 && identifiable[k]) involved.push_back(k);
-      for (int k : involved) {
-        std::string others;
-        for (int o : involved)
-          if (o != k) others += (others.empty() ? "" : ", ") + fitted[o].name;
-        identifiable[k] = false;
-        reason[k] = others.empty() ? "the observations do not determine it"
-                                   : "not separable from " + others +
-                                         ": only a combination is determined by these cases";
-      }
-    }
-    std::vector<int> keep;
-    for (int k = 0; k < m; ++k)
-      if (identifiable[k]) keep.push_back(k);
-    if (!keep.empty()) {
-      const int q = static_cast<int>(keep.size());
-      Eigen::MatrixXd cov_sub;
-      if (q == m) {
-        // Full rank: Ceres' covariance of the parameter block.
+  // parameters whose log is determined only within max_log_std (identifiability.h, shared with
+  // the motion fit). With full rank, Ceres' covariance of the parameter block.
+  std::vector<std::string> fitted_names;
+  for (const auto& f : fitted) fitted_names.push_back(f.name);
+  const IdentifiabilityReport verdict = AssessIdentifiability(
+      J, fitted_names, covariance_scale, options.max_log_std, [&](Eigen::MatrixXd* cov) {
         ceres::Covariance::Options co;
         co.algorithm_type = ceres::DENSE_SVD;
         co.num_threads = 1;
         ceres::Covariance covariance(co);
         std::vector<std::pair<const double*, const double*>> blocks = {{logp.data(), logp.data()}};
-        cov_sub.resize(m, m);
-        if (covariance.Compute(blocks, &problem) &&
-            covariance.GetCovarianceBlock(logp.data(), logp.data(), cov_sub.data())) {
-          cov_sub.transposeInPlace();  // row-major from Ceres (symmetric anyway)
-        } else {
-          cov_sub = (J.transpose() * J).inverse();
-        }
-      } else {
-        Eigen::MatrixXd Js(J.rows(), q);
-        for (int i = 0; i < q; ++i) Js.col(i) = J.col(keep[i]);
-        cov_sub = (Js.transpose() * Js).inverse();
-      }
-      cov_sub *= covariance_scale;
-      for (int i = 0; i < q; ++i)
-        for (int j = 0; j < q; ++j) cov_log(keep[i], keep[j]) = cov_sub(i, j);
-      for (int i = 0; i < q; ++i) {
-        const int k = keep[i];
-        const double s = std::sqrt(std::max(0.0, cov_log(k, k)));
-        if (!(s <= options.max_log_std)) {
-          identifiable[k] = false;
-          char buf[160];
-          std::snprintf(buf, sizeof(buf),
-                        "determined only within a factor of %.3g (std of its log %.3g): its "
-                        "effect is below the noise",
-                        std::exp(s), s);
-          reason[k] = buf;
-        }
-      }
-    }
-  }
+        cov->resize(m, m);
+        if (!covariance.Compute(blocks, &problem) ||
+            !covariance.GetCovarianceBlock(logp.data(), logp.data(), cov->data()))
+          return false;
+        cov->transposeInPlace();  // row-major from Ceres (symmetric anyway)
+        return true;
+      });
+  const std::vector<bool>& identifiable = verdict.identifiable;
+  const std::vector<std::string>& reason = verdict.reason;
+  const Eigen::MatrixXd& cov_log = verdict.cov_log;
   result.correlation.setZero(m, m);
   for (int i = 0; i < m; ++i)
     for (int j = 0; j < m; ++j)
