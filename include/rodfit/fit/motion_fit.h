@@ -56,6 +56,7 @@ struct MotionFitResult {
   std::vector<double> std;             ///< per name, SI units; NaN where not identifiable
   std::vector<bool> identifiable;      ///< per name
   std::vector<std::string> reason;     ///< per name: why not identifiable (empty when it is)
+  std::vector<bool> at_bound;          ///< per name: the estimate is on its bound (start * range^+-1)
   Eigen::MatrixXd covariance_log;      ///< of the log-parameters (NaN rows: not identifiable)
   int residuals = 0;                   ///< marker coordinates compared
   double residual_variance = 0.0;      ///< sum r^2 / (residuals - parameters), r in sigmas

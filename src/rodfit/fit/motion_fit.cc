@@ -307,6 +307,7 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
     if (!EvaluateWithSensitivities(x.data(), &ctx)) {
       // Nothing to search from: said so, the start values returned as they are.
       result.values = result.start;
+      result.at_bound.assign(m, false);
       result.message = "the rollout fails at the start values: " + ctx.last_failure;
       result.std.assign(m, std::numeric_limits<double>::quiet_NaN());
       result.identifiable.assign(m, false);
@@ -346,7 +347,11 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
     if (!summary.IsSolutionUsable()) result.message = "no usable solution: " + summary.message;
   }
   result.values.resize(m);
-  for (int k = 0; k < m; ++k) result.values[k] = std::exp(x[k]);
+  result.at_bound.resize(m);
+  for (int k = 0; k < m; ++k) {
+    result.values[k] = std::exp(x[k]);
+    result.at_bound[k] = std::abs(x[k] - lo[k]) < 1e-6 || std::abs(x[k] - hi[k]) < 1e-6;
+  }
 
   // Covariance and identifiability at the solution, from its Jacobian.
   result.std.assign(m, std::numeric_limits<double>::quiet_NaN());
