@@ -341,7 +341,10 @@ bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& be
       if (held_[r]) again.row(r).setZero();
     factor.SolveInPlace(again);
     // The central differences' round-off (~1e-10 relative) bounds how far the passes settle.
-    settled = (again - next).cwiseAbs().maxCoeff() <= 1e-9 * next.cwiseAbs().maxCoeff();
+    settled = true;
+    for (int k = 0; k < m; ++k)
+      settled = settled && (again.col(k) - next.col(k)).cwiseAbs().maxCoeff() <=
+                               1e-9 * next.col(k).cwiseAbs().maxCoeff();
     next = again;
   }
   if (!settled || !next.allFinite()) {
