@@ -43,7 +43,7 @@ TEST(MotionFit, RecoversBendingStiffnessAndDragFromARecording) {
   // lengths from frame 0's chords, velocities from a 10 ms difference), so even at the truth its
   // error is 0.43 mm, not 0; measured: B 0.965, drag 0.985 of the truth, error 4.4 -> 0.40 mm
   // (BOBYQA, the search before the least-squares fit, in 80 rollouts); the least-squares fit,
-  // now the default: B 0.964, drag 0.985, 4.4 -> 0.40 mm in 12 rollouts.
+  // now the default: B 0.964, drag 0.985, 4.4 -> 0.40 mm in 11 rollouts.
   EXPECT_NEAR(r.values[0] / truth.bend_stiffness, 1.0, 0.05) << r.values[0];
   EXPECT_NEAR(r.values[1] / truth.damping, 1.0, 0.05) << r.values[1];
 }
@@ -112,11 +112,48 @@ TEST(MotionFit, LeastSquaresRecoversStiffnessAndDragWithinThreeStdInFewRollouts)
               "rollouts, %.2f s\n",
               r.evaluations, r.iterations, r.seconds, r.residual_variance, b.evaluations, b.seconds);
   // Measured: B 0.02006 +- 0.00011, drag 0.1996 +- 0.0014 (0.5 and 0.3 std from the truth);
-  // 11 rollouts with sensitivities (1.3 s) against BOBYQA's 44 (2.4 s; each of its rollouts
-  // costs less). The noise is the markers' sigma, so the residual variance is ~1 (1.12).
+  // 9 rollouts with sensitivities (~1.1 s) against BOBYQA's 44 (~2.4 s; each of its rollouts
+  // costs about half as much). The noise is the markers' sigma, so the residual variance is ~1 (1.12).
   EXPECT_NEAR(r.residual_variance, 1.0, 0.2);
   EXPECT_LT(r.error_fitted, 0.5 * r.error_start);
   EXPECT_LT(3 * r.evaluations, b.evaluations);
+}
+
+// The same recording with the linear density and the twist stiffness fitted too: the density
+// (the masses and the weights) is determined as well as the others, the twist stiffness, which
+// barely moves the markers of an isotropic cable, is reported as not identifiable, with the
+// reason, and no standard deviation.
+TEST(MotionFit, FitsTheLinearDensityAndReportsTheTwistStiffnessNotIdentifiable) {
+  Scene truth = testing::Cable();
+  truth.material.bend_damping = 0.0;
+  truth.material.damping = 0.2;
+  truth.material.bend_stiffness = 2e-2;
+  const double noise = 5e-4;
+  MotionRecordingData rec;
+  rec.frame_interval = testing::kFrameInterval;
+  rec.frames = SelfConsistentRecording(truth, 0.6, noise, 11);
+  Scene start = truth;
+  start.material.bend_stiffness *= 2.0;
+  start.material.twist_stiffness *= 2.0;
+  start.rod.linear_density *= 1.5;
+  MotionFitOptions lm;
+  lm.marker_sigma = noise;
+  const std::vector<std::string> names = {"bend_stiffness", "damping", "linear_density",
+                                          "twist_stiffness"};
+  const std::vector<double> want = {truth.material.bend_stiffness, truth.material.damping,
+                                    truth.rod.linear_density};
+  const MotionFitResult r = FitMotion(start, {rec}, names, RolloutOptions(), StaticsOptions(), lm);
+  ASSERT_TRUE(r.converged) << r.message;
+  // Measured: B 0.01947 +- 0.00076, drag 0.1938 +- 0.0076, density 0.03881 +- 0.0016 (0.7 to
+  // 0.8 std from the truth) in 46 rollouts; the twist stiffness ran to its bound along its flat
+  // direction, the std of its log 3e4.
+  for (int k = 0; k < 3; ++k) {
+    ASSERT_TRUE(r.identifiable[k]) << names[k] << ": " << r.reason[k];
+    EXPECT_LT(std::abs(r.values[k] - want[k]), 3.0 * r.std[k]) << names[k];
+  }
+  EXPECT_FALSE(r.identifiable[3]);
+  EXPECT_TRUE(std::isnan(r.std[3]));
+  EXPECT_NE(r.reason[3].find("determined only within a factor"), std::string::npos) << r.reason[3];
 }
 
 }  // namespace
