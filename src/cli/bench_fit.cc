@@ -19,7 +19,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/fit_input.h"
-#include "rodfit/io/synth.h"
+#include "rodfit/synth/synth.h"
 
 namespace bench {
 namespace {

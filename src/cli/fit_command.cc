@@ -20,7 +20,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/fit_input.h"
-#include "rodfit/io/fit_report.h"
+#include "rodfit/report/fit_report.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/profile.h"
 #include "rodfit/io/progress.h"

@@ -21,7 +21,7 @@
 #include "rodfit/io/image_observations.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/shapes_csv.h"
-#include "rodfit/io/synth.h"
+#include "rodfit/synth/synth.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/runtime/profile.h"

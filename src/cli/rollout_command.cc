@@ -16,6 +16,7 @@
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/recording.h"
 #include "rodfit/fit/motion_fit.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/rollout.h"
 #include "rodfit/version.h"
 
@@ -34,9 +35,14 @@ int RunRollout(int argc, char** argv) {
   double frame_rate = 0.0;
   app.add_option("scene", scene_path, "scene YAML with a dynamics: block (docs/formats.md)")->required();
   app.add_option("recordings", recording_paths, "markers CSV(s): frame,marker,x,y,z or t,marker,x,y,z")->required();
-  app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (bend_stiffness, "
-                 "bend_stiffness_2, twist_stiffness, stretch_stiffness, damping, bend_damping, twist_damping, "
-                 "stretch_damping, linear_density); their scene values are the start, > 0");
+  // What a motion sees: the rod's stiffness and damping rows of the parameter table, and the
+  // rod's linear density (not a material row).
+  std::string fittable;
+  for (const rodfit::MaterialParameterInfo& row : rodfit::MaterialParameters())
+    if (row.kind == rodfit::ParameterKind::kRodStiffness || row.kind == rodfit::ParameterKind::kDamping)
+      fittable += (fittable.empty() ? "" : ", ") + std::string(row.name);
+  app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (" + fittable +
+                 ", linear_density); their scene values are the start, > 0");
   int smooth_frames = 5;
   bool orient_ends = false;
   app.add_option("--smooth", smooth_frames,

@@ -14,7 +14,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/fit_input.h"
-#include "rodfit/io/synth.h"
+#include "rodfit/synth/synth.h"
 #include "temp_dir.h"
 
 namespace rodfit {

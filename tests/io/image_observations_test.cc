@@ -1,5 +1,5 @@
 // Tests of images -> observations (io/image_observations.h) on images synthesized by
-// io/synth.h: extracted centre-line pixels lie within a pixel of the projected true centre-line
+// synth/synth.h: extracted centre-line pixels lie within a pixel of the projected true centre-line
 // and start at the clamped end; two views triangulate to the true centre-line within the stereo
 // error of the sample cameras; unreadable or mis-sized images are one-line InputErrors.
 #include "rodfit/io/image_observations.h"
@@ -16,7 +16,7 @@
 
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/synth.h"
+#include "rodfit/synth/synth.h"
 #include "rodfit/vision/camera_file.h"
 #include "temp_dir.h"
 

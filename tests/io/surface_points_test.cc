@@ -11,7 +11,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/fit_input.h"
-#include "rodfit/io/synth.h"
+#include "rodfit/synth/synth.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/solve/poke.h"
 #include "rodfit/solve/statics.h"

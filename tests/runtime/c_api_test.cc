@@ -5,6 +5,7 @@
 #include <vector>
 
 #include <gmock/gmock.h>
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include "rodfit/runtime/profile.h"
@@ -104,6 +105,39 @@ TEST(CApi, LoopMatchesTheCppRuntime) {
   EXPECT_STREQ(rodfit_status_name(RODFIT_TIME_BUDGET), "RODFIT_TIME_BUDGET");
   rodfit_destroy(rt);
   rodfit_destroy(nullptr);
+}
+
+// The oriented grasp through C: the same torque as the C++ runtime after the same turn.
+TEST(CApi, OrientedGraspMatchesTheCppRuntime) {
+  const std::string bowel = std::string(RODFIT_SOURCE_DIR) + "/data/profiles/bowel_drag.json";
+  rodfit_options options;
+  rodfit_default_options(&options);
+  options.tool_s = 0.1;
+  options.hold_orientation = 1;
+  rodfit_runtime* rt = nullptr;
+  ASSERT_EQ(rodfit_create(bowel.c_str(), &options, nullptr, nullptr, 0, &rt, nullptr, 0),
+            RODFIT_OK);
+  rodfit::RuntimeOptions cpp_options;
+  cpp_options.tool_s = 0.1;
+  cpp_options.hold_orientation = true;
+  rodfit::Runtime cpp(rodfit::LoadProfile(bowel), cpp_options);
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.1, rodfit::Vec3::UnitY()).toRotationMatrix();
+  double rotation[9];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) rotation[3 * r + c] = turn(r, c);
+  ASSERT_EQ(rodfit_set_tool_orientation(rt, rotation), RODFIT_OK);
+  cpp.SetToolOrientation(turn);
+  ASSERT_EQ(rodfit_step(rt, nullptr), RODFIT_OK) << rodfit_last_error(rt);
+  ASSERT_TRUE(cpp.Step().ok());
+  double force[3], torque[3];
+  ASSERT_EQ(rodfit_get_tool_force(rt, force, torque), RODFIT_OK);
+  EXPECT_GT(cpp.ToolTorque().norm(), 0.0);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_EQ(force[c], cpp.ToolForce()[c]);
+    EXPECT_EQ(torque[c], cpp.ToolTorque()[c]);
+  }
+  EXPECT_EQ(rodfit_set_tool_orientation(rt, nullptr), RODFIT_INVALID_ARGUMENT);
+  rodfit_destroy(rt);
 }
 
 }  // namespace

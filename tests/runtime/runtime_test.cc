@@ -8,6 +8,7 @@
 #include <vector>
 #include <string>
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include "rodfit/runtime/profile.h"
@@ -147,6 +148,80 @@ TEST(Runtime, ReactionsCloseTheForceBalance) {
   // The holders carry the weight: what the rod exerts on them sums to its weight.
   EXPECT_LT((clamp + tool - weight).norm(), 1e-8 * weight.norm())
       << (clamp + tool).transpose() << " vs " << weight.transpose();
+}
+
+// An oriented grasp holds the edge ending at the grasped point as the tool's rigid body: the
+// torque on the tool is -dPi*/dphi, phi a small rotation of the tool about the grasped point
+// (central differences about each world axis), and the force is still -dPi*/dp.
+TEST(Runtime, OrientedGraspTorqueIsMinusTheEnergyRotationGradient) {
+  const Profile p = Bundled("bowel_drag.json");
+  RuntimeOptions options;
+  options.tool_s = 0.1;
+  options.hold_orientation = true;
+  Runtime rt(p, options);
+  EXPECT_LT(rt.ToolTorque().norm(), 1e-12);  // taken where the rod lies: no torque yet
+  const Vec3 at(0.1, 0.012, 0.015);
+  Drag(&rt, at, 30);
+  const Eigen::Matrix3d turned =
+      Eigen::AngleAxisd(0.3, Vec3(1.0, 1.0, 0.5).normalized()).toRotationMatrix();
+  rt.SetToolOrientation(turned);
+  StepReport r;
+  for (int k = 0; k < 10 && (k == 0 || r.tool_turn_lag > 0.0); ++k) {
+    r = rt.Step();
+    ASSERT_TRUE(r.ok()) << "tick " << k << ": " << ToString(r.status);
+  }
+  ASSERT_EQ(r.tool_turn_lag, 0.0);
+  EXPECT_LT((rt.ToolOrientation() - turned).norm(), 1e-15);
+  const Vec3 torque = rt.ToolTorque();
+  const Vec3 force = rt.ToolForce();
+  ASSERT_GT(torque.norm(), 0.0);
+  // h: as for the force, truncation and round-off of the central difference far below 1e-5.
+  const double h = 1e-6;
+  Vec3 rotation_gradient, position_gradient;
+  for (int a = 0; a < 3; ++a) {
+    double energy[2];
+    for (int side = 0; side < 2; ++side) {
+      rt.SetToolOrientation(Eigen::AngleAxisd(side == 0 ? h : -h, Vec3::Unit(a)) * turned);
+      ASSERT_TRUE(rt.Step().ok());
+      energy[side] = rt.Energy();
+    }
+    rotation_gradient[a] = (energy[0] - energy[1]) / (2.0 * h);
+    rt.SetToolOrientation(turned);
+    for (int side = 0; side < 2; ++side) {
+      Vec3 q = at;
+      q[a] += side == 0 ? h : -h;
+      rt.SetToolPosition(q);
+      ASSERT_TRUE(rt.Step().ok());
+      energy[side] = rt.Energy();
+    }
+    position_gradient[a] = (energy[0] - energy[1]) / (2.0 * h);
+    rt.SetToolPosition(at);
+  }
+  EXPECT_LT((torque + rotation_gradient).norm(), 1e-5 * torque.norm())
+      << "torque " << torque.transpose() << ", -dPi/dphi " << (-rotation_gradient).transpose();
+  EXPECT_LT((force + position_gradient).norm(), 1e-5 * force.norm())
+      << "force " << force.transpose() << ", -dPi/dp " << (-position_gradient).transpose();
+}
+
+// An oriented grasp's reactions close the force balance: the clamp and the tool (its force on
+// both held vertices) carry the weight.
+TEST(Runtime, OrientedGraspReactionsCloseTheBalance) {
+  const Profile p = Bundled("suture.json");
+  RuntimeOptions options;
+  options.tool_s = 0.15;
+  options.hold_orientation = true;
+  Runtime rt(p, options);
+  Drag(&rt, rt.ToolPosition() + Vec3(-0.01, 0.01, 0.005), 100);
+  const RodModel& model = rt.model();
+  const RodState& s = rt.state();
+  Vec3 weight = Vec3::Zero();
+  for (int i = 0; i < model.num_vertices(); ++i) weight += model.vertex_weight(i);
+  Vec3 clamp = Vec3::Zero();
+  for (const HeldReaction& h : HeldReactions(model, s))
+    if (h.point == "clamp") clamp = h.force;
+  EXPECT_LT((clamp + rt.ToolForce() - weight).norm(), 1e-8 * weight.norm())
+      << (clamp + rt.ToolForce()).transpose() << " vs " << weight.transpose();
+  EXPECT_GT(rt.ToolTorque().norm(), 0.0);
 }
 
 TEST(Runtime, FailedStepKeepsTheLastGoodState) {

@@ -198,9 +198,6 @@ struct VarianceBand {
 };
 VarianceBand ResidualVarianceBand(int dof);
 
-/// Unit of a parameter by name ("N m^2", "N", "N/m^2").
-const char* ParameterUnit(const std::string& name);
-
 /// Runs the identification. Throws std::invalid_argument for an ill-posed request (nothing to
 /// fit, a fitted parameter the model does not use, min >= max, a start outside its bounds).
 /// The ring's `ring_bend_stiffness` / `ring_stretch_stiffness` are fitted from `surface_points`

@@ -13,6 +13,14 @@
 
 namespace rodfit {
 
+/// What a parameter acts on: which model term it sets, hence which solver can see it.
+enum class ParameterKind {
+  kRodStiffness,  ///< the rod's elastic energy (statics and dynamics)
+  kSpring,        ///< the tissue springs of zones without a parameter of their own
+  kRing,          ///< the cross-section ring (seen only through a poke's dented section)
+  kDamping,       ///< damping, read by the dynamics only (>= 0; 0 turns the term off)
+};
+
 struct MaterialParameterInfo {
   const char* name;         ///< key in `parameters:` and in the profile
   const char* unit;         ///< SI unit as written in the profile ("N m^2", ...)
@@ -20,6 +28,15 @@ struct MaterialParameterInfo {
   /// Needed to build a rod: bend, twist and stretch stiffness (the ring's two with a section).
   bool required;
   bool needs_section;       ///< only read when the scene has a cross-section (ring stiffness)
+  ParameterKind kind;
+  /// kRodStiffness: the stiffness term it sets, 0 B1, 1 B2, 2 GJ, 3 EA (the order of the
+  /// statics' sensitivities, solve/sensitivity.h); kRing: 1 bend, 2 stretch; otherwise -1.
+  int term;
+  /// A row whose absence ties it to another row's value (bend_stiffness_2 to bend_stiffness:
+  /// an isotropic section), or null.
+  const char* tied_to;
+  /// The Material member it sets; null for bend_stiffness_2, an optional (absent: tied).
+  double Material::*field;
   const char* description;  ///< what it sets, for messages and docs
 };
 
@@ -35,6 +52,11 @@ const char* MaterialParameterUnit(const std::string& name);
 /// The value a material holds for `name` (a row or a key of Material::spring_parameters);
 /// nullopt for bend_stiffness_2 when it is tied to bend_stiffness, or an unknown name.
 std::optional<double> MaterialParameterValue(const Material& material, const std::string& name);
+
+/// The value in effect for `name`: as MaterialParameterValue, but a tied row gives the value of
+/// the row it is tied to (bend_stiffness_2 absent: B1). Throws std::invalid_argument for a name
+/// that is neither a row nor a spring zone's own parameter.
+double EffectiveMaterialParameter(const Material& material, const std::string& name);
 
 /// Sets `name` (a row, or else a spring zone's own parameter) to `value`.
 void AssignMaterialParameter(const std::string& name, double value, Material* material);

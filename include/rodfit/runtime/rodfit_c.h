@@ -42,6 +42,7 @@ typedef struct rodfit_options {
   double time_budget;         /* [s] per step, 0: none */
   double time_step;           /* [s] dynamic mode */
   int mesh_ring_vertices;     /* rodfit_get_mesh: vertices per ring */
+  int hold_orientation;       /* quasi-static grasp: 1 holds the tool's orientation (a clamp) */
 } rodfit_options;
 
 typedef struct rodfit_step_info {
@@ -63,6 +64,9 @@ void rodfit_destroy(rodfit_runtime* runtime);
 
 rodfit_status rodfit_set_tool_position(rodfit_runtime* runtime, const double position[3]);
 rodfit_status rodfit_set_tool_force(rodfit_runtime* runtime, const double force[3]);
+/* Oriented grasp (options.hold_orientation): the tool's rotation, world from tool, 9 doubles
+ * row-major; the identity is the orientation at creation. */
+rodfit_status rodfit_set_tool_orientation(rodfit_runtime* runtime, const double rotation[9]);
 /* One tick; `info` may be NULL. */
 rodfit_status rodfit_step(rodfit_runtime* runtime, rodfit_step_info* info);
 

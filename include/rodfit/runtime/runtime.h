@@ -37,7 +37,9 @@ enum class RuntimeMode {
 
 /// What the tool does at arc length RuntimeOptions::tool_s.
 enum class ToolKind {
-  kGrasp,  ///< holds the material point at tool_s at the tool's position (free to turn)
+  /// holds the material point at tool_s at the tool's position (free to turn, or with
+  /// RuntimeOptions::hold_orientation the edge ending there held at the tool's orientation)
+  kGrasp,
   kPoke,   ///< pushes the tissue there with a force (quasi-static only); dents the section
 };
 
@@ -63,6 +65,11 @@ struct RuntimeOptions {
   double time_step = 1e-3;          ///< [s] dynamic mode: the step of one tick
   int dynamic_newton_iterations = 25;  ///< dynamic mode: Newton iterations per step
   int mesh_ring_vertices = 16;      ///< Mesh(): vertices per ring of the tube (>= 3)
+  /// Quasi-static grasp only: the tool also holds the orientation of the rod there — the edge
+  /// that ends at the grasped vertex is held as a rigid body in the tool's hand (its far vertex
+  /// and its twist), so the grasp is a clamp, and ToolTorque() reports the torque on the tool.
+  /// SetToolOrientation turns it; tool_s must lie beyond the rod's second vertex.
+  bool hold_orientation = false;
   bool Check(std::string* why) const;
 };
 
@@ -79,6 +86,9 @@ struct StepReport {
   double residual = 0.0;   ///< [N] scaled residual at exit
   double seconds = 0.0;    ///< wall time of the step
   double tool_lag = 0.0;   ///< [m] how far the grasped point is from the tool after the step
+  /// [rad] an oriented grasp: the angle between the held and the tool's orientation after the
+  /// step (it turns at most max_tool_move radians per tick, like tool_lag).
+  double tool_turn_lag = 0.0;
   bool ok() const { return status == StepStatus::kConverged; }
 };
 
@@ -95,6 +105,12 @@ class Runtime {
 
   /// Grasp: where the tool holds its point from the next Step() on [m].
   void SetToolPosition(const Vec3& position_world);
+  /// Oriented grasp (RuntimeOptions::hold_orientation): the tool's rotation, world from tool,
+  /// from the next Step() on. The identity is the orientation at construction: the held edge
+  /// and its material frame turn by this rotation about the grasped point.
+  void SetToolOrientation(const Eigen::Matrix3d& rotation_world);
+  /// The rotation the held edge has now (the identity without an oriented grasp).
+  Eigen::Matrix3d ToolOrientation() const;
   /// Poke: the force the tool applies to the tissue from the next Step() on [N].
   void SetToolForce(const Vec3& force_world);
 
@@ -103,7 +119,8 @@ class Runtime {
 
   /// Centre-line, column per vertex [m] (the current state).
   const Mat3X& Shape() const;
-  /// Force [N] and torque [N m] the rod exerts on the tool (a grasp holds no torque: zero).
+  /// Force [N] and torque [N m] the rod exerts on the tool. The torque is about the grasped
+  /// point, -dPi*/d(tool rotation); zero unless the grasp holds the orientation.
   Vec3 ToolForce() const;
   Vec3 ToolTorque() const;
   /// Where the tool is: the grasped point, or the poked point of the centre-line [m].

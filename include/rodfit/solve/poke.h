@@ -7,6 +7,7 @@
 #include "rodfit/model/cross_section.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/model/tube_mesh.h"
+#include "rodfit/solve/ring.h"
 
 namespace rodfit {
 

@@ -10,7 +10,8 @@
 #include <ceres/ceres.h>
 #include <nlopt.hpp>
 
-#include "rodfit/fit/identifiability.h"
+#include "rodfit/fit/covariance.h"
+#include "rodfit/model/material_parameters.h"
 
 namespace rodfit {
 namespace {
@@ -151,38 +152,25 @@ class Budget : public ceres::IterationCallback {
 
 }  // namespace
 
-void SetMaterialParameter(const std::string& name, double value, Material* m) {
-  if (name == "bend_stiffness") {
-    m->bend_stiffness = value;
-  } else if (name == "bend_stiffness_2") {
-    m->bend_stiffness_2 = value;
-  } else if (name == "twist_stiffness") {
-    m->twist_stiffness = value;
-  } else if (name == "stretch_stiffness") {
-    m->stretch_stiffness = value;
-  } else if (name == "damping") {
-    m->damping = value;
-  } else if (name == "bend_damping") {
-    m->bend_damping = value;
-  } else if (name == "twist_damping") {
-    m->twist_damping = value;
-  } else if (name == "stretch_damping") {
-    m->stretch_damping = value;
-  } else {
+namespace {
+
+// The rows a motion sees: the rod's stiffnesses and its damping (springs and the ring are not
+// part of a moving thread's model).
+const MaterialParameterInfo& MotionRow(const std::string& name) {
+  const MaterialParameterInfo* row = FindMaterialParameter(name);
+  if (!row || (row->kind != ParameterKind::kRodStiffness && row->kind != ParameterKind::kDamping))
     throw std::invalid_argument("a motion fit cannot fit '" + name.substr(0, 60) + "'");
-  }
+  return *row;
+}
+
+}  // namespace
+
+void SetMaterialParameter(const std::string& name, double value, Material* m) {
+  AssignMaterialParameter(MotionRow(name).name, value, m);
 }
 
 double MaterialParameter(const std::string& name, const Material& m) {
-  if (name == "bend_stiffness") return m.bend_stiffness;
-  if (name == "bend_stiffness_2") return m.B2();
-  if (name == "twist_stiffness") return m.twist_stiffness;
-  if (name == "stretch_stiffness") return m.stretch_stiffness;
-  if (name == "damping") return m.damping;
-  if (name == "bend_damping") return m.bend_damping;
-  if (name == "twist_damping") return m.twist_damping;
-  if (name == "stretch_damping") return m.stretch_damping;
-  throw std::invalid_argument("a motion fit cannot fit '" + name.substr(0, 60) + "'");
+  return EffectiveMaterialParameter(m, MotionRow(name).name);
 }
 
 bool MotionFitOptions::Check(std::string* why) const {
@@ -366,8 +354,15 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
   if (EvaluateWithSensitivities(x.data(), &ctx)) {
     if (fit_options.method == MotionFitMethod::kLevenbergMarquardt) result.error_fitted = ctx.cached_mae;
     result.residual_variance = ctx.cached_r.squaredNorm() / static_cast<double>(ctx.residuals - m);
-    const IdentifiabilityReport verdict = AssessIdentifiability(
-        ctx.cached_J, names, result.residual_variance, fit_options.max_log_std);
+    // The static fit's verdict (covariance.h): its full-rank covariance is Ceres' over a problem
+    // at the solution, whose Jacobian is the cached one (no further rollout).
+    ceres::Problem::Options po;
+    po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+    ceres::Problem at_solution(po);
+    at_solution.AddResidualBlock(new MotionCost(&ctx, m), nullptr, x.data());
+    const fit_internal::Identifiability verdict = fit_internal::Identify(
+        ctx.cached_J, names, &at_solution, x.data(), result.residual_variance,
+        fit_options.max_log_std);
     result.identifiable = verdict.identifiable;
     result.reason = verdict.reason;
     result.covariance_log = verdict.cov_log;

@@ -16,6 +16,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/vision/camera_file.h"
 
@@ -29,16 +30,12 @@ namespace fs = std::filesystem;
 constexpr double kMinClampSine = 1e-3;
 constexpr size_t kMaxCaseNameLength = 100;
 
-const std::vector<std::string> kParameterNames = {
-    "bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",       "stretch_stiffness",
-    "spring_stiffness", "ring_bend_stiffness", "ring_stretch_stiffness",
-    "damping",          "bend_damping",        "twist_damping",         "stretch_damping"};
-
 // Damping (dynamics only): >= 0, not fitted from static cases.
 bool IsDampingParameter(const std::string& name) {
-  return name == "damping" || name == "bend_damping" || name == "twist_damping" ||
-         name == "stretch_damping";
+  const MaterialParameterInfo* row = FindMaterialParameter(name);
+  return row && row->kind == ParameterKind::kDamping;
 }
+
 const std::vector<std::string> kObservationTypes = {"markers3d",   "points3d", "image_points",
                                                     "images",      "grasp_force",
                                                     "surface_points", "reaction"};
@@ -269,10 +266,10 @@ ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& 
   ParameterSpec p;
   p.line = f.key_line;
   const Field& value = r.Require(m, f, "value");
-  // spring_stiffness = 0 means no springs (docs/model.md, "What a scene builds"); every stiffness
-  // of the rod is > 0.
-  p.value = name == "spring_stiffness" || IsDampingParameter(name) ? r.NonNegative(value)
-                                                                   : r.Positive(value);
+  // spring_stiffness = 0 means no springs and zero damping none (docs/model.md, "What a scene
+  // builds"); every stiffness of the rod is > 0. A zone's own parameter is a spring stiffness.
+  const MaterialParameterInfo* row = FindMaterialParameter(name);
+  p.value = row && row->positive ? r.Positive(value) : r.NonNegative(value);
   if (const Field* fit = Reader::Find(m, "fit")) {
     p.fit = r.Bool(*fit);
     if (p.fit && IsDampingParameter(name))
@@ -296,43 +293,22 @@ ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& 
 
 void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
                     const std::vector<std::string>& zone_parameters) {
-  std::vector<std::string> allowed = kParameterNames;
+  std::vector<std::string> allowed;
+  for (const MaterialParameterInfo& row : MaterialParameters()) allowed.push_back(row.name);
   allowed.insert(allowed.end(), zone_parameters.begin(), zone_parameters.end());
   const Entries m = r.Map(f, allowed);
-  for (const auto& [name, field] : m) {
-    // A zone's own parameter is a spring stiffness [N/m^2]: like spring_stiffness, >= 0.
-    const bool spring = name == "spring_stiffness" || Contains(zone_parameters, name);
-    ex->parameters[name] = ReadParameter(r, field, spring ? "spring_stiffness" : name);
+  for (const auto& [name, field] : m) ex->parameters[name] = ReadParameter(r, field, name);
+  for (const std::string& name : zone_parameters) r.Require(m, f, name);
+  const bool section = ex->scene.section.has_value();
+  for (const MaterialParameterInfo& row : MaterialParameters()) {
+    // The ring's stiffness is read only for a scene with a cross-section (tissue paper §4).
+    if (row.needs_section && !section) continue;
+    if (row.required) r.Require(m, f, row.name);
   }
-  for (const std::string& name : zone_parameters) {
-    r.Require(m, f, name);
-    ex->scene.material.spring_parameters[name] = ex->parameters.at(name).value;
-  }
-  for (const char* name : {"bend_stiffness", "twist_stiffness", "stretch_stiffness"}) {
-    r.Require(m, f, name);
-  }
-  Material& mat = ex->scene.material;
-  mat.bend_stiffness = ex->parameters.at("bend_stiffness").value;
-  mat.twist_stiffness = ex->parameters.at("twist_stiffness").value;
-  mat.stretch_stiffness = ex->parameters.at("stretch_stiffness").value;
-  if (ex->parameters.count("bend_stiffness_2")) {
-    mat.bend_stiffness_2 = ex->parameters.at("bend_stiffness_2").value;
-  }
-  if (ex->parameters.count("spring_stiffness")) {
-    mat.spring_stiffness = ex->parameters.at("spring_stiffness").value;
-  }
-  auto optional = [&](const char* name, double* value) {
-    if (ex->parameters.count(name)) *value = ex->parameters.at(name).value;
-  };
-  optional("damping", &mat.damping);
-  optional("bend_damping", &mat.bend_damping);
-  optional("twist_damping", &mat.twist_damping);
-  optional("stretch_damping", &mat.stretch_damping);
-  if (ex->scene.section) {  // the cross-section ring's stiffness (tissue paper §4)
-    r.Require(m, f, "ring_bend_stiffness");
-    r.Require(m, f, "ring_stretch_stiffness");
-    mat.ring_bend_stiffness = ex->parameters.at("ring_bend_stiffness").value;
-    mat.ring_stretch_stiffness = ex->parameters.at("ring_stretch_stiffness").value;
+  for (const auto& [name, spec] : ex->parameters) {
+    const MaterialParameterInfo* row = FindMaterialParameter(name);
+    if (row && row->needs_section && !section) continue;
+    AssignMaterialParameter(name, spec.value, &ex->scene.material);
   }
 }
 
@@ -536,9 +512,10 @@ std::vector<std::string> ReadSprings(const Reader& r, const Field& f, Experiment
     SpringZone zone{iv.from, iv.to, ""};
     if (const Field* p = Reader::Find(m, "parameter")) {
       zone.parameter = r.Text(*p);
-      if (zone.parameter == "spring_stiffness") {
+      const MaterialParameterInfo* row = FindMaterialParameter(zone.parameter);
+      if (row && row->kind == ParameterKind::kSpring) {
         zone.parameter.clear();
-      } else if (Contains(kParameterNames, zone.parameter)) {
+      } else if (row) {
         r.Fail(*p, "'" + ClipForMessage(zone.parameter) +
                        "' is a rod parameter, not a spring stiffness");
       } else if (!Contains(names, zone.parameter)) {

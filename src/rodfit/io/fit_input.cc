@@ -11,6 +11,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/image_observations.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/vision/camera_file.h"
 
@@ -150,15 +151,18 @@ std::string Label(const ObservationSpec& spec) {
 
 std::vector<FitParameter> FitParametersOf(const Experiment& e) {
   std::vector<FitParameter> out;
-  std::vector<std::string> names = {"bend_stiffness",   "bend_stiffness_2",    "twist_stiffness",
-                                    "stretch_stiffness", "spring_stiffness", "ring_bend_stiffness",
-                                    "ring_stretch_stiffness"};
+  // Every parameter a static fit can see (damping is seen only in motion), then the zones' own.
+  std::vector<std::string> names;
+  for (const MaterialParameterInfo& row : MaterialParameters())
+    if (row.kind != ParameterKind::kDamping) names.push_back(row.name);
   for (const auto& [name, value] : e.scene.material.spring_parameters) names.push_back(name);
   for (const std::string& name : names) {
     const auto it = e.parameters.find(name);
     if (it == e.parameters.end()) {
-      if (name == "spring_stiffness") out.push_back({name, 0.0, false, {}, {}});
-      continue;  // bend_stiffness_2 absent: tied to bend_stiffness
+      // Absent spring_stiffness: no springs (K = 0, held); an absent tied row follows its row.
+      const MaterialParameterInfo* row = FindMaterialParameter(name);
+      if (row && row->kind == ParameterKind::kSpring) out.push_back({name, 0.0, false, {}, {}});
+      continue;
     }
     const ParameterSpec& p = it->second;
     out.push_back({name, p.value, p.fit, p.min, p.max});

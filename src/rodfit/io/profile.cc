@@ -60,12 +60,13 @@ nlohmann::json DerivedJson(const Material& m, const RodSpec& rod,
   json derived;
   derived["mass_density"] =
       rod.radius > 0.0 ? json(rod.linear_density / (M_PI * rod.radius * rod.radius)) : json(nullptr);
-  for (const char* name : {"bend_stiffness", "bend_stiffness_2", "twist_stiffness",
-                           "stretch_stiffness"}) {
+  for (const MaterialParameterInfo& row : MaterialParameters()) {
+    if (row.kind != ParameterKind::kRodStiffness) continue;
+    const std::string name = row.name;
     if (undetermined.count(name) || !(rod.radius > 0.0)) {
       derived["round_section"] = nullptr;
       derived["round_section_missing"] =
-          rod.radius > 0.0 ? std::string(name) + " is not determined" : "the rod has no radius";
+          rod.radius > 0.0 ? name + " is not determined" : "the rod has no radius";
       return derived;
     }
   }
@@ -153,23 +154,26 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
     params[est.name] = q;
     listed.insert(est.name);
     if (determined) {
-      if (est.name != "bend_stiffness_2" || scene.material.bend_stiffness_2 || est.fitted)
+      // A tied row (bend_stiffness_2 absent) is listed at its row's value but stays tied.
+      const MaterialParameterInfo* row = FindMaterialParameter(est.name);
+      if (!row || !row->tied_to || MaterialParameterValue(scene.material, est.name) || est.fitted)
         AssignMaterialParameter(est.name, est.value, &fitted);
     } else {
       undetermined.insert(est.name);
     }
   }
-  if (!params.contains("bend_stiffness_2") && params.contains("bend_stiffness")) {
-    // Absent in the experiment: isotropic, tied to bend_stiffness (docs/model.md, "Stiffnesses").
-    json q = params["bend_stiffness"];
+  for (const MaterialParameterInfo& row : MaterialParameters()) {
+    if (!row.tied_to || params.contains(row.name) || !params.contains(row.tied_to)) continue;
+    // Absent in the experiment: tied (isotropic, docs/model.md, "Stiffnesses").
+    json q = params[row.tied_to];
     q["fitted"] = false;
-    q["tied_to"] = "bend_stiffness";
+    q["tied_to"] = row.tied_to;
     q.erase("start");
     q.erase("reason");
     q.erase("at_bound");
-    params["bend_stiffness_2"] = q;
-    listed.insert("bend_stiffness_2");
-    if (undetermined.count("bend_stiffness")) undetermined.insert("bend_stiffness_2");
+    params[row.name] = q;
+    listed.insert(row.name);
+    if (undetermined.count(row.tied_to)) undetermined.insert(row.name);
   }
   // Every other row of the parameter table the model reads, at the scene's value: a simulator
   // gets damping and the rest explicitly rather than by a default of its own.

@@ -3,41 +3,34 @@
 
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 namespace rodfit {
-namespace {
-
-// Where each row's value lives in Material; bend_stiffness_2 is optional (absent: tied to B1).
-double* Field(const std::string& name, Material* m) {
-  if (name == "bend_stiffness") return &m->bend_stiffness;
-  if (name == "twist_stiffness") return &m->twist_stiffness;
-  if (name == "stretch_stiffness") return &m->stretch_stiffness;
-  if (name == "spring_stiffness") return &m->spring_stiffness;
-  if (name == "ring_bend_stiffness") return &m->ring_bend_stiffness;
-  if (name == "ring_stretch_stiffness") return &m->ring_stretch_stiffness;
-  if (name == "damping") return &m->damping;
-  if (name == "bend_damping") return &m->bend_damping;
-  if (name == "twist_damping") return &m->twist_damping;
-  if (name == "stretch_damping") return &m->stretch_damping;
-  return nullptr;
-}
-
-}  // namespace
-
 const std::vector<MaterialParameterInfo>& MaterialParameters() {
+  using K = ParameterKind;
   static const std::vector<MaterialParameterInfo> rows = {
-      {"bend_stiffness", "N m^2", true, true, false, "B1, bending about d1"},
-      {"bend_stiffness_2", "N m^2", true, false, false, "B2, bending about d2 (absent: B1)"},
-      {"twist_stiffness", "N m^2", true, true, false, "GJ, torsion"},
-      {"stretch_stiffness", "N", true, true, false, "EA, stretch"},
-      {"spring_stiffness", "N/m^2", false, false, false,
-       "K, tissue springs of zones without a parameter of their own"},
-      {"ring_bend_stiffness", "N m^2", true, true, true, "kb, bending of the section ring"},
-      {"ring_stretch_stiffness", "N", true, true, true, "ks, stretch of the section ring"},
-      {"damping", "N s/m^2", false, false, false, "c, external viscous drag per length"},
-      {"bend_damping", "N m^2 s", false, false, false, "eta_B, viscosity of the bending rates"},
-      {"twist_damping", "N m^2 s", false, false, false, "eta_GJ, viscosity of the twist rate"},
-      {"stretch_damping", "N s", false, false, false, "eta_EA, viscosity of the stretch rate"},
+      {"bend_stiffness", "N m^2", true, true, false, K::kRodStiffness, 0, nullptr,
+       &Material::bend_stiffness, "B1, bending about d1"},
+      {"bend_stiffness_2", "N m^2", true, false, false, K::kRodStiffness, 1, "bend_stiffness",
+       nullptr, "B2, bending about d2 (absent: B1)"},
+      {"twist_stiffness", "N m^2", true, true, false, K::kRodStiffness, 2, nullptr,
+       &Material::twist_stiffness, "GJ, torsion"},
+      {"stretch_stiffness", "N", true, true, false, K::kRodStiffness, 3, nullptr,
+       &Material::stretch_stiffness, "EA, stretch"},
+      {"spring_stiffness", "N/m^2", false, false, false, K::kSpring, -1, nullptr,
+       &Material::spring_stiffness, "K, tissue springs of zones without a parameter of their own"},
+      {"ring_bend_stiffness", "N m^2", true, true, true, K::kRing, 1, nullptr,
+       &Material::ring_bend_stiffness, "kb, bending of the section ring"},
+      {"ring_stretch_stiffness", "N", true, true, true, K::kRing, 2, nullptr,
+       &Material::ring_stretch_stiffness, "ks, stretch of the section ring"},
+      {"damping", "N s/m^2", false, false, false, K::kDamping, -1, nullptr, &Material::damping,
+       "c, external viscous drag per length"},
+      {"bend_damping", "N m^2 s", false, false, false, K::kDamping, -1, nullptr,
+       &Material::bend_damping, "eta_B, viscosity of the bending rates"},
+      {"twist_damping", "N m^2 s", false, false, false, K::kDamping, -1, nullptr,
+       &Material::twist_damping, "eta_GJ, viscosity of the twist rate"},
+      {"stretch_damping", "N s", false, false, false, K::kDamping, -1, nullptr,
+       &Material::stretch_damping, "eta_EA, viscosity of the stretch rate"},
   };
   return rows;
 }
@@ -54,21 +47,28 @@ const char* MaterialParameterUnit(const std::string& name) {
 }
 
 std::optional<double> MaterialParameterValue(const Material& material, const std::string& name) {
-  if (name == "bend_stiffness_2") return material.bend_stiffness_2;
-  // Field() only locates the member; nothing is written through it here.
-  if (const double* f = Field(name, const_cast<Material*>(&material))) return *f;
+  if (const MaterialParameterInfo* row = FindMaterialParameter(name))
+    return row->field ? std::optional<double>(material.*(row->field)) : material.bend_stiffness_2;
   const auto it = material.spring_parameters.find(name);
   if (it != material.spring_parameters.end()) return it->second;
   return std::nullopt;
 }
 
+double EffectiveMaterialParameter(const Material& material, const std::string& name) {
+  if (name == "bend_stiffness_2") return material.B2();
+  const std::optional<double> v = MaterialParameterValue(material, name);
+  if (!v) throw std::invalid_argument("'" + name.substr(0, 60) + "' is not a material parameter");
+  return *v;
+}
+
 void AssignMaterialParameter(const std::string& name, double value, Material* material) {
-  if (name == "bend_stiffness_2") {
-    material->bend_stiffness_2 = value;
-  } else if (double* f = Field(name, material)) {
-    *f = value;
-  } else {
+  const MaterialParameterInfo* row = FindMaterialParameter(name);
+  if (!row) {
     material->spring_parameters[name] = value;
+  } else if (row->field) {
+    material->*(row->field) = value;
+  } else {
+    material->bend_stiffness_2 = value;
   }
 }
 

@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "rodfit/model/frames.h"
+#include "rodfit/model/material_parameters.h"
 
 namespace rodfit {
 namespace {
@@ -126,10 +127,10 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
           "rod.linear_density must be non-negative");
   Require(Finite(rod.rest_curvature), "rod.rest_curvature must be finite");
   const Material& m = material;
-  for (const auto& [name, value] : {std::pair<const char*, double>{"bend_stiffness", m.B1()},
-                                    {"bend_stiffness_2", m.B2()},
-                                    {"twist_stiffness", m.twist_stiffness},
-                                    {"stretch_stiffness", m.stretch_stiffness}}) {
+  for (const MaterialParameterInfo& row : MaterialParameters()) {
+    if (row.kind != ParameterKind::kRodStiffness) continue;
+    const std::string name = row.name;
+    const double value = EffectiveMaterialParameter(m, name);
     Require(std::isfinite(value) && value > 0, std::string(name) + " must be positive");
     Require(value >= 1e-30 && value <= 1e30,
             std::string(name) + " " + Num(value) + " is outside [1e-30, 1e30]");

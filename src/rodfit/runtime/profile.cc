@@ -254,8 +254,10 @@ ProfileParameter ReadParameter(const Reader& r, const json& v, const std::string
   if (const json* i = r.Find(v, "identifiable")) p.identifiable = r.Bool(*i, key + ".identifiable");
   if (const json* t = r.Find(v, "tied_to")) {
     p.tied_to = r.String(*t, key + ".tied_to");
-    if (name != "bend_stiffness_2" || p.tied_to != "bend_stiffness")
-      r.Fail(key + ".tied_to", "only bend_stiffness_2 may be tied, to bend_stiffness");
+    if (!row || !row->tied_to || p.tied_to != row->tied_to)
+      r.Fail(key + ".tied_to", row && row->tied_to
+                                   ? "may be tied only to " + std::string(row->tied_to)
+                                   : std::string("cannot be tied to another parameter"));
   }
   if (const json* s = r.Find(v, "std"); s && !s->is_null())
     p.std = r.NonNegative(*s, key + ".std");
@@ -434,9 +436,10 @@ void UseProfileMaterial(const Profile& profile, Scene* scene) {
     if (!zone.parameter.empty() && !profile.Find(zone.parameter))
       throw ProfileError(profile.path, "parameters." + zone.parameter,
                          "missing (the scene's spring zone names it)");
-  if (scene->section && !profile.Find("ring_bend_stiffness"))
-    throw ProfileError(profile.path, "parameters.ring_bend_stiffness",
-                       "missing (the scene has a section)");
+  for (const MaterialParameterInfo& row : MaterialParameters())
+    if (scene->section && row.needs_section && row.required && !profile.Find(row.name))
+      throw ProfileError(profile.path, std::string("parameters.") + row.name,
+                         "missing (the scene has a section)");
   scene->material = profile.scene.material;
 }
 

@@ -72,6 +72,7 @@ void rodfit_default_options(rodfit_options* o) {
   o->time_budget = d.time_budget;
   o->time_step = d.time_step;
   o->mesh_ring_vertices = d.mesh_ring_vertices;
+  o->hold_orientation = d.hold_orientation ? 1 : 0;
 }
 
 rodfit_status rodfit_create(const char* profile_path, const rodfit_options* options,
@@ -105,6 +106,7 @@ rodfit_status rodfit_create(const char* profile_path, const rodfit_options* opti
     o.time_budget = options->time_budget;
     o.time_step = options->time_step;
     o.mesh_ring_vertices = options->mesh_ring_vertices;
+    o.hold_orientation = options->hold_orientation != 0;
     const rodfit::Profile profile = rodfit::LoadProfile(profile_path, read);
     auto handle = std::make_unique<rodfit_runtime>();
     handle->runtime = std::make_unique<rodfit::Runtime>(profile, o);
@@ -142,6 +144,16 @@ rodfit_status rodfit_set_tool_force(rodfit_runtime* h, const double f[3]) {
   return Guard(h, [&] {
     if (!f) return Fail(h, RODFIT_INVALID_ARGUMENT, "force is null");
     h->runtime->SetToolForce(rodfit::Vec3(f[0], f[1], f[2]));
+    return RODFIT_OK;
+  });
+}
+
+rodfit_status rodfit_set_tool_orientation(rodfit_runtime* h, const double r[9]) {
+  return Guard(h, [&] {
+    if (!r) return Fail(h, RODFIT_INVALID_ARGUMENT, "rotation is null");
+    Eigen::Matrix3d rotation;
+    rotation << r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8];
+    h->runtime->SetToolOrientation(rotation);
     return RODFIT_OK;
   });
 }

@@ -12,9 +12,12 @@
 #include <stdexcept>
 #include <utility>
 
+#include <Eigen/Geometry>
+
 #include "rodfit/model/cross_section.h"
 #include "rodfit/solve/banded.h"
 #include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/ring.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 
@@ -29,13 +32,16 @@ constexpr double kMaxTurnPerStep = 0.5;
 constexpr int kMaxLineSearchSteps = 30;
 // The smallest fraction of max_tool_move a tick falls back to after failed ticks.
 constexpr double kMinMoveScale = 1.0 / 64.0;
-// The predictor's finite-difference move, as a fraction of the rod's length: small enough that
-// the gradient is linear in it, large enough that its change is far above round-off.
-constexpr double kPredictorProbe = 1e-7;
 constexpr double kArmijo = 1e-4;
 // Relative round-off of the potential energy: an Armijo test between two values equal to this
 // precision is decided by noise, so a step that does not raise Pi beyond it is accepted.
 constexpr double kEnergyRoundOff = 1e-13;
+// A chord step (the kept factor, no new Hessian) must cut the residual at least this much, or
+// the tick refactors: the kept factor then belongs to a state too far from this one.
+constexpr double kChordContraction = 0.25;
+// A chord step that cut the residual by less than this is followed by a Newton iteration, which
+// renews the kept factor.
+constexpr double kChordRefresh = 1e-3;
 
 // The tool's grasp held in the dynamic stepper's pose: every other held point at its target.
 class ToolDrive : public Drive {
@@ -74,6 +80,8 @@ bool RuntimeOptions::Check(std::string* why) const {
   if (mesh_ring_vertices < 3) return *why = "mesh_ring_vertices must be >= 3", false;
   if (tool == ToolKind::kPoke && mode == RuntimeMode::kDynamic)
     return *why = "a poke is quasi-static only (the dynamic stepper has no point loads)", false;
+  if (hold_orientation && (tool != ToolKind::kGrasp || mode != RuntimeMode::kQuasiStatic))
+    return *why = "hold_orientation is for a quasi-static grasp only", false;
   return true;
 }
 
@@ -103,23 +111,83 @@ struct Runtime::Impl {
   RodState state, last_good, trial, moved;
   RodFrames frames, trial_frames;
   VecX g, g_free, step, weights;
-  BandedSymmetric hessian;
+  // The Hessian of the factor's state with the held rows left in (K_fh, the predictor's), and
+  // the same with Dirichlet rows (what is factored).
+  BandedSymmetric hessian_full, hessian;
   BandedCholesky factor;
-  // The factor was made at (or one Newton step before) the current state: the predictor's.
+  // The factor is unshifted and was made at a state of this converged branch (this tick's or an
+  // earlier one's): the predictor and the chord steps may use it; a chord step that does not
+  // contract fast enough refactors.
   bool factor_near_state = false;
+  // `frames` are those of `state` (a line search left them), so the next check need not
+  // recompute them.
+  bool frames_current = false;
+  // The grasp's reaction at the state of the last residual check (its hold-free rows), and
+  // whether that check was at the final state.
+  Vec3 checked_force = Vec3::Zero();
+  bool reaction_current = false;
   double shift_base = 0.0;
+  // An oriented grasp (RuntimeOptions::hold_orientation) holds the edge that ends at the grasped
+  // vertex, from vertex w = tool_vertex - 1 (a pin of the model, so that the retraction keeps it)
+  // and that edge's twist angle (a Dirichlet row of the runtime's own): the edge is a rigid
+  // body in the tool's hand.
+  bool oriented = false;
+  int edge_vertex = -1;                          // w
+  int held_twist = -1;                           // the held edge's twist dof
+  Vec3 edge0 = Vec3::Zero();                     // the held edge at the grasp [m]
+  Vec3 d1_0 = Vec3::Zero();                      // its material d1 at the grasp
+  Eigen::Matrix3d tool_rotation = Eigen::Matrix3d::Identity();  // requested
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();       // held this tick
+  Eigen::Matrix3d rotation_good = Eigen::Matrix3d::Identity();
+  Vec3 torque = Vec3::Zero(), checked_torque = Vec3::Zero();
+  std::vector<char> held_rows;  // the model's held dofs, and the held edge's twist
   // Dynamic.
   std::unique_ptr<ToolDrive> drive;
   std::unique_ptr<DynamicsStepper> stepper;
   DynamicState dynamic, dynamic_good;
 
-  // *out = s with the grasped vertex at p and its two edges following it.
-  void MoveGrasp(const RodState& s, const Vec3& p, RodState* out) const {
+  // *out = s with the grasped vertex at p and its two edges following it (an oriented grasp:
+  // the held edge at `rotation` too, and the edges either side of it following), reference
+  // frames transported from s. False when the transport fails.
+  bool MoveGrasp(const RodState& s, const Vec3& p, RodState* out) const {
     const int v = tool_vertex;
     *out = s;
     out->x.col(v) = p;
+    if (oriented) {
+      const int w = edge_vertex;
+      out->x.col(w) = p - rotation * edge0;
+      if (w >= 1) out->e.col(w - 1) = out->x.col(w) - out->x.col(w - 1);
+    }
     out->e.col(v - 1) = out->x.col(v) - out->x.col(v - 1);
     if (v < model->num_edges()) out->e.col(v) = out->x.col(v + 1) - out->x.col(v);
+    if (!UpdateReferenceFrames(*model, s, out)) return false;
+    HoldTwist(out);
+    return true;
+  }
+  // The held edge's twist angle that turns its material d1 onto the tool's (its reference frame
+  // as `s` has it), the branch nearest its current angle.
+  void HoldTwist(RodState* s) const {
+    if (!oriented) return;
+    const int w = edge_vertex;
+    const Vec3 t = s->ref_t.col(w), u = s->ref_u.col(w);
+    const Vec3 d1 = rotation * d1_0;
+    double theta = std::atan2(d1.dot(t.cross(u)), d1.dot(u));
+    theta += 2.0 * M_PI * std::round((s->theta[w] - theta) / (2.0 * M_PI));
+    s->theta[w] = theta;
+  }
+  // Force and torque [N, N m] the rod exerts on the tool at state s, from the gradient g of Pi
+  // at s with the held rows left in: minus the constraint forces of the held dofs. The torque
+  // is about the grasped point: the held edge's far vertex's force on its arm, and the twist
+  // moment about the edge.
+  void ToolLoads(const RodState& s, const VecX& gradient, Vec3* force, Vec3* moment) const {
+    *force = -gradient.segment<3>(RodModel::VertexDof(tool_vertex));
+    moment->setZero();
+    if (!oriented) return;
+    const int w = edge_vertex;
+    const Vec3 f_w = -gradient.segment<3>(RodModel::VertexDof(w));
+    *force += f_w;
+    *moment = (s.x.col(w) - s.x.col(tool_vertex)).cross(f_w) -
+              gradient[held_twist] * s.e.col(w).normalized();
   }
   double PokeWork(const RodState& s) const {
     if (options.tool != ToolKind::kPoke) return 0.0;
@@ -148,17 +216,22 @@ struct Runtime::Impl {
   double Residual(const VecX& gradient) const {
     return (weights.array() * gradient.array().abs()).maxCoeff();
   }
-  Vec3 GraspForce(const RodState& s) {
-    // -dPi/dx at the grasped vertex with the hold off: the constraint force's opposite.
+  void GraspLoads(const RodState& s, Vec3* force, Vec3* moment) {
+    // -dPi/dx at the held dofs with the hold off: the constraint forces' opposite.
     EnergyTerms terms;
     terms.hold = false;
     ComputeRodFrames(*model, s, &frames);
     AssembleGradient(*model, s, terms, &g_free, &frames);
-    return -g_free.segment<3>(RodModel::VertexDof(tool_vertex));
+    ToolLoads(s, g_free, force, moment);
   }
   void UpdateReaction() {
     const RodState& s = options.mode == RuntimeMode::kDynamic ? dynamic.q : state;
-    reaction = options.tool == ToolKind::kGrasp ? GraspForce(s) : Vec3(-tool_force);
+    if (options.tool == ToolKind::kGrasp) {
+      GraspLoads(s, &reaction, &torque);
+    } else {
+      reaction = -tool_force;
+      torque.setZero();
+    }
   }
   StepReport StepQuasiStatic(Clock::time_point start);
   // Newton from `state` until converged, `max_iterations` or the time budget from `start`.
@@ -178,6 +251,7 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   if (!(options.tool_s <= scene.rod.length))
     throw std::invalid_argument("tool_s must not exceed the rod's length");
   LoadCase held = scene.cases.front();
+  RodSpec held_rod = scene.rod;
   StaticsOptions statics;
   statics.gradient_tolerance = options.gradient_tolerance;
   RodState start;
@@ -198,15 +272,34 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
       throw std::runtime_error("the rod's equilibrium without the tool was not found: " +
                                free_solve.reason);
     held.grasp->position = start.x.col(probe.grasp_vertex());
+    if (options.hold_orientation) {
+      // The held edge's far vertex is pinned where the free equilibrium has it, on the same
+      // vertices (its arc length is a vertex's already).
+      const int w = probe.grasp_vertex() - 1;
+      if (w < 1)
+        throw std::invalid_argument("hold_orientation: tool_s must lie beyond the second vertex");
+      held.pins.push_back(Pin{probe.arc_length(w), start.x.col(w)});
+      held_rod = rod;
+    }
   }
-  m.model = std::make_unique<RodModel>(scene.rod, scene.material, scene.gravity, held,
+  m.model = std::make_unique<RodModel>(held_rod, scene.material, scene.gravity, held,
                                        scene.springs);
   const RodModel& model = *m.model;
   if (options.tool == ToolKind::kPoke) start = model.RestState();
   if (options.tool == ToolKind::kGrasp) {
     m.tool_vertex = model.grasp_vertex();
     m.tool = model.grasp_position();
-  } else {
+    if (options.hold_orientation) {
+      m.oriented = true;
+      m.edge_vertex = m.tool_vertex - 1;
+      m.held_twist = RodModel::TwistDof(m.edge_vertex);
+      if (model.held_at_vertex(m.edge_vertex) < 0)
+        throw std::invalid_argument("hold_orientation: the held edge's vertex is not held");
+    }
+  }
+  m.held_rows = model.held_dofs();
+  if (m.oriented) m.held_rows[m.held_twist] = 1;
+  if (options.tool == ToolKind::kPoke) {
     Bracket(model, options.tool_s, &m.tool_vertex, &m.poke_weight);
   }
   m.force_tolerance = options.gradient_tolerance * model.force_scale();
@@ -226,12 +319,20 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   if (!first.converged)
     throw std::runtime_error("the rod's first equilibrium was not found: " + first.reason);
   // Size every buffer now: the assembly resizes only when a size changes.
+  if (m.oriented) {
+    m.edge0 = m.state.e.col(m.edge_vertex);
+    m.d1_0 = model.MaterialFrame(m.state, m.edge_vertex).d1;
+  }
   m.last_good = m.state;
   m.trial = m.state;
   m.moved = m.state;
   ComputeRodFrames(model, m.state, &m.frames);
   m.trial_frames = m.frames;
-  AssembleHessian(model, m.state, EnergyTerms(), &m.g, &m.hessian, &m.frames);
+  EnergyTerms free_terms;
+  free_terms.hold = false;
+  AssembleHessian(model, m.state, free_terms, &m.g, &m.hessian_full, &m.frames);
+  m.hessian = m.hessian_full;
+  ApplyHeldRows(m.held_rows, &m.g, &m.hessian);
   m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
   m.step = m.g;
   m.g_free = m.g;
@@ -276,10 +377,26 @@ StepReport Runtime::Step() {
   const Clock::time_point start = Clock::now();
   StepReport report = impl_->options.mode == RuntimeMode::kDynamic ? impl_->StepDynamic()
                                                                    : impl_->StepQuasiStatic(start);
-  if (report.ok()) impl_->UpdateReaction();
+  if (report.ok()) {
+    // A quasi-static tick that ended on its residual check has the grasp's reaction from that
+    // check's gradient; otherwise it is evaluated at the state.
+    if (impl_->options.mode == RuntimeMode::kQuasiStatic && impl_->reaction_current &&
+        impl_->options.tool == ToolKind::kGrasp)
+    {
+      impl_->reaction = impl_->checked_force;
+      impl_->torque = impl_->checked_torque;
+    } else
+      impl_->UpdateReaction();
+  }
   if (impl_->options.tool == ToolKind::kGrasp)
     report.tool_lag = impl_->tool.allFinite() ? (impl_->tool - ToolPosition()).norm()
                                               : std::numeric_limits<double>::infinity();
+  if (impl_->oriented)
+    report.tool_turn_lag =
+        !impl_->tool_rotation.allFinite() ? std::numeric_limits<double>::infinity()
+        : impl_->tool_rotation == impl_->rotation
+            ? 0.0
+            : Eigen::AngleAxisd(impl_->tool_rotation * impl_->rotation.transpose()).angle();
   report.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return report;
 }
@@ -289,6 +406,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   const RodModel& m = *model;
   auto give_up = [&](StepStatus status) {
     state = last_good;  // same sizes: no allocation
+    rotation = rotation_good;
     // The next tick tries a smaller move: a tick lost to the budget leaves the tool further
     // ahead, and trying the whole way again would lose the next one too.
     move_scale = std::max(move_scale * 0.25, kMinMoveScale);
@@ -297,18 +415,33 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     return report;
   };
   last_good = state;
+  rotation_good = rotation;
+  reaction_current = false;
+  frames_current = false;
   bool predicted_start = false;
-  const bool finite_tool = tool.allFinite() && tool_force.allFinite();
+  const bool finite_tool =
+      tool.allFinite() && tool_force.allFinite() && tool_rotation.allFinite();
   if (!finite_tool) return give_up(StepStatus::kNotConverged);
   if (options.tool == ToolKind::kGrasp) {
     // Predict the rod's answer to the tool's move d from the factor kept at the last
-    // equilibrium: x_free += -K_ff^-1 K_fh d, the linear response with the grasped vertex as a
-    // Dirichlet boundary. K_fh d is the gradient's directional derivative, a finite difference
-    // over a move small enough to be linear. Moving the grasped vertex alone would compress or
-    // stretch its two edges by the whole move: for a thread, EA / l times it is a force many
-    // orders above the loads, and Newton would start far from the solution on an indefinite
-    // Hessian.
+    // equilibrium: x_free += -K_ff^-1 K_fh d, the linear response with the held dofs as a
+    // Dirichlet boundary. Moving the grasped vertex alone would compress or stretch its two
+    // edges by the whole move: for a thread, EA / l times it is a force many orders above the
+    // loads, and Newton would start far from the solution on an indefinite Hessian.
     const int v = tool_vertex;
+    // An oriented grasp turns the held edge towards the tool's orientation by at most
+    // max_tool_move radians per tick (its far vertex then moves at most that fraction of the
+    // edge), like the grasped point.
+    Eigen::AngleAxisd turn(Eigen::Matrix3d::Identity());
+    if (oriented) {
+      turn = Eigen::AngleAxisd(tool_rotation * rotation.transpose());
+      if (turn.angle() <= options.max_tool_move * move_scale) {
+        rotation = tool_rotation;  // exactly the tool's, not a product rounded
+      } else {
+        turn.angle() = options.max_tool_move * move_scale;
+        rotation = turn.toRotationMatrix() * rotation;
+      }
+    }
     Vec3 d = tool - state.x.col(v);
     double d_norm = d.norm();
     const double max_move = options.max_tool_move * move_scale * m.min_rest_edge_length();
@@ -318,34 +451,65 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     }
     target = state.x.col(v) + d;
     bool predicted = false;
-    if (factor_near_state && factor.valid() && d_norm > 0.0) {
-      const double eta = std::min(1.0, kPredictorProbe * m.length() / d_norm);
-      ComputeRodFrames(m, state, &frames);
-      AssembleGradient(m, state, EnergyTerms(), &g_free, &frames);
-      MoveGrasp(state, state.x.col(v) + eta * d, &trial);
-      if (UpdateReferenceFrames(m, state, &trial)) {
-        ComputeRodFrames(m, trial, &frames);
-        AssembleGradient(m, trial, EnergyTerms(), &g, &frames);
-        step = -(g - g_free) / eta;
-        factor.SolveInPlace(step);
-        // The free vertices move from the last equilibrium (whose edges are consistent), then
-        // the grasped vertex, its two edges spanning the predicted neighbours.
-        const double turn = MaxTangentTurn(m, state, step);
-        const double scale = turn > kMaxTurnPerStep ? kMaxTurnPerStep / turn : 1.0;
-        if (ApplyStep(m, state, step, scale, &moved)) {
-          MoveGrasp(moved, target, &trial);
-          if (UpdateReferenceFrames(m, moved, &trial)) {
-            std::swap(state, trial);
-            predicted = state.x.allFinite();
-            predicted_start = predicted;
-          }
+    if (factor_near_state && factor.valid() && (d_norm > 0.0 || turn.angle() > 0.0)) {
+      // K_fh d from the kept Hessian's columns of the grasped vertex (held rows left in), the
+      // Hessian the kept factor was made from: the band couples them to 2 blocks either side.
+      // Held moves: the grasped vertex's d; an oriented grasp's far vertex and its twist (to
+      // first order, the turn about the edge).
+      step.setZero();
+      const int p = hessian_full.bandwidth();
+      const int rows = static_cast<int>(step.size());
+      auto add_column = [&](int c, double move) {
+        for (int i = std::max(0, c - p); i <= std::min(rows - 1, c + p); ++i)
+          step[i] -= hessian_full.Get(i, c) * move;
+      };
+      Vec3 d_w = Vec3::Zero();
+      double d_twist = 0.0;
+      if (oriented) {
+        d_w = target - rotation * edge0 - state.x.col(edge_vertex);
+        d_twist = turn.angle() * turn.axis().dot(state.e.col(edge_vertex).normalized());
+        for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(edge_vertex) + c, d_w[c]);
+        add_column(held_twist, d_twist);
+      }
+      for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(v) + c, d[c]);
+      ApplyHeldRows(held_rows, &step, nullptr);
+      factor.SolveInPlace(step);
+      // The whole predicted motion, the grasp's own move included, goes through one edge-wise
+      // retraction from the last equilibrium, which changes every edge's length by its linear
+      // part only. (Moving the free vertices first and then the grasped vertex would pin it at
+      // its old place during the retraction, whose closure pulls the rod before it back by d,
+      // and then stretch its edge by the whole move: against a stiff EA a force of EA d / l that
+      // Newton must first undo.) ApplyStep keeps held vertices where its input state has them
+      // and reads no other vertex position but x_0, so its input is the last equilibrium with
+      // the grasped vertex already at the target.
+      step.segment<3>(RodModel::VertexDof(v)) = d;
+      moved = state;  // same sizes: no allocation
+      moved.x.col(v) = target;
+      if (oriented) {
+        step.segment<3>(RodModel::VertexDof(edge_vertex)) = d_w;
+        step[held_twist] = d_twist;
+        moved.x.col(edge_vertex) += d_w;
+      }
+      if (MaxTangentTurn(m, state, step) <= kMaxTurnPerStep &&
+          ApplyStep(m, moved, step, 1.0, &trial) && trial.x.allFinite()) {
+        bool held_exactly = true;
+        if (oriented) {
+          // The held edge exactly as the tool holds it (the retraction gave its length to first
+          // order), its twist from the tool's d1.
+          trial.e.col(edge_vertex) = trial.x.col(v) - trial.x.col(edge_vertex);
+          held_exactly = UpdateReferenceFrames(m, state, &trial);
+          HoldTwist(&trial);
+        }
+        if (held_exactly) {
+          std::swap(state, trial);
+          predicted = true;
+          predicted_start = true;
         }
       }
     }
     if (!predicted) {
       // No usable factor: the grasped vertex alone moves, Newton brings the rest along.
-      MoveGrasp(last_good, target, &trial);
-      if (!UpdateReferenceFrames(m, last_good, &trial)) return give_up(StepStatus::kNotConverged);
+      if (!MoveGrasp(last_good, target, &trial)) return give_up(StepStatus::kNotConverged);
       state = trial;
     }
   }
@@ -353,14 +517,12 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   if (status == StepStatus::kNotConverged && predicted_start) {
     // The prediction led Newton astray (a move too large for the linear response): again from
     // the grasped vertex moved alone, with the iterations left.
-    MoveGrasp(last_good, target, &state);
-    if (UpdateReferenceFrames(m, last_good, &state))
+    if (MoveGrasp(last_good, target, &state))
       status = Newton(start, options.max_iterations - report.iterations, &report);
     else
       status = StepStatus::kNotConverged;
   }
   if (status != StepStatus::kConverged) return give_up(status);
-  factor_near_state = report.iterations > 0 || factor_near_state;
   move_scale = std::min(1.0, 2.0 * move_scale);
   report.status = StepStatus::kConverged;
   return report;
@@ -369,16 +531,76 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
 StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, StepReport* report) {
   const RodModel& m = *model;
   const double budget = options.time_budget;
+  const std::vector<char>& held = held_rows;
+  EnergyTerms free_terms;  // the held rows are kept to read the grasp's reaction, then cleared
+  free_terms.hold = false;
+  // Chord steps reuse the kept factor: a tick moves the tool by a fraction of an edge, so the
+  // Hessian of the last tick's solve still contracts the residual by orders of magnitude per
+  // step, and a step then costs a gradient and a back-substitution instead of an assembly of
+  // the Hessian and its factorisation. Convergence is decided by the same residual test as a
+  // Newton iteration's, so the answer is to the same tolerance.
+  bool chord = factor_near_state && factor.valid();
+  frames_current = false;  // the caller has moved the state
+  double previous_residual = std::numeric_limits<double>::infinity();
   for (int it = 0;; ++it) {
-    ComputeRodFrames(m, state, &frames);
-    AssembleHessian(m, state, EnergyTerms(), &g, &hessian, &frames);
+    if (!frames_current) ComputeRodFrames(m, state, &frames);
+    frames_current = false;
+    if (chord) {
+      AssembleGradient(m, state, free_terms, &g, &frames);
+    } else {
+      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
+    }
+    if (tool_vertex >= 1 && options.tool == ToolKind::kGrasp)
+      ToolLoads(state, g, &checked_force, &checked_torque);
+    ApplyHeldRows(held, &g, nullptr);
     AddPokeGradient(&g);
     report->residual = Residual(g);
     if (!std::isfinite(report->residual)) return StepStatus::kNotConverged;
-    if (report->residual <= force_tolerance) break;
+    if (report->residual <= force_tolerance) {
+      reaction_current = true;
+      break;
+    }
     if (it >= max_iterations) return StepStatus::kNotConverged;
     if (budget > 0.0 && std::chrono::duration<double>(Clock::now() - start).count() > budget)
       return StepStatus::kTimeBudget;
+    if (chord && report->residual > kChordContraction * previous_residual) {
+      // The kept factor no longer contracts fast: a Newton iteration, from the state before the
+      // chord step if that step did not even lower the residual.
+      chord = false;
+      if (report->residual > previous_residual) {
+        std::swap(state, moved);
+        --report->iterations;
+        ComputeRodFrames(m, state, &frames);
+      }
+      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
+      ApplyHeldRows(held, &g, nullptr);
+      AddPokeGradient(&g);
+      report->residual = Residual(g);
+    }
+    const bool refresh = chord && report->residual > kChordRefresh * previous_residual;
+    previous_residual = report->residual;
+    if (chord) {
+      // A chord step is checked by the residual at the next check (above), and undone there if
+      // it made it worse; its cost is a back-substitution, a retraction and that check.
+      step = -g;
+      factor.SolveInPlace(step);
+      if (MaxTangentTurn(m, state, step) <= kMaxTurnPerStep &&
+          ApplyStep(m, state, step, 1.0, &trial)) {
+        std::swap(moved, state);  // kept to undo the step
+        std::swap(state, trial);
+        ++report->iterations;
+        // A factor that contracts only slowly is renewed on the next iteration, so that the
+        // next ticks start from a fresh one (their predictor is made with it too).
+        if (refresh) chord = false;
+        continue;
+      }
+      chord = false;
+      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
+      ApplyHeldRows(held, &g, nullptr);
+      AddPokeGradient(&g);
+    }
+    hessian = hessian_full;  // same size: a copy, no allocation
+    ApplyHeldRows(held, nullptr, &hessian);
     // Factor, shifting the diagonal tenfold at a time while the Hessian is indefinite (the
     // state a tool's move leads to often is, before Newton has carried the move into the rod).
     double shift = 0.0;
@@ -387,6 +609,7 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
       factored = factor.Factor(hessian, shift);
       if (!factored) shift = shift == 0.0 ? shift_base : 10.0 * shift;
     }
+    factor_near_state = factored && shift == 0.0;
     if (!factored) return StepStatus::kNotConverged;
     step = -g;
     factor.SolveInPlace(step);
@@ -408,6 +631,8 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     alpha *= 2.0;  // the accepted one
     if (!accepted) return StepStatus::kNotConverged;
     std::swap(state, trial);
+    std::swap(frames, trial_frames);  // the new state's, computed by the line search
+    frames_current = true;
     ++report->iterations;
     // A full, unshifted Newton step below the step tolerance: Newton converges quadratically
     // here, so the state after it is far closer than the step (the statics solver's second
@@ -417,8 +642,12 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     const double step_tol = options.step_tolerance * std::min(1.0, m.length()) *
                             (report->residual <= floor_tolerance ? 1e3 : 1.0);
     if (alpha == 1.0 && shift == 0.0 &&
-        step.lpNorm<Eigen::Infinity>() <= step_tol)
+        step.lpNorm<Eigen::Infinity>() <= step_tol) {
+      reaction_current = false;  // the last check was at the state before the step
       break;
+    }
+    // The next iterations may chord on this factor, if it gave a whole, unshifted step.
+    chord = alpha == 1.0 && shift == 0.0;
   }
   return state.x.allFinite() ? StepStatus::kConverged : StepStatus::kNotConverged;
 }
@@ -444,7 +673,12 @@ StepReport Runtime::Impl::StepDynamic() {
 
 const Mat3X& Runtime::Shape() const { return state().x; }
 Vec3 Runtime::ToolForce() const { return impl_->reaction; }
-Vec3 Runtime::ToolTorque() const { return Vec3::Zero(); }
+Vec3 Runtime::ToolTorque() const { return impl_->torque; }
+
+void Runtime::SetToolOrientation(const Eigen::Matrix3d& rotation_world) {
+  impl_->tool_rotation = rotation_world;
+}
+Eigen::Matrix3d Runtime::ToolOrientation() const { return impl_->rotation; }
 
 Vec3 Runtime::ToolPosition() const {
   const RodState& s = state();

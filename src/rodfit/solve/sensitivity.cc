@@ -1,17 +1,15 @@
 // Stiffness sensitivities of the equilibrium (sensitivity.h).
 #include "rodfit/solve/sensitivity.h"
 
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/rod_energy.h"
 
 namespace rodfit {
 
 const char* StiffnessName(Stiffness s) {
-  switch (s) {
-    case Stiffness::kBend1: return "bend_stiffness";
-    case Stiffness::kBend2: return "bend_stiffness_2";
-    case Stiffness::kTwist: return "twist_stiffness";
-    case Stiffness::kStretch: return "stretch_stiffness";
-  }
+  // The parameter table numbers the rod's stiffness rows in this enum's order.
+  for (const MaterialParameterInfo& row : MaterialParameters())
+    if (row.kind == ParameterKind::kRodStiffness && row.term == static_cast<int>(s)) return row.name;
   return "?";
 }
 

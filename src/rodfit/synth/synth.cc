@@ -1,6 +1,6 @@
 // Synthetic observations of an experiment (see synth.h): solve, sample, perturb, render, and
 // gather every output file in memory before anything is written, so a failure leaves nothing.
-#include "rodfit/io/synth.h"
+#include "rodfit/synth/synth.h"
 
 #include <algorithm>
 #include <cctype>

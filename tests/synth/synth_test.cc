@@ -1,8 +1,8 @@
-// Tests of `rodfit synth` as a library (io/synth.h): reproducible bytes for a seed and only for
+// Tests of `rodfit synth` as a library (synth/synth.h): reproducible bytes for a seed and only for
 // that seed, independence of entry order, exact samples on the solved shape without noise, the
 // noise and outlier statistics asked for, a self-contained output directory that loads again,
 // and one-line errors that leave nothing written.
-#include "rodfit/io/synth.h"
+#include "rodfit/synth/synth.h"
 
 #include <algorithm>
 #include <cmath>
@@ -22,7 +22,7 @@
 #include "rodfit/observe/camera.h"
 #include "rodfit/solve/statics.h"
 #include "rodfit/vision/camera_file.h"
-#include "temp_dir.h"
+#include "io/temp_dir.h"
 
 namespace rodfit {
 namespace {

@@ -3,7 +3,7 @@
 // for the closest-point observations (image curves, points3d, surface points) only the
 // components across the curve, since the one along it is zero by construction (observations.h)
 // and would pile up at 0 in the histogram. Positions are shown in mm, pixels in px, forces in N.
-#include "rodfit/io/fit_report_page.h"
+#include "rodfit/report/fit_report_page.h"
 
 #include <algorithm>
 #include <array>

@@ -1,6 +1,6 @@
-// Tests of the cross-section ring (model/cross_section.h; tissue paper §4 eqs. 10–11): the
-// closed-form gradient and Hessian of the ring energy against central differences and Jet
-// autodiff (first order, and nested Jets for the Hessian) at rest and deformed states; the
+// Tests of the cross-section ring (model/cross_section.h, solve/ring.h; tissue paper §4
+// eqs. 10–11): the closed-form gradient and Hessian of the ring energy against central
+// differences and Jet autodiff (first order, and nested Jets for the Hessian) at rest and deformed states; the
 // solve's invariants (zero force, balanced load, fixed mass centre, mirror symmetry, linear
 // response to small forces); the exact sensitivities against finite differences of the solve;
 // and the linear closed form of a thin ring held up by a point and loaded by a uniform body
@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "rodfit/model/cross_section.h"
+#include "rodfit/solve/ring.h"
 
 namespace rodfit {
 namespace {

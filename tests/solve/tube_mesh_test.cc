@@ -1,5 +1,5 @@
-// Tests of the tube mesh and the local-deformation propagation (model/tube_mesh.h; tissue paper
-// §4 eqs. 12–13): the rest tube's geometry and orientation, the OBJ text, no motion without a
+// Tests of the tube mesh and the local-deformation propagation (model/tube_mesh.h, on rings
+// solved by solve/ring.h; tissue paper §4 eqs. 12–13): the rest tube's geometry and orientation, the OBJ text, no motion without a
 // force, eq. 12's falloff (1 - d/h)^2 for the vertices the section crosses, eq. 13's mean for
 // every propagated vertex (recomputed here from the tube's own connectivity), and the stop at
 // the threshold.
@@ -12,6 +12,7 @@
 #include "rodfit/model/cross_section.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/model/tube_mesh.h"
+#include "rodfit/solve/ring.h"
 
 namespace rodfit {
 namespace {

@@ -1,12 +1,12 @@
 // Fit report (fit_report.h): the CSV tables here, the page in fit_report_page.cc.
-#include "rodfit/io/fit_report.h"
+#include "rodfit/report/fit_report.h"
 
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 
 #include "rodfit/io/csv.h"
-#include "rodfit/io/fit_report_page.h"
+#include "rodfit/report/fit_report_page.h"
 #include "rodfit/io/output_dir.h"
 
 namespace rodfit {

@@ -1,4 +1,4 @@
-// Tests of the haptic logs `rodfit synth` writes for `grasp_force` entries (io/synth.h,
+// Tests of the haptic logs `rodfit synth` writes for `grasp_force` entries (synth/synth.h,
 // SynthOptions): the same seed gives the same bytes (and another seed other bytes); the log
 // follows the documented drag schedule with the solved grasp reaction at every stop; the samples
 // where the tool dwells pass the fit's quasi-static filter (io/fit_input.cc, central-difference
@@ -20,11 +20,11 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/fit_input.h"
-#include "rodfit/io/synth.h"
+#include "rodfit/synth/synth.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
-#include "temp_dir.h"
+#include "io/temp_dir.h"
 
 namespace rodfit {
 namespace {

@@ -1,0 +1,475 @@
+// The cost of one case of a fit (case_cost.h).
+#include "rodfit/fit/case_cost.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <stdexcept>
+#include <thread>
+
+#include "rodfit/model/material_parameters.h"
+#include "rodfit/solve/case_solve.h"
+#include "rodfit/solve/poke.h"
+#include "rodfit/solve/reactions.h"
+#include "rodfit/solve/rod_energy.h"
+
+namespace rodfit {
+namespace fit_internal {
+namespace {
+
+void CheckSurfacePoints(const FitInput& in, const std::vector<Fitted>& fitted) {
+  bool any = false;
+  for (const FitCase& c : in.cases) {
+    if (c.surface_points.empty()) continue;
+    any = true;
+    if (!c.load_case.poke)
+      throw std::invalid_argument("case " + c.load_case.name + ": surface_points without a poke");
+    if (!in.section)
+      throw std::invalid_argument("case " + c.load_case.name +
+                                  ": surface_points need the cross-section model (section:)");
+    for (const SurfacePoints& sp : c.surface_points)
+      if (!(sp.sigma > 0) || sp.points.empty())
+        throw std::invalid_argument("case " + c.load_case.name + ": " + sp.label +
+                                    ": needs points and sigma > 0");
+  }
+  for (const Fitted& f : fitted) {
+    if (f.ring != 0 && !any)
+      throw std::invalid_argument(f.name + ": fitted, but no case has surface_points (the ring's "
+                                  "stiffness is seen only through the dented section)");
+    if (f.ring == 0 && any)
+      throw std::invalid_argument(
+          "surface_points constrain the ring's stiffness only: fit rod parameters (here " + f.name +
+          ") from other cases without surface_points, then hold them while fitting "
+          "ring_bend_stiffness / ring_stretch_stiffness (the section's placement on the rod "
+          "moves with them, which the surface residuals' Jacobian does not model)");
+  }
+}
+
+bool ZonesUse(const FitInput& in, const std::string& parameter) {
+  for (const SpringZone& z : in.springs)
+    if (z.parameter == parameter) return true;
+  return false;
+}
+
+}  // namespace
+
+int NumSurfacePoints(const FitCase& c) {
+  int n = 0;
+  for (const SurfacePoints& sp : c.surface_points) n += static_cast<int>(sp.points.size());
+  return n;
+}
+
+// What `surface_points` need and what they can determine (fit.h).
+std::vector<Fitted> FittedParameters(const FitInput& in) {
+  std::vector<Fitted> out;
+  const bool tied = !in.material.bend_stiffness_2.has_value();
+  for (size_t k = 0; k < in.parameters.size(); ++k) {
+    const FitParameter& p = in.parameters[k];
+    if (!p.fit) continue;
+    Fitted f;
+    f.input_index = static_cast<int>(k);
+    f.name = p.name;
+    const MaterialParameterInfo* row = FindMaterialParameter(p.name);
+    const bool zone_parameter = in.material.spring_parameters.count(p.name) > 0;
+    if (!row && !zone_parameter)
+      throw std::invalid_argument(p.name + ": not a parameter of the rod model");
+    if (row && row->kind == ParameterKind::kDamping)
+      throw std::invalid_argument(p.name + ": damping is seen only in motion, not by a static fit");
+    if (row && row->kind == ParameterKind::kRodStiffness) {
+      if (row->tied_to && tied)
+        throw std::invalid_argument(p.name + ": fitted but tied to " + row->tied_to);
+      f.drives = {static_cast<Stiffness>(row->term)};
+      // The row a tied one follows drives it too (bend_stiffness moves B2 when isotropic).
+      for (const MaterialParameterInfo& other : MaterialParameters())
+        if (tied && other.tied_to && p.name == other.tied_to)
+          f.drives.push_back(static_cast<Stiffness>(other.term));
+    } else if (row && row->kind == ParameterKind::kRing) {
+      f.ring = row->term;
+    } else {  // spring_stiffness or a zone's own parameter
+      f.spring = true;
+      f.spring_zone_name = row ? "" : p.name;
+      if (in.springs.empty())
+        throw std::invalid_argument(p.name +
+                                    ": fitted, but the scene has no springs for it to act on");
+      if (!ZonesUse(in, f.spring_zone_name))
+        throw std::invalid_argument(p.name + ": fitted, but no spring zone uses it");
+    }
+    out.push_back(f);
+  }
+  CheckSurfacePoints(in, out);
+  return out;
+}
+
+Material MaterialAt(const FitInput& in, const std::vector<Fitted>& fitted, const double* logp) {
+  Material m = in.material;
+  for (size_t k = 0; k < fitted.size(); ++k)
+    AssignMaterialParameter(fitted[k].name, std::exp(logp[k]), &m);
+  return m;
+}
+
+/// Robust loss applied per measurement as an exact residual transform: r~ = phi(s) r with
+/// phi = sqrt(rho(s) / s), s = |r|^2, so that 1/2 |r~|^2 = 1/2 rho(s) and Ceres' cost is the
+/// robust cost; J~ = phi J + 2 phi'(s) r r^T J.
+void ApplyLoss(const ceres::LossFunction* loss, int dim, double* r, double* J, int cols) {
+  if (!loss) return;
+  double s = 0.0;
+  for (int i = 0; i < dim; ++i) s += r[i] * r[i];
+  double rho[3];
+  loss->Evaluate(s, rho);
+  double phi, dphi;
+  if (s < 1e-12) {  // rho(s) = s + rho''(0) s^2 / 2 + ...: phi -> 1, phi' -> rho''(0) / 4
+    phi = 1.0;
+    dphi = rho[2] / 4.0;
+  } else {
+    phi = std::sqrt(rho[0] / s);
+    dphi = (rho[1] * s - rho[0]) / (2.0 * s * s * phi);
+  }
+  if (J) {
+    Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> Jm(
+        J, dim, cols);
+    const Eigen::Map<const Eigen::VectorXd> rv(r, dim);
+    const Eigen::RowVectorXd rtJ = rv.transpose() * Jm;
+    Jm = (phi * Jm + 2.0 * dphi * rv * rtJ).eval();
+  }
+  for (int i = 0; i < dim; ++i) r[i] *= phi;
+}
+
+/// The forward map of one case: solve (warm-started from the last success), observe, and chain
+/// the Jacobian. Holds the warm state behind a mutex; the cost function itself is stateless.
+
+std::unique_ptr<ceres::LossFunction> MakeLoss(RobustLoss loss, double scale) {
+  switch (loss) {
+    case RobustLoss::kNone: return nullptr;
+    case RobustLoss::kHuber: return std::make_unique<ceres::HuberLoss>(scale);
+    case RobustLoss::kCauchy: return std::make_unique<ceres::CauchyLoss>(scale);
+    case RobustLoss::kSoftL1: return std::make_unique<ceres::SoftLOneLoss>(scale);
+  }
+  return nullptr;
+}
+
+CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fitted> fitted,
+              const ceres::LossFunction* loss)
+    : in_(in), case_(in.cases[case_index]), fitted_(std::move(fitted)), loss_(loss),
+      statics_(in.statics) {
+  for (const auto& obs : case_.observations) num_residuals_ += obs->num_residuals();
+  for (const ForceMeasurement& f : case_.grasp_forces) num_residuals_ += f.num_residuals();
+  num_residuals_ += 3 * NumSurfacePoints(case_);
+}
+
+bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape,
+              RodState* final_state) const {
+  const Material material = MaterialAt(in_, fitted_, logp);
+  std::shared_ptr<const RodModel> model;
+  try {
+    model = std::make_shared<const RodModel>(in_.rod, material, in_.gravity, case_.load_case,
+                                             in_.springs);
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
+  // The warm state and the kept factor of this case's last solve (one workspace per case: a
+  // parameter change reuses the factor for chord steps, a repeat evaluation converges at once).
+  RodState state;
+  StaticsWorkspace ws;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    state = has_warm_ ? warm_ : StartState(*model, nullptr);
+    ws = workspace_;
+  }
+  Clock::time_point t0 = Clock::now();
+  Scene scene;
+  scene.rod = in_.rod;
+  scene.material = material;
+  scene.gravity = in_.gravity;
+  scene.springs = in_.springs;
+  CaseSolution solved = SolveModel(model, scene, nullptr, statics_, &ws, &state);
+  if (!(solved.ok() && solved.summary.stable)) {  // a warm start can mislead: retry from the start
+    RodState start = StartState(*model, nullptr);
+    ws = StaticsWorkspace();
+    solved = SolveModel(model, scene, nullptr, statics_, &ws, &start);
+  }
+  state = solved.state;
+  const StaticsSummary& summary = solved.summary;
+  Charge(&timing_.solve, &t0);
+  ++timing_.solves;
+  if (!(summary.converged && summary.stable)) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_failure_ = "case " + case_.load_case.name + ": " +
+                    (summary.converged ? "the equilibrium found is unstable" : summary.reason);
+    data_failure_ = false;
+    return false;
+  }
+  const int m = num_parameters();
+  Eigen::MatrixXd dx;
+  // Per measured holder: d(reaction) / d log p, 6 x m (force rows, then moment rows).
+  std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
+  if (jacobian) {
+    // One unit-term gradient per parameter: the terms of every stiffness it drives together
+    // (U is linear in each), so a tied bend_stiffness scales B1 and B2 alike, which keeps an
+    // isotropic rod isotropic (sensitivities after a twist-eliminated solve need no full
+    // Hessian then, sensitivity.cc).
+    std::vector<EnergyTerms> terms;
+    std::vector<int> owner;
+    for (int k = 0; k < m; ++k) {
+      if (!fitted_[k].drives.empty()) {
+        EnergyTerms unit = EnergyTerms::Only(-1);
+        for (Stiffness st : fitted_[k].drives) {
+          switch (st) {
+            case Stiffness::kBend1: unit.bend1 = 1.0; break;
+            case Stiffness::kBend2: unit.bend2 = 1.0; break;
+            case Stiffness::kTwist: unit.twist = 1.0; break;
+            case Stiffness::kStretch: unit.stretch = 1.0; break;
+          }
+        }
+        terms.push_back(unit);
+        owner.push_back(k);
+      }
+      if (fitted_[k].spring) {
+        terms.push_back(EnergyTerms::OnlySprings(&fitted_[k].spring_zone_name));
+        owner.push_back(k);
+      }
+    }
+    const size_t fitted_terms = terms.size();
+    if (fixed_columns_) {
+      // What the fit would cost without skipping the fixed stiffnesses: their columns are
+      // computed alongside (same factor, one back-substitution each) and dropped.
+      for (int st = 0; st < 4; ++st) {
+        bool driven = false;
+        for (const Fitted& f : fitted_)
+          for (Stiffness d : f.drives) driven = driven || static_cast<int>(d) == st;
+        if (!driven) terms.push_back(EnergyTerms::Only(st));
+      }
+    }
+    Eigen::MatrixXd dq_terms;
+    Eigen::MatrixXd dq = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
+    if (!terms.empty()) {  // ring parameters alone leave the rod unchanged
+      if (!TermSensitivities(*model, state, ws, terms, &dq_terms)) return false;
+      for (size_t t = 0; t < fitted_terms; ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
+    }
+    terms.resize(fitted_terms);
+    dx = VertexSensitivities(*model, dq);
+    if (!case_.grasp_forces.empty()) {
+      // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
+      // included), the equilibrium's dq, and which spring zones each parameter stiffens.
+      Eigen::MatrixXd dr = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
+      for (size_t t = 0; t < terms.size(); ++t) {
+        EnergyTerms unit = terms[t];
+        unit.hold = false;
+        VecX gu;
+        AssembleGradient(*model, state, unit, &gu);
+        dr.col(owner[t]) += gu;
+      }
+      std::vector<std::vector<int>> zones(m);
+      for (int k = 0; k < m; ++k)
+        if (fitted_[k].spring)
+          for (int z = 0; z < model->num_spring_zones(); ++z)
+            if (model->spring_zone(z).parameter == fitted_[k].spring_zone_name) zones[k].push_back(z);
+      d_reactions = HeldReactionDerivatives(*model, state, dq, dr, zones);
+    }
+    Charge(&timing_.jacobian, &t0);
+  }
+  int row = 0;
+  for (size_t o = 0; o < case_.observations.size(); ++o) {
+    const auto& obs = case_.observations[o];
+    VecX r;
+    VertexJacobian J;
+    if (!obs->Evaluate(state.x, &r, jacobian ? &J : nullptr)) {
+      // A projection that fails (a point behind the camera) or a non-finite residual: the
+      // data, not the solve, so the message names the observation.
+      std::lock_guard<std::mutex> lock(mutex_);
+      last_failure_ = "case " + case_.load_case.name + ": " +
+                      (o < case_.labels.size() ? case_.labels[o] : obs->type()) +
+                      ": the observation model cannot be evaluated on the solved shape (a point "
+                      "behind the camera, or a non-finite residual)";
+      data_failure_ = true;
+      return false;
+    }
+    Eigen::MatrixXd Jp;
+    if (jacobian) Jp = J.Multiply(dx);
+    // Per measurement: the loss sees each marker's / point's residual vector.
+    const int dim = obs->num_residuals() / std::max(1, obs->num_measurements());
+    for (int k = 0; k < obs->num_measurements(); ++k) {
+      double* rk = residuals + row + k * dim;
+      for (int i = 0; i < dim; ++i) rk[i] = r[k * dim + i];
+      double* Jk = jacobian ? jacobian + (row + k * dim) * m : nullptr;
+      if (Jk)
+        for (int i = 0; i < dim; ++i)
+          for (int c = 0; c < m; ++c) Jk[i * m + c] = Jp(k * dim + i, c);
+      ApplyLoss(loss_, dim, rk, Jk, m);
+    }
+    row += obs->num_residuals();
+  }
+  if (!case_.grasp_forces.empty()) {
+    for (const ForceMeasurement& f : case_.grasp_forces) {
+      int which = -1;
+      for (size_t h = 0; h < solved.reactions.size(); ++h)
+        if (solved.reactions[h].point == f.point) which = static_cast<int>(h);
+      if (which < 0) return false;  // CheckReactions refuses this up front
+      const HeldReaction& reaction = solved.reactions[which];
+      const int dim = f.num_residuals();
+      double* rk = residuals + row;
+      for (int i = 0; i < 3; ++i) rk[i] = (reaction.force[i] - f.force[i]) / f.sigma;
+      if (f.moment)
+        for (int i = 0; i < 3; ++i) rk[3 + i] = (reaction.moment[i] - (*f.moment)[i]) / f.sigma_moment;
+      double* Jk = jacobian ? jacobian + row * m : nullptr;
+      if (Jk)
+        for (int i = 0; i < dim; ++i)
+          for (int c = 0; c < m; ++c)
+            Jk[i * m + c] = d_reactions[which](i, c) / (i < 3 ? f.sigma : f.sigma_moment);
+      ApplyLoss(loss_, dim, rk, Jk, m);
+      row += dim;
+    }
+  }
+  if (!case_.surface_points.empty() &&
+      !SurfaceResiduals(*model, state, material, residuals, jacobian, &row))
+    return false;
+  Charge(&timing_.observation, &t0);
+  for (int i = 0; i < num_residuals_; ++i) {
+    bool finite = std::isfinite(residuals[i]);
+    for (int c = 0; finite && jacobian && c < m; ++c) finite = std::isfinite(jacobian[i * m + c]);
+    if (!finite) {
+      // A value beyond what a double can weigh (a reading of 1e308 N, a sigma of 1e-320): bad
+      // data, named by its observation; Ceres would only report a NaN gradient.
+      std::lock_guard<std::mutex> lock(mutex_);
+      last_failure_ = "case " + case_.load_case.name + ": " + ResidualLabel(i) +
+                      ": a residual or its derivative is not finite (a value too large or a "
+                      "sigma too small?)";
+      data_failure_ = true;
+      return false;
+    }
+  }
+  // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
+  // the start): trial steps start from the last iterate's state but do not replace it, so a
+  // rejected trial that slipped onto another equilibrium (an extra twist turn, a flipped
+  // loop) cannot carry the fit onto that branch.
+  if (jacobian) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    warm_ = state;
+    has_warm_ = true;
+    workspace_ = ws;
+  }
+  if (shape) *shape = state.x;
+  if (final_state) *final_state = state;
+  return true;
+}
+
+std::string CaseEvaluator::ResidualLabel(int i) const {
+  int row = 0;
+  for (size_t o = 0; o < case_.observations.size(); ++o) {
+    row += case_.observations[o]->num_residuals();
+    if (i < row) return o < case_.labels.size() ? case_.labels[o] : case_.observations[o]->type();
+  }
+  for (const ForceMeasurement& f : case_.grasp_forces) {
+    row += f.num_residuals();
+    if (i < row) return f.label;
+  }
+  for (const SurfacePoints& sp : case_.surface_points) {
+    row += 3 * static_cast<int>(sp.points.size());
+    if (i < row) return sp.label;
+  }
+  return "a residual";
+}
+
+bool CaseEvaluator::SurfaceResiduals(const RodModel& model, const RodState& state, const Material& material,
+                      double* residuals, double* jacobian, int* row) const {
+  const int m = num_parameters();
+  PokeResult poke;
+  try {
+    poke = SolvePoke(model, state, *in_.section,
+                     RingStiffness{material.ring_bend_stiffness, material.ring_stretch_stiffness});
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
+  if (!poke.ring.summary.converged) return false;
+  const int n = static_cast<int>(poke.deformed_world.cols());
+  // The closed ring as a polyline: node 0 repeated at the end (polyline vertex j is node j % n).
+  Eigen::Matrix3Xd ring(3, n + 1);
+  ring.leftCols(n) = poke.deformed_world;
+  ring.col(n) = poke.deformed_world.col(0);
+  // d (world node) / d log p per fitted column: 3 x (n + 1) per column.
+  std::vector<Eigen::Matrix3Xd> d_ring;
+  if (jacobian) {
+    const SectionPlacement& pl = poke.placement;
+    for (int c = 0; c < m; ++c) {
+      Eigen::Matrix3Xd d = Eigen::Matrix3Xd::Zero(3, n + 1);
+      if (fitted_[c].ring != 0) {
+        const Eigen::VectorXd& dn = fitted_[c].ring == 1 ? poke.ring.d_nodes_d_log_bend
+                                                         : poke.ring.d_nodes_d_log_stretch;
+        if (dn.size() != 2 * n) return false;  // an unstable ring equilibrium: no sensitivity
+        for (int j = 0; j <= n; ++j) {
+          const int k = j % n;
+          d.col(j) = dn[NodeDof(k)] * pl.d1 + dn[NodeDof(k) + 1] * pl.d2;
+        }
+      }
+      d_ring.push_back(d);
+    }
+  }
+  for (const SurfacePoints& sp : case_.surface_points) {
+    for (const Eigen::Vector3d& q : sp.points) {
+      const PolylineFoot foot = ClosestPointOnPolyline<3>(ring, q);
+      if (foot.edge < 0) return false;
+      Eigen::Vector3d p;
+      double t = 0.0;
+      Eigen::Vector3d a = Eigen::Vector3d::Zero(), e = Eigen::Vector3d::Zero();
+      if (foot.vertex >= 0) {
+        p = ring.col(foot.vertex);
+      } else {
+        a = ring.col(foot.edge);
+        e = ring.col(foot.edge + 1) - a;
+        t = (q - a).dot(e) / e.squaredNorm();
+        p = a + t * e;
+      }
+      double* rk = residuals + *row;
+      for (int i = 0; i < 3; ++i) rk[i] = (p[i] - q[i]) / sp.sigma;
+      double* Jk = jacobian ? jacobian + *row * m : nullptr;
+      if (Jk) {
+        for (int c = 0; c < m; ++c) {
+          Eigen::Vector3d dp;
+          if (foot.vertex >= 0) {
+            dp = d_ring[c].col(foot.vertex);
+          } else {
+            // p = a + t e, t = (q - a).e / |e|^2:
+            // dt = (-da.e + (q - a).de - 2 t e.de) / |e|^2, dp = da + dt e + t de.
+            const Eigen::Vector3d da = d_ring[c].col(foot.edge);
+            const Eigen::Vector3d de = d_ring[c].col(foot.edge + 1) - da;
+            const double dt = (-da.dot(e) + (q - a).dot(de) - 2.0 * t * e.dot(de)) /
+                              e.squaredNorm();
+            dp = da + dt * e + t * de;
+          }
+          for (int i = 0; i < 3; ++i) Jk[i * m + c] = dp[i] / sp.sigma;
+        }
+      }
+      ApplyLoss(loss_, 3, rk, Jk, m);
+      *row += 3;
+    }
+  }
+  return true;
+}
+
+bool AllCasesCost::Evaluate(double const* const* parameters, double* residuals,
+              double** jacobians) const {
+  const int n = static_cast<int>(cases_.size());
+  const int m = parameter_block_sizes()[0];
+  double* jacobian = jacobians ? jacobians[0] : nullptr;
+  std::atomic<int> next{0};
+  std::atomic<bool> ok{true};
+  auto work = [&]() {
+    for (int c = next++; c < n; c = next++) {
+      bool done = false;
+      try {
+        done = cases_[c]->Evaluate(parameters[0], residuals + first_row_[c],
+                                   jacobian ? jacobian + first_row_[c] * m : nullptr, nullptr);
+      } catch (const std::exception&) {
+        done = false;  // e.g. out of memory in one case: a failed evaluation, not a crash
+      }
+      if (!done) ok = false;  // a failed solve: Ceres then shortens the step
+    }
+  };
+  std::vector<std::thread> helpers;
+  for (int t = 1; t < std::min(num_threads_, n); ++t) helpers.emplace_back(work);
+  work();
+  for (std::thread& t : helpers) t.join();
+  return ok;
+}
+
+}  // namespace fit_internal
+}  // namespace rodfit

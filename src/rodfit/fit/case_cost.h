@@ -1,0 +1,162 @@
+// The cost of one case of a fit (docs/solvers.md, "Identification"), internal to fit/: the
+// fitted parameters and how they set the material, the robust loss as a residual transform, a
+// case's residuals and exact Jacobian (CaseEvaluator: solve warm with the case's kept factor,
+// then the observations, grasp forces and surface points), and all cases as one Ceres block.
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <ceres/ceres.h>
+
+#include "rodfit/fit/fit.h"
+#include "rodfit/solve/sensitivity.h"
+#include "rodfit/solve/statics.h"
+
+namespace rodfit {
+namespace fit_internal {
+
+using Clock = std::chrono::steady_clock;
+
+/// A fitted parameter: where it sits in FitInput::parameters and which stiffnesses it drives
+/// (bend_stiffness drives B2 too when bend_stiffness_2 is absent: the isotropic tie).
+struct Fitted {
+  int input_index = 0;
+  std::string name;
+  std::vector<Stiffness> drives;  ///< rod stiffnesses it sets
+  bool spring = false;            ///< a spring stiffness: drives the zones of `spring_zone_name`
+  std::string spring_zone_name;   ///< "" for spring_stiffness, else the zone parameter
+  int ring = 0;                   ///< 1: ring_bend_stiffness, 2: ring_stretch_stiffness
+};
+
+/// The fitted parameters of `in` in input order; throws std::invalid_argument for a parameter
+/// the model does not have, a tie fitted apart, or springs and ring parameters without their
+/// terms or observations.
+std::vector<Fitted> FittedParameters(const FitInput& in);
+
+/// The input's material with the fitted parameters at exp(logp).
+Material MaterialAt(const FitInput& in, const std::vector<Fitted>& fitted, const double* logp);
+
+/// Surface points of a case, all entries together.
+int NumSurfacePoints(const FitCase& c);
+
+/// The robust loss applied to one measurement's `dim` residuals and their Jacobian rows (`cols`
+/// columns, row major; null: none) in place; a null loss leaves them.
+void ApplyLoss(const ceres::LossFunction* loss, int dim, double* r, double* J, int cols);
+
+/// The Ceres loss of `loss` at `scale` (null for kNone).
+std::unique_ptr<ceres::LossFunction> MakeLoss(RobustLoss loss, double scale);
+
+class CaseEvaluator {
+ public:
+  CaseEvaluator(const FitInput& in, int case_index, std::vector<Fitted> fitted,
+                const ceres::LossFunction* loss);
+
+  /// FitOptions::jacobian_of_fixed_parameters: also compute the fixed stiffnesses' columns.
+  void ComputeFixedColumns(bool on) { fixed_columns_ = on; }
+
+  /// The warm start: the state to start from before the first evaluation (the case's start,
+  /// e.g. the previous case's solution at the start values).
+  void SetWarmStart(const RodState& state) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    warm_ = state;
+    has_warm_ = true;
+  }
+
+  /// The state of the last accepted iterate (or the start), if any.
+  std::optional<RodState> WarmState() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!has_warm_) return std::nullopt;
+    return warm_;
+  }
+
+  int num_residuals() const { return num_residuals_; }
+  int num_parameters() const { return static_cast<int>(fitted_.size()); }
+
+  struct Timing {
+    double solve = 0, jacobian = 0, observation = 0;
+    int solves = 0;
+  };
+  Timing timing() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return timing_;
+  }
+  /// Why the last failed evaluation failed (empty if none did), and whether the data failed
+  /// (an observation that cannot be evaluated on the solved shape) rather than the solve.
+  std::string last_failure(bool* data = nullptr) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (data) *data = data_failure_;
+    return last_failure_;
+  }
+
+  /// residuals: num_residuals(); jacobian (row major num_residuals x m) optional.
+  /// `final_state`, when given, receives the equilibrium (the report's poked section needs it).
+  bool Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape,
+                RodState* final_state = nullptr) const;
+
+ private:
+  // The observation (or force reading, or surface point set) that residual row i belongs to.
+  std::string ResidualLabel(int i) const;
+
+  // The case's surface points against the deformed ring of its poke (fit.h SurfacePoints), rows
+  // from *row on. Only ring parameters have non-zero columns (CheckSurfacePoints refuses rod
+  // parameters together with surface points): the ring's d nodes / d log k in section
+  // coordinates, mapped to the world by the placement's d1, d2 and chained through the foot.
+  bool SurfaceResiduals(const RodModel& model, const RodState& state, const Material& material,
+                        double* residuals, double* jacobian, int* row) const;
+
+  const FitInput& in_;
+  const FitCase& case_;
+  std::vector<Fitted> fitted_;
+  const ceres::LossFunction* loss_;
+  int num_residuals_ = 0;
+  mutable std::mutex mutex_;  // guards the warm start only; evaluation is otherwise pure
+  mutable RodState warm_;
+  mutable bool has_warm_ = false;
+  mutable StaticsWorkspace workspace_;  // the kept factor of the warm state
+  StaticsOptions statics_;
+  bool fixed_columns_ = false;
+  mutable Timing timing_;  // accumulated under mutex_ by Charge
+  mutable std::string last_failure_;
+  mutable bool data_failure_ = false;
+
+  void Charge(double* bucket, Clock::time_point* t0) const {
+    const Clock::time_point now = Clock::now();
+    std::lock_guard<std::mutex> lock(mutex_);
+    *bucket += std::chrono::duration<double>(now - *t0).count();
+    *t0 = now;
+  }
+};
+
+/// Every case as one residual block, the cases evaluated on `num_threads` threads, each writing
+/// its own rows. Ceres, on one thread, then sums cost and gradient over the rows in their fixed
+/// order, so results do not depend on the thread count or on which thread took which case
+/// (with a block per case, Ceres' per-thread partial sums changed the last digits; docs/cli.md,
+/// "Reproducible outputs").
+class AllCasesCost final : public ceres::CostFunction {
+ public:
+  AllCasesCost(std::vector<const CaseEvaluator*> cases, int num_threads)
+      : cases_(std::move(cases)), num_threads_(std::max(1, num_threads)) {
+    int rows = 0;
+    for (const CaseEvaluator* c : cases_) {
+      first_row_.push_back(rows);
+      rows += c->num_residuals();
+    }
+    set_num_residuals(rows);
+    mutable_parameter_block_sizes()->push_back(cases_.empty() ? 0 : cases_[0]->num_parameters());
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  std::vector<const CaseEvaluator*> cases_;
+  std::vector<int> first_row_;
+  int num_threads_;
+};
+
+}  // namespace fit_internal
+}  // namespace rodfit
