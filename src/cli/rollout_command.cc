@@ -1,5 +1,6 @@
 // `rodfit rollout SCENE.yaml RECORDING.csv -o DIR`: open-loop prediction of a recorded motion
 // (solve/rollout.h) and its mean absolute coordinate error.
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -34,13 +35,14 @@ int RunRollout(int argc, char** argv) {
   double frame_rate = 0.0;
   app.add_option("scene", scene_path, "scene YAML with a dynamics: block (docs/formats.md)")->required();
   app.add_option("recordings", recording_paths, "markers CSV(s): frame,marker,x,y,z or t,marker,x,y,z")->required();
-  // What a motion sees: the rod's stiffness and damping rows of the parameter table.
+  // What a motion sees: the rod's stiffness and damping rows of the parameter table, and the
+  // rod's linear density (not a material row).
   std::string fittable;
   for (const rodfit::MaterialParameterInfo& row : rodfit::MaterialParameters())
     if (row.kind == rodfit::ParameterKind::kRodStiffness || row.kind == rodfit::ParameterKind::kDamping)
       fittable += (fittable.empty() ? "" : ", ") + std::string(row.name);
   app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (" + fittable +
-                 "); their scene values are the start, > 0");
+                 ", linear_density); their scene values are the start, > 0");
   int smooth_frames = 5;
   bool orient_ends = false;
   app.add_option("--smooth", smooth_frames,
@@ -50,6 +52,14 @@ int RunRollout(int argc, char** argv) {
                "held markers 1 and n-2 orient the clamps at 0 and n-1 instead of being pinned");
   app.add_option("--max-evaluations", max_evaluations, "rollouts of every recording the fit may take")
       ->check(CLI::Range(1, 100000));
+  std::string method = "lm";
+  double marker_sigma = 0.0;
+  app.add_option("--method", method,
+                 "lm (default): least squares with the rollout's exact sensitivities, with "
+                 "covariance; bobyqa: derivative-free on the mean absolute error")
+      ->check(CLI::IsMember({"lm", "bobyqa"}));
+  app.add_option("--marker-sigma", marker_sigma, "[m] the markers' noise, weighting the fit's residuals")
+      ->check(CLI::Range(0.0, 1e9));
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
   app.add_option("--frame-rate", frame_rate, "[Hz] with a frame column")->check(CLI::Range(1e-6, 1e9));
   std::string unit = "m";
@@ -96,28 +106,79 @@ int RunRollout(int argc, char** argv) {
     std::stringstream ss(fit_text);
     std::string item;
     while (std::getline(ss, item, ',')) names.push_back(item);
+    rodfit::MotionFitOptions fit_options;
+    fit_options.method = method == "bobyqa" ? rodfit::MotionFitMethod::kBobyqa
+                                            : rodfit::MotionFitMethod::kLevenbergMarquardt;
+    fit_options.max_evaluations = max_evaluations;
+    fit_options.marker_sigma = marker_sigma;
     rodfit::MotionFitResult fit;
     try {
-      fit = rodfit::FitToRecordings(scene, data, names, options, experiment.statics, max_evaluations);
+      fit = rodfit::FitMotion(scene, data, names, options, experiment.statics, fit_options);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(std::string("--fit: ") + e.what());
     }
-    fit_json = "{\n  \"rodfit_version\": \"" + std::string(RODFIT_VERSION) + "\",\n  \"method\": "
-               "\"BOBYQA on the predicted markers' mean absolute error (derivative-free)\",\n"
-               "  \"evaluations\": " + std::to_string(fit.evaluations) + ",\n  \"error_start_m\": " +
-               rodfit::FormatDouble(fit.error_start) + ",\n  \"error_fitted_m\": " +
-               rodfit::FormatDouble(fit.error_fitted) + ",\n  \"parameters\": {";
+    // A least-squares fit that did not converge is not a result: said so, nothing written. The
+    // derivative-free search has no such test (its budget is its stop) and is written as before.
+    if (!fit.converged && fit_options.method == rodfit::MotionFitMethod::kLevenbergMarquardt) {
+      std::cerr << "rodfit rollout: --fit did not converge: " << fit.message
+                << " (nothing written)\n";
+      return EXIT_FAILURE;
+    }
+    auto num = [](double v) { return std::isfinite(v) ? rodfit::FormatDouble(v) : std::string("null"); };
+    auto quoted = [](const std::string& text) {
+      std::string q = "\"";
+      for (char ch : text) {
+        if (ch == '"' || ch == '\\') q += std::string("\\") + ch;
+        else q += static_cast<unsigned char>(ch) < 0x20 ? ' ' : ch;  // JSON: no raw control chars
+      }
+      return q + "\"";
+    };
+    const std::string method_text =
+        fit_options.method == rodfit::MotionFitMethod::kBobyqa
+            ? "BOBYQA on the predicted markers' mean absolute error (derivative-free)"
+            : "Levenberg-Marquardt on the predicted markers' coordinates, Jacobian from the "
+              "forward sensitivities through the implicit steps";
+    fit_json = "{\n  \"rodfit_version\": \"" + std::string(RODFIT_VERSION) + "\",\n  \"method\": " +
+               quoted(method_text) + ",\n  \"converged\": " + (fit.converged ? "true" : "false") +
+               ",\n  \"message\": " + quoted(fit.message) + ",\n  \"evaluations\": " +
+               std::to_string(fit.evaluations) + ",\n  \"iterations\": " +
+               std::to_string(fit.iterations) + ",\n  \"residuals\": " +
+               std::to_string(fit.residuals) + ",\n  \"residual_variance\": " +
+               num(fit.residual_variance) + ",\n  \"marker_sigma_m\": " + num(marker_sigma) +
+               ",\n  \"error_start_m\": " + rodfit::FormatDouble(fit.error_start) +
+               ",\n  \"error_fitted_m\": " + rodfit::FormatDouble(fit.error_fitted) +
+               ",\n  \"parameters\": {";
     for (size_t k = 0; k < names.size(); ++k) {
-      rodfit::SetMaterialParameter(names[k], fit.values[k], &scene.material);
+      rodfit::SetMotionParameter(names[k], fit.values[k], &scene);
       fit_json += std::string(k ? "," : "") + "\n    \"" + names[k] + "\": {\"start\": " +
                   rodfit::FormatDouble(fit.start[k]) + ", \"value\": " +
-                  rodfit::FormatDouble(fit.values[k]) + "}";
+                  rodfit::FormatDouble(fit.values[k]) + ", \"std\": " + num(fit.std[k]) +
+                  ", \"identifiable\": " + (fit.identifiable[k] ? "true" : "false") +
+                  ", \"at_bound\": " + (fit.at_bound[k] ? "true" : "false") +
+                  (fit.identifiable[k] ? std::string() : ", \"reason\": " + quoted(fit.reason[k])) + "}";
     }
-    fit_json += "\n  }\n}\n";
-    std::printf("fitted over %zu recording(s) in %d rollouts: mean error %.4g m -> %.4g m\n",
-                data.size(), fit.evaluations, fit.error_start, fit.error_fitted);
-    for (size_t k = 0; k < names.size(); ++k)
-      std::printf("  %s: %.6g -> %.6g\n", names[k].c_str(), fit.start[k], fit.values[k]);
+    fit_json += "\n  },\n  \"correlation\": [";
+    for (int i = 0; i < fit.covariance_log.rows(); ++i) {
+      fit_json += std::string(i ? ", " : "") + "[";
+      for (int j = 0; j < fit.covariance_log.cols(); ++j)
+        fit_json += std::string(j ? ", " : "") +
+                    num(fit.covariance_log(i, j) /
+                        std::sqrt(fit.covariance_log(i, i) * fit.covariance_log(j, j)));
+      fit_json += "]";
+    }
+    fit_json += "]\n}\n";
+    std::printf("fitted over %zu recording(s) in %d rollouts (%s, %.3g s): mean error %.4g m -> %.4g m\n",
+                data.size(), fit.evaluations, fit.method.c_str(), fit.seconds, fit.error_start,
+                fit.error_fitted);
+    if (!fit.converged) std::fprintf(stderr, "rodfit rollout: --fit: %s\n", fit.message.c_str());
+    for (size_t k = 0; k < names.size(); ++k) {
+      std::printf("  %s: %.6g -> %.6g", names[k].c_str(), fit.start[k], fit.values[k]);
+      if (fit.identifiable[k])
+        std::printf(" +- %.3g", fit.std[k]);
+      else
+        std::printf(" (not identifiable: %s)", fit.reason[k].c_str());
+      std::printf("%s\n", fit.at_bound[k] ? " [at its bound]" : "");
+    }
   }
   std::string csv = "recording,frame,t,marker,s,held,observed_x,observed_y,observed_z,x,y,z\n";
   double sum_all = 0.0, sum_predicted = 0.0;

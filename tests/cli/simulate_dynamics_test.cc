@@ -354,6 +354,36 @@ TEST(Rollout, PredictsARecordingMadeBySimulate) {
   std::ifstream in(dir.File("f/motion_fit.json"));
   const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_THAT(json, HasSubstr("\"damping\": {\"start\": 0.059999999999999998"));
+  // The least-squares fit (the default) says whether it converged and how well the data
+  // determine each value: here the rollout's model (vertices at the markers, the clamp along the
+  // chord to marker 1) differs from simulate's, and the drag alone runs to its bound.
+  EXPECT_THAT(json, HasSubstr("\"converged\": true"));
+  EXPECT_THAT(json, HasSubstr("\"identifiable\": "));
+  EXPECT_THAT(json, HasSubstr("\"at_bound\": "));
+  // Fitted with the bending stiffness, the drag is determined (measured 0.023 +- 0.006; the
+  // truth 0.02) and the bending, which this slow drag hardly shows, is reported as not.
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("b")) + " --held 0,1,-1 --fit "
+                           "bend_stiffness,damping --max-evaluations 150");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_THAT(run.out, HasSubstr("bend_stiffness: 0.002 -> "));
+  EXPECT_THAT(run.out, HasSubstr("(not identifiable: "));
+  EXPECT_THAT(run.out, ::testing::ContainsRegex("damping: 0.06 -> 0.0[12][0-9]* \\+- 0.00"));
+  // A least-squares fit stopped by its budget is an error, and writes nothing.
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("n")) + " --held 0,1,-1 --fit "
+                           "bend_stiffness,damping --max-evaluations 2");
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("--fit did not converge: stopped at max_evaluations"));
+  EXPECT_FALSE(std::ifstream(dir.File("n/motion_fit.json")).good());
+  // The derivative-free search it replaced, on request.
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("y")) + " --held 0,1,-1 --fit damping "
+                           "--method bobyqa --max-evaluations 20");
+  ASSERT_EQ(run.status, 0) << run.err;
+  std::ifstream by(dir.File("y/motion_fit.json"));
+  const std::string bjson((std::istreambuf_iterator<char>(by)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(bjson, HasSubstr("BOBYQA"));
   run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
                            " -o " + Quote(dir.File("g")) + " --fit length");
   EXPECT_EQ(run.status, 1);

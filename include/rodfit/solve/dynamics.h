@@ -97,6 +97,29 @@ struct DynamicState {
   bool has_history = false;
 };
 
+/// A direction in the log of the constants the dynamics read (sensitivities): how much the log of
+/// each moves per unit change of the log of one fitted parameter. bend_stiffness with B2 tied
+/// moves both bend1 and bend2; a damping parameter moves one of the damping constants.
+struct ParameterDirection {
+  double bend1 = 0.0, bend2 = 0.0, twist = 0.0, stretch = 0.0;  ///< B1, B2, GJ, EA
+  double drag = 0.0;                                            ///< external damping c
+  double bend_damping = 0.0, twist_damping = 0.0, stretch_damping = 0.0;
+  double density = 0.0;  ///< linear density (the masses, spin inertias and weights)
+  /// The direction from one set of constants to another that differ by the factor exp(log_factor)
+  /// in one parameter: each constant's log change over log_factor (0 where a constant is 0 in
+  /// both). Reads the Material, so the parameter's name is resolved where the name table is.
+  static ParameterDirection Between(const Material& a, double density_a, const Material& b,
+                                    double density_b, double log_factor);
+};
+
+/// Forward sensitivities of a trajectory: the derivatives with respect to the log of each
+/// parameter (one column each) of the state's free dofs (positions [m]; twist angles [rad], as
+/// rotations about the tangent beyond its transport, which is how ApplyStep moves them), the
+/// rates and BDF2's history.
+struct DynamicSensitivity {
+  Eigen::MatrixXd dq, dv, dlast_step, dlast_v;  ///< num_free_dofs x parameters
+};
+
 struct DynamicsStepSummary {
   bool ok = false;
   int newton_iterations = 0;  ///< implicit: Newton iterations in this step
@@ -104,6 +127,14 @@ struct DynamicsStepSummary {
   double residual = 0.0;      ///< implicit: scaled residual at exit [N]
   std::string reason;         ///< why a step failed
 };
+
+/// The sensitivities of an equilibrium q of the model (the start of a trajectory) along each
+/// direction: dq = -K^-1 dg/dp with K the full Hessian at q (stiffnesses and the weights; the
+/// damping constants do not move an equilibrium), one column per direction into *dq.
+/// False with the reason for a case with moment loads or an unstable equilibrium.
+bool EquilibriumSensitivity(const RodModel& model, const RodState& q,
+                            const std::vector<ParameterDirection>& directions, Eigen::MatrixXd* dq,
+                            std::string* why);
 
 /// Integrates a RodModel in time. The stepper owns its scratch (band matrices, factor, states),
 /// kept between steps. The held points' reactions at a step's end are those of
@@ -124,6 +155,21 @@ class DynamicsStepper {
   /// One step of options().time_step from s->t. On failure *s is unchanged and the summary says
   /// why (explicit: the step is above the stable step; implicit: Newton did not converge).
   DynamicsStepSummary Step(const Drive& drive, DynamicState* s);
+
+  /// Forward sensitivities through the step just taken from `before` to `after` (docs/solvers.md,
+  /// "Sensitivities in time"): the step's stationarity g(q_n+1; q_n, v_n, history, p) = 0 is
+  /// differentiated, dq_n+1/dp = -H^-1 (dg/dp + dg/dq_n dq_n/dp + dg/d(history) d(history)/dp),
+  /// with H = K(q_n+1) + a M + c C(q_n) the Newton matrix at the solution (assembled and
+  /// factored here: the step's own factor may be a chord iteration's older one). Backward Euler
+  /// and BDF2 only. Central differences of the assembly (relative accuracy ~1e-9) stand in
+  /// where the assembly has no exact derivative: the lagged damping matrix C(q_n) along dq_n
+  /// (a third derivative of the energy), and the bending and twist Hessians' missing second
+  /// derivative of the reference twist. On failure (midpoint or explicit integrator, moment
+  /// loads, an indefinite H, corrections that do not settle) returns false with the reason; *ds
+  /// is then unusable.
+  bool StepSensitivity(const Drive& drive, const DynamicState& before, const DynamicState& after,
+                       const std::vector<ParameterDirection>& directions, DynamicSensitivity* ds,
+                       std::string* why);
 
   /// The explicit integrator's stable step [s] at a state: stability_safety times the bound
   /// 2 / (omega_max) of the linearised, lagged-damped leapfrog, omega_max from Gershgorin.

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "rodfit/model/scene.h"
+#include "rodfit/solve/dynamics.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
@@ -43,6 +44,11 @@ struct RolloutResult {
   double seconds = 0.0;        ///< wall time of the integration
 };
 
+/// Per marker of a recording with `markers` markers: whether the rollout drives it
+/// (options.held_markers, negative counting from the last). Throws std::invalid_argument for a
+/// held marker that does not exist or marker 0 not held.
+std::vector<char> HeldMarkers(const RolloutOptions& options, int markers);
+
 /// `frames[k]` holds the markers (3 x M, NaN where a marker was not seen) at time
 /// k * frame_interval. The scene gives the rod (length, radius, density; `segments` is the
 /// target number of edges, spread over the gaps between markers), the material, gravity and
@@ -52,5 +58,17 @@ struct RolloutResult {
 RolloutResult Rollout(const Scene& scene, double frame_interval,
                       const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
                       const StaticsOptions& statics = StaticsOptions());
+
+/// The same rollout with the derivatives of its predictions (docs/solvers.md, "Sensitivities in
+/// time"): (*d_predicted)[k] is 3 M x directions.size() for frame k, rows 3 m .. 3 m + 2 marker
+/// m's coordinates [m], one column per direction (d / d log p). Forward sensitivities through
+/// every implicit step (backward_euler or bdf2), started from the initial equilibrium's (zero
+/// for a start from the frame-0 polyline). The predictions equal Rollout's. Throws like Rollout;
+/// a step whose sensitivities cannot be computed stops it (ok false, with the reason).
+RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval,
+                                       const std::vector<Eigen::Matrix3Xd>& frames,
+                                       const RolloutOptions& options, const StaticsOptions& statics,
+                                       const std::vector<ParameterDirection>& directions,
+                                       std::vector<Eigen::MatrixXd>* d_predicted);
 
 }  // namespace rodfit

@@ -1,31 +1,58 @@
+// Motion fit (motion_fit.h): the least-squares fit on the rollout's sensitivities, and the
+// derivative-free search it replaced. Fit layer: calls the rollout (solve) only.
 #include "rodfit/fit/motion_fit.h"
 
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
+#include <ceres/ceres.h>
 #include <nlopt.hpp>
 
+#include "rodfit/fit/covariance.h"
 #include "rodfit/model/material_parameters.h"
 
 namespace rodfit {
 namespace {
 
+using Clock = std::chrono::steady_clock;
+
+// The scene at log-parameters `logp`.
+Scene SceneAt(const Scene& scene, const std::vector<std::string>& names, const double* logp) {
+  Scene s = scene;
+  for (size_t k = 0; k < names.size(); ++k) SetMotionParameter(names[k], std::exp(logp[k]), &s);
+  return s;
+}
+
+// Everything one evaluation of the fit reads, and the rollouts it has spent. The least-squares
+// residuals are laid out once (recording, frame >= 1, marker not driven and seen, coordinate):
+// their number is the same at every parameter value.
 struct Ctx {
   const Scene* scene;
   const std::vector<MotionRecordingData>* recordings;
   const std::vector<std::string>* names;
   const RolloutOptions* options;
   const StaticsOptions* statics;
-  int evaluations;
+  std::vector<ParameterDirection> directions;
+  std::vector<std::vector<char>> held;  // per recording, per marker: driven
+  double sigma = 1.0;
+  int residuals = 0;
+  int evaluations = 0;
+  // The last point evaluated with sensitivities: Ceres evaluates an accepted step's point again
+  // for its Jacobian, which costs no second set of rollouts.
+  std::vector<double> cached_logp;
+  bool cached_ok = false;
+  Eigen::VectorXd cached_r;
+  Eigen::MatrixXd cached_J;  // residuals x parameters, d r / d log p
+  double cached_mae = 0.0;   // the mean over recordings of the predicted markers' MAE
+  std::string last_failure;
 };
 
-// The objective: the predicted markers' mean absolute coordinate error, averaged over the
-// recordings (the score the held-out data is judged by), at log-parameters `logp`.
+// The predicted markers' mean absolute coordinate error averaged over the recordings (the score
+// the held-out data is judged by), at log-parameters `logp`.
 double MeanRolloutError(const std::vector<double>& logp, Ctx* c) {
-  Scene s = *c->scene;
-  for (size_t k = 0; k < logp.size(); ++k)
-    SetMaterialParameter((*c->names)[k], std::exp(logp[k]), &s.material);
+  const Scene s = SceneAt(*c->scene, *c->names, logp.data());
   ++c->evaluations;
   double sum = 0.0;
   for (const MotionRecordingData& r : *c->recordings) {
@@ -39,6 +66,89 @@ double MeanRolloutError(const std::vector<double>& logp, Ctx* c) {
   }
   return sum / static_cast<double>(c->recordings->size());
 }
+
+// Residuals and their Jacobian at `logp` into the cache (rollouts with sensitivities of every
+// recording). False when a rollout or its sensitivities fail there.
+bool EvaluateWithSensitivities(const double* logp, Ctx* c) {
+  const int m = static_cast<int>(c->names->size());
+  const std::vector<double> point(logp, logp + m);
+  if (!c->cached_logp.empty() && c->cached_logp == point) return c->cached_ok;
+  c->cached_logp = point;
+  c->cached_ok = false;
+  c->cached_r.setZero(c->residuals);
+  c->cached_J.setZero(c->residuals, m);
+  const Scene s = SceneAt(*c->scene, *c->names, logp);
+  ++c->evaluations;
+  int row = 0;
+  double mae = 0.0;
+  for (size_t ri = 0; ri < c->recordings->size(); ++ri) {
+    const MotionRecordingData& rec = (*c->recordings)[ri];
+    std::vector<Eigen::MatrixXd> dp;
+    RolloutResult out;
+    try {
+      out = RolloutWithSensitivities(s, rec.frame_interval, rec.frames, *c->options, *c->statics,
+                                     c->directions, &dp);
+    } catch (const std::runtime_error& e) {
+      c->last_failure = e.what();
+      return false;
+    }
+    if (!out.ok || out.predicted.size() != rec.frames.size()) {
+      c->last_failure = out.reason;
+      return false;
+    }
+    mae += out.mae_predicted;
+    const int M = static_cast<int>(rec.frames[0].cols());
+    for (size_t k = 1; k < rec.frames.size(); ++k)
+      for (int mk = 0; mk < M; ++mk) {
+        if (c->held[ri][mk] || !rec.frames[k].col(mk).allFinite()) continue;
+        for (int a = 0; a < 3; ++a, ++row) {
+          c->cached_r[row] = (out.predicted[k](a, mk) - rec.frames[k](a, mk)) / c->sigma;
+          c->cached_J.row(row) = dp[k].row(3 * mk + a) / c->sigma;
+        }
+      }
+  }
+  c->cached_mae = mae / static_cast<double>(c->recordings->size());
+  c->cached_ok = c->cached_r.allFinite() && c->cached_J.allFinite();
+  return c->cached_ok;
+}
+
+// The least-squares cost for Ceres: one parameter block (the log-parameters), the residuals of
+// every recording, the Jacobian from the sensitivities (no numeric differentiation).
+class MotionCost : public ceres::CostFunction {
+ public:
+  MotionCost(Ctx* ctx, int parameters) : ctx_(ctx) {
+    set_num_residuals(ctx->residuals);
+    mutable_parameter_block_sizes()->push_back(parameters);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    if (!EvaluateWithSensitivities(parameters[0], ctx_)) return false;
+    Eigen::Map<Eigen::VectorXd>(residuals, ctx_->residuals) = ctx_->cached_r;
+    if (jacobians && jacobians[0]) {
+      // Ceres' Jacobian blocks are row-major.
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+          jacobians[0], ctx_->residuals, ctx_->cached_J.cols()) = ctx_->cached_J;
+    }
+    return true;
+  }
+
+ private:
+  Ctx* ctx_;
+};
+
+// Stops the search when its rollout budget is spent, keeping its best point (Ceres returns the
+// start values after SOLVER_ABORT); the result then says it did not converge.
+class Budget : public ceres::IterationCallback {
+ public:
+  Budget(const Ctx* ctx, int max_evaluations) : ctx_(ctx), max_(max_evaluations) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    return ctx_->evaluations >= max_ ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const Ctx* ctx_;
+  int max_;
+};
 
 }  // namespace
 
@@ -63,51 +173,218 @@ double MaterialParameter(const std::string& name, const Material& m) {
   return EffectiveMaterialParameter(m, MotionRow(name).name);
 }
 
-MotionFitResult FitToRecordings(const Scene& scene, const std::vector<MotionRecordingData>& recordings,
-                                const std::vector<std::string>& names, const RolloutOptions& options,
-                                const StaticsOptions& statics, int max_evaluations, double range) {
+bool MotionFitOptions::Check(std::string* why) const {
+  if (max_evaluations < 1) {
+    *why = "max_evaluations must be at least 1";
+    return false;
+  }
+  if (!(range > 1.0) || !std::isfinite(range)) {
+    *why = "range must be a finite factor > 1";
+    return false;
+  }
+  if (!(marker_sigma >= 0.0) || !std::isfinite(marker_sigma)) {
+    *why = "marker_sigma must be a finite length >= 0";
+    return false;
+  }
+  if (!(max_log_std > 0.0)) {
+    *why = "max_log_std must be > 0";
+    return false;
+  }
+  return true;
+}
+
+// linear_density is the rod's (RodSpec), not a row of the material table: the one name the
+// motion fit adds to SetMaterialParameter's.
+void SetMotionParameter(const std::string& name, double value, Scene* scene) {
+  if (name == "linear_density") {
+    scene->rod.linear_density = value;
+  } else {
+    SetMaterialParameter(name, value, &scene->material);
+  }
+}
+
+double MotionParameter(const std::string& name, const Scene& scene) {
+  return name == "linear_density" ? scene.rod.linear_density
+                                  : MaterialParameter(name, scene.material);
+}
+
+MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingData>& recordings,
+                          const std::vector<std::string>& names, const RolloutOptions& options,
+                          const StaticsOptions& statics, const MotionFitOptions& fit_options) {
+  const auto started = Clock::now();
   if (names.empty()) throw std::invalid_argument("no parameters to fit");
   if (recordings.empty()) throw std::invalid_argument("no recordings");
+  std::string why;
+  if (!fit_options.Check(&why)) throw std::invalid_argument(why);
   MotionFitResult result;
   result.names = names;
   const int m = static_cast<int>(names.size());
   for (const std::string& name : names) {
-    const double v = MaterialParameter(name, scene.material);
+    const double v = MotionParameter(name, scene);
     if (!(v > 0.0) || !std::isfinite(v))
       throw std::invalid_argument(name + ": a fitted parameter needs a start value > 0 (fitted in "
                                          "log space)");
     result.start.push_back(v);
   }
-  Ctx ctx{&scene, &recordings, &names, &options, &statics, 0};
+  if (fit_options.method == MotionFitMethod::kLevenbergMarquardt && scene.dynamics &&
+      scene.dynamics->integrator != "bdf2" && scene.dynamics->integrator != "backward_euler")
+    throw std::invalid_argument("the least-squares motion fit differentiates the bdf2 and "
+                                "backward_euler steps, not " + scene.dynamics->integrator +
+                                " (set dynamics.integrator, or use the derivative-free search)");
+  Ctx ctx{&scene, &recordings, &names, &options, &statics};
+  // Each parameter's direction in the model's constants, read off the scene scaled by e in it
+  // (the same at every value: the constants scale with their parameters).
+  for (const std::string& name : names) {
+    Scene up = scene;
+    SetMotionParameter(name, std::exp(1.0) * MotionParameter(name, scene), &up);
+    ctx.directions.push_back(ParameterDirection::Between(
+        scene.material, scene.rod.linear_density, up.material, up.rod.linear_density, 1.0));
+  }
+  ctx.sigma = fit_options.marker_sigma > 0.0 ? fit_options.marker_sigma : 1.0;
+  // The residuals' layout: every coordinate of a marker the rollout does not drive, in every
+  // frame after the first that saw it.
+  for (const MotionRecordingData& r : recordings) {
+    if (r.frames.size() < 2) throw std::invalid_argument("a recording needs at least 2 frames");
+    ctx.held.push_back(HeldMarkers(options, static_cast<int>(r.frames[0].cols())));
+    for (size_t k = 1; k < r.frames.size(); ++k)
+      for (int mk = 0; mk < static_cast<int>(r.frames[k].cols()); ++mk)
+        if (!ctx.held.back()[mk] && r.frames[k].col(mk).allFinite()) ctx.residuals += 3;
+  }
+  if (ctx.residuals <= m)
+    throw std::invalid_argument("the recordings have " + std::to_string(ctx.residuals) +
+                                " predicted marker coordinates: too few for " +
+                                std::to_string(m) + " parameters");
   std::vector<double> x(m), lo(m), hi(m);
   for (int k = 0; k < m; ++k) {
     x[k] = std::log(result.start[k]);
-    lo[k] = x[k] - std::log(range);
-    hi[k] = x[k] + std::log(range);
+    lo[k] = x[k] - std::log(fit_options.range);
+    hi[k] = x[k] + std::log(fit_options.range);
   }
-  result.error_start = MeanRolloutError(x, &ctx);
-  nlopt::opt opt(nlopt::LN_BOBYQA, m);
-  opt.set_lower_bounds(lo);
-  opt.set_upper_bounds(hi);
-  opt.set_maxeval(max_evaluations);
-  opt.set_xtol_abs(1e-3);  // 0.1 % in each parameter
-  opt.set_initial_step(std::vector<double>(m, 0.5));
-  opt.set_min_objective(
-      [](const std::vector<double>& p, std::vector<double>&, void* data) {
-        return MeanRolloutError(p, static_cast<Ctx*>(data));
-      },
-      &ctx);
-  double best = result.error_start;
-  try {
-    opt.optimize(x, best);
-  } catch (const nlopt::roundoff_limited&) {
-    // The search stopped at round-off: x is its best point.
+
+  if (fit_options.method == MotionFitMethod::kBobyqa) {
+    result.method = "bobyqa";
+    result.error_start = MeanRolloutError(x, &ctx);
+    nlopt::opt opt(nlopt::LN_BOBYQA, m);
+    opt.set_lower_bounds(lo);
+    opt.set_upper_bounds(hi);
+    opt.set_maxeval(fit_options.max_evaluations);
+    opt.set_xtol_abs(1e-3);  // 0.1 % in each parameter
+    opt.set_initial_step(std::vector<double>(m, 0.5));
+    opt.set_min_objective(
+        [](const std::vector<double>& p, std::vector<double>&, void* data) {
+          return MeanRolloutError(p, static_cast<Ctx*>(data));
+        },
+        &ctx);
+    double best = result.error_start;
+    nlopt::result status = nlopt::FAILURE;
+    try {
+      status = opt.optimize(x, best);
+    } catch (const nlopt::roundoff_limited&) {
+      // The search stopped at round-off: x is its best point.
+      status = nlopt::ROUNDOFF_LIMITED;
+    }
+    result.error_fitted = best;
+    result.converged = status == nlopt::XTOL_REACHED || status == nlopt::FTOL_REACHED ||
+                       status == nlopt::ROUNDOFF_LIMITED;
+    result.message = status == nlopt::MAXEVAL_REACHED
+                         ? "stopped at max_evaluations (" +
+                               std::to_string(fit_options.max_evaluations) + " rollouts)"
+                         : "BOBYQA status " + std::to_string(static_cast<int>(status));
+    result.iterations = ctx.evaluations;
+  } else {
+    result.method = "levenberg_marquardt";
+    if (!EvaluateWithSensitivities(x.data(), &ctx)) {
+      // Nothing to search from: said so, the start values returned as they are.
+      result.values = result.start;
+      result.at_bound.assign(m, false);
+      result.message = "the rollout fails at the start values: " + ctx.last_failure;
+      result.std.assign(m, std::numeric_limits<double>::quiet_NaN());
+      result.identifiable.assign(m, false);
+      result.reason.assign(m, "not fitted");
+      result.evaluations = ctx.evaluations;
+      result.seconds = std::chrono::duration<double>(Clock::now() - started).count();
+      return result;
+    }
+    result.error_start = ctx.cached_mae;
+    ceres::Problem::Options po;
+    po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+    ceres::Problem problem(po);
+    problem.AddResidualBlock(new MotionCost(&ctx, m), nullptr, x.data());
+    for (int k = 0; k < m; ++k) {
+      problem.SetParameterLowerBound(x.data(), k, lo[k]);
+      problem.SetParameterUpperBound(x.data(), k, hi[k]);
+    }
+    ceres::Solver::Options so;
+    so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+    so.linear_solver_type = ceres::DENSE_QR;
+    so.max_num_iterations = fit_options.max_evaluations;
+    // With the residuals in sigmas the cost is ~N/2: a relative change of 1e-8 is ~1e-5 of one
+    // unit of chi^2, far below what the data can tell; tighter, a parameter the data do not
+    // determine keeps the search creeping along its flat direction.
+    so.function_tolerance = 1e-8;
+    so.parameter_tolerance = 1e-8;
+    so.num_threads = 1;
+    so.logging_type = ceres::SILENT;
+    Budget budget(&ctx, fit_options.max_evaluations);
+    so.callbacks.push_back(&budget);
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, &problem, &summary);
+    result.iterations = static_cast<int>(summary.iterations.size()) - 1;
+    result.converged = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
+    if (summary.termination_type == ceres::USER_SUCCESS)
+      result.message = "stopped at max_evaluations (" + std::to_string(fit_options.max_evaluations) +
+                       " rollouts) before converging";
+    else
+      result.message = summary.message;
+    if (!summary.IsSolutionUsable()) result.message = "no usable solution: " + summary.message;
   }
   result.values.resize(m);
-  for (int k = 0; k < m; ++k) result.values[k] = std::exp(x[k]);
-  result.error_fitted = best;
+  result.at_bound.resize(m);
+  for (int k = 0; k < m; ++k) {
+    result.values[k] = std::exp(x[k]);
+    result.at_bound[k] = std::abs(x[k] - lo[k]) < 1e-6 || std::abs(x[k] - hi[k]) < 1e-6;
+  }
+
+  // Covariance and identifiability at the solution, from its Jacobian.
+  result.std.assign(m, std::numeric_limits<double>::quiet_NaN());
+  result.identifiable.assign(m, false);
+  result.reason.assign(m, "no Jacobian at the solution (the rollout fails there)");
+  result.covariance_log = Eigen::MatrixXd::Constant(m, m, std::numeric_limits<double>::quiet_NaN());
+  result.residuals = ctx.residuals;
+  if (EvaluateWithSensitivities(x.data(), &ctx)) {
+    if (fit_options.method == MotionFitMethod::kLevenbergMarquardt) result.error_fitted = ctx.cached_mae;
+    result.residual_variance = ctx.cached_r.squaredNorm() / static_cast<double>(ctx.residuals - m);
+    // The static fit's verdict (covariance.h): its full-rank covariance is Ceres' over a problem
+    // at the solution, whose Jacobian is the cached one (no further rollout).
+    ceres::Problem::Options po;
+    po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+    ceres::Problem at_solution(po);
+    at_solution.AddResidualBlock(new MotionCost(&ctx, m), nullptr, x.data());
+    const fit_internal::Identifiability verdict = fit_internal::Identify(
+        ctx.cached_J, names, &at_solution, x.data(), result.residual_variance,
+        fit_options.max_log_std);
+    result.identifiable = verdict.identifiable;
+    result.reason = verdict.reason;
+    result.covariance_log = verdict.cov_log;
+    for (int k = 0; k < m; ++k)
+      if (verdict.identifiable[k])
+        result.std[k] = result.values[k] * std::sqrt(verdict.cov_log(k, k));  // delta method
+  } else if (fit_options.method == MotionFitMethod::kLevenbergMarquardt) {
+    result.converged = false;
+    result.message = "the rollout fails at the fitted values: " + ctx.last_failure;
+  }
   result.evaluations = ctx.evaluations;
+  result.seconds = std::chrono::duration<double>(Clock::now() - started).count();
   return result;
+}
+
+MotionFitResult FitToRecordings(const Scene& scene, const std::vector<MotionRecordingData>& recordings,
+                                const std::vector<std::string>& names, const RolloutOptions& options,
+                                const StaticsOptions& statics, int max_evaluations, double range) {
+  MotionFitOptions fit_options;
+  fit_options.max_evaluations = max_evaluations;
+  fit_options.range = range;
+  return FitMotion(scene, recordings, names, options, statics, fit_options);
 }
 
 }  // namespace rodfit

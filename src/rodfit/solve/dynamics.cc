@@ -168,7 +168,17 @@ void DynamicsStepper::Delta(const RodState& a, const RodState& b, VecX* d) const
   const int n = model_.num_edges();
   d->setZero(model_.num_free_dofs());
   for (int i = 1; i <= n; ++i) d->segment<3>(RodModel::VertexDof(i)) = b.x.col(i) - a.x.col(i);
-  for (int j = 0; j < n; ++j) (*d)[RodModel::TwistDof(j)] = b.theta[j] - a.theta[j];
+  // Each twist increment is the material frame's turn about the tangent against its transport
+  // straight from a's tangent to b's. b's reference directors came from a's through the
+  // predictor and every Newton iterate, and a chain of transports differs from the direct one by
+  // the loop's holonomy: without this term the step's result would depend on the Newton path,
+  // and its sensitivities (StepSensitivity) would not be those of a function of q_n.
+  for (int j = 0; j < n; ++j) {
+    const Vec3 ta = a.ref_t.col(j), tb = b.ref_t.col(j);
+    const Vec3 u = ParallelTransport<double, double>(ta, tb, Vec3(a.ref_u.col(j)));
+    (*d)[RodModel::TwistDof(j)] =
+        b.theta[j] - a.theta[j] + SignedAngle<double>(u, Vec3(b.ref_u.col(j)), tb);
+  }
   if (model_.has_end_ghost()) (*d)[RodModel::TwistDof(n)] = b.end_theta - a.end_theta;
   for (int k = 0; k < d->size(); ++k)
     if (held_[k]) (*d)[k] = 0.0;

@@ -1,5 +1,6 @@
 #include "rodfit/solve/rollout.h"
 
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -57,25 +58,23 @@ void Smooth(TimeSeries* path, double frame_interval, int half_window) {
   }
 }
 
-}  // namespace
+// The rollout's scene (its one case: the clamp, pins and end driven along the held markers'
+// paths, the start) and the vertex of each marker; fills out->held and out->marker_s. Shared by
+// Rollout and RolloutWithSensitivities, so both integrate the same problem.
+struct RolloutProblem {
+  Scene scene;
+  std::vector<int> marker_vertex;
+};
 
-// One function, though long: set-up from the recording, the stepping loop and the scoring read
-// in the order they run, sharing the markers' arc lengths and the held-marker drive.
-RolloutResult Rollout(const Scene& scene, double frame_interval,
-                      const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
-                      const StaticsOptions& statics) {
+RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
+                            const std::vector<Eigen::Matrix3Xd>& frames,
+                            const RolloutOptions& options, RolloutResult* result) {
+  RolloutResult& out = *result;
   if (!scene.dynamics) throw std::invalid_argument("rollout needs a dynamics: block");
   if (frames.size() < 2) throw std::invalid_argument("a recording needs at least 2 frames");
   const int M = static_cast<int>(frames[0].cols());
   if (M < 3) throw std::invalid_argument("a recording needs at least 3 markers");
-  RolloutResult out;
-  out.held.assign(M, 0);
-  for (int h : options.held_markers) {
-    const int m = h < 0 ? M + h : h;
-    if (m < 0 || m >= M) throw std::invalid_argument("held marker " + std::to_string(h) + " does not exist");
-    out.held[m] = 1;
-  }
-  if (!out.held[0]) throw std::invalid_argument("marker 0 (the clamp) must be held");
+  out.held = HeldMarkers(options, M);
   for (int m = 0; m < M; ++m) {
     if (!Seen(frames[0], m))
       throw std::invalid_argument("marker " + std::to_string(m) + " is missing in frame 0 (the start)");
@@ -192,16 +191,17 @@ RolloutResult Rollout(const Scene& scene, double frame_interval,
   sc.dynamics->output_every = per_frame;
   sc.dynamics->duration = (frames.size() - 1) * frame_interval;
 
-  const CaseTrajectory traj = SimulateCaseDynamics(sc, 0, statics);
-  out.seconds = traj.seconds;
-  out.ok = traj.ok;
-  out.reason = traj.reason;
+  return {sc, marker_vertex};
+}
+
+// The scores of out->predicted against the recording.
+void Score(const std::vector<Eigen::Matrix3Xd>& frames, RolloutResult* result) {
+  RolloutResult& out = *result;
+  const int M = static_cast<int>(frames[0].cols());
   double sum_all = 0.0, sum_free = 0.0;
   int n_all = 0, n_free = 0;
-  for (size_t k = 0; k < traj.frames.size() && k < frames.size(); ++k) {
-    Eigen::Matrix3Xd p(3, M);
-    for (int m = 0; m < M; ++m) p.col(m) = traj.frames[k].x.col(marker_vertex[m]);
-    out.predicted.push_back(p);
+  for (size_t k = 0; k < out.predicted.size() && k < frames.size(); ++k) {
+    const Eigen::Matrix3Xd& p = out.predicted[k];
     if (k == 0) continue;  // the start is given
     for (int m = 0; m < M; ++m) {
       if (!Seen(frames[k], m)) continue;
@@ -217,6 +217,103 @@ RolloutResult Rollout(const Scene& scene, double frame_interval,
   out.samples = n_all;
   out.mae_all = n_all ? sum_all / n_all : 0.0;
   out.mae_predicted = n_free ? sum_free / n_free : 0.0;
+}
+
+}  // namespace
+
+std::vector<char> HeldMarkers(const RolloutOptions& options, int markers) {
+  std::vector<char> held(markers, 0);
+  for (int h : options.held_markers) {
+    const int m = h < 0 ? markers + h : h;
+    if (m < 0 || m >= markers)
+      throw std::invalid_argument("held marker " + std::to_string(h) + " does not exist");
+    held[m] = 1;
+  }
+  if (markers < 1 || !held[0]) throw std::invalid_argument("marker 0 (the clamp) must be held");
+  return held;
+}
+
+RolloutResult Rollout(const Scene& scene, double frame_interval,
+                      const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
+                      const StaticsOptions& statics) {
+  RolloutResult out;
+  const RolloutProblem problem = SetUpRollout(scene, frame_interval, frames, options, &out);
+  const int M = static_cast<int>(frames[0].cols());
+  const CaseTrajectory traj = SimulateCaseDynamics(problem.scene, 0, statics);
+  out.seconds = traj.seconds;
+  out.ok = traj.ok;
+  out.reason = traj.reason;
+  for (size_t k = 0; k < traj.frames.size() && k < frames.size(); ++k) {
+    Eigen::Matrix3Xd p(3, M);
+    for (int m = 0; m < M; ++m) p.col(m) = traj.frames[k].x.col(problem.marker_vertex[m]);
+    out.predicted.push_back(p);
+  }
+  Score(frames, &out);
+  return out;
+}
+
+RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval,
+                                       const std::vector<Eigen::Matrix3Xd>& frames,
+                                       const RolloutOptions& options, const StaticsOptions& statics,
+                                       const std::vector<ParameterDirection>& directions,
+                                       std::vector<Eigen::MatrixXd>* d_predicted) {
+  RolloutResult out;
+  const RolloutProblem problem = SetUpRollout(scene, frame_interval, frames, options, &out);
+  const Scene& sc = problem.scene;
+  const int M = static_cast<int>(frames[0].cols());
+  const int np = static_cast<int>(directions.size());
+  d_predicted->clear();
+  // The integration of SimulateCaseDynamics (case_dynamics.cc), step by step, each step's
+  // sensitivities propagated after it; only the markers are recorded.
+  const DynamicsSpec& spec = *sc.dynamics;
+  const RodModel model(sc.rod, sc.material, sc.gravity, CaseAtStart(sc.cases[0]), sc.springs);
+  DynamicsOptions dyn;
+  dyn.time_step = spec.time_step;
+  dyn.substep = spec.substep;
+  if (!ParseIntegrator(spec.integrator, &dyn.integrator))
+    throw std::invalid_argument("unknown integrator " + spec.integrator);
+  DynamicsStepper stepper(model, dyn);
+  const CaseDrive drive(model, sc.cases[0]);
+  DynamicState s = InitialDynamicState(sc, 0, statics, stepper);
+  DynamicSensitivity ds;
+  const int N = model.num_free_dofs();
+  if (sc.cases[0].initial.equilibrium) {
+    if (!EquilibriumSensitivity(model, s.q, directions, &ds.dq, &out.reason)) return out;
+  } else {
+    ds.dq.setZero(N, np);  // the frame-0 polyline does not depend on the parameters
+  }
+  ds.dv.setZero(N, np);
+  auto record = [&]() {
+    Eigen::Matrix3Xd p(3, M);
+    Eigen::MatrixXd dp = Eigen::MatrixXd::Zero(3 * M, np);
+    for (int m = 0; m < M; ++m) {
+      const int i = problem.marker_vertex[m];
+      p.col(m) = s.q.x.col(i);
+      if (i >= 1) dp.middleRows<3>(3 * m) = ds.dq.middleRows<3>(RodModel::VertexDof(i));
+    }
+    out.predicted.push_back(p);
+    d_predicted->push_back(dp);
+  };
+  record();
+  const auto t0 = std::chrono::steady_clock::now();
+  const int steps = static_cast<int>(std::ceil(spec.duration / spec.time_step - 1e-9));
+  for (int k = 0; k < steps; ++k) {
+    const DynamicState before = s;
+    const DynamicsStepSummary r = stepper.Step(drive, &s);
+    if (!r.ok) {
+      out.reason = "t = " + std::to_string(s.t) + " s: " + r.reason;
+      break;
+    }
+    std::string why;
+    if (!stepper.StepSensitivity(drive, before, s, directions, &ds, &why)) {
+      out.reason = "t = " + std::to_string(s.t) + " s: " + why;
+      break;
+    }
+    if ((k + 1) % spec.output_every == 0 || k + 1 == steps) record();
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.ok = out.reason.empty();
+  Score(frames, &out);
   return out;
 }
 

@@ -1,0 +1,370 @@
+// Forward sensitivities of the implicit integrators (dynamics.h, DynamicsStepper::StepSensitivity;
+// docs/solvers.md, "Sensitivities in time"). Solve layer: reads the model and the energy
+// assembly, nothing above.
+//
+// The step from q_n solves g(q) = grad Pi(q) + a M (d - y) + c (D + C(q_n)) (d - z) = 0 on the
+// free dofs, d = q - q_n (dynamics.cc). Its total derivative with respect to a parameter p, with
+// H = K(q_n+1) + a M + c (D + C(q_n)):
+//   H dq_n+1 = a M (dq_n + dy) + c (D + C) (dq_n + dz) - c (dC[dq_n]) (d - z) - dg/dp,
+// where y and z are the integrator's predictor and damping offsets (linear in v_n and BDF2's
+// history, so dy and dz follow from their sensitivities), and dg/dp is:
+//  - a stiffness: the gradient of its own term (U is linear in each stiffness). The internal
+//    damping matrix is sum eta_k K_unit,k: it does not depend on the stiffnesses;
+//  - the external drag c_ext: c D (d - z); an internal viscosity eta_k: c C_k(q_n) (d - z);
+//  - the linear density: a M (d - y) and the weights' part of grad Pi (the drag per length and
+//    the viscosities do not scale with it).
+#include <algorithm>
+#include <cmath>
+
+#include "rodfit/solve/banded.h"
+#include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/rod_energy.h"
+
+namespace rodfit {
+namespace {
+
+double LogRatio(double from, double to, double log_factor) {
+  return from > 0.0 && to > 0.0 ? std::log(to / from) / log_factor : 0.0;
+}
+
+// The internal damping matrix at q with each viscosity scaled by its factor (1, 1, 1: the
+// stepper's C; a direction's factors: dC/dlog eta along it). Held rows carry none, as in
+// DynamicsStepper::AssembleDamping.
+void DampingMatrix(const RodModel& model, const RodState& q, const std::vector<char>& held,
+                   double bend, double twist, double stretch, BandedSymmetric* C) {
+  const Material& m = model.material();
+  EnergyTerms terms = EnergyTerms::Elastic();
+  terms.bend1 = bend * m.bend_damping / m.B1();
+  terms.bend2 = bend * m.bend_damping / m.B2();
+  terms.twist = twist * m.twist_damping / m.twist_stiffness;
+  terms.stretch = stretch * m.stretch_damping / m.stretch_stiffness;
+  terms.springs = 0.0;
+  VecX g;
+  AssembleHessian(model, q, terms, &g, C);
+  for (int k = 0; k < C->size(); ++k)
+    if (held[k]) C->At(k, k) = 0.0;
+}
+
+// q moved by eps * dq over its free dofs (positions added, twist angles rotated about the
+// transported tangents: the chart the sensitivities are expressed in), held values kept.
+bool Moved(const RodModel& model, const std::vector<char>& held, const RodState& q, const VecX& dq,
+           double eps, RodState* out) {
+  const int n = model.num_edges();
+  *out = q;
+  for (int i = 1; i <= n; ++i)
+    for (int r = 0; r < 3; ++r) {
+      const int k = RodModel::VertexDof(i) + r;
+      if (!held[k]) out->x(r, i) += eps * dq[k];
+    }
+  for (int j = 0; j < n; ++j)
+    if (!held[RodModel::TwistDof(j)]) out->theta[j] += eps * dq[RodModel::TwistDof(j)];
+  if (model.has_end_ghost() && !held[RodModel::TwistDof(n)])
+    out->end_theta += eps * dq[RodModel::TwistDof(n)];
+  out->SyncEdges();
+  return UpdateReferenceFrames(model, q, out);
+}
+
+// The part of a step's twist increments that a change of the positions adds through the
+// transport: d = q_n+1 - q_n counts each twist angle against its reference director transported
+// in time from t_n to t_n+1, and moving t_n (or t_n+1) by dt changes that transport by the
+// rotation of the small loop it makes, kb . dt / 2 about the tangent with kb = 2 t_n x t_n+1 /
+// (1 + t_n . t_n+1) (the same geometry as the reference twist's variation, ZeroTwistVariation).
+// `at` is the state whose tangents dq moves (q_n or q_n+1); the twist rows of *out are set, the
+// others zero. Neither end ghost's tangent moves with the parameters (both are driven).
+void TransportTwist(const RodModel& model, const std::vector<char>& held, const RodState& from,
+                    const RodState& to, const RodState& at, const Eigen::MatrixXd& dq,
+                    Eigen::MatrixXd* out) {
+  const int n = model.num_edges();
+  out->setZero(dq.rows(), dq.cols());
+  for (int j = 0; j < n; ++j) {
+    const int k = RodModel::TwistDof(j);
+    if (held[k]) continue;
+    const Vec3 ta = from.e.col(j).normalized(), tb = to.e.col(j).normalized();
+    const Vec3 half_kb = ta.cross(tb) / (1.0 + ta.dot(tb));
+    const double len = at.e.col(j).norm();
+    const Vec3 t = at.e.col(j) / len;
+    for (int c = 0; c < dq.cols(); ++c) {
+      const Vec3 next = dq.block<3, 1>(RodModel::VertexDof(j + 1), c);
+      const Vec3 prev = j == 0 ? Vec3(Vec3::Zero()) : Vec3(dq.block<3, 1>(RodModel::VertexDof(j), c));
+      const Vec3 de = next - prev;
+      (*out)(k, c) = half_kb.dot(de - t.dot(de) * t) / len;
+    }
+  }
+}
+
+// The weights' part of grad Pi (its derivative with respect to the log of the linear density).
+void WeightGradient(const RodModel& model, const std::vector<char>& held, VecX* g) {
+  g->setZero(model.num_free_dofs());
+  for (int i = 1; i <= model.num_edges(); ++i) {
+    const Vec3 w = model.vertex_weight(i);
+    for (int r = 0; r < 3; ++r) {
+      const int k = RodModel::VertexDof(i) + r;
+      if (!held[k]) (*g)[k] = -w[r];
+    }
+  }
+}
+
+// The stiffness part of dg/dp along a direction: the gradient of the elastic energy with each
+// stiffness factor the direction's (U is linear in each).
+void StiffnessGradient(const RodModel& model, const RodState& q, const ParameterDirection& d, VecX* g) {
+  EnergyTerms terms = EnergyTerms::Only(-1);
+  terms.bend1 = d.bend1;
+  terms.bend2 = d.bend2;
+  terms.twist = d.twist;
+  terms.stretch = d.stretch;
+  AssembleGradient(model, q, terms, g);
+}
+
+}  // namespace
+
+ParameterDirection ParameterDirection::Between(const Material& a, double density_a,
+                                               const Material& b, double density_b,
+                                               double log_factor) {
+  ParameterDirection d;
+  d.bend1 = LogRatio(a.B1(), b.B1(), log_factor);
+  d.bend2 = LogRatio(a.B2(), b.B2(), log_factor);
+  d.twist = LogRatio(a.twist_stiffness, b.twist_stiffness, log_factor);
+  d.stretch = LogRatio(a.stretch_stiffness, b.stretch_stiffness, log_factor);
+  d.drag = LogRatio(a.damping, b.damping, log_factor);
+  d.bend_damping = LogRatio(a.bend_damping, b.bend_damping, log_factor);
+  d.twist_damping = LogRatio(a.twist_damping, b.twist_damping, log_factor);
+  d.stretch_damping = LogRatio(a.stretch_damping, b.stretch_damping, log_factor);
+  d.density = LogRatio(density_a, density_b, log_factor);
+  return d;
+}
+
+bool EquilibriumSensitivity(const RodModel& model, const RodState& q,
+                            const std::vector<ParameterDirection>& directions, Eigen::MatrixXd* dq,
+                            std::string* why) {
+  if (model.nonconservative()) {
+    *why = "sensitivities need a case without moment loads";
+    return false;
+  }
+  const std::vector<char>& held = HeldDofs(model);
+  BandedSymmetric H;
+  BandedCholesky factor;
+  VecX g;
+  AssembleHessian(model, q, EnergyTerms(), &g, &H);
+  ApplyHeldRows(held, nullptr, &H);
+  if (!factor.Factor(H)) {
+    *why = "the start's equilibrium is not stable (its Hessian is not positive definite)";
+    return false;
+  }
+  const int N = model.num_free_dofs();
+  dq->setZero(N, static_cast<int>(directions.size()));
+  VecX weights;
+  WeightGradient(model, held, &weights);
+  for (size_t k = 0; k < directions.size(); ++k) {
+    StiffnessGradient(model, q, directions[k], &g);
+    g += directions[k].density * weights;
+    for (int r = 0; r < N; ++r) (*dq)(r, static_cast<int>(k)) = held[r] ? 0.0 : -g[r];
+  }
+  factor.SolveInPlace(*dq);
+  if (!dq->allFinite()) {
+    *why = "non-finite sensitivities of the start";
+    return false;
+  }
+  return true;
+}
+
+bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& before,
+                                      const DynamicState& after,
+                                      const std::vector<ParameterDirection>& directions,
+                                      DynamicSensitivity* ds, std::string* why) {
+  const int N = model_.num_free_dofs();
+  const int m = static_cast<int>(directions.size());
+  if (options_.integrator != Integrator::kBackwardEuler && options_.integrator != Integrator::kBdf2) {
+    *why = std::string("sensitivities in time are implemented for backward_euler and bdf2, not ") +
+           IntegratorName(options_.integrator);
+    return false;
+  }
+  drive.PoseAt(model_, after.t, &pose_);
+  if (model_.nonconservative() || pose_.tip_moment.squaredNorm() > 0.0) {
+    *why = "sensitivities in time need a case without moment loads";
+    return false;
+  }
+  if (ds->dq.rows() != N || ds->dq.cols() != m) {
+    *why = "the sensitivities do not match the model (start them with EquilibriumSensitivity)";
+    return false;
+  }
+  if (ds->dv.rows() != N || ds->dv.cols() != m) ds->dv.setZero(N, m);
+  // The coefficients and offsets StepImplicit used (its first BDF2 step is backward Euler's).
+  const double dt = options_.time_step;
+  const bool bdf2 = options_.integrator == Integrator::kBdf2 && before.has_history &&
+                    before.last_step.size() == N && before.last_v.size() == N;
+  if (bdf2 && (ds->dlast_step.rows() != N || ds->dlast_step.cols() != m ||
+               ds->dlast_v.rows() != N || ds->dlast_v.cols() != m)) {
+    *why = "the sensitivities lack the BDF2 history the state has (follow every step)";
+    return false;
+  }
+  const double a = bdf2 ? 9.0 / (4.0 * dt * dt) : 1.0 / (dt * dt);
+  const double c = bdf2 ? 1.5 / dt : 1.0 / dt;
+  VecX y, z, d;
+  if (bdf2) {
+    y = before.last_step / 3.0 + (2.0 * dt / 9.0) * (4.0 * before.v - before.last_v);
+    z = before.last_step / 3.0;
+  } else {
+    y = dt * before.v;
+    z.setZero(N);
+  }
+  Delta(before.q, after.q, &d);
+  const VecX w = d - z;  // the damping's displacement
+
+  // The Newton matrix at the solution.
+  BandedSymmetric H, C, Cp, Cm;
+  VecX g;
+  AssembleHessian(model_, after.q, EnergyTerms(), &g, &H);
+  for (int k = 0; k < N; ++k) H.At(k, k) += a * mass_[k] + c * drag_[k];
+  if (internal_damping_) {
+    DampingMatrix(model_, before.q, held_, 1.0, 1.0, 1.0, &C);
+    H.band() += c * C.band();
+  }
+  ApplyHeldRows(held_, nullptr, &H);
+  BandedCholesky factor;
+  if (!factor.Factor(H)) {
+    *why = "the step's Newton matrix is not positive definite at its solution";
+    return false;
+  }
+
+  VecX weights;
+  WeightGradient(model_, held_, &weights);
+  const double L = model_.length();
+  // A v = (a M + c (D + C)) v: how the step's residual weighs its increment d.
+  auto apply_a = [&](const VecX& v) {
+    VecX out = a * mass_.cwiseProduct(v) + c * drag_.cwiseProduct(v);
+    if (internal_damping_) out += c * C.Multiply(v);
+    return out;
+  };
+  // The increment's twist rows gained from moving the start's tangents.
+  Eigen::MatrixXd twist_from_start, twist_from_end;
+  TransportTwist(model_, held_, before.q, after.q, before.q, ds->dq, &twist_from_start);
+  Eigen::MatrixXd rhs(N, m);
+  VecX dy, dz, col, tmp;
+  for (int k = 0; k < m; ++k) {
+    const ParameterDirection& dir = directions[k];
+    const VecX dq = ds->dq.col(k);
+    const VecX dv = ds->dv.col(k);
+    if (bdf2) {
+      dy = ds->dlast_step.col(k) / 3.0 + (2.0 * dt / 9.0) * (4.0 * dv - ds->dlast_v.col(k));
+      dz = ds->dlast_step.col(k) / 3.0;
+    } else {
+      dy = dt * dv;
+      dz.setZero(N);
+    }
+    // Inertia and damping carried from the state before.
+    col = a * mass_.cwiseProduct(dq + dy) + c * drag_.cwiseProduct(dq + dz) -
+          apply_a(twist_from_start.col(k));
+    if (internal_damping_) {
+      col += c * C.Multiply(dq + dz);
+      // dC[dq] w, the lagged damping matrix moved with the state: a central difference of its
+      // assembly, the state moved by ~1e-6 L (truncation ~1e-12, round-off ~1e-10, relative).
+      double scale = 0.0;
+      for (int r = 0; r < N; ++r) {
+        if (held_[r]) continue;
+        scale = std::max(scale, r % 4 == 3 ? std::abs(dq[r]) : std::abs(dq[r]) / L);
+      }
+      if (scale > 0.0) {
+        const double eps = 1e-6 / scale;
+        RodState qp, qm;
+        if (!Moved(model_, held_, before.q, dq, eps, &qp) ||
+            !Moved(model_, held_, before.q, dq, -eps, &qm)) {
+          *why = "the damping's derivative: a perturbed state folds an edge back";
+          return false;
+        }
+        DampingMatrix(model_, qp, held_, 1.0, 1.0, 1.0, &Cp);
+        DampingMatrix(model_, qm, held_, 1.0, 1.0, 1.0, &Cm);
+        col -= (c / (2.0 * eps)) * (Cp.Multiply(w) - Cm.Multiply(w));
+      }
+    }
+    // The parameter's own derivative of g.
+    StiffnessGradient(model_, after.q, dir, &tmp);
+    col -= tmp;
+    if (dir.drag != 0.0) col -= dir.drag * c * drag_.cwiseProduct(w);
+    if (internal_damping_ &&
+        (dir.bend_damping != 0.0 || dir.twist_damping != 0.0 || dir.stretch_damping != 0.0)) {
+      DampingMatrix(model_, before.q, held_, dir.bend_damping, dir.twist_damping,
+                    dir.stretch_damping, &Cp);
+      col -= c * Cp.Multiply(w);
+    }
+    if (dir.density != 0.0) {
+      col -= dir.density * (a * mass_.cwiseProduct(d - y) + weights);
+    }
+    for (int r = 0; r < N; ++r)
+      if (held_[r]) col[r] = 0.0;
+    rhs.col(k) = col;
+  }
+  // Two parts of the step's Jacobian are not in H, and are added by iterating
+  // H dq_n+1 = rhs - E dq_n+1 from E = 0. Both are small against H, so each pass gains a factor
+  // ~1e-3 or better:
+  //  - the end state's tangents move the transport too (TransportTwist): A P dq_n+1;
+  //  - the bending and twist Hessians of the assembly are exact at zero twist moment but drop
+  //    the second derivative of the reference twist (relative error ~1e-3 in a rod that twists
+  //    as it moves): the exact product is a central difference of their gradient, the state
+  //    moved by 1e-6 L, less the assembled one.
+  BandedSymmetric K_bend_twist;
+  EnergyTerms bend_twist = EnergyTerms::Only(-1);
+  bend_twist.bend1 = bend_twist.bend2 = bend_twist.twist = 1.0;
+  AssembleHessian(model_, after.q, bend_twist, &g, &K_bend_twist);
+  VecX gp, gm;
+  RodState qp, qm;
+  auto missing = [&](const VecX& v, VecX* out) {
+    *out = -K_bend_twist.Multiply(v);
+    double scale = 0.0;
+    for (int r = 0; r < N; ++r)
+      if (!held_[r]) scale = std::max(scale, r % 4 == 3 ? std::abs(v[r]) : std::abs(v[r]) / L);
+    if (scale == 0.0) return true;
+    const double eps = 1e-6 / scale;
+    if (!Moved(model_, held_, after.q, v, eps, &qp) || !Moved(model_, held_, after.q, v, -eps, &qm))
+      return false;
+    AssembleGradient(model_, qp, bend_twist, &gp);
+    AssembleGradient(model_, qm, bend_twist, &gm);
+    *out += (gp - gm) / (2.0 * eps);
+    for (int r = 0; r < N; ++r)
+      if (held_[r]) (*out)[r] = 0.0;
+    return true;
+  };
+  Eigen::MatrixXd next = rhs;
+  factor.SolveInPlace(next);
+  bool settled = false;
+  VecX extra;
+  for (int pass = 0; pass < 30 && !settled; ++pass) {
+    TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
+    Eigen::MatrixXd again = rhs;
+    for (int k = 0; k < m; ++k) {
+      if (!missing(next.col(k), &extra)) {
+        *why = "the step's sensitivities: a perturbed state folds an edge back";
+        return false;
+      }
+      again.col(k) -= apply_a(twist_from_end.col(k)) + extra;
+    }
+    for (int r = 0; r < N; ++r)
+      if (held_[r]) again.row(r).setZero();
+    factor.SolveInPlace(again);
+    // The central differences' round-off (~1e-10 relative) bounds how far the passes settle.
+    settled = true;
+    for (int k = 0; k < m; ++k)
+      settled = settled && (again.col(k) - next.col(k)).cwiseAbs().maxCoeff() <=
+                               1e-9 * next.col(k).cwiseAbs().maxCoeff();
+    next = again;
+  }
+  if (!settled || !next.allFinite()) {
+    *why = "the step's sensitivities did not settle (the rod turns or twists too far in one step)";
+    return false;
+  }
+  TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
+  // The rates and BDF2's history follow the step's increment d (dynamics.cc: v = c (d - z)).
+  Eigen::MatrixXd dd = next - ds->dq + twist_from_start + twist_from_end;
+  Eigen::MatrixXd dz_all = bdf2 ? Eigen::MatrixXd(ds->dlast_step / 3.0) : Eigen::MatrixXd::Zero(N, m);
+  Eigen::MatrixXd dv_new = c * (dd - dz_all);
+  for (int r = 0; r < N; ++r)
+    if (held_[r]) dd.row(r).setZero(), dv_new.row(r).setZero();
+  if (options_.integrator == Integrator::kBdf2) {
+    ds->dlast_v = ds->dv;
+    ds->dlast_step = dd;
+  }
+  ds->dv = dv_new;
+  ds->dq = next;
+  return true;
+}
+
+}  // namespace rodfit

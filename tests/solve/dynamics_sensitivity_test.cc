@@ -1,0 +1,194 @@
+// The step's sensitivities (dynamics.h, StepSensitivity) against central differences of the
+// stepper itself, on a rod whipped in 3-D so that it bends and twists: a cantilever with a pin
+// at mid-length dragged along a path, random start velocities, gravity out of its plane, every
+// damping term on. A random perturbation of the whole state (positions, twist angles, rates and
+// BDF2's history) is carried 25 steps by the sensitivities and by the stepper; the positions and
+// the material frames' twist (measured physically: the turn of d1 about the tangent against its
+// transport) agree. Also: a parameter direction against rescaled constants, and the refusals.
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "rodfit/model/frames.h"
+#include "rodfit/solve/case_dynamics.h"
+#include "rodfit/solve/rod_energy.h"
+#include "solve/mocap_fixture.h"
+
+namespace rodfit {
+namespace {
+
+// q moved by eps dq in the sensitivities' chart: positions added, twist angles added against
+// reference directors transported to the new tangents.
+RodState MovedState(const RodModel& model, const RodState& q, const VecX& dq, double eps) {
+  const std::vector<char>& held = HeldDofs(model);
+  RodState out = q;
+  for (int i = 1; i <= model.num_edges(); ++i)
+    for (int r = 0; r < 3; ++r) {
+      const int k = RodModel::VertexDof(i) + r;
+      if (!held[k]) out.x(r, i) += eps * dq[k];
+    }
+  for (int j = 0; j < model.num_edges(); ++j) out.theta[j] += eps * dq[RodModel::TwistDof(j)];
+  out.SyncEdges();
+  EXPECT_TRUE(UpdateReferenceFrames(model, q, &out));
+  return out;
+}
+
+struct Whip {
+  Scene scene;
+  LoadCase load_case;
+};
+
+Whip WhippedCantilever(const std::string& integrator) {
+  Whip w;
+  w.scene = testing::Cable();
+  w.scene.rod.segments = 10;
+  w.scene.gravity = Vec3(0, 3, -9.81);
+  w.scene.material.bend_damping = 2e-5;
+  w.scene.material.twist_damping = 1e-5;
+  w.scene.material.stretch_damping = 2.0;
+  w.scene.dynamics->integrator = integrator;
+  LoadCase& c = w.load_case;
+  c.name = "whip";
+  c.clamp.tangent = Vec3(1, 0, 0);
+  c.clamp.normal = Vec3(0, 0, 1);
+  Pin pin;
+  pin.s = 0.5;
+  pin.position = Vec3(0.5, 0, 0);
+  c.pins.push_back(pin);
+  DrivenPoint d;
+  d.point = "pins[0]";
+  d.path.t = {0.0, 1.0};
+  d.path.a = {Vec3(0.5, 0, 0), Vec3(0.5, 0.2, 0.1)};
+  c.drives.push_back(d);
+  w.scene.cases = {c};
+  return w;
+}
+
+void CheckStateSensitivities(const std::string& integrator) {
+  const Whip w = WhippedCantilever(integrator);
+  const RodModel model(w.scene.rod, w.scene.material, w.scene.gravity, CaseAtStart(w.load_case));
+  DynamicsOptions options;
+  options.time_step = 2e-3;
+  ASSERT_TRUE(ParseIntegrator(integrator, &options.integrator));
+  // Converged far below the differences' step, so that they measure the map, not its tolerance.
+  options.residual_tolerance = 1e-14;
+  options.step_tolerance = 1e-16;
+  options.max_newton_iterations = 100;
+  DynamicsStepper stepper(model, options);
+  const CaseDrive drive(model, w.scene.cases[0]);
+  const std::vector<char>& held = HeldDofs(model);
+  const int N = model.num_free_dofs();
+  auto free_random = [&](double size) {
+    VecX v = VecX::Random(N) * size;
+    for (int k = 0; k < N; ++k)
+      if (held[k]) v[k] = 0.0;
+    return v;
+  };
+  DynamicState s = stepper.AtRest(model.StraightState());
+  s.v = free_random(0.3);
+  for (int k = 0; k < 20; ++k) ASSERT_TRUE(stepper.Step(drive, &s).ok);
+  // The perturbation, and the sensitivities that carry it (no parameter moves).
+  const VecX dq = free_random(1e-2), dv = free_random(1.0), dls = free_random(1e-3),
+             dlv = free_random(1.0);
+  DynamicSensitivity ds;
+  ds.dq = dq;
+  ds.dv = dv;
+  if (s.has_history) {
+    ds.dlast_step = dls;
+    ds.dlast_v = dlv;
+  }
+  const double eps = 1e-5;
+  DynamicState plus = s, minus = s;
+  plus.q = MovedState(model, s.q, dq, eps);
+  minus.q = MovedState(model, s.q, dq, -eps);
+  plus.v += eps * dv;
+  minus.v -= eps * dv;
+  if (s.has_history) {
+    plus.last_step += eps * dls;
+    minus.last_step -= eps * dls;
+    plus.last_v += eps * dlv;
+    minus.last_v -= eps * dlv;
+  }
+  for (int k = 0; k < 25; ++k) {
+    const DynamicState before = s;
+    ASSERT_TRUE(stepper.Step(drive, &s).ok);
+    std::string why;
+    ASSERT_TRUE(stepper.StepSensitivity(drive, before, s, {ParameterDirection()}, &ds, &why)) << why;
+    ASSERT_TRUE(stepper.Step(drive, &plus).ok);
+    ASSERT_TRUE(stepper.Step(drive, &minus).ok);
+  }
+  double worst_x = 0.0, largest_x = 0.0, worst_t = 0.0, largest_t = 0.0;
+  for (int i = 1; i <= model.num_edges(); ++i) {
+    const Vec3 fd = (plus.q.x.col(i) - minus.q.x.col(i)) / (2.0 * eps);
+    const Vec3 analytic = ds.dq.col(0).segment<3>(RodModel::VertexDof(i));
+    worst_x = std::max(worst_x, (fd - analytic).cwiseAbs().maxCoeff());
+    largest_x = std::max(largest_x, fd.cwiseAbs().maxCoeff());
+  }
+  for (int j = 0; j < model.num_edges(); ++j) {
+    auto turn = [&](const RodState& q) {
+      const EdgeFrame a = model.MaterialFrame(s.q, j), b = model.MaterialFrame(q, j);
+      return SignedAngle<double>(ParallelTransport<double, double>(a.d3, b.d3, a.d1), b.d1, b.d3);
+    };
+    const double fd = (turn(plus.q) - turn(minus.q)) / (2.0 * eps);
+    worst_t = std::max(worst_t, std::abs(fd - ds.dq(RodModel::TwistDof(j), 0)));
+    largest_t = std::max(largest_t, std::abs(fd));
+  }
+  std::printf("%s, 25 steps: positions %.2e, twist %.2e relative\n", integrator.c_str(),
+              worst_x / largest_x, worst_t / largest_t);
+  // Measured: positions 3e-8, twist 8e-8 (with the assembled bending and twist Hessians alone,
+  // 3e-5 and 4e-4).
+  EXPECT_LT(worst_x, 1e-6 * largest_x);
+  EXPECT_LT(worst_t, 1e-6 * largest_t);
+}
+
+TEST(DynamicsSensitivity, Bdf2CarriesAStatePerturbationLikeTheStepper) {
+  CheckStateSensitivities("bdf2");
+}
+
+TEST(DynamicsSensitivity, BackwardEulerCarriesAStatePerturbationLikeTheStepper) {
+  CheckStateSensitivities("backward_euler");
+}
+
+TEST(DynamicsSensitivity, DirectionsFollowTheConstantsAParameterMoves) {
+  Material a = testing::Cable().material;
+  Material b = a;
+  b.bend_stiffness *= 2.0;  // B2 tied: both bending stiffnesses move
+  const ParameterDirection d = ParameterDirection::Between(a, 0.04, b, 0.04, std::log(2.0));
+  EXPECT_DOUBLE_EQ(d.bend1, 1.0);
+  EXPECT_DOUBLE_EQ(d.bend2, 1.0);
+  EXPECT_EQ(d.twist, 0.0);
+  EXPECT_EQ(d.drag, 0.0);
+  EXPECT_EQ(d.density, 0.0);
+  a.bend_stiffness_2 = a.bend_stiffness;
+  b = a;
+  b.bend_stiffness *= 2.0;  // untied: B1 alone
+  const ParameterDirection e = ParameterDirection::Between(a, 0.04, b, 0.04, std::log(2.0));
+  EXPECT_DOUBLE_EQ(e.bend1, 1.0);
+  EXPECT_EQ(e.bend2, 0.0);
+  const ParameterDirection f = ParameterDirection::Between(a, 0.04, a, 0.08, std::log(2.0));
+  EXPECT_DOUBLE_EQ(f.density, 1.0);
+}
+
+TEST(DynamicsSensitivity, RefusesTheMidpointRule) {
+  const Whip w = WhippedCantilever("midpoint");
+  const RodModel model(w.scene.rod, w.scene.material, w.scene.gravity, CaseAtStart(w.load_case));
+  DynamicsOptions options;
+  options.time_step = 2e-3;
+  options.integrator = Integrator::kMidpoint;
+  DynamicsStepper stepper(model, options);
+  const CaseDrive drive(model, w.scene.cases[0]);
+  DynamicState s = stepper.AtRest(model.StraightState());
+  const DynamicState before = s;
+  ASSERT_TRUE(stepper.Step(drive, &s).ok);
+  DynamicSensitivity ds;
+  ds.dq.setZero(model.num_free_dofs(), 1);
+  std::string why;
+  EXPECT_FALSE(stepper.StepSensitivity(drive, before, s, {ParameterDirection()}, &ds, &why));
+  EXPECT_NE(why.find("midpoint"), std::string::npos) << why;
+}
+
+}  // namespace
+}  // namespace rodfit
