@@ -29,11 +29,11 @@ Scene SceneAt(const Scene& scene, const std::vector<std::string>& names, const d
 // residuals are laid out once (recording, frame >= 1, marker not driven and seen, coordinate):
 // their number is the same at every parameter value.
 struct Ctx {
-  const Scene* scene;
-  const std::vector<MotionRecordingData>* recordings;
-  const std::vector<std::string>* names;
-  const RolloutOptions* options;
-  const StaticsOptions* statics;
+  const Scene* scene = nullptr;
+  const std::vector<MotionRecordingData>* recordings = nullptr;
+  const std::vector<std::string>* names = nullptr;
+  const RolloutOptions* options = nullptr;
+  const StaticsOptions* statics = nullptr;
   std::vector<ParameterDirection> directions;
   std::vector<std::vector<char>> held;  // per recording, per marker: driven
   double sigma = 1.0;
@@ -231,7 +231,12 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
     throw std::invalid_argument("the least-squares motion fit differentiates the bdf2 and "
                                 "backward_euler steps, not " + scene.dynamics->integrator +
                                 " (set dynamics.integrator, or use the derivative-free search)");
-  Ctx ctx{&scene, &recordings, &names, &options, &statics};
+  Ctx ctx;
+  ctx.scene = &scene;
+  ctx.recordings = &recordings;
+  ctx.names = &names;
+  ctx.options = &options;
+  ctx.statics = &statics;
   // Each parameter's direction in the model's constants, read off the scene scaled by e in it
   // (the same at every value: the constants scale with their parameters).
   for (const std::string& name : names) {
