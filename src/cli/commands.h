@@ -5,6 +5,8 @@
 
 int RunFit(int argc, char** argv);
 int RunRollout(int argc, char** argv);
+/// Keeps Ceres' glog lines off stderr (the fits report for themselves).
+void SilenceCeresLogging();
 int RunBench(int argc, char** argv);
 int RunExport(int argc, char** argv);
 

@@ -49,6 +49,14 @@ std::string CheckThreads(const std::string& text) {
 
 }  // namespace
 
+void SilenceCeresLogging() {
+  // Ceres logs through glog (a rank-deficient covariance, a failed step); rodfit reports for
+  // itself, in one line.
+  FLAGS_minloglevel = google::GLOG_FATAL;
+  FLAGS_stderrthreshold = google::GLOG_FATAL;
+  if (!google::IsGoogleLoggingInitialized()) google::InitGoogleLogging("rodfit");
+}
+
 int RunFit(int argc, char** argv) {
   CLI::App app("Fit the experiment's `fit: true` parameters to its observations and write the "
                "profile JSON. Exit 0 when every fitted parameter is determined by the data, 4 "
@@ -73,10 +81,7 @@ int RunFit(int argc, char** argv) {
     return EXIT_FAILURE;
   }
 
-  // Ceres logs through glog; rodfit reports for itself, in one line (see below).
-  FLAGS_minloglevel = google::GLOG_FATAL;
-  FLAGS_stderrthreshold = google::GLOG_FATAL;
-  if (!google::IsGoogleLoggingInitialized()) google::InitGoogleLogging("rodfit");
+  SilenceCeresLogging();
 
   const rodfit::Experiment experiment = rodfit::LoadExperiment(experiment_path);
   // Before the fit, so that no run ends by overwriting its own data (`-o experiment.yaml`).

@@ -102,6 +102,7 @@ int RunRollout(int argc, char** argv) {
   rodfit::Scene scene = experiment.scene;
   std::string fit_json;
   if (!fit_text.empty()) {
+    SilenceCeresLogging();
     std::vector<std::string> names;
     std::stringstream ss(fit_text);
     std::string item;
