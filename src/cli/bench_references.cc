@@ -89,6 +89,20 @@ rodfit::Scene ClampedClampedScene(int segments) {
   return s;
 }
 
+// The shooting solver's rod: the scene's length, stiffnesses, rest curvature and weight.
+ref::RodProperties ShootingProperties(const rodfit::Scene& s) {
+  ref::RodProperties p;
+  p.length = s.rod.length;
+  p.B1 = s.material.bend_stiffness;
+  p.B2 = s.material.B2();
+  p.GJ = s.material.twist_stiffness;
+  p.EA = s.material.stretch_stiffness;
+  p.rest_curvature = s.rod.rest_curvature;
+  p.linear_density = s.rod.linear_density;
+  p.gravity = s.gravity;
+  return p;
+}
+
 // Shooting at 2000 RK4 steps in 4 segments, continued from an arc in 10 steps (20, as in
 // tests/solve/exact_references_test.cc, give the same solution to 1e-15 L; its self-test in
 // tests/reference checks the solution's mirror symmetry): 4000 steps change it by < 1e-13 L, far
@@ -96,14 +110,7 @@ rodfit::Scene ClampedClampedScene(int segments) {
 const ref::ShootingResult& ClampedClampedReference() {
   static const ref::ShootingResult r = [] {
     const rodfit::Scene s = ClampedClampedScene(2);
-    ref::RodProperties p;
-    p.length = s.rod.length;
-    p.B1 = s.material.bend_stiffness;
-    p.B2 = s.material.B2();
-    p.GJ = s.material.twist_stiffness;
-    p.EA = s.material.stretch_stiffness;
-    p.linear_density = s.rod.linear_density;
-    p.gravity = s.gravity;
+    ref::RodProperties p = ShootingProperties(s);
     ref::ShootingOptions o;
     o.steps = 2000;
     o.segments = 4;
@@ -154,15 +161,7 @@ rodfit::Scene RestCurvedScene(int segments) {
 const ref::ShootingResult& RestCurvedReference() {
   static const ref::ShootingResult r = [] {
     const rodfit::Scene s = RestCurvedScene(2);
-    ref::RodProperties p;
-    p.length = s.rod.length;
-    p.B1 = s.material.bend_stiffness;
-    p.B2 = s.material.B2();
-    p.GJ = s.material.twist_stiffness;
-    p.EA = s.material.stretch_stiffness;
-    p.rest_curvature = s.rod.rest_curvature;
-    p.linear_density = s.rod.linear_density;
-    p.gravity = s.gravity;
+    ref::RodProperties p = ShootingProperties(s);
     ref::ClampSpec clamp;
     clamp.position = s.cases[0].clamp.position;
     clamp.tangent = s.cases[0].clamp.tangent;
