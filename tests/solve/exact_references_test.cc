@@ -254,18 +254,10 @@ TEST(ExactReferences, AnisotropicRestCurvedDeadMomentAgainstShooting) {
 // The same two cases from the default start (the straight rod), as a user would solve them, at
 // 20, 50 and 100 segments: each must converge (to the equilibrium the rest-shape start finds,
 // within 1e-8 L).
-// KNOWN FAILURE (solver): the moment-only case does not converge at 100 segments ("no
-// equilibrium found: line search failed", |g| ~ 1.9e4 N); it does at 20 and 50 (a sweep failed
-// at every n from 60 to 200 in steps of 10). Evidence: the case carries a moment, so the solver
-// uses the non-symmetric Newton with a line search on the residual merit; replaying its steps
-// from the straight state at full load, the merit stalls at ~3.8e8 (from 4.3e8) while the step
-// length is cut to ~1e-9. The load-continuation fallback then fails at its first step, load 0,
-// i.e. it cannot find the unloaded rest shape from the straight state on that path (the
-// summary reports 1 load step; with the moment scaled by 1e-12 the solve fails identically,
-// same |g| and Pi). Yet the conservative solver finds the rest shape from the same straight
-// state in 7 iterations (the case without a moment), and the full case converges in 5
-// iterations from the rest shape. The loaded case (tip force and gravity too) converges from
-// straight at every n.
+// Why this is a test of its own: from the straight state at full load, a non-symmetric Newton
+// with a line search on the residual merit once stalled here at 60-200 segments (the merit
+// falling from 4.3e8 only to 3.8e8 with steps cut to 1e-9), and the load continuation failed
+// at its first step; the loaded case (tip force and gravity too) converged throughout.
 TEST(ExactReferences, RestCurvedRodWithTipMomentSolvesFromStraightStart) {
   for (const Case3D& c : AnisotropicCases()) {
     for (int n : {20, 50, 100}) {
@@ -399,17 +391,14 @@ TEST(ExactReferences, HeavyClampedClampedElasticaAgainstShooting) {
   }
 }
 
-// KNOWN FAILURE (solver), at 100 segments: from the straight start the solve converges to the
-// hogging arch (z(L/2) = +0.265, Pi = 10.96 J), not to the sag (z(L/2) = -0.267, Pi = 5.64 J)
-// that a quasi-static shortening under gravity follows. Both are genuine equilibria (the
-// reference solver finds the arch too, from an upward initial arc, and the discrete arch
-// matches it to 3e-5 L), and both are reported stable; the branch depends on the segment count
-// (sag at 40, 50, 80, 120, 150, 200 segments, arch at 60 and 100). The held-point continuation
-// moves the end clamp in steps of continuation_move = 0.1 L, spreading the displacement over the
-// free vertices: the first step compresses the straight rod axially by 10 %, ~2500 times the
-// Euler strain 4 pi^2 EI / (EA L^2) (an axial force ~1e5 N against a weight of 20 N), so the
-// Newton iteration starts far past buckling, where gravity's bias is negligible and which way
-// the column buckles is decided by the iteration, not by the load.
+// A wire hanging between two clamps, solved from the straight start as a user would: it must
+// end on the sag (z(L/2) = -0.267, Pi = 5.64 J), which a quasi-static shortening under gravity
+// follows, not on the hogging arch (z(L/2) = +0.265, Pi = 10.96 J), the other stable equilibrium
+// (the reference solver finds it too, from an upward arc). Why it is hard: moving the end clamp
+// in by 0.1 L at once compresses the straight rod ~2500 times past Euler buckling (an axial
+// force ~1e5 N against a weight of 20 N), and the Newton iteration rather than gravity then
+// decides which way the column buckles; a held-point continuation in such steps once ended on
+// the arch at 60 and 100 segments.
 TEST(ExactReferences, HeavyClampedClampedFromStraightStartSags) {
   const ref::ShootingResult& r = ClampedClampedReference();
   ASSERT_TRUE(r.converged) << r.message;
