@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include "rodfit/solve/case_solve.h"
@@ -18,6 +20,55 @@ Vec3 Interpolate(const TimeSeries& series, int which, double t) {
   const size_t k = static_cast<size_t>(std::upper_bound(ts.begin(), ts.end(), t) - ts.begin());
   const double w = (t - ts[k - 1]) / (ts[k] - ts[k - 1]);
   return (1.0 - w) * v[k - 1] + w * v[k];
+}
+
+// A symmetric case's drives (docs/model.md, "Mirror symmetry"): the whole rod stays its own
+// mirror image only when the end clamp moves as the clamp's mirror image, so its path must be
+// that (same times; position, tangent reversed and normal mirrored). The half is driven by the
+// clamp's path alone: the returned case has the end clamp's drive removed. Throws
+// std::invalid_argument naming what breaks the symmetry.
+LoadCase HalfDrives(const RodModel& half, const LoadCase& load_case) {
+  if (!load_case.tip_load.empty())
+    throw std::invalid_argument("symmetry: a tip load series would break the mirror symmetry");
+  const DrivenPoint* clamp = nullptr;
+  const DrivenPoint* end = nullptr;
+  for (const DrivenPoint& d : load_case.drives) {
+    if (d.point == "clamp") clamp = &d;
+    else if (d.point == "end_clamp") end = &d;
+    else throw std::invalid_argument("symmetry: a symmetric case cannot drive " + d.point);
+  }
+  LoadCase out = load_case;
+  if (!clamp && !end) return out;
+  if (!clamp || !end)
+    throw std::invalid_argument("symmetry: drive both the clamp and the end clamp (the end "
+                                "clamp's path the clamp's mirror image), or neither");
+  const TimeSeries& a = clamp->path;
+  const TimeSeries& b = end->path;
+  const Vec3& nrm = half.symmetry_normal();
+  auto reflect = [&](const Vec3& v) { return Vec3(v - 2.0 * v.dot(nrm) * nrm); };
+  const double tol = 1e-9 * half.length();
+  bool same = a.t.size() == b.t.size() && a.b.size() == b.b.size() && a.c.size() == b.c.size();
+  for (size_t k = 0; same && k < a.t.size(); ++k) {
+    same = std::abs(a.t[k] - b.t[k]) <= 1e-12 * std::max(1.0, std::abs(a.t[k])) &&
+           (half.Mirror(a.a[k]) - b.a[k]).norm() <= tol;
+    if (same && !a.b.empty())
+      same = (-reflect(a.b[k].normalized()) - b.b[k].normalized()).norm() <= 1e-9;
+    if (same && !a.c.empty()) {
+      const Vec3 t = b.b[k].normalized();
+      const Vec3 want = reflect(a.c[k]), got = b.c[k];
+      same = ((want - want.dot(t) * t).normalized() - (got - got.dot(t) * t).normalized()).norm() <=
+             1e-9;
+    }
+    if (!same)
+      throw std::invalid_argument("symmetry: the end clamp's path is not the clamp's mirror image "
+                                  "(sample " + std::to_string(k) + ")");
+  }
+  if (!same)
+    throw std::invalid_argument("symmetry: the end clamp's path is not the clamp's mirror image "
+                                "(its samples or columns differ from the clamp's)");
+  out.drives.clear();
+  out.drives.push_back(*clamp);
+  return out;
 }
 
 }  // namespace
@@ -150,32 +201,52 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
   if (!ParseIntegrator(spec.integrator, &options.integrator))
     throw std::invalid_argument("unknown integrator " + spec.integrator);
   DynamicsStepper stepper(model, options);
-  const CaseDrive drive(model, scene.cases[index]);
+  const LoadCase driven =
+      model.symmetric() ? HalfDrives(model, scene.cases[index]) : scene.cases[index];
+  const CaseDrive drive(model, driven);  // keeps pointers into `driven`'s paths
+  // What is written: the case's rod, or for a symmetric case the whole rod (the half and its
+  // mirror image, as the statics write it), with the whole rod's reactions.
+  std::optional<RodModel> whole;
+  if (model.symmetric()) {
+    LoadCase full_case = start_case;
+    full_case.symmetry.reset();
+    whole.emplace(scene.rod, scene.material, scene.gravity, full_case, scene.springs);
+  }
+  const RodModel& written = whole ? *whole : model;
   CaseTrajectory out;
-  out.s = model.arc_lengths();
+  out.s = written.arc_lengths();
   DynamicState s = InitialDynamicState(scene, index, statics, stepper);
   if (options.integrator == Integrator::kExplicit) out.stable_step = stepper.StableTimeStep(s.q);
-  const int n = model.num_edges();
   VecX v_before = s.v;
+  // Velocity of the written rod's vertex j from the stepper's: a mirrored vertex moves as the
+  // mirror image of its half's.
+  const int m = model.num_edges();
+  auto velocity = [&](const VecX& v, int j) -> Vec3 {
+    if (j <= m) return v.segment<3>(RodModel::VertexDof(j));
+    const Vec3& nrm = model.symmetry_normal();
+    const Vec3 w = v.segment<3>(RodModel::VertexDof(written.num_edges() - j));
+    return w - 2.0 * w.dot(nrm) * nrm;
+  };
   auto record = [&](double dt) {
     TrajectoryFrame f;
     f.t = s.t;
-    f.x = s.q.x;
-    f.reactions = HeldReactions(model, s.q);
+    const RodState shown = whole ? MirroredState(model, s.q, *whole) : s.q;
+    f.x = shown.x;
+    f.reactions = HeldReactions(written, shown);
     // The clamp at s = 0 balances the moving rod: less its inertia and drag forces m a + c v
     // (a from the last step's change of velocity), and their moments about x_0. (The spin
     // inertia of the edges, ~r^2 / L^2 of these, is left out.)
     if (!f.reactions.empty() && dt > 0.0) {
-      const Material& m = model.material();
+      const Material& material = written.material();
       Vec3 force = Vec3::Zero(), moment = Vec3::Zero();
-      for (int i = 1; i <= n; ++i) {
-        if (model.held_at_vertex(i) >= 0) continue;
-        const int d = RodModel::VertexDof(i);
-        const double cell = model.vertex_mass(i) / scene.rod.linear_density;
-        const Vec3 fi = model.vertex_mass(i) * (s.v.segment<3>(d) - v_before.segment<3>(d)) / dt +
-                        m.damping * cell * s.v.segment<3>(d);
+      for (int i = 1; i <= written.num_edges(); ++i) {
+        if (written.held_at_vertex(i) >= 0) continue;
+        const double cell = written.vertex_mass(i) / scene.rod.linear_density;
+        const Vec3 vi = velocity(s.v, i);
+        const Vec3 fi = written.vertex_mass(i) * (vi - velocity(v_before, i)) / dt +
+                        material.damping * cell * vi;
         force += fi;
-        moment += (s.q.x.col(i) - s.q.x.col(0)).cross(fi);
+        moment += (shown.x.col(i) - shown.x.col(0)).cross(fi);
       }
       f.reactions[0].force -= force;
       f.reactions[0].moment -= moment;

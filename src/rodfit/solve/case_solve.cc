@@ -22,6 +22,10 @@ RodState MirroredState(const RodModel& half, const RodState& h, const RodModel& 
   for (int k = 0; k <= m; ++k) w.x.col(m + 1 + k) = half.Mirror(h.x.col(m - k));
   w.SyncEdges();
   full.InitialiseFrames(&w);
+  // The clamp's frame is the half's, which a moving case turns away from the model's target;
+  // the reference twists are recomputed against it below.
+  w.clamp_t = h.clamp_t;
+  w.clamp_d1 = h.clamp_d1;
   std::vector<Vec3> d1(N);
   for (int j = 0; j < m; ++j) d1[j] = half.MaterialFrame(h, j).d1;
   const Vec3 ghost_d1 = std::cos(h.end_theta) * h.end_u + std::sin(h.end_theta) * h.end_t.cross(h.end_u);

@@ -61,7 +61,7 @@ void Drive::PoseAt(const RodModel& model, double /*t*/, HeldPose* pose) const {
   pose->clamp_d1 = model.clamp_d1();
   pose->held.resize(model.held().size());
   for (size_t k = 0; k < model.held().size(); ++k) pose->held[k] = model.held()[k].target;
-  if (model.has_end_clamp()) {
+  if (model.has_end_ghost()) {  // an end clamp, or a symmetric half's crossing edge
     pose->end_tangent = model.end_tangent();
     pose->end_d1 = model.end_twist_held() ? model.end_d1() : Vec3::Zero();
   }
@@ -105,8 +105,6 @@ DynamicsStepper::DynamicsStepper(const RodModel& model, const DynamicsOptions& o
   const RodSpec& rod = model.rod();
   if (!(rod.linear_density > 0.0))
     throw std::invalid_argument("dynamics needs rod.linear_density > 0 (the rod has no mass)");
-  if (model.symmetric())
-    throw std::invalid_argument("symmetry is for statics only: simulate the whole rod in time");
   const Material& m = model.material();
   for (double c : {m.damping, m.bend_damping, m.twist_damping, m.stretch_damping}) {
     if (!(c >= 0.0) || !std::isfinite(c))
