@@ -20,6 +20,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/fit_input.h"
+#include "rodfit/model/rod.h"
 #include "rodfit/report/fit_report.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/profile.h"
@@ -31,6 +32,10 @@ namespace {
 // from the data (README "Exit codes"): distinct from an error (1, nothing written), so a script
 // cannot take a profile with null values for a complete one.
 constexpr int kNotAllDetermined = 4;
+// The exit status of a fit that wrote its profile but whose residuals are far beyond the stated
+// noise (rodfit::ResidualCheck::gross): the model does not explain the data, so the values are
+// not to be used as they stand (cameras swapped, wrong units, a missing load).
+constexpr int kResidualsNotExplained = 5;
 
 // Ceres runs one thread per requested thread; far more than the cases (or the cores) gains
 // nothing, and 2^31 of them end in std::bad_alloc.
@@ -103,6 +108,20 @@ int RunFit(int argc, char** argv) {
   // A camera behind the rod or looking elsewhere is bad data: said before the fit, naming the
   // camera file and the case (the fit would only fail to evaluate).
   rodfit::CheckCamerasSeeTheStart(experiment);
+  // Held points the rod reaches only by stretching more than 1 %: a wire between two clamps
+  // measured farther apart than its length, or a length given short. Warned about (even with
+  // --quiet): the fit would take the stiffness to explain what the geometry gets wrong.
+  for (const rodfit::FitCase& c : input.cases) {
+    try {
+      const rodfit::RodModel model(input.rod, input.material, input.gravity, c.load_case,
+                                   input.springs);
+      for (const std::string& span : model.StretchedSpans(0.01))
+        std::fprintf(stderr, "rodfit fit: warning: case %s: %s (check rod.length and the held "
+                             "positions)\n", c.load_case.name.c_str(), span.c_str());
+    } catch (const std::invalid_argument&) {
+      // The fit names what is wrong with the case.
+    }
+  }
   rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
   options.num_threads = threads;
   // The global search has a budget of evaluations, so its line has an ETA; Levenberg–Marquardt
@@ -156,26 +175,33 @@ int RunFit(int argc, char** argv) {
     outputs.push_back(&profile_dir);
     rodfit::CommitAll(outputs);
   }
-  // Trusted sigmas keep the std as the sigmas state them, so nothing else would show that the
-  // residuals are not what those sigmas predict: warned about (even with --quiet) when the
-  // residual variance lies outside the 0.1 %-99.9 % quantiles of chi-square(dof) / dof. Under a
-  // robust loss the cost understates the squared residuals, so only too large a variance counts.
-  if (options.trusted_sigmas) {
-    const rodfit::VarianceBand band = rodfit::ResidualVarianceBand(result.residual_dof);
-    const double v = result.residual_variance;
-    if (v > band.high)
-      std::fprintf(stderr,
-                   "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
-                   "to %.2g for %d degrees of freedom): the model does not explain the data "
-                   "(cameras swapped? wrong units? sigmas too small?)\n",
-                   v, band.low, band.high, result.residual_dof);
-    else if (v < band.low && options.loss == rodfit::RobustLoss::kNone)
-      std::fprintf(stderr,
-                   "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
-                   "to %.2g for %d degrees of freedom): the data scatter less than the sigmas "
-                   "say, so the std are too large (sigmas too large?)\n",
-                   v, band.low, band.high, result.residual_dof);
-  }
+  // The residual variance against its chi-square band, warned about on one line even with
+  // --quiet (a warning is not progress). Trusted sigmas keep the std as stated, so nothing else
+  // would show that the residuals are not what those sigmas predict; untrusted ones scale the
+  // std by the variance, which covers sigmas stated too small but not a model error.
+  const rodfit::ResidualCheck check = rodfit::CheckResiduals(result, options);
+  const double v = result.residual_variance;
+  if (check.above && options.trusted_sigmas)
+    std::fprintf(stderr,
+                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
+                 "to %.2g for %d degrees of freedom): the model does not explain the data "
+                 "(cameras swapped? wrong units? sigmas too small?)\n",
+                 v, check.band.low, check.band.high, result.residual_dof);
+  else if (check.above)
+    std::fprintf(stderr,
+                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
+                 "to %.2g for %d degrees of freedom): %s; the std are scaled by it, but a model "
+                 "error (clamp pose, rod length, camera calibration, a missing load) is not "
+                 "noise and they do not cover it\n",
+                 v, check.band.low, check.band.high, result.residual_dof,
+                 check.gross ? "the model does not explain the data"
+                             : "the sigmas understate the noise, or the model misses something");
+  else if (check.below)
+    std::fprintf(stderr,
+                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
+                 "to %.2g for %d degrees of freedom): the data scatter less than the sigmas "
+                 "say, so the std are too large (sigmas too large?)\n",
+                 v, check.band.low, check.band.high, result.residual_dof);
   if (!quiet) {
     for (const rodfit::ParameterEstimate& p : result.parameters) {
       if (!p.fitted) continue;
@@ -185,18 +211,12 @@ int RunFit(int argc, char** argv) {
       else
         std::fprintf(stderr, "%-18s NOT IDENTIFIABLE: %s\n", p.name.c_str(), p.reason.c_str());
     }
-    // A residual variance far above 1 means the model does not explain the data (or the sigmas
-    // are far too small): the numbers are then not to be trusted, whatever their std says.
-    if (!options.trusted_sigmas && result.residual_variance > 100.0)
-      std::fprintf(stderr,
-                   "warning: residual variance %.3g: the model does not explain the data (missing "
-                   "load, wrong units, or sigmas far too small)\n",
-                   result.residual_variance);
     std::fprintf(stderr, "%d iterations, %.3f s, residual variance %.3g; wrote %s\n",
                  result.iterations, result.seconds, result.residual_variance,
                  profile_path.c_str());
   }
   for (const rodfit::ParameterEstimate& p : result.parameters)
     if (p.fitted && !p.identifiable) return kNotAllDetermined;
+  if (check.gross) return kResidualsNotExplained;
   return EXIT_SUCCESS;
 }

@@ -267,9 +267,10 @@ Outcome RunCase(const Case& c, const std::string& dir, const std::string& logs) 
     o.verdict = Verdict::kCrash;
     return o;
   }
-  // Success: 0, or the fit's 4 (profile written, a parameter not determined).
-  const bool success =
-      status == 0 || (status == 4 && (c.command == Command::kFit || c.command == Command::kFitReport));
+  // Success: 0, or the fit's 4 (profile written, a parameter not determined) and 5 (profile
+  // written, residuals far beyond the stated noise).
+  const bool fit = c.command == Command::kFit || c.command == Command::kFitReport;
+  const bool success = status == 0 || ((status == 4 || status == 5) && fit);
   std::vector<std::string> added, removed;
   for (const std::string& p : after)
     if (!before.count(p)) added.push_back(p);

@@ -156,17 +156,22 @@ TEST_F(HonestOutputsTest, TrustedSigmasStillCheckTheResidualVariance) {
     EXPECT_LT(fit["residual_variance"].get<double>(), 2.0);
   }
   // Sigmas stated ten times too small (mm read as 0.1 mm, or a model that misses a load): the
-  // variance is ~100; the profile says so and one warning line does, even with --quiet.
+  // variance is ~100; the profile says so and one warning line does, even with --quiet, and the
+  // exit status 5 says that the values are not to be used as they stand.
   {
     const RunResult run =
         Fit("small", Experiment(kFitBend, "{value: 6.8e-6}", "3.0e-5", trusted), "--quiet");
-    ASSERT_EQ(run.status, 0) << run.err;
+    ASSERT_EQ(run.status, 5) << run.err;
     EXPECT_THAT(run.err, StartsWith("rodfit fit: warning: residual variance "));
     EXPECT_THAT(run.err, HasSubstr("x the stated sigmas"));
     EXPECT_THAT(run.err, HasSubstr("the model does not explain the data"));
     EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
     const json fit = json::parse(ReadText(Profile("small")))["fit"];
     EXPECT_GT(fit["residual_variance"].get<double>(), 30.0);
+    EXPECT_EQ(fit["residuals_explained"], false);
+    // The band for 29 degrees of freedom: about 0.39 to 2.0.
+    EXPECT_NEAR(fit["residual_variance_band"][0].get<double>(), 0.39, 0.02);
+    EXPECT_NEAR(fit["residual_variance_band"][1].get<double>(), 2.0, 0.05);
   }
   // Sigmas ten times too large: the variance is ~0.01, the std far too pessimistic.
   {
@@ -187,6 +192,39 @@ TEST_F(HonestOutputsTest, UntrustedSigmasAreNotWarnedAboutAsTrusted) {
                             "--quiet");
   ASSERT_EQ(run.status, 0) << run.err;
   EXPECT_EQ(run.err, "");
+}
+
+TEST_F(HonestOutputsTest, UntrustedSigmasStillSayWhenTheResidualsExceedThem) {
+  // Untrusted sigmas scale the std by the residual variance, which covers noise stated too
+  // small but not a model error: above the band one warning line says so (even with --quiet)
+  // and the profile marks it; far above it (sigmas 100 times too small, a model far from the
+  // data) the exit status is 5.
+  Synthesize();
+  {
+    const RunResult run =
+        Fit("third", Experiment(kFitBend, "{value: 6.8e-6}", "1.0e-4"), "--quiet");
+    ASSERT_EQ(run.status, 0) << run.err;
+    EXPECT_THAT(run.err, StartsWith("rodfit fit: warning: residual variance "));
+    EXPECT_THAT(run.err, HasSubstr("the sigmas understate the noise, or the model misses"));
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+    const json fit = json::parse(ReadText(Profile("third")))["fit"];
+    EXPECT_EQ(fit["residuals_explained"], false);
+  }
+  {
+    const RunResult run =
+        Fit("hundredth", Experiment(kFitBend, "{value: 6.8e-6}", "3.0e-6"), "--quiet");
+    ASSERT_EQ(run.status, 5) << run.err;
+    EXPECT_THAT(run.err, HasSubstr("the model does not explain the data"));
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+  }
+  {
+    const RunResult run =
+        Fit("right", Experiment(kFitBend, "{value: 6.8e-6}", "3.0e-4"), "--quiet");
+    ASSERT_EQ(run.status, 0) << run.err;
+    EXPECT_EQ(run.err, "");
+    const json fit = json::parse(ReadText(Profile("right")))["fit"];
+    EXPECT_EQ(fit["residuals_explained"], true);
+  }
 }
 
 // The markers of DIR/data/flat_markers.csv with x, y, z multiplied by 1000 (millimetres), as

@@ -186,6 +186,58 @@ TEST(RuntimeCli, ExportWritesEachFormat) {
   }
 }
 
+// A profile whose rod is held at both ends (a wire between two clamps, with a pin): the exports
+// hold every held vertex where its holder holds it, not only the clamp, and start the rod in the
+// held shape. The suture profile with an end clamp 0.15 m from the clamp, out of its plane.
+TEST(RuntimeCli, ExportHoldsEveryHeldPointWhereItsHolderHoldsIt) {
+  TempDir dir;
+  nlohmann::json profile = nlohmann::json::parse(test::ReadText(kSource + "/data/profiles/suture.json"));
+  profile["held"]["end_clamp"] = {{"position", {0.15, 0.03, -0.02}},
+                                  {"tangent", {1.0, 0.5, 0.0}},
+                                  {"normal", {0.0, 0.0, 1.0}}};
+  profile["held"]["pins"] = {{{"s", 0.1}, {"position", {0.08, 0.02, -0.03}}}};
+  const std::string path = dir.Write("two_clamps.json", profile.dump(1));
+  ASSERT_EQ(RunRodfit(dir, "export " + Quote(path) + " --format xpbd --time-step 0.002 -o " +
+                               Quote(dir.File("x.json"))).status, 0);
+  const nlohmann::json x = nlohmann::json::parse(test::ReadText(dir.File("x.json")));
+  const nlohmann::json& v = x["vertices"];
+  const int n = profile["rod"]["segments"].get<int>();
+  ASSERT_EQ(v.size(), static_cast<size_t>(n + 1));
+  auto at = [](const nlohmann::json& a) { return Vec3(a[0], a[1], a[2]); };
+  // The end clamp's vertex: fixed where the end clamp is, with its frame; the rest shape's tip
+  // (the straight rod, 0.2 m along x) is elsewhere.
+  EXPECT_EQ(v[n]["fixed"], true);
+  EXPECT_EQ(v[n]["held_by"], "end_clamp");
+  EXPECT_LT((at(v[n]["start_position"]) - Vec3(0.15, 0.03, -0.02)).norm(), 1e-9);
+  EXPECT_GT((at(v[n]["rest_position"]) - Vec3(0.15, 0.03, -0.02)).norm(), 0.04);
+  EXPECT_LT((at(v[n]["held_frame"]["tangent"]) - Vec3(1, 0.5, 0).normalized()).norm(), 1e-12);
+  // The pin at s = 0.1 m (vertex 25 of 50): fixed at its position, no frame.
+  EXPECT_EQ(v[25]["held_by"], "pins[0]");
+  EXPECT_LT((at(v[25]["start_position"]) - Vec3(0.08, 0.02, -0.03)).norm(), 1e-9);
+  EXPECT_FALSE(v[25].contains("held_frame"));
+  EXPECT_EQ(v[0]["held_by"], "clamp");
+  int fixed = 0;
+  for (const auto& vertex : v) fixed += vertex["fixed"].get<bool>() ? 1 : 0;
+  EXPECT_EQ(fixed, 3);
+  // The start shape is the held equilibrium: consecutive vertices a rest length apart (to the
+  // stretch of a suture under its own weight), not stretched to reach the holders.
+  for (int i = 0; i < n; ++i)
+    EXPECT_NEAR((at(v[i + 1]["start_position"]) - at(v[i]["start_position"])).norm(),
+                x["segments"][i]["rest_length"].get<double>(), 1e-6);
+
+  ASSERT_EQ(RunRodfit(dir, "export " + Quote(path) + " --format sofa -o " + Quote(dir.File("s.xml"))).status, 0);
+  const std::string sofa = test::ReadText(dir.File("s.xml"));
+  EXPECT_THAT(sofa, HasSubstr("<FixedConstraint indices=\"0 " + std::to_string(n) +
+                              "\"/>  <!-- clamp, end_clamp -->"));
+  EXPECT_THAT(sofa, HasSubstr("<PartialFixedConstraint indices=\"25\" fixedDirections=\"1 1 1 0 0 0\"/>"));
+  EXPECT_THAT(sofa, HasSubstr("rest_position=\""));
+  // The last vertex of `position` is the end clamp: "0.14999999999999999 0.029999999999999999".
+  const size_t pos = sofa.find("position=\""), rest = sofa.find("rest_position=\"");
+  ASSERT_NE(pos, std::string::npos);
+  const std::string positions = sofa.substr(pos, rest - pos);
+  EXPECT_THAT(positions, HasSubstr("0.14999999999999999 0.029999999999999999 -0.02"));
+}
+
 TEST(RuntimeCli, ExportMistakesWriteNothing) {
   TempDir dir;
   const std::string suture = kSource + "/data/profiles/suture.json";

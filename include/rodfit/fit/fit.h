@@ -201,6 +201,21 @@ struct VarianceBand {
 };
 VarianceBand ResidualVarianceBand(int dof);
 
+/// Whether a fit's residuals are what its stated sigmas predict (docs/cli.md, "fit"). `above`:
+/// the residual variance lies above its band; with untrusted sigmas the std are scaled by it,
+/// but a model error (a clamp pose, the rod length, a camera's calibration) is not noise and is
+/// not covered. `below` (trusted sigmas without a robust loss only): the data scatter less than
+/// the sigmas say, so the std are too large. `gross`: the result is not to be used as it stands:
+/// above the band with trusted sigmas, or above kGrossResidualVariance without them.
+struct ResidualCheck {
+  VarianceBand band;
+  bool above = false, below = false, gross = false;
+};
+/// The residual variance above which an untrusted-sigma fit is not used: sigmas ten times too
+/// small, or a model far from the data.
+inline constexpr double kGrossResidualVariance = 100.0;
+ResidualCheck CheckResiduals(const FitResult& result, const FitOptions& options);
+
 /// Runs the identification. Throws std::invalid_argument for an ill-posed request (nothing to
 /// fit, a fitted parameter the model does not use, min >= max, a start outside its bounds).
 /// The ring's `ring_bend_stiffness` / `ring_stretch_stiffness` are fitted from `surface_points`

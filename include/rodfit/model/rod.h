@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -204,6 +205,11 @@ class RodModel {
 
   // Held points.
   const std::vector<HeldVertex>& held() const { return held_; }
+  /// Consecutive held points (the clamp first) farther apart than (1 + strain) times the rod
+  /// between them: one line each, naming both, their distance and the rod between them. Not an
+  /// error (a taut wire does stretch), but a rod length or held position given wrong is the
+  /// likelier cause of more than a percent, and it biases a fit.
+  std::vector<std::string> StretchedSpans(double strain) const;
   /// Index into held() of the point holding vertex i, or -1.
   int held_at_vertex(int i) const { return held_of_vertex_[i]; }
   /// Per free dof: held (a held vertex's coordinate, an end ghost's vertex, a held ghost twist).
@@ -229,6 +235,10 @@ class RodModel {
  private:
   void BuildVertices();
   void PlaceHeldPoints();
+  // Calls visit(gap [m], rod between [m], earlier point's name, later point's name) for each
+  // pair of consecutive held points, the clamp first.
+  void ForEachHeldSpan(const std::function<void(double, double, const std::string&,
+                                                const std::string&)>& visit) const;
   void SetUpSymmetry();
 
   RodSpec rod_;

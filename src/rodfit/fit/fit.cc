@@ -371,6 +371,17 @@ VarianceBand ResidualVarianceBand(int dof) {
   return {low * low * low, high * high * high};
 }
 
+ResidualCheck CheckResiduals(const FitResult& result, const FitOptions& options) {
+  ResidualCheck c;
+  c.band = ResidualVarianceBand(result.residual_dof);
+  const double v = result.residual_variance;
+  c.above = v > c.band.high;
+  // Under a robust loss the cost understates the squared residuals: only too large counts.
+  c.below = options.trusted_sigmas && options.loss == RobustLoss::kNone && v < c.band.low;
+  c.gross = options.trusted_sigmas ? c.above : v > kGrossResidualVariance;
+  return c;
+}
+
 bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,
                         Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) {
   const std::vector<Fitted> fitted = FittedParameters(input);

@@ -188,6 +188,9 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   fit["final_cost"] = r.final_cost;
   fit["num_residuals"] = r.num_residuals;
   fit["residual_variance"] = r.residual_variance;
+  const ResidualCheck check = CheckResiduals(r, options);
+  fit["residual_variance_band"] = {check.band.low, check.band.high};
+  fit["residuals_explained"] = !check.above;
   fit["sigmas_trusted"] = options.trusted_sigmas;
   fit["loss"] = RobustLossName(options.loss);
   fit["loss_scale"] = options.loss_scale;

@@ -566,17 +566,37 @@ void RodModel::PlaceHeldPoints() {
     }
   }
   // Consecutive held points (the clamp first) must be reachable by the rod between them.
+  ForEachHeldSpan([](double gap, double rod_between, const std::string& earlier,
+                     const std::string& later) {
+    Require(gap <= kMaxHeldStretch * rod_between,
+            later + " is " + Num(gap) + " m from " + earlier + ", but only " + Num(rod_between) +
+                " m of rod lies between them");
+  });
+}
+
+void RodModel::ForEachHeldSpan(const std::function<void(double, double, const std::string&,
+                                                        const std::string&)>& visit) const {
   Vec3 prev_p = clamp_p_;
   double prev_s = 0.0;
   std::string prev_name = "the clamp (s = 0)";
   for (const HeldVertex& h : held_) {
-    const double gap = (h.target - prev_p).norm(), rod_between = h.s - prev_s;
-    Require(gap <= kMaxHeldStretch * rod_between,
-            h.Label() + " (s = " + Num(h.s) + ") is " + Num(gap) + " m from " + prev_name +
-                ", but only " + Num(rod_between) + " m of rod lies between them");
+    const std::string name = h.Label() + " (s = " + Num(h.s) + ")";
+    visit((h.target - prev_p).norm(), h.s - prev_s, prev_name, name);
     prev_p = h.target, prev_s = h.s;
-    prev_name = h.Label() + " (s = " + Num(h.s) + ")";
+    prev_name = name;
   }
+}
+
+std::vector<std::string> RodModel::StretchedSpans(double strain) const {
+  std::vector<std::string> out;
+  ForEachHeldSpan([&](double gap, double rod_between, const std::string& earlier,
+                      const std::string& later) {
+    if (gap > (1.0 + strain) * rod_between)
+      out.push_back(later + " is " + Num(gap) + " m from " + earlier + ", " +
+                    Num(100.0 * (gap / rod_between - 1.0)) + " % more than the " +
+                    Num(rod_between) + " m of rod between them: the rod must stretch to reach it");
+  });
+  return out;
 }
 
 double RodModel::zone_stiffness(int z) const {

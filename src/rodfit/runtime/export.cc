@@ -17,12 +17,16 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod.h"
+#include "rodfit/solve/case_solve.h"
 
 namespace rodfit {
 namespace {
@@ -39,11 +43,36 @@ RodModel BareModel(const Profile& p) {
                   p.scene.springs);
 }
 
+// The rod as its holders place it: the profile's case solved to equilibrium (its held points at
+// their targets, under gravity and the springs). Held points other than the clamp sit where the
+// case holds them, not where the straight rest shape would put them, so an engine must start
+// from this shape. Throws std::invalid_argument when the case cannot be solved.
+CaseSolution HeldShape(const Profile& p) {
+  CaseSolution sol = SolveCase(p.scene, 0, nullptr);
+  if (!sol.ok())
+    throw std::invalid_argument("the profile's case (its held ends) cannot be solved to "
+                                "equilibrium for the held shape: " + sol.summary.BriefReport());
+  return sol;
+}
+
+// One held vertex as an export names it: the holder, and whether it holds the frame too.
+struct Holder {
+  std::string point;     // clamp, end_clamp, end_pin, pins[k], grasp
+  bool frame = false;    // a clamp: position and orientation; else position only
+};
+std::vector<std::pair<int, Holder>> Holders(const RodModel& model) {
+  std::vector<std::pair<int, Holder>> out = {{0, {"clamp", true}}};
+  for (const HeldVertex& h : model.held())
+    out.push_back({h.vertex, {h.Label(), h.kind == HeldVertex::Kind::kEndClamp}});
+  return out;
+}
+
 }  // namespace
 
 std::string FormatSofaSnippet(const Profile& p) {
   const RodModel model = BareModel(p);
   const RodState rest = model.RestState();
+  const CaseSolution held = HeldShape(p);
   const RodSpec& rod = p.scene.rod;
   const Material& m = p.scene.material;
   if (!(rod.radius > 0.0))
@@ -69,24 +98,30 @@ std::string FormatSofaSnippet(const Profile& p) {
       << Num(rod.linear_density > 0.0 ? m.damping / rod.linear_density : 0.0) << "\"/>\n";
   out << "  <SparseLDLSolver/>\n";
   out << "  <!-- " << model.num_edges() << " segments, " << model.num_vertices()
-      << " vertices: the rest shape from the clamp. -->\n";
+      << " vertices: position is the rod as its holders place it (the case's equilibrium), "
+         "rest_position the unstressed rest shape from the clamp. -->\n";
   out << "  <EdgeSetTopologyContainer name=\"topology\" edges=\"";
   for (int j = 0; j < model.num_edges(); ++j) out << (j ? " " : "") << j << " " << j + 1;
   out << "\"/>\n";
   // Rigid3d: position and orientation (qx qy qz qw) per vertex; a SOFA beam runs along its
   // local x, so the frame's columns are (d3, d1, d2) of the edge leaving the vertex (the last
   // vertex: the edge arriving).
-  out << "  <MechanicalObject template=\"Rigid3d\" name=\"frames\" position=\"";
-  for (int i = 0; i < model.num_vertices(); ++i) {
-    const EdgeFrame f = model.MaterialFrame(rest, std::min(i, model.num_edges() - 1));
-    Eigen::Matrix3d r;
-    r << f.d3, f.d1, f.d2;
-    const Eigen::Quaterniond q(r);
-    out << (i ? "  " : "") << Num(rest.x(0, i)) << " " << Num(rest.x(1, i)) << " "
-        << Num(rest.x(2, i)) << " " << Num(q.x()) << " " << Num(q.y()) << " " << Num(q.z())
+  auto frames = [&](const RodModel& on, const RodState& state) {
+    std::ostringstream f;
+    for (int i = 0; i < on.num_vertices(); ++i) {
+      const EdgeFrame e = on.MaterialFrame(state, std::min(i, on.num_edges() - 1));
+      Eigen::Matrix3d r;
+      r << e.d3, e.d1, e.d2;
+      const Eigen::Quaterniond q(r);
+      f << (i ? "  " : "") << Num(state.x(0, i)) << " " << Num(state.x(1, i)) << " "
+        << Num(state.x(2, i)) << " " << Num(q.x()) << " " << Num(q.y()) << " " << Num(q.z())
         << " " << Num(q.w());
-  }
-  out << "\"/>\n";
+    }
+    return f.str();
+  };
+  out << "  <MechanicalObject template=\"Rigid3d\" name=\"frames\" position=\""
+      << frames(*held.model, held.state) << "\"\n                    rest_position=\""
+      << frames(model, rest) << "\"/>\n";
   out << "  <UniformMass totalMass=\"" << Num(rod.linear_density * rod.length) << "\"/>\n";
   out << "  <!-- massDensity [kg/m^3] = linear_density / (pi r^2) -->\n";
   out << "  <BeamFEMForceField name=\"beam\" youngModulus=\"" << Num(c.youngs_modulus)
@@ -99,7 +134,19 @@ std::string FormatSofaSnippet(const Profile& p) {
   for (int j = 0; j < model.num_edges(); ++j)
     out << (j ? " " : "") << Num(model.rest_edge_length(j));
   out << "\"/> -->\n";
-  out << "  <FixedConstraint indices=\"0\"/>  <!-- the clamp at s = 0 -->\n";
+  // Clamps hold position and frame (all six dofs); pins and the grasp hold the position only.
+  std::string fixed, partial, fixed_names, partial_names;
+  for (const auto& [vertex, holder] : Holders(model)) {
+    std::string& indices = holder.frame ? fixed : partial;
+    std::string& names = holder.frame ? fixed_names : partial_names;
+    indices += (indices.empty() ? "" : " ") + std::to_string(vertex);
+    names += (names.empty() ? "" : ", ") + holder.point;
+  }
+  out << "  <FixedConstraint indices=\"" << fixed << "\"/>  <!-- " << fixed_names << " -->\n";
+  if (!partial.empty())
+    out << "  <PartialFixedConstraint indices=\"" << partial
+        << "\" fixedDirections=\"1 1 1 0 0 0\"/>  <!-- " << partial_names
+        << ": position only -->\n";
   out << "</Node>\n";
   return out.str();
 }
@@ -110,6 +157,7 @@ std::string FormatXpbd(const Profile& p, double time_step) {
   using nlohmann::json;
   const RodModel model = BareModel(p);
   const RodState rest = model.RestState();
+  const CaseSolution held = HeldShape(p);
   const Material& m = p.scene.material;
   const double dt2 = time_step * time_step;
   json doc;
@@ -153,11 +201,29 @@ std::string FormatXpbd(const Profile& p, double time_step) {
   }
   doc["joints"] = joints;
   json vertices = json::array();
-  for (int i = 0; i < model.num_vertices(); ++i)
+  for (int i = 0; i < model.num_vertices(); ++i) {
+    const Vec3 x = held.state.x.col(i);
     vertices.push_back({{"index", i},
                         {"rest_position", {rest.x(0, i), rest.x(1, i), rest.x(2, i)}},
+                        {"start_position", {x.x(), x.y(), x.z()}},
                         {"mass", model.vertex_mass(i)},
-                        {"fixed", i == 0 || model.held_at_vertex(i) >= 0}});
+                        {"fixed", false}});
+  }
+  // A held vertex is fixed where its holder holds it (start_position), not at rest_position; a
+  // clamp holds the frame of the edge next to it too.
+  for (const auto& [vertex, holder] : Holders(model)) {
+    json& v = vertices[vertex];
+    v["fixed"] = true;
+    v["held_by"] = holder.point;
+    if (holder.frame) {  // the holder's own frame: the clamp's, or the end clamp's target
+      const Vec3 t = vertex == 0 ? model.clamp_tangent() : model.end_tangent();
+      v["held_frame"] = {{"tangent", {t.x(), t.y(), t.z()}}};
+      if (vertex == 0 || model.end_twist_held()) {
+        const Vec3 d1 = vertex == 0 ? model.clamp_d1() : model.end_d1();
+        v["held_frame"]["d1"] = {d1.x(), d1.y(), d1.z()};
+      }
+    }
+  }
   doc["vertices"] = vertices;
   json anchors = json::array();
   for (int z = 0; z < model.num_spring_zones(); ++z)
