@@ -120,7 +120,11 @@ int RunSequenceFit(const rodfit::Experiment& experiment, const std::string& expe
       rodfit::EvaluateSequences(fitted, input.sequences, experiment.statics);
   const rodfit::FitResult result = rodfit::SequenceFitResult(experiment, input, motion, residuals);
   rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
-  WriteOutputs(experiment, rodfit::FitInput(), options, result, profile_path, report_dir);
+  // The report reads the parameters' starts and bounds from a FitInput; it has no static cases.
+  rodfit::FitInput report_input;
+  for (const auto& [name, spec] : experiment.parameters)
+    report_input.parameters.push_back({name, spec.value, spec.fit, spec.min, spec.max});
+  WriteOutputs(experiment, report_input, options, result, profile_path, report_dir);
   if (!quiet) {
     PrintEstimates(result);
     std::fprintf(stderr, "%d iterations, %d runs, %.3f s, residual variance %.3g; wrote %s\n",
