@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <map>
 #include <utility>
@@ -15,6 +16,13 @@
 
 namespace rodfit {
 namespace {
+
+// Numbers in messages, as a person would type them.
+std::string Short(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.10g", v);
+  return buffer;
+}
 
 // A coordinate field: a number, or missing (empty, nan, NaN: the marker was not seen).
 bool ReadCoordinate(const CsvTable& table, int row, const std::string& column,
@@ -60,11 +68,11 @@ MarkerSequence ReadSequence(const Experiment& ex, int case_index, const Observat
     }
     if (t < 0.0 || t > duration * (1.0 + 1e-12))
       throw InputError(file, table.line(r), by_time ? "t" : "frame",
-                       "the sample's time " + FormatDouble(t) + " s lies outside the run [0, " +
-                           FormatDouble(duration) + "] s (dynamics.duration)");
+                       "the sample's time " + Short(t) + " s lies outside the run [0, " +
+                           Short(duration) + "] s (dynamics.duration)");
     if (s[r] < 0.0 || s[r] > length)
       throw InputError(file, table.line(r), "s",
-                       "must be in [0, " + FormatDouble(length) + "] (the rod's length)");
+                       "must be in [0, " + Short(length) + "] (the rod's length)");
     times.emplace(t, 0);
     markers.emplace(s[r], 0);
     if (static_cast<int>(times.size()) > kMaxSequenceTimes)
