@@ -19,6 +19,7 @@
 #include "commands.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/output_dir.h"
+#include "rodfit/reference/cantilever_modes.h"
 #include "rodfit/report/svg_plot.h"
 #include "rodfit/solve/dynamics.h"
 #include "rodfit/solve/rod_energy.h"
@@ -136,48 +137,12 @@ Row Mattiasson(const std::string& family, const std::string& setting, Rod r,
 
 // --- dynamics: the first bending mode of a cantilever (the suture of data/scenes) ---
 
-constexpr double kBeta1L = 1.875104;  // 1 + cos x cosh x = 0
-
-double ModeShape1(double xi) {
-  const double sigma = (std::cosh(kBeta1L) + std::cos(kBeta1L)) / (std::sinh(kBeta1L) + std::sin(kBeta1L));
-  const double b = kBeta1L * xi;
-  return std::cosh(b) - std::cos(b) - sigma * (std::sinh(b) - std::sin(b));
-}
-
-struct Suture {
-  rodfit::RodSpec rod;
-  rodfit::Material material;
-  rodfit::LoadCase load_case;
-  explicit Suture(int segments) {
-    rod.length = 0.2;
-    rod.segments = segments;
-    rod.radius = 1.25e-4;
-    rod.linear_density = 5.6e-5;
-    material.bend_stiffness = 9.6e-7;
-    material.twist_stiffness = 8.0e-7;
-    material.stretch_stiffness = 245.0;
-    load_case.clamp.tangent = Vec3::UnitX();
-    load_case.clamp.normal = Vec3::UnitZ();
-  }
-  double Omega1() const {
-    return kBeta1L * kBeta1L *
-           std::sqrt(material.B1() / (rod.linear_density * std::pow(rod.length, 4)));
-  }
-};
+using rodfit::reference::Suture;
 
 // The rod bent into mode 1 (tip ~2e-5 m), edges at their rest lengths.
 rodfit::RodState ModeState(const rodfit::RodModel& model) {
-  rodfit::RodState q = model.StraightState();
-  const rodfit::RodState straight = q;
-  for (int j = 0; j < model.num_edges(); ++j) {
-    const double xi = 0.5 * (model.arc_length(j) + model.arc_length(j + 1)) / model.length();
-    const double h = 1e-6;
-    const double slope = 1e-5 * (ModeShape1(xi + h) - ModeShape1(xi - h)) / (2 * h * model.length());
-    const double a = std::atan(slope);
-    q.e.col(j) = model.rest_edge_length(j) * Vec3(std::cos(a), 0, std::sin(a));
-  }
-  q.SyncVertices();
-  rodfit::UpdateReferenceFrames(model, straight, &q);
+  rodfit::RodState q;
+  rodfit::reference::CantileverModeState(model, 0, 1e-5, &q);
   return q;
 }
 
@@ -203,7 +168,8 @@ Vibration Vibrate(const rodfit::RodModel& model, rodfit::DynamicsOptions options
   for (int k = 0; k < steps; ++k) {
     double p = 0.0;
     for (int i = 1; i <= model.num_edges(); ++i)
-      p += model.vertex_mass(i) * s.q.x(2, i) * ModeShape1(model.arc_length(i) / model.length());
+      p += model.vertex_mass(i) * s.q.x(2, i) *
+           rodfit::reference::CantileverModeShape(0, model.arc_length(i) / model.length());
     if (k > 0 && p1 > 0 && p <= 0) {
       const double tc = s.t - dt * p / (p - p1);
       if (first < 0) {
@@ -240,7 +206,7 @@ Row Frequency(const std::string& integrator, double dt_fraction, bool quick) {
   row.error_unit = "relative";
   const Suture suture(50);
   const rodfit::RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
-  const double period = 2 * M_PI / suture.Omega1();
+  const double period = 2 * M_PI / suture.Omega(0);
   rodfit::DynamicsOptions options;
   rodfit::ParseIntegrator(integrator, &options.integrator);
   if (options.integrator == rodfit::Integrator::kExplicit) {
@@ -271,7 +237,7 @@ Row Decay(const std::string& integrator, double dt_fraction) {
   row.family = integrator;
   row.error_unit = "relative";
   Suture suture(50);
-  const double omega = suture.Omega1(), period = 2 * M_PI / omega, zeta = 0.02;
+  const double omega = suture.Omega(0), period = 2 * M_PI / omega, zeta = 0.02;
   suture.material.damping = 2 * zeta * suture.rod.linear_density * omega;
   const rodfit::RodModel model(suture.rod, suture.material, Vec3::Zero(), suture.load_case);
   rodfit::DynamicsOptions options;

@@ -15,6 +15,7 @@
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/recording.h"
+#include "rodfit/fit/fit.h"
 #include "rodfit/fit/motion_fit.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/rollout.h"
@@ -179,6 +180,21 @@ int RunRollout(int argc, char** argv) {
       else
         std::printf(" (not identifiable: %s)", fit.reason[k].c_str());
       std::printf("%s\n", fit.at_bound[k] ? " [at its bound]" : "");
+    }
+    // With the markers' noise stated, the residual variance says whether the rollout's model
+    // explains the recording: far above its chi-square band, the values absorb model error
+    // (e.g. pins standing in for gripper clamps) and their std understates it.
+    if (marker_sigma > 0.0 && fit.residuals > static_cast<int>(names.size())) {
+      const rodfit::VarianceBand band =
+          rodfit::ResidualVarianceBand(fit.residuals - static_cast<int>(names.size()));
+      if (fit.residual_variance > band.high)
+        std::fprintf(stderr,
+                     "rodfit rollout: warning: residual variance %.3g x the marker noise "
+                     "(expected %.2g to %.2g for %d degrees of freedom): the model does not "
+                     "explain the recording to its noise (held points not as recorded? "
+                     "--marker-sigma too small?); the values carry model error\n",
+                     fit.residual_variance, band.low, band.high,
+                     fit.residuals - static_cast<int>(names.size()));
     }
   }
   std::string csv = "recording,frame,t,marker,s,held,observed_x,observed_y,observed_z,x,y,z\n";

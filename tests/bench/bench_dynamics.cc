@@ -10,14 +10,14 @@
 #include <benchmark/benchmark.h>
 
 #include "rodfit/solve/dynamics.h"
-#include "../solve/suture_fixture.h"
+#include "rodfit/reference/cantilever_modes.h"
 
 namespace rodfit {
 namespace {
 
 // The suture with air drag.
-struct SutureSwing : testing::Suture {
-  explicit SutureSwing(int segments) : testing::Suture(segments) { material.damping = 1e-5; }
+struct SutureSwing : reference::Suture {
+  explicit SutureSwing(int segments) : reference::Suture(segments) { material.damping = 1e-5; }
 };
 
 const Vec3 kGravity(0, 0, -9.81);

@@ -369,6 +369,20 @@ TEST(Rollout, PredictsARecordingMadeBySimulate) {
   EXPECT_THAT(run.out, HasSubstr("bend_stiffness: 0.002 -> "));
   EXPECT_THAT(run.out, HasSubstr("(not identifiable: "));
   EXPECT_THAT(run.out, ::testing::ContainsRegex("damping: 0.06 -> 0.0[12][0-9]* \\+- 0.00"));
+  EXPECT_THAT(run.err, ::testing::Not(HasSubstr("does not explain")));  // no noise stated
+  // With the markers' noise stated, a misfit far beyond it is said: the rollout's model misses
+  // this noise-free recording by millimetres (the clamp along the chord; bound above), far more
+  // than a 10 um noise; a 5 cm noise covers it.
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("s1")) + " --held 0,1,-1 --fit damping "
+                           "--max-evaluations 20 --marker-sigma 1e-5");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_THAT(run.err, HasSubstr("the model does not explain the recording to its noise"));
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("s2")) + " --held 0,1,-1 --fit damping "
+                           "--max-evaluations 20 --marker-sigma 0.05");
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_THAT(run.err, ::testing::Not(HasSubstr("does not explain")));
   // A least-squares fit stopped by its budget is an error, and writes nothing.
   run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
                            " -o " + Quote(dir.File("n")) + " --held 0,1,-1 --fit "

@@ -11,39 +11,18 @@
 #include "rodfit/solve/dynamics.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
-#include "solve/suture_fixture.h"
+#include "rodfit/reference/cantilever_modes.h"
 
 namespace rodfit {
 namespace {
 
-using testing::kBetaL;
-using testing::Suture;
+using reference::CantileverModeShape;
+using reference::Suture;
 
-// Cantilever mode shape n at xi = s / L (unit-free).
-double ModeShape(int mode, double xi) {
-  const double bl = kBetaL[mode];
-  const double sigma = (std::cosh(bl) + std::cos(bl)) / (std::sinh(bl) + std::sin(bl));
-  const double b = bl * xi;
-  return std::cosh(b) - std::cos(b) - sigma * (std::sinh(b) - std::sin(b));
-}
-
-// The rod bent into a mode shape of tip deflection ~ `amplitude` [m]: each edge keeps its rest
-// length and turns, about y, to the slope of amplitude * shape (an unstretched initial state,
-// so that the stretch modes are not excited).
+// The rod bent into a mode shape of tip deflection ~ `amplitude` [m] (CantileverModeState).
 RodState ModeState(const RodModel& model, int mode, double amplitude) {
-  RodState q = model.StraightState();
-  const RodState straight = q;
-  const double L = model.length();
-  for (int j = 0; j < model.num_edges(); ++j) {
-    const double s = 0.5 * (model.arc_length(j) + model.arc_length(j + 1)) / L;
-    const double h = 1e-6;
-    const double slope =
-        amplitude * (ModeShape(mode, s + h) - ModeShape(mode, s - h)) / (2.0 * h * L);
-    const double angle = std::atan(slope);
-    q.e.col(j) = model.rest_edge_length(j) * Vec3(std::cos(angle), 0.0, std::sin(angle));
-  }
-  q.SyncVertices();
-  EXPECT_TRUE(UpdateReferenceFrames(model, straight, &q));
+  RodState q;
+  EXPECT_TRUE(reference::CantileverModeState(model, mode, amplitude, &q));
   return q;
 }
 
@@ -51,7 +30,8 @@ RodState ModeState(const RodModel& model, int mode, double amplitude) {
 double Modal(const RodModel& model, const RodState& q, int mode) {
   double p = 0.0;
   for (int i = 1; i <= model.num_edges(); ++i)
-    p += model.vertex_mass(i) * q.x(2, i) * ModeShape(mode, model.arc_length(i) / model.length());
+    p += model.vertex_mass(i) * q.x(2, i) *
+         CantileverModeShape(mode, model.arc_length(i) / model.length());
   return p;
 }
 

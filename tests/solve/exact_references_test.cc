@@ -254,18 +254,10 @@ TEST(ExactReferences, AnisotropicRestCurvedDeadMomentAgainstShooting) {
 // The same two cases from the default start (the straight rod), as a user would solve them, at
 // 20, 50 and 100 segments: each must converge (to the equilibrium the rest-shape start finds,
 // within 1e-8 L).
-// KNOWN FAILURE (solver): the moment-only case does not converge at 100 segments ("no
-// equilibrium found: line search failed", |g| ~ 1.9e4 N); it does at 20 and 50 (a sweep failed
-// at every n from 60 to 200 in steps of 10). Evidence: the case carries a moment, so the solver
-// uses the non-symmetric Newton with a line search on the residual merit; replaying its steps
-// from the straight state at full load, the merit stalls at ~3.8e8 (from 4.3e8) while the step
-// length is cut to ~1e-9. The load-continuation fallback then fails at its first step, load 0,
-// i.e. it cannot find the unloaded rest shape from the straight state on that path (the
-// summary reports 1 load step; with the moment scaled by 1e-12 the solve fails identically,
-// same |g| and Pi). Yet the conservative solver finds the rest shape from the same straight
-// state in 7 iterations (the case without a moment), and the full case converges in 5
-// iterations from the rest shape. The loaded case (tip force and gravity too) converges from
-// straight at every n.
+// Why this is a test of its own: from the straight state at full load, a non-symmetric Newton
+// with a line search on the residual merit once stalled here at 60-200 segments (the merit
+// falling from 4.3e8 only to 3.8e8 with steps cut to 1e-9), and the load continuation failed
+// at its first step; the loaded case (tip force and gravity too) converged throughout.
 TEST(ExactReferences, RestCurvedRodWithTipMomentSolvesFromStraightStart) {
   for (const Case3D& c : AnisotropicCases()) {
     for (int n : {20, 50, 100}) {
@@ -399,17 +391,14 @@ TEST(ExactReferences, HeavyClampedClampedElasticaAgainstShooting) {
   }
 }
 
-// KNOWN FAILURE (solver), at 100 segments: from the straight start the solve converges to the
-// hogging arch (z(L/2) = +0.265, Pi = 10.96 J), not to the sag (z(L/2) = -0.267, Pi = 5.64 J)
-// that a quasi-static shortening under gravity follows. Both are genuine equilibria (the
-// reference solver finds the arch too, from an upward initial arc, and the discrete arch
-// matches it to 3e-5 L), and both are reported stable; the branch depends on the segment count
-// (sag at 40, 50, 80, 120, 150, 200 segments, arch at 60 and 100). The held-point continuation
-// moves the end clamp in steps of continuation_move = 0.1 L, spreading the displacement over the
-// free vertices: the first step compresses the straight rod axially by 10 %, ~2500 times the
-// Euler strain 4 pi^2 EI / (EA L^2) (an axial force ~1e5 N against a weight of 20 N), so the
-// Newton iteration starts far past buckling, where gravity's bias is negligible and which way
-// the column buckles is decided by the iteration, not by the load.
+// A wire hanging between two clamps, solved from the straight start as a user would: it must
+// end on the sag (z(L/2) = -0.267, Pi = 5.64 J), which a quasi-static shortening under gravity
+// follows, not on the hogging arch (z(L/2) = +0.265, Pi = 10.96 J), the other stable equilibrium
+// (the reference solver finds it too, from an upward arc). Why it is hard: moving the end clamp
+// in by 0.1 L at once compresses the straight rod ~2500 times past Euler buckling (an axial
+// force ~1e5 N against a weight of 20 N), and the Newton iteration rather than gravity then
+// decides which way the column buckles; a held-point continuation in such steps once ended on
+// the arch at 60 and 100 segments.
 TEST(ExactReferences, HeavyClampedClampedFromStraightStartSags) {
   const ref::ShootingResult& r = ClampedClampedReference();
   ASSERT_TRUE(r.converged) << r.message;
@@ -419,6 +408,115 @@ TEST(ExactReferences, HeavyClampedClampedFromStraightStartSags) {
     const ClampedClampedErrors e = CompareClampedClamped(sol, "straight start", n);
     EXPECT_LT(e.zmid, -0.1) << "n " << n << ": the straight start ended on another branch";
     EXPECT_LT(e.vertex, (n == 50 ? 8e-3 : 2e-3)) << "n " << n;  // 4 x 2e-3 L at 50 segments
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// c'. Both ends held, in full 3-D: a heavy, anisotropic (B2 = 2 B1), rest-curved rod (k1, k2, tau
+// all nonzero) whose clamp is tilted out of the horizontal and whose far end is held at a point
+// off the clamp's plane, with a tangent out of that plane too. Three holders at s = L: a clamp
+// (position and frame), a clamp free to turn about its tangent (no normal: m(L).d3(L) = 0) and
+// a pin (position only: m(L) = 0). Reference: the shooting solver (RK4 + Newton, multiple
+// shooting) with the matching end condition, reached by continuation of the end target and the
+// loads from the unloaded rest shape. Expected: second order in the segment length for the
+// centre-line and both holders' reactions, as for the planar case above; every discrete solve
+// from the straight start, as a user would run it.
+struct HeldEnd3D {
+  const char* name;
+  ref::EndCondition reference;
+};
+
+RodParams BothEndsHeld3DParams() {
+  RodParams p;
+  p.B1 = 1.0;
+  p.B2 = 2.0;
+  p.GJ = 0.7;
+  p.rho = 1.0;
+  p.gravity = Vector3d(0, 0, -10.0);  // rho g L^3 / B1 = 10
+  p.rest_curvature = Vector3d(0.4, -0.3, 0.5);
+  return p;
+}
+
+Clamp BothEndsHeld3DClamp() {
+  Clamp c;
+  c.tangent = Vector3d(1, 0, 0.2);
+  c.normal = Vector3d(0, 0, 1);
+  return c;
+}
+
+const Vector3d kEnd3D(0.6, 0.35, -0.15);
+const Vector3d kEndTangent3D(0.3, 1.0, -0.2);
+const Vector3d kEndNormal3D(0.0, 0.0, 1.0);
+
+std::vector<HeldEnd3D> HeldEnds3D() {
+  return {{"end clamp", ref::EndCondition::Clamp(kEnd3D, kEndTangent3D, kEndNormal3D)},
+          {"end clamp free to twist", ref::EndCondition::ClampFreeTwist(kEnd3D, kEndTangent3D)},
+          {"end pin", ref::EndCondition::Pin(kEnd3D)}};
+}
+
+Scene BothEndsHeld3DScene(const HeldEnd3D& end, int n) {
+  Scene s = MakeScene(BothEndsHeld3DParams(), n, BothEndsHeld3DClamp());
+  LoadCase& c = s.cases[0];
+  if (end.reference.kind == ref::EndCondition::kPin) {
+    c.end_pin = kEnd3D;
+  } else {
+    EndClamp e;
+    e.position = kEnd3D;
+    e.tangent = kEndTangent3D;
+    if (end.reference.kind == ref::EndCondition::kClamp) e.normal = kEndNormal3D;
+    c.end_clamp = e;
+  }
+  return s;
+}
+
+TEST(ExactReferences, BothEndsHeldIn3DAgainstShooting) {
+  const RodParams p = BothEndsHeld3DParams();
+  const double force_scale = p.rho * p.gravity.norm() * p.L;
+  for (const HeldEnd3D& end : HeldEnds3D()) {
+    SCOPED_TRACE(end.name);
+    ref::ShootingOptions o;
+    o.steps = 2000;  // RK4: ~1e-12 L against the 1e-5 L compared
+    o.segments = 4;
+    o.continuation_steps = 20;
+    const ref::ShootingResult r = ref::SolveKirchhoff(RefProps(p), RefClamp(BothEndsHeld3DClamp()),
+                                                      end.reference, o);
+    ASSERT_TRUE(r.converged) << r.message;
+    // Exact statics of the reference: n(0) - n(L) = weight; the end condition holds.
+    ASSERT_LT((r.n0 - r.nL - p.rho * p.gravity * p.L).norm(), 1e-9);
+    ASSERT_LT((r.PositionAt(p.L) - kEnd3D).norm(), 1e-9);
+    double prev_vertex = 0.0, prev_reaction = 0.0;
+    for (int n : {50, 100, 200}) {
+      const CaseSolution sol = Solve(BothEndsHeld3DScene(end, n));
+      ASSERT_TRUE(sol.ok()) << "n " << n << ": " << sol.summary.BriefReport();
+      EXPECT_TRUE(sol.summary.stable);
+      const double vertex = MaxVertexError(sol, r);
+      const HeldReaction* c0 = FindReaction(sol, "clamp");
+      const HeldReaction* cL =
+          FindReaction(sol, end.reference.kind == ref::EndCondition::kPin ? "end_pin" : "end_clamp");
+      ASSERT_TRUE(c0 && cL);
+      // The rod's reaction on the end holder is (-n(L), -m(L)) about r(L) (file comment).
+      const double df0 = (c0->force - r.n0).norm(), dm0 = (c0->moment - r.m0).norm();
+      const double dfL = (cL->force + r.nL).norm(), dmL = (cL->moment + r.mL).norm();
+      const double reaction = std::max({df0 / force_scale, dfL / force_scale,
+                                        dm0 / (force_scale * p.L), dmL / (force_scale * p.L)});
+      const double out_of_plane = sol.state.x.row(1).cwiseAbs().maxCoeff();
+      std::printf("[measured] c'. %s, n = %d: max vertex error %.3e L, reactions (clamp %.2e N / "
+                  "%.2e N m, end %.2e N / %.2e N m) %.2e of rho g L, |y| max %.3f, %d iterations, "
+                  "%d continuation steps\n",
+                  end.name, n, vertex / p.L, df0, dm0, dfL, dmL, reaction, out_of_plane,
+                  sol.summary.iterations, sol.summary.continuation_steps);
+      EXPECT_GT(out_of_plane, 0.1 * p.L);  // a 3-D shape, not a planar one
+      if (n == 200) {
+        EXPECT_LT(vertex, 1e-4 * p.L);
+        EXPECT_LT(reaction, 1e-3);
+      }
+      if (n > 50) {
+        EXPECT_GT(prev_vertex / vertex, 3.0) << "n " << n;  // second order: ~4x per doubling
+        EXPECT_GT(prev_reaction / reaction, 3.0) << "n " << n;
+      }
+      prev_vertex = vertex;
+      prev_reaction = reaction;
+    }
   }
 }
 

@@ -11,7 +11,7 @@ namespace rodfit {
 
 /// An input value as an error message may echo it: at most `max_chars` characters, longer ones
 /// cut with "...", line breaks and other control characters as '?', so that a 1 MiB field or a
-/// binary file never makes a message longer than a line (issue 15: at most ~300 characters).
+/// binary file never makes a message longer than a line (at most ~300 characters).
 inline std::string ClipForMessage(const std::string& value, size_t max_chars = 80) {
   std::string out;
   const size_t n = value.size() > max_chars ? max_chars - 3 : value.size();

@@ -53,11 +53,6 @@ bool ZonesUse(const FitInput& in, const std::string& parameter) {
 
 }  // namespace
 
-int NumSurfacePoints(const FitCase& c) {
-  int n = 0;
-  for (const SurfacePoints& sp : c.surface_points) n += static_cast<int>(sp.points.size());
-  return n;
-}
 
 // What `surface_points` need and what they can determine (fit.h).
 std::vector<Fitted> FittedParameters(const FitInput& in) {
@@ -149,15 +144,17 @@ std::unique_ptr<ceres::LossFunction> MakeLoss(RobustLoss loss, double scale) {
 
 CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fitted> fitted,
               const ceres::LossFunction* loss)
-    : in_(in), case_(in.cases[case_index]), fitted_(std::move(fitted)), loss_(loss),
-      statics_(in.statics) {
-  for (const auto& obs : case_.observations) num_residuals_ += obs->num_residuals();
-  for (const ForceMeasurement& f : case_.grasp_forces) num_residuals_ += f.num_residuals();
-  num_residuals_ += 3 * NumSurfacePoints(case_);
+    : in_(in), case_(in.cases[case_index]), measurements_(CaseMeasurements(case_)),
+      fitted_(std::move(fitted)), loss_(loss), statics_(in.statics) {
+  for (const auto& meas : measurements_) {
+    num_residuals_ += meas->num_residuals();
+    needs_reactions_ = needs_reactions_ || meas->needs_reactions();
+    needs_section_ = needs_section_ || meas->needs_section();
+  }
 }
 
-// One function, though long: solve, sensitivities and the residual passes share the solved
-// state, the kept factor and the timing; the residual passes are methods of their own.
+// One function, though long: solve, sensitivities and the measurements share the solved state,
+// the kept factor and the timing; each measurement evaluates itself (measurement.h).
 bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape,
               RodState* final_state) const {
   const Material material = MaterialAt(in_, fitted_, logp);
@@ -249,7 +246,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     }
     terms.resize(fitted_terms);
     dx = VertexSensitivities(*model, dq);
-    if (!case_.grasp_forces.empty()) {
+    if (needs_reactions_) {
       // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
       // included), the equilibrium's dq, and which spring zones each parameter stiffens.
       Eigen::MatrixXd dr = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
@@ -269,12 +266,40 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     }
     Charge(&timing_.jacobian, &t0);
   }
-  int row = 0;
-  if (!ObservationResiduals(state, dx, residuals, jacobian, &row)) return false;
-  if (!ForceResiduals(solved.reactions, d_reactions, residuals, jacobian, &row)) return false;
-  if (!case_.surface_points.empty() &&
-      !SurfaceResiduals(*model, state, material, residuals, jacobian, &row))
+  PokeResult poke;
+  std::vector<Eigen::Matrix3Xd> d_ring;
+  if (needs_section_ && !SolveSection(*model, state, material, &poke, jacobian ? &d_ring : nullptr))
     return false;
+  SolvedCase view;
+  view.state = &state;
+  view.reactions = &solved.reactions;
+  view.poke = &poke;
+  view.num_parameters = m;
+  if (jacobian) {
+    view.d_x = &dx;
+    view.d_reactions = &d_reactions;
+    view.d_ring = &d_ring;
+  }
+  int row = 0;
+  for (const auto& meas : measurements_) {
+    double* r = residuals + row;
+    double* J = jacobian ? jacobian + row * m : nullptr;
+    std::string why;
+    if (!meas->Evaluate(view, r, J, &why)) {
+      // The data, not the solve (a point behind the camera), so the message names the entry.
+      std::lock_guard<std::mutex> lock(mutex_);
+      last_failure_ = "case " + case_.load_case.name + ": " + meas->label() + ": " + why;
+      data_failure_ = true;
+      return false;
+    }
+    // Per measurement: the loss sees each marker's, point's or reading's residual vector.
+    for (int k = 0, k_row = 0; k < meas->num_measurements(); ++k) {
+      const int dim = meas->measurement_rows(k);
+      ApplyLoss(loss_, dim, r + k_row, J ? J + k_row * m : nullptr, m);
+      k_row += dim;
+    }
+    row += meas->num_residuals();
+  }
   Charge(&timing_.observation, &t0);
   if (!AllFinite(residuals, jacobian)) return false;
   // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
@@ -289,75 +314,6 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
   }
   if (shape) *shape = state.x;
   if (final_state) *final_state = state;
-  return true;
-}
-
-// The observations' residuals and Jacobian rows (dx: the vertices' sensitivities), from *row
-// on; false, with the failure recorded, when an observation cannot be evaluated.
-bool CaseEvaluator::ObservationResiduals(const RodState& state, const Eigen::MatrixXd& dx,
-                                         double* residuals, double* jacobian, int* row) const {
-  const int m = num_parameters();
-  for (size_t o = 0; o < case_.observations.size(); ++o) {
-    const auto& obs = case_.observations[o];
-    VecX r;
-    VertexJacobian J;
-    if (!obs->Evaluate(state.x, &r, jacobian ? &J : nullptr)) {
-      // A projection that fails (a point behind the camera) or a non-finite residual: the
-      // data, not the solve, so the message names the observation.
-      std::lock_guard<std::mutex> lock(mutex_);
-      last_failure_ = "case " + case_.load_case.name + ": " +
-                      (o < case_.labels.size() ? case_.labels[o] : obs->type()) +
-                      ": the observation model cannot be evaluated on the solved shape (a point "
-                      "behind the camera, or a non-finite residual)";
-      data_failure_ = true;
-      return false;
-    }
-    Eigen::MatrixXd Jp;
-    if (jacobian) Jp = J.Multiply(dx);
-    // Per measurement: the loss sees each marker's / point's residual vector.
-    const int dim = obs->num_residuals() / std::max(1, obs->num_measurements());
-    for (int k = 0; k < obs->num_measurements(); ++k) {
-      double* rk = residuals + *row + k * dim;
-      for (int i = 0; i < dim; ++i) rk[i] = r[k * dim + i];
-      double* Jk = jacobian ? jacobian + (*row + k * dim) * m : nullptr;
-      if (Jk)
-        for (int i = 0; i < dim; ++i)
-          for (int c = 0; c < m; ++c) Jk[i * m + c] = Jp(k * dim + i, c);
-      ApplyLoss(loss_, dim, rk, Jk, m);
-    }
-    *row += obs->num_residuals();
-  }
-  return true;
-}
-
-// The measured reactions' residuals and Jacobian rows (d_reactions: per held point, 6 x m),
-// from *row on; false for a reading at a point the case does not hold.
-bool CaseEvaluator::ForceResiduals(
-    const std::vector<HeldReaction>& reactions,
-    const std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>>& d_reactions, double* residuals,
-    double* jacobian, int* row) const {
-  const int m = num_parameters();
-  if (!case_.grasp_forces.empty()) {
-    for (const ForceMeasurement& f : case_.grasp_forces) {
-      int which = -1;
-      for (size_t h = 0; h < reactions.size(); ++h)
-        if (reactions[h].point == f.point) which = static_cast<int>(h);
-      if (which < 0) return false;  // CheckHeldPoints refuses this up front
-      const HeldReaction& reaction = reactions[which];
-      const int dim = f.num_residuals();
-      double* rk = residuals + *row;
-      for (int i = 0; i < 3; ++i) rk[i] = (reaction.force[i] - f.force[i]) / f.sigma;
-      if (f.moment)
-        for (int i = 0; i < 3; ++i) rk[3 + i] = (reaction.moment[i] - (*f.moment)[i]) / f.sigma_moment;
-      double* Jk = jacobian ? jacobian + *row * m : nullptr;
-      if (Jk)
-        for (int i = 0; i < dim; ++i)
-          for (int c = 0; c < m; ++c)
-            Jk[i * m + c] = d_reactions[which](i, c) / (i < 3 ? f.sigma : f.sigma_moment);
-      ApplyLoss(loss_, dim, rk, Jk, m);
-      *row += dim;
-    }
-  }
   return true;
 }
 
@@ -383,93 +339,58 @@ bool CaseEvaluator::AllFinite(const double* residuals, const double* jacobian) c
 
 std::string CaseEvaluator::ResidualLabel(int i) const {
   int row = 0;
-  for (size_t o = 0; o < case_.observations.size(); ++o) {
-    row += case_.observations[o]->num_residuals();
-    if (i < row) return o < case_.labels.size() ? case_.labels[o] : case_.observations[o]->type();
-  }
-  for (const ForceMeasurement& f : case_.grasp_forces) {
-    row += f.num_residuals();
-    if (i < row) return f.label;
-  }
-  for (const SurfacePoints& sp : case_.surface_points) {
-    row += 3 * static_cast<int>(sp.points.size());
-    if (i < row) return sp.label;
+  for (const auto& meas : measurements_) {
+    for (int k = 0; k < meas->num_measurements(); ++k) {
+      row += meas->measurement_rows(k);
+      if (i < row) return meas->measurement_label(k);
+    }
   }
   return "a residual";
 }
 
-bool CaseEvaluator::SurfaceResiduals(const RodModel& model, const RodState& state, const Material& material,
-                      double* residuals, double* jacobian, int* row) const {
-  const int m = num_parameters();
-  PokeResult poke;
+bool CaseEvaluator::SolveSection(const RodModel& model, const RodState& state,
+                                 const Material& material, PokeResult* poke,
+                                 std::vector<Eigen::Matrix3Xd>* d_ring) const {
   try {
-    poke = SolvePoke(model, state, *in_.section,
-                     RingStiffness{material.ring_bend_stiffness, material.ring_stretch_stiffness});
-  } catch (const std::invalid_argument&) {
+    *poke = SolvePoke(model, state, *in_.section,
+                      RingStiffness{material.ring_bend_stiffness, material.ring_stretch_stiffness});
+  } catch (const std::invalid_argument& e) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_failure_ = "case " + case_.load_case.name + ": the poked section: " + e.what();
+    data_failure_ = false;
     return false;
   }
-  if (!poke.ring.summary.converged) return false;
-  const int n = static_cast<int>(poke.deformed_world.cols());
-  // The closed ring as a polyline: node 0 repeated at the end (polyline vertex j is node j % n).
-  Eigen::Matrix3Xd ring(3, n + 1);
-  ring.leftCols(n) = poke.deformed_world;
-  ring.col(n) = poke.deformed_world.col(0);
-  // d (world node) / d log p per fitted column: 3 x (n + 1) per column.
-  std::vector<Eigen::Matrix3Xd> d_ring;
-  if (jacobian) {
-    const SectionPlacement& pl = poke.placement;
-    for (int c = 0; c < m; ++c) {
-      Eigen::Matrix3Xd d = Eigen::Matrix3Xd::Zero(3, n + 1);
-      if (fitted_[c].ring != 0) {
-        const Eigen::VectorXd& dn = fitted_[c].ring == 1 ? poke.ring.d_nodes_d_log_bend
-                                                         : poke.ring.d_nodes_d_log_stretch;
-        if (dn.size() != 2 * n) return false;  // an unstable ring equilibrium: no sensitivity
-        for (int j = 0; j <= n; ++j) {
-          const int k = j % n;
-          d.col(j) = dn[NodeDof(k)] * pl.d1 + dn[NodeDof(k) + 1] * pl.d2;
-        }
-      }
-      d_ring.push_back(d);
-    }
+  if (!poke->ring.summary.converged) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_failure_ = "case " + case_.load_case.name + ": the poked section's ring did not converge (" +
+                    poke->ring.summary.BriefReport() + ")";
+    data_failure_ = false;
+    return false;
   }
-  for (const SurfacePoints& sp : case_.surface_points) {
-    for (const Eigen::Vector3d& q : sp.points) {
-      const PolylineFoot foot = ClosestPointOnPolyline<3>(ring, q);
-      if (foot.edge < 0) return false;
-      Eigen::Vector3d p;
-      double t = 0.0;
-      Eigen::Vector3d a = Eigen::Vector3d::Zero(), e = Eigen::Vector3d::Zero();
-      if (foot.vertex >= 0) {
-        p = ring.col(foot.vertex);
-      } else {
-        a = ring.col(foot.edge);
-        e = ring.col(foot.edge + 1) - a;
-        t = (q - a).dot(e) / e.squaredNorm();
-        p = a + t * e;
+  if (!d_ring) return true;
+  // d (world node) / d log p per fitted column, as a closed polyline (node 0 again at the end):
+  // the ring's d nodes / d log k in section coordinates mapped to the world by d1, d2.
+  const int n = static_cast<int>(poke->deformed_world.cols());
+  const SectionPlacement& pl = poke->placement;
+  d_ring->clear();
+  for (const Fitted& f : fitted_) {
+    Eigen::Matrix3Xd d = Eigen::Matrix3Xd::Zero(3, n + 1);
+    if (f.ring != 0) {
+      const Eigen::VectorXd& dn =
+          f.ring == 1 ? poke->ring.d_nodes_d_log_bend : poke->ring.d_nodes_d_log_stretch;
+      if (dn.size() != 2 * n) {  // an unstable ring equilibrium: no sensitivity
+        std::lock_guard<std::mutex> lock(mutex_);
+        last_failure_ = "case " + case_.load_case.name +
+                        ": the poked section's ring equilibrium is unstable (no sensitivity)";
+        data_failure_ = false;
+        return false;
       }
-      double* rk = residuals + *row;
-      for (int i = 0; i < 3; ++i) rk[i] = (p[i] - q[i]) / sp.sigma;
-      double* Jk = jacobian ? jacobian + *row * m : nullptr;
-      if (Jk) {
-        for (int c = 0; c < m; ++c) {
-          Eigen::Vector3d dp;
-          if (foot.vertex >= 0) {
-            dp = d_ring[c].col(foot.vertex);
-          } else {
-            // p = a + t e, t = (q - a).e / |e|^2:
-            // dt = (-da.e + (q - a).de - 2 t e.de) / |e|^2, dp = da + dt e + t de.
-            const Eigen::Vector3d da = d_ring[c].col(foot.edge);
-            const Eigen::Vector3d de = d_ring[c].col(foot.edge + 1) - da;
-            const double dt = (-da.dot(e) + (q - a).dot(de) - 2.0 * t * e.dot(de)) /
-                              e.squaredNorm();
-            dp = da + dt * e + t * de;
-          }
-          for (int i = 0; i < 3; ++i) Jk[i * m + c] = dp[i] / sp.sigma;
-        }
+      for (int j = 0; j <= n; ++j) {
+        const int k = j % n;
+        d.col(j) = dn[NodeDof(k)] * pl.d1 + dn[NodeDof(k) + 1] * pl.d2;
       }
-      ApplyLoss(loss_, 3, rk, Jk, m);
-      *row += 3;
     }
+    d_ring->push_back(d);
   }
   return true;
 }

@@ -1,7 +1,7 @@
 // The cost of one case of a fit (docs/solvers.md, "Identification"), internal to fit/: the
 // fitted parameters and how they set the material, the robust loss as a residual transform, a
 // case's residuals and exact Jacobian (CaseEvaluator: solve warm with the case's kept factor,
-// then the observations, grasp forces and surface points), and all cases as one Ceres block.
+// then the case's measurements, measurement.h), and all cases as one Ceres block.
 #pragma once
 
 #include <chrono>
@@ -14,6 +14,7 @@
 #include <ceres/ceres.h>
 
 #include "rodfit/fit/fit.h"
+#include "rodfit/fit/measurement.h"
 #include "rodfit/solve/reactions.h"
 #include "rodfit/solve/sensitivity.h"
 #include "rodfit/solve/statics.h"
@@ -41,9 +42,6 @@ std::vector<Fitted> FittedParameters(const FitInput& in);
 
 /// The input's material with the fitted parameters at exp(logp).
 Material MaterialAt(const FitInput& in, const std::vector<Fitted>& fitted, const double* logp);
-
-/// Surface points of a case, all entries together.
-int NumSurfacePoints(const FitCase& c);
 
 /// The robust loss applied to one measurement's `dim` residuals and their Jacobian rows (`cols`
 /// columns, row major; null: none) in place; a null loss leaves them.
@@ -100,24 +98,18 @@ class CaseEvaluator {
                 RodState* final_state = nullptr) const;
 
  private:
-  // The observation (or force reading, or surface point set) that residual row i belongs to.
+  // The label of the measurement that residual row i belongs to.
   std::string ResidualLabel(int i) const;
-  bool ObservationResiduals(const RodState& state, const Eigen::MatrixXd& dx, double* residuals,
-                            double* jacobian, int* row) const;
-  bool ForceResiduals(const std::vector<HeldReaction>& reactions,
-                      const std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>>& d_reactions,
-                      double* residuals, double* jacobian, int* row) const;
   bool AllFinite(const double* residuals, const double* jacobian) const;
-
-  // The case's surface points against the deformed ring of its poke (fit.h SurfacePoints), rows
-  // from *row on. Only ring parameters have non-zero columns (CheckSurfacePoints refuses rod
-  // parameters together with surface points): the ring's d nodes / d log k in section
-  // coordinates, mapped to the world by the placement's d1, d2 and chained through the foot.
-  bool SurfaceResiduals(const RodModel& model, const RodState& state, const Material& material,
-                        double* residuals, double* jacobian, int* row) const;
+  // The poked section's ring at `material` and, with `d_ring`, its nodes' derivatives by the
+  // fitted ring parameters (SolvedCase::d_ring); false when it has no stable solution.
+  bool SolveSection(const RodModel& model, const RodState& state, const Material& material,
+                    PokeResult* poke, std::vector<Eigen::Matrix3Xd>* d_ring) const;
 
   const FitInput& in_;
   const FitCase& case_;
+  std::vector<std::shared_ptr<const CaseMeasurement>> measurements_;  // in residual order
+  bool needs_reactions_ = false, needs_section_ = false;
   std::vector<Fitted> fitted_;
   const ceres::LossFunction* loss_;
   int num_residuals_ = 0;

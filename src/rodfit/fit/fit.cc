@@ -15,6 +15,7 @@
 
 #include "rodfit/fit/case_cost.h"
 #include "rodfit/fit/covariance.h"
+#include "rodfit/fit/measurement.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/poke.h"
@@ -113,14 +114,10 @@ struct ResidualCounts {
 ResidualCounts CountResiduals(const FitInput& input) {
   ResidualCounts n;
   for (const FitCase& c : input.cases) {
-    for (const auto& o : c.observations) {
-      n.total += o->num_residuals();
-      n.effective += o->num_noise_residuals();
+    for (const auto& meas : CaseMeasurements(c)) {
+      n.total += meas->num_residuals();
+      n.effective += meas->num_noise_residuals();
     }
-    int force_residuals = 0;
-    for (const ForceMeasurement& f : c.grasp_forces) force_residuals += f.num_residuals();
-    n.effective += force_residuals + 2 * NumSurfacePoints(c);
-    n.total += force_residuals + 3 * NumSurfacePoints(c);
   }
   return n;
 }
@@ -288,86 +285,6 @@ void ReportParameters(const FitInput& input, const std::vector<Fitted>& fitted,
   }
 }
 
-// One case's force readings, one entry per observation (its consecutive readings; forces in N,
-// moments in N m apart), from its unweighted residuals `rr` starting at *offset.
-void ReportForces(const FitCase& fc, int c, const VecX& rr, int* offset_io, FitResult* result) {
-  int& offset = *offset_io;
-  const int nf = static_cast<int>(fc.grasp_forces.size());
-  for (int f = 0; f < nf;) {
-    const ForceMeasurement& first = fc.grasp_forces[f];
-    const std::string& name = first.observation.empty() ? first.label : first.observation;
-    double force_sum = 0.0, moment_sum = 0.0;
-    int count = 0, with_moment = 0;
-    auto record = [&](const char* unit, int index, const Vec3& error, double sigma) {
-      MeasurementResidual mr;
-      mr.case_index = static_cast<int>(c);
-      mr.case_name = fc.load_case.name;
-      mr.observation = name;
-      mr.unit = unit;
-      mr.measurement = index;
-      mr.error = error;
-      mr.sigma = sigma;
-      result->measurement_residuals.push_back(mr);
-    };
-    for (; f < nf; ++f) {
-      const ForceMeasurement& m = fc.grasp_forces[f];
-      if ((m.observation.empty() ? m.label : m.observation) != name || m.type != first.type) break;
-      const Vec3 force_error = rr.segment<3>(offset) * m.sigma;
-      force_sum += force_error.squaredNorm();
-      record("N", count, force_error, m.sigma);
-      if (m.moment) {
-        const Vec3 moment_error = rr.segment<3>(offset + 3) * m.sigma_moment;
-        moment_sum += moment_error.squaredNorm();
-        record("N m", with_moment, moment_error, m.sigma_moment);
-        ++with_moment;
-      }
-      offset += m.num_residuals();
-      ++count;
-    }
-    ObservationFit of;
-    of.case_index = static_cast<int>(c);
-    of.case_name = fc.load_case.name;
-    of.label = name;
-    of.type = first.type;
-    of.unit = "N";
-    of.num_measurements = count;
-    of.rms = std::sqrt(force_sum / count);
-    if (with_moment > 0) of.rms_moment = std::sqrt(moment_sum / with_moment);
-    result->observations.push_back(of);
-  }
-}
-
-// One case's surface points [m]: the distance to the ring, from *offset on.
-void ReportSurfacePoints(const FitCase& fc, int c, const VecX& rr, int* offset_io,
-                         FitResult* result) {
-  int& offset = *offset_io;
-  for (const SurfacePoints& sp : fc.surface_points) {
-    const int np = static_cast<int>(sp.points.size());
-    const double sum = (rr.segment(offset, 3 * np) * sp.sigma).squaredNorm();
-    for (int k = 0; k < np; ++k) {
-      MeasurementResidual mr;
-      mr.case_index = static_cast<int>(c);
-      mr.case_name = fc.load_case.name;
-      mr.observation = sp.label;
-      mr.unit = "m";
-      mr.measurement = k;
-      mr.error = rr.segment<3>(offset + 3 * k) * sp.sigma;
-      mr.sigma = sp.sigma;
-      result->measurement_residuals.push_back(mr);
-    }
-    offset += 3 * np;
-    ObservationFit of;
-    of.case_index = static_cast<int>(c);
-    of.case_name = fc.load_case.name;
-    of.label = sp.label;
-    of.type = "surface_points";
-    of.unit = "m";
-    of.num_measurements = np;
-    of.rms = std::sqrt(sum / np);
-    result->observations.push_back(of);
-  }
-}
-
 // Shapes, poked sections and RMS per observation at the fitted parameters, and every
 // measurement's residual. Without the robust loss, so that the reported misfit is in
 // measurement units; from each case's last state, the equilibrium the fit followed rather than
@@ -403,22 +320,20 @@ void ReportCases(const FitInput& input, const std::vector<Fitted>& fitted,
     }
     result->rest_sections.push_back(rest_ring);
     result->sections.push_back(ring);
-    for (size_t o = 0; o < fc.observations.size(); ++o) {
+    // Every measurement's misfit in its unit, from the case's weighted residuals.
+    int offset = 0;
+    for (const auto& meas : CaseMeasurements(fc)) {
       ObservationFit of;
       of.case_index = static_cast<int>(c);
       of.case_name = fc.load_case.name;
-      of.label = o < fc.labels.size() ? fc.labels[o] : fc.observations[o]->type();
-      of.type = fc.observations[o]->type();
-      of.unit = fc.observations[o]->unit();
-      of.num_measurements = fc.observations[o]->num_measurements();
-      fc.observations[o]->RmsError(shape, &of.rms);
+      of.label = meas->label();
+      of.type = meas->type();
+      of.unit = meas->unit();
+      of.num_measurements = meas->num_measurements();
+      meas->Summarise(shape, rr.data() + offset, &of, &result->measurement_residuals);
       result->observations.push_back(of);
+      offset += meas->num_residuals();
     }
-    // The case's residual vector: observations, then grasp forces, then surface points.
-    int offset = 0;
-    for (const auto& o : fc.observations) offset += o->num_residuals();
-    ReportForces(fc, static_cast<int>(c), rr, &offset, result);
-    ReportSurfacePoints(fc, static_cast<int>(c), rr, &offset, result);
   }
 }
 
