@@ -20,6 +20,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/fit_input.h"
+#include "rodfit/io/marker_sequences.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/report/fit_report.h"
 #include "rodfit/io/output_dir.h"
@@ -50,6 +51,133 @@ std::string CheckThreads(const std::string& text) {
   const int n = std::stoi(text);
   if (n < 1 || n > kMaxThreads) return range + ", got " + text;
   return "";
+}
+
+// Stages the report (when asked) and the profile, then commits both together: the report first,
+// so that no profile claims a finished run without its report; when the profile cannot be
+// moved into place the report is rolled back. A failure leaves both locations as they were.
+void WriteOutputs(const rodfit::Experiment& experiment, const rodfit::FitInput& input,
+                  const rodfit::FitOptions& options, const rodfit::FitResult& result,
+                  const std::string& profile_path, const std::string& report_dir) {
+  std::vector<rodfit::StagedDirectory*> outputs;
+  std::unique_ptr<rodfit::StagedDirectory> report;
+  if (!report_dir.empty()) {
+    report = std::make_unique<rodfit::StagedDirectory>(report_dir);
+    rodfit::WriteFitReport(report.get(), experiment, input, result);
+    outputs.push_back(report.get());
+  }
+  const std::filesystem::path profile(profile_path);
+  rodfit::StagedDirectory profile_dir(profile.has_parent_path() ? profile.parent_path().string()
+                                                                : std::string("."),
+                                       /*stage_inside=*/true);
+  profile_dir.Write(profile.filename().string(),
+                    rodfit::FormatProfile(rodfit::ProfileJson(experiment, options, result)),
+                    "profile file name");
+  outputs.push_back(&profile_dir);
+  rodfit::CommitAll(outputs);
+}
+
+// The fitted parameters as the summary lists them.
+void PrintEstimates(const rodfit::FitResult& result) {
+  for (const rodfit::ParameterEstimate& p : result.parameters) {
+    if (!p.fitted) continue;
+    if (p.identifiable)
+      std::fprintf(stderr, "%-18s %.6g +- %.2g %s\n", p.name.c_str(), p.value, *p.std,
+                   p.unit.c_str());
+    else
+      std::fprintf(stderr, "%-18s NOT IDENTIFIABLE: %s\n", p.name.c_str(), p.reason.c_str());
+  }
+}
+
+// The residual variance against its chi-square band, warned about on one line even with
+// --quiet (a warning is not progress). Trusted sigmas keep the std as stated, so nothing else
+// would show that the residuals are not what those sigmas predict; untrusted ones scale the
+// std by the variance, which covers sigmas stated too small but not a model error.
+rodfit::ResidualCheck WarnAboutResiduals(const rodfit::FitResult& result,
+                                         const rodfit::FitOptions& options) {
+  const rodfit::ResidualCheck check = rodfit::CheckResiduals(result, options);
+  const double v = result.residual_variance;
+  if (check.above && options.trusted_sigmas)
+    std::fprintf(stderr,
+                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
+                 "to %.2g for %d degrees of freedom): the model does not explain the data "
+                 "(cameras swapped? wrong units? sigmas too small?)\n",
+                 v, check.band.low, check.band.high, result.residual_dof);
+  else if (check.above)
+    std::fprintf(stderr,
+                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
+                 "to %.2g for %d degrees of freedom): %s; the std are scaled by it, but a model "
+                 "error (clamp pose, rod length, camera calibration, a missing load) is not "
+                 "noise and they do not cover it\n",
+                 v, check.band.low, check.band.high, result.residual_dof,
+                 check.gross ? "the model does not explain the data"
+                             : "the sigmas understate the noise, or the model misses something");
+  else if (check.below)
+    std::fprintf(stderr,
+                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
+                 "to %.2g for %d degrees of freedom): the data scatter less than the sigmas "
+                 "say, so the std are too large (sigmas too large?)\n",
+                 v, check.band.low, check.band.high, result.residual_dof);
+  return check;
+}
+
+// The exit status of a fit that wrote its profile (docs/cli.md, "Exit status").
+int FitStatus(const rodfit::FitResult& result, const rodfit::ResidualCheck& check) {
+  for (const rodfit::ParameterEstimate& p : result.parameters)
+    if (p.fitted && !p.identifiable) return kNotAllDetermined;
+  if (check.gross) return kResidualsNotExplained;
+  return EXIT_SUCCESS;
+}
+
+// A moving experiment (a dynamics: block): its fit: true parameters, damping included, fitted
+// to its markers3d sequences by the motion fit (docs/cli.md, "fit"); the same outputs as the
+// static fit. The report's page has no per-case figures (no static shapes).
+int RunSequenceFit(const rodfit::Experiment& experiment, const std::string& experiment_path,
+                   const std::string& profile_path, const std::string& report_dir, bool quiet) {
+  const rodfit::SequenceInput input = rodfit::BuildSequenceInput(experiment);
+  const std::vector<std::string> names = rodfit::FittedNames(experiment);
+  if (names.empty()) {
+    std::cerr << "rodfit fit: " << experiment_path
+              << ": no parameter has fit: true (nothing to fit)\n";
+    return EXIT_FAILURE;
+  }
+  rodfit::ProgressLine progress(quiet, STDERR_FILENO);
+  if (progress.enabled()) progress.Update("fit: integrating the cases with their sensitivities");
+  rodfit::MotionFitResult motion;
+  try {
+    motion = rodfit::FitSequences(experiment.scene, input.sequences, names, experiment.statics,
+                                  rodfit::SequenceFitOptionsOf(experiment, names));
+  } catch (const std::invalid_argument& e) {
+    progress.Finish();
+    std::cerr << "rodfit fit: " << experiment_path << ": " << e.what() << "\n";
+    return EXIT_FAILURE;
+  }
+  progress.Finish();
+  if (!motion.converged) {
+    std::cerr << "rodfit fit: " << experiment_path << ": the fit failed: " << motion.message
+              << " (no profile written)\n";
+    return EXIT_FAILURE;
+  }
+  rodfit::Scene fitted = experiment.scene;
+  for (size_t k = 0; k < names.size(); ++k)
+    rodfit::SetMotionParameter(names[k], motion.values[k], &fitted);
+  const rodfit::SequenceResiduals residuals =
+      rodfit::EvaluateSequences(fitted, input.sequences, experiment.statics);
+  const rodfit::FitResult result = rodfit::SequenceFitResult(experiment, input, motion, residuals);
+  rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
+  // The report reads the parameters' starts and bounds from a FitInput; it has no static cases.
+  rodfit::FitInput report_input;
+  for (const auto& [name, spec] : experiment.parameters)
+    report_input.parameters.push_back({name, spec.value, spec.fit, spec.min, spec.max});
+  WriteOutputs(experiment, report_input, options, result, profile_path, report_dir);
+  const rodfit::ResidualCheck check = WarnAboutResiduals(result, options);
+  if (!quiet) {
+    PrintEstimates(result);
+    std::fprintf(stderr, "%d iterations, %d runs, %.3f s, residual variance %.3g; wrote %s\n",
+                 result.iterations, motion.evaluations, result.seconds, result.residual_variance,
+                 profile_path.c_str());
+  }
+  return FitStatus(result, check);
 }
 
 }  // namespace
@@ -104,6 +232,8 @@ int RunFit(int argc, char** argv) {
                                        inputs);
     }
   }
+  if (experiment.scene.dynamics)
+    return RunSequenceFit(experiment, experiment_path, profile_path, report_dir, quiet);
   const rodfit::FitInput input = rodfit::BuildFitInput(experiment);
   // A camera behind the rod or looking elsewhere is bad data: said before the fit, naming the
   // camera file and the case (the fit would only fail to evaluate).
@@ -154,69 +284,13 @@ int RunFit(int argc, char** argv) {
               << " (no profile written)\n";
     return EXIT_FAILURE;
   }
-  // Every output staged first, then committed together: the report, then the profile, so that
-  // no profile claims a finished run without its report; when the profile cannot be moved into
-  // place the report is rolled back. A failure leaves both locations as they were.
-  {
-    std::vector<rodfit::StagedDirectory*> outputs;
-    std::unique_ptr<rodfit::StagedDirectory> report;
-    if (!report_dir.empty()) {
-      report = std::make_unique<rodfit::StagedDirectory>(report_dir);
-      rodfit::WriteFitReport(report.get(), experiment, input, result);
-      outputs.push_back(report.get());
-    }
-    const std::filesystem::path profile(profile_path);
-    rodfit::StagedDirectory profile_dir(profile.has_parent_path() ? profile.parent_path().string()
-                                                                  : std::string("."),
-                                         /*stage_inside=*/true);
-    profile_dir.Write(profile.filename().string(),
-                      rodfit::FormatProfile(rodfit::ProfileJson(experiment, options, result)),
-                      "profile file name");
-    outputs.push_back(&profile_dir);
-    rodfit::CommitAll(outputs);
-  }
-  // The residual variance against its chi-square band, warned about on one line even with
-  // --quiet (a warning is not progress). Trusted sigmas keep the std as stated, so nothing else
-  // would show that the residuals are not what those sigmas predict; untrusted ones scale the
-  // std by the variance, which covers sigmas stated too small but not a model error.
-  const rodfit::ResidualCheck check = rodfit::CheckResiduals(result, options);
-  const double v = result.residual_variance;
-  if (check.above && options.trusted_sigmas)
-    std::fprintf(stderr,
-                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
-                 "to %.2g for %d degrees of freedom): the model does not explain the data "
-                 "(cameras swapped? wrong units? sigmas too small?)\n",
-                 v, check.band.low, check.band.high, result.residual_dof);
-  else if (check.above)
-    std::fprintf(stderr,
-                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
-                 "to %.2g for %d degrees of freedom): %s; the std are scaled by it, but a model "
-                 "error (clamp pose, rod length, camera calibration, a missing load) is not "
-                 "noise and they do not cover it\n",
-                 v, check.band.low, check.band.high, result.residual_dof,
-                 check.gross ? "the model does not explain the data"
-                             : "the sigmas understate the noise, or the model misses something");
-  else if (check.below)
-    std::fprintf(stderr,
-                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
-                 "to %.2g for %d degrees of freedom): the data scatter less than the sigmas "
-                 "say, so the std are too large (sigmas too large?)\n",
-                 v, check.band.low, check.band.high, result.residual_dof);
+  WriteOutputs(experiment, input, options, result, profile_path, report_dir);
+  const rodfit::ResidualCheck check = WarnAboutResiduals(result, options);
   if (!quiet) {
-    for (const rodfit::ParameterEstimate& p : result.parameters) {
-      if (!p.fitted) continue;
-      if (p.identifiable)
-        std::fprintf(stderr, "%-18s %.6g +- %.2g %s\n", p.name.c_str(), p.value, *p.std,
-                     p.unit.c_str());
-      else
-        std::fprintf(stderr, "%-18s NOT IDENTIFIABLE: %s\n", p.name.c_str(), p.reason.c_str());
-    }
+    PrintEstimates(result);
     std::fprintf(stderr, "%d iterations, %.3f s, residual variance %.3g; wrote %s\n",
                  result.iterations, result.seconds, result.residual_variance,
                  profile_path.c_str());
   }
-  for (const rodfit::ParameterEstimate& p : result.parameters)
-    if (p.fitted && !p.identifiable) return kNotAllDetermined;
-  if (check.gross) return kResidualsNotExplained;
-  return EXIT_SUCCESS;
+  return FitStatus(result, check);
 }

@@ -8,6 +8,8 @@
 // identifiability). With 2 threads the first three are summed over both threads, so they can add
 // up to more than 1 and the remainder can be negative.
 // Target: the 4-case recipe (50 segments, 2 parameters, 40 markers) in <= 0.1 s on one core.
+// BM_FitSequences: the motion fit of data/suture_swing_fit (bending stiffness and air drag from
+// 4 markers at 100 Hz over a 0.25 s swing, 10 edges, 100 BDF2 steps per run), from its starts.
 // Run: build/bench_fit [--benchmark_filter=...]; Release build.
 #include <algorithm>
 #include <cmath>
@@ -22,6 +24,7 @@
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/fit_input.h"
+#include "rodfit/io/marker_sequences.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
@@ -191,6 +194,30 @@ void BM_FitRecipe(benchmark::State& st) {
 }
 BENCHMARK(BM_FitRecipe)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// A moving experiment (data/suture_swing_fit/experiment.yaml, read once): every timed iteration
+// is a complete FitSequences from the starts. Counters: iterations and runs of the case (each
+// with its sensitivities).
+void BM_FitSequences(benchmark::State& st) {
+  const std::string path = std::string(RODFIT_SOURCE_DIR) + "/data/suture_swing_fit/experiment.yaml";
+  if (!std::filesystem::is_regular_file(path)) {
+    st.SkipWithError(("no example at " + path).c_str());
+    return;
+  }
+  const Experiment experiment = LoadExperiment(path);
+  const SequenceInput input = BuildSequenceInput(experiment);
+  const std::vector<std::string> names = FittedNames(experiment);
+  const MotionFitOptions options = SequenceFitOptionsOf(experiment, names);
+  MotionFitResult r;
+  for (auto _ : st) {
+    r = FitSequences(experiment.scene, input.sequences, names, experiment.statics, options);
+    benchmark::DoNotOptimize(r.values.data());
+  }
+  if (!r.converged) st.SkipWithError(("the fit did not converge: " + r.message).c_str());
+  st.counters["iterations"] = r.iterations;
+  st.counters["runs"] = r.evaluations;
+}
+BENCHMARK(BM_FitSequences)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace rodfit

@@ -40,6 +40,11 @@ struct MotionFitOptions {
   /// A parameter whose log has a standard deviation above this is not identifiable
   /// (FitOptions::max_log_std).
   double max_log_std = 1.0;
+  /// Per fitted name, bounds in SI units overriding [start / range, start * range] (each
+  /// vector empty, or one entry per name with NaN where the default applies).
+  std::vector<double> lower, upper;
+  /// The covariance as the sigmas state it, not scaled by the residual variance.
+  bool trusted_sigmas = false;
   bool Check(std::string* why) const;
 };
 
@@ -60,6 +65,8 @@ struct MotionFitResult {
   Eigen::MatrixXd covariance_log;      ///< of the log-parameters (NaN rows: not identifiable)
   int residuals = 0;                   ///< marker coordinates compared
   double residual_variance = 0.0;      ///< sum r^2 / (residuals - parameters), r in sigmas
+  /// 1/2 sum r^2 (r in sigmas) at the start and at the solution (least squares only).
+  double initial_cost = 0.0, final_cost = 0.0;
   int iterations = 0;                  ///< iterations of the search
   double seconds = 0.0;                ///< wall time of the fit
 };
@@ -82,6 +89,43 @@ double MotionParameter(const std::string& name, const Scene& scene);
 MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingData>& recordings,
                           const std::vector<std::string>& names, const RolloutOptions& options,
                           const StaticsOptions& statics, const MotionFitOptions& fit_options);
+
+/// A markers3d sequence of one case of a moving scene (docs/formats.md, "Observation entries"):
+/// markers identified by their arc length, sampled over time, some samples missing.
+struct MarkerSequence {
+  int case_index = 0;              ///< into Scene::cases
+  std::vector<double> s;           ///< [m] the markers' arc lengths
+  std::vector<double> t;           ///< [s] the sample times, ascending
+  struct Sample {
+    int time = 0, marker = 0;      ///< indices into t and s
+    Eigen::Vector3d position;      ///< [m] as recorded
+  };
+  std::vector<Sample> samples;     ///< the recorded ones (a missing sample is not listed)
+  double sigma = 1.0;              ///< [m] per coordinate
+};
+
+/// The residuals of a sequence fit at one parameter value, for reports: per sequence, per
+/// sample, predicted minus recorded [m] (NaN rows where the run failed).
+struct SequenceResiduals {
+  bool ok = false;
+  std::string reason;
+  std::vector<std::vector<Eigen::Vector3d>> error;
+};
+
+/// Fits `names` of a moving scene (Scene::dynamics set; each with a start value > 0) to marker
+/// sequences of its cases by the least-squares fit above: residuals (predicted - recorded) /
+/// sigma for every recorded coordinate, the predictions the open-loop trajectory of the case
+/// from its initial state (solve/case_dynamics.h, SampleCaseDynamics) with its exact
+/// sensitivities. options.method must be Levenberg–Marquardt; options.marker_sigma is unused
+/// (each sequence has its sigma). error_start / error_fitted are the mean absolute coordinate
+/// errors over all samples. Throws std::invalid_argument as FitMotion does.
+MotionFitResult FitSequences(const Scene& scene, const std::vector<MarkerSequence>& sequences,
+                             const std::vector<std::string>& names, const StaticsOptions& statics,
+                             const MotionFitOptions& fit_options);
+
+/// The errors of every sample of `sequences` along the scene's trajectories.
+SequenceResiduals EvaluateSequences(const Scene& scene, const std::vector<MarkerSequence>& sequences,
+                                    const StaticsOptions& statics);
 
 /// FitMotion with the default method, at most `max_evaluations` rollouts of every recording,
 /// each parameter within [start / range, start * range].

@@ -41,11 +41,14 @@ struct ParameterSpec {
   std::optional<double> min;  ///< lower bound for the fit, < max, <= value
   std::optional<double> max;  ///< upper bound for the fit, >= value
   int line = 0;               ///< 1-based line of the parameter's key
+  int fit_line = 0;           ///< 1-based line of its `fit:` value (0 when absent)
 };
 
 /// One entry of a case's `observations:` (docs/formats.md, "Observation entries"). Which keys a
 /// type allows:
-///   markers3d:    file, sigma [m],  s | count, outliers
+///   markers3d:    file, sigma [m],  s | count, outliers; in a scene with `dynamics:` a
+///                 sequence over time (file t,s,x,y,z or frame,s,x,y,z): file, sigma [m],
+///                 s | count, frame_rate [Hz], drop (no outliers)
 ///   points3d:     file, sigma [m],  count, outliers
 ///   image_points: file, sigma [px], camera, s | count, outliers
 ///   images:       file, sigma [px], camera, blur, noise
@@ -75,6 +78,10 @@ struct ObservationSpec {
   double max_speed = 1e-3;
   double blur = 0.0;      ///< [px] `images`: Gaussian blur sigma of synthesized images, >= 0
   double noise = 0.0;     ///< [grey levels] `images`: pixel noise sigma of synthesized images
+  /// [Hz] a markers3d sequence's frames: reading, the rate of a `frame` column; synth, the
+  /// sampling rate (0: not given; synth then samples every written frame of the dynamics).
+  double frame_rate = 0.0;
+  double drop = 0.0;      ///< a markers3d sequence: fraction of samples synth leaves missing, [0, 1)
   std::string point;      ///< `reaction`: the held point (HeldReaction::point)
   double sigma_moment = 0.0;  ///< [N m] `reaction`: moment sigma; 0: no moment
   /// grasp_force: how the device logged. A row's tool position p and force f, in the device's

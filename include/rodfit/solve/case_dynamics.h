@@ -61,4 +61,29 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
 /// The model of a case for dynamics: its held points where the driven paths start.
 LoadCase CaseAtStart(const LoadCase& load_case);
 
+/// Points of the centre-line at given arc lengths and times along a case's trajectory (a
+/// markers3d sequence's predictions, docs/formats.md, "Observation entries").
+struct CaseSamples {
+  bool ok = false;
+  std::string reason;                 ///< why the integration stopped early
+  std::vector<Eigen::Matrix3Xd> x;    ///< per time, 3 x points [m]
+  /// Per time, 3 points x directions: d x / d log p (rows 3 m .. 3 m + 2 point m's
+  /// coordinates); empty without directions.
+  std::vector<Eigen::MatrixXd> dx;
+  int steps = 0;
+  double seconds = 0.0;               ///< wall time of the integration
+};
+
+/// Integrates case `index` of a scene with `scene.dynamics` from its initial state (as
+/// SimulateCaseDynamics) up to the last of `t` and returns the centre-line at each arc length
+/// of `s` (linear between the vertices around it, in the reference arc length) at each time of
+/// `t` (linear between the steps around it, exact on a step). With `directions`, also their
+/// forward sensitivities through the implicit steps (docs/solvers.md, "Sensitivities in time";
+/// backward_euler and bdf2 only: another integrator stops with the reason). Throws
+/// std::invalid_argument for `t` not ascending within [0, dynamics.duration] or `s` outside
+/// [0, L]; std::runtime_error when the initial equilibrium does not converge.
+CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
+                               const std::vector<double>& s, const std::vector<double>& t,
+                               const std::vector<ParameterDirection>& directions);
+
 }  // namespace rodfit

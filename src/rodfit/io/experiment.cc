@@ -30,7 +30,7 @@ namespace fs = std::filesystem;
 constexpr double kMinClampSine = 1e-3;
 constexpr size_t kMaxCaseNameLength = 100;
 
-// Damping (dynamics only): >= 0, not fitted from static cases.
+// Damping (dynamics only): >= 0, fitted only from the motion of a moving scene.
 bool IsDampingParameter(const std::string& name) {
   const MaterialParameterInfo* row = FindMaterialParameter(name);
   return row && row->kind == ParameterKind::kDamping;
@@ -272,9 +272,9 @@ ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& 
   p.value = row && row->positive ? r.Positive(value) : r.NonNegative(value);
   if (const Field* fit = Reader::Find(m, "fit")) {
     p.fit = r.Bool(*fit);
-    if (p.fit && IsDampingParameter(name))
-      r.Fail(*fit, "damping is identified from motion, which `rodfit fit` does not read yet; "
-                   "give its value (fit: false)");
+    // Whether a fitted damping has motion to be fitted to is checked once the dynamics: block
+    // is read (ParseExperiment).
+    p.fit_line = fit->line;
   }
   if (p.fit && !(p.value > 0.0)) {
     r.Fail(value, "a fitted parameter must be > 0 (fitted in log space)");
@@ -376,7 +376,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
                                         "s",        "count", "outliers", "blur",
                                         "noise",    "max_speed", "point", "sigma_moment",
                                         "unit",     "force_unit", "device_frame", "force_on",
-                                        "camera_index"};
+                                        "camera_index", "frame_rate", "drop"};
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
@@ -387,6 +387,15 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
            "unknown observation type '" + ClipForMessage(o.type) +
                "' (allowed: " + Join(kObservationTypes) + ")");
   }
+  // A moving scene is observed over time: its markers3d entries are sequences (the only type
+  // its fit reads, docs/formats.md, "Marker sequences").
+  const bool moving = ex.scene.dynamics.has_value();
+  if (moving && o.type != "markers3d")
+    r.Fail(type, "a moving scene (dynamics:) is observed by markers3d sequences only, not " +
+                     o.type);
+  for (const char* key : {"frame_rate", "drop"})
+    if (const Field* k = Reader::Find(m, key); k && !moving)
+      r.Fail(k->key_line, k->key, "only for a markers3d sequence (a scene with a dynamics: block)");
   const bool image = o.type == "image_points" || o.type == "images";
   std::vector<std::string> allowed = {"type", "file", "sigma"};
   const bool force = o.type == "grasp_force";
@@ -398,7 +407,8 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   if (image) allowed.insert(allowed.end(), {"camera", "camera_index"});
   if (o.type != "points3d" && o.type != "images" && !surface) allowed.push_back("s");
   if (o.type != "images") allowed.push_back("count");
-  if (o.type != "images" && !force && !surface) allowed.push_back("outliers");
+  if (o.type != "images" && !force && !surface && !moving) allowed.push_back("outliers");
+  if (moving) allowed.insert(allowed.end(), {"frame_rate", "drop"});
   if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise"});
   if (force) allowed.insert(allowed.end(),
                             {"max_speed", "unit", "force_unit", "device_frame", "force_on"});
@@ -466,6 +476,11 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
     if (o.outliers < 0.0 || o.outliers >= 1.0) {
       r.Fail(*outliers, "must be in [0, 1), got " + Show(o.outliers));
     }
+  }
+  if (const Field* rate = Reader::Find(m, "frame_rate")) o.frame_rate = r.Positive(*rate);
+  if (const Field* drop = Reader::Find(m, "drop")) {
+    o.drop = r.Number(*drop);
+    if (o.drop < 0.0 || o.drop >= 1.0) r.Fail(*drop, "must be in [0, 1), got " + Show(o.drop));
   }
   if (const Field* blur = Reader::Find(m, "blur")) o.blur = r.InRange(*blur, 0.0, kMaxBlurPx);
   if (const Field* noise = Reader::Find(m, "noise")) o.noise = r.InRange(*noise, 0.0, kMaxNoiseGrey);
@@ -1137,6 +1152,18 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
   if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
   if (const Field* dynamics = Reader::Find(m, "dynamics")) ex.scene.dynamics = ReadDynamics(r, *dynamics);
+  for (const auto& [name, p] : ex.parameters)
+    if (p.fit && IsDampingParameter(name) && !ex.scene.dynamics)
+      r.Fail(p.fit_line, "parameters." + name + ".fit",
+             "damping is identified from motion: fitting it needs a dynamics: block and markers3d "
+             "sequences (else give its value, fit: false)");
+  if (ex.scene.dynamics && ex.fit.line > 0) {
+    // A moving scene's fit is plain least squares on the sequences (docs/formats.md, "Marker
+    // sequences"): the static fit's robust losses and global search are not part of it.
+    if (ex.fit.loss != RobustLoss::kNone)
+      r.Fail(ex.fit.line, "fit.loss", "a moving scene's fit takes no robust loss (loss: none)");
+    if (ex.fit.global) r.Fail(ex.fit.line, "fit.global", "a moving scene's fit has no global search");
+  }
 
   const Field& cases = r.Require(m, top, "cases");
   if (cases.node.IsSequence() && cases.node.size() > static_cast<size_t>(kMaxCases)) {

@@ -273,4 +273,101 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
   return out;
 }
 
+CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
+                               const std::vector<double>& s, const std::vector<double>& t,
+                               const std::vector<ParameterDirection>& directions) {
+  const DynamicsSpec& spec = *scene.dynamics;
+  for (size_t k = 0; k < t.size(); ++k)
+    if (!(t[k] >= 0.0 && t[k] <= spec.duration * (1.0 + 1e-12)) || (k > 0 && !(t[k] >= t[k - 1])))
+      throw std::invalid_argument("sample times must ascend within [0, dynamics.duration]");
+  const RodModel model(scene.rod, scene.material, scene.gravity, CaseAtStart(scene.cases[index]),
+                       scene.springs);
+  // Each point between vertices i and i + 1 with weight w on i + 1.
+  const std::vector<double>& arc = model.arc_lengths();
+  const int n = model.num_edges();
+  std::vector<int> vertex(s.size());
+  std::vector<double> weight(s.size());
+  for (size_t m = 0; m < s.size(); ++m) {
+    if (!(s[m] >= 0.0 && s[m] <= arc[n] * (1.0 + 1e-12)))
+      throw std::invalid_argument("arc lengths must lie in [0, rod.length]");
+    const int i = std::min<int>(
+        n - 1, static_cast<int>(std::upper_bound(arc.begin(), arc.end(), s[m]) - arc.begin()) - 1);
+    vertex[m] = std::max(i, 0);
+    weight[m] = std::clamp((s[m] - arc[vertex[m]]) / (arc[vertex[m] + 1] - arc[vertex[m]]), 0.0, 1.0);
+  }
+  DynamicsOptions options;
+  options.time_step = spec.time_step;
+  options.substep = spec.substep;
+  if (!ParseIntegrator(spec.integrator, &options.integrator))
+    throw std::invalid_argument("unknown integrator " + spec.integrator);
+  DynamicsStepper stepper(model, options);
+  const CaseDrive drive(model, scene.cases[index]);
+  CaseSamples out;
+  DynamicState state = InitialDynamicState(scene, index, statics, stepper);
+  const int np = static_cast<int>(directions.size());
+  const int M = static_cast<int>(s.size());
+  DynamicSensitivity ds;
+  if (np > 0) {
+    if (scene.cases[index].initial.equilibrium) {
+      if (!EquilibriumSensitivity(model, state.q, directions, &ds.dq, &out.reason)) return out;
+    } else {
+      ds.dq.setZero(model.num_free_dofs(), np);  // a given start shape is the parameters' own
+    }
+    ds.dv.setZero(model.num_free_dofs(), np);
+  }
+  // The points (and their derivatives) at the current state. Vertex 0 is the clamp: no dofs.
+  Eigen::Matrix3Xd x_now(3, M), x_before(3, M);
+  Eigen::MatrixXd d_now = Eigen::MatrixXd::Zero(3 * M, np), d_before = d_now;
+  auto points = [&]() {
+    d_now.setZero();
+    for (int m = 0; m < M; ++m) {
+      const int i = vertex[m];
+      const double w = weight[m];
+      x_now.col(m) = (1.0 - w) * state.q.x.col(i) + w * state.q.x.col(i + 1);
+      if (np == 0) continue;
+      if (i >= 1) d_now.middleRows<3>(3 * m) += (1.0 - w) * ds.dq.middleRows<3>(RodModel::VertexDof(i));
+      d_now.middleRows<3>(3 * m) += w * ds.dq.middleRows<3>(RodModel::VertexDof(i + 1));
+    }
+  };
+  points();
+  size_t next = 0;
+  out.x.reserve(t.size());
+  // Samples at t = 0 are the initial state itself.
+  for (; next < t.size() && t[next] <= 0.0; ++next) {
+    out.x.push_back(x_now);
+    if (np > 0) out.dx.push_back(d_now);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const double dt = spec.time_step;
+  while (next < t.size()) {
+    const double t_before = state.t;
+    x_before = x_now;
+    d_before = d_now;
+    const DynamicState before = state;
+    const DynamicsStepSummary r = stepper.Step(drive, &state);
+    if (!r.ok) {
+      out.reason = "t = " + std::to_string(state.t) + " s: " + r.reason;
+      break;
+    }
+    ++out.steps;
+    if (np > 0) {
+      std::string why;
+      if (!stepper.StepSensitivity(drive, before, state, directions, &ds, &why)) {
+        out.reason = "t = " + std::to_string(state.t) + " s: " + why;
+        break;
+      }
+    }
+    points();
+    // Every sample time up to this step's end (within round-off of the step count).
+    for (; next < t.size() && t[next] <= state.t + 1e-9 * dt; ++next) {
+      const double w = std::clamp((t[next] - t_before) / (state.t - t_before), 0.0, 1.0);
+      out.x.push_back((1.0 - w) * x_before + w * x_now);
+      if (np > 0) out.dx.push_back((1.0 - w) * d_before + w * d_now);
+    }
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.ok = out.reason.empty();
+  return out;
+}
+
 }  // namespace rodfit

@@ -25,6 +25,7 @@
 #include "rodfit/io/output_dir.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
+#include "rodfit/solve/case_dynamics.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/version.h"
 #include "rodfit/vision/camera_file.h"
@@ -252,6 +253,65 @@ std::string Synth3d(const EntryContext& ctx, const std::string& file, std::strin
   const int outliers = ReplaceOutliers(ctx, lo, hi, &p);
   *report = Summary(ctx, file, static_cast<int>(p.size()), outliers, 0);
   return markers ? FormatMarkersCsv(s, p) : FormatPoints3dCsv(p);
+}
+
+// The sample times of a markers3d sequence: every 1 / frame_rate, or every written frame of the
+// dynamics (output_every steps), from 0 to dynamics.duration.
+std::vector<double> SequenceTimes(const ObservationSpec& spec, const DynamicsSpec& dynamics) {
+  const double interval =
+      spec.frame_rate > 0.0 ? 1.0 / spec.frame_rate : dynamics.time_step * dynamics.output_every;
+  // Round-off of the ratio must not lose the last frame.
+  const long frames = static_cast<long>(std::floor(dynamics.duration / interval * (1.0 + 1e-12)));
+  std::vector<double> t;
+  for (long k = 0; k <= frames; ++k) t.push_back(k * interval);
+  return t;
+}
+
+// A markers3d sequence of a moving case (docs/formats.md, "Marker sequences"): the case run from
+// its initial state, the markers' positions at every sample time with Gaussian noise of the
+// entry's sigma, a fraction `drop` of the samples left empty (not seen). Rows time-major;
+// columns frame,s,x,y,z with the entry's frame_rate, else t,s,x,y,z.
+std::string SynthSequence(const EntryContext& ctx, const std::string& file, std::string* report) {
+  const Scene& scene = ctx.experiment->scene;
+  const std::vector<double> s = MarkerArcLengths(*ctx.spec, scene.rod);
+  const std::vector<double> t = SequenceTimes(*ctx.spec, *scene.dynamics);
+  const size_t n = s.size() * t.size();
+  if (n > static_cast<size_t>(kMaxCsvRows))
+    ctx.Fail(std::to_string(n) + " samples (markers x times), above the limit of " +
+             std::to_string(kMaxCsvRows) + " rows (lower frame_rate or the markers)");
+  CaseSamples run;
+  try {
+    run = SampleCaseDynamics(scene, ctx.case_index, ctx.options->statics, s, t, {});
+  } catch (const std::exception& e) {
+    ctx.Fail("case " + ctx.CaseName() + ": " + e.what());
+  }
+  if (!run.ok) ctx.Fail("case " + ctx.CaseName() + " does not run: " + run.reason);
+  std::vector<Eigen::Vector3d> p;
+  p.reserve(n);
+  for (size_t k = 0; k < t.size(); ++k)
+    for (size_t m = 0; m < s.size(); ++m) p.push_back(run.x[k].col(m));
+  AddNoise(ctx, &p);
+  std::vector<char> dropped(n, 0);
+  int drops = 0;
+  if (ctx.options->add_noise)
+    for (const int i : ChooseOutliers(ctx.spec->drop, static_cast<int>(n), ctx.random)) {
+      dropped[i] = 1;
+      ++drops;
+    }
+  const bool by_frame = ctx.spec->frame_rate > 0.0;
+  std::string out = by_frame ? "frame,s,x,y,z\n" : "t,s,x,y,z\n";
+  for (size_t k = 0; k < t.size(); ++k)
+    for (size_t m = 0; m < s.size(); ++m) {
+      const size_t i = k * s.size() + m;
+      out += (by_frame ? std::to_string(k) : FormatDouble(t[k])) + "," + FormatDouble(s[m]);
+      out += dropped[i] ? std::string(",,,\n")
+                        : "," + FormatDouble(p[i].x()) + "," + FormatDouble(p[i].y()) + "," +
+                              FormatDouble(p[i].z()) + "\n";
+    }
+  *report = "case " + ctx.shape->name + ": " + file + ": markers3d sequence, " +
+            std::to_string(s.size()) + " markers x " + std::to_string(t.size()) + " times";
+  if (drops > 0) *report += ", " + std::to_string(drops) + " samples dropped";
+  return out;
 }
 
 std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
@@ -739,7 +799,16 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
   if (!options.Check(&why)) throw std::invalid_argument("SynthOptions: " + why);
   const Experiment& ex = experiment;
   SynthBundle bundle;
-  const std::vector<CaseSolution> solutions = SolveCases(ex, options.statics);
+  // A moving scene's truth shapes are its cases' initial equilibria (held points where their
+  // paths start); its observations are sequences along the runs (SynthSequence).
+  Experiment at_start;
+  if (ex.scene.dynamics) {
+    at_start = ex;
+    at_start.scene.dynamics.reset();
+    for (LoadCase& c : at_start.scene.cases) c = CaseAtStart(c);
+  }
+  const std::vector<CaseSolution> solutions =
+      SolveCases(ex.scene.dynamics ? at_start : ex, options.statics);
   for (size_t c = 0; c < solutions.size(); ++c)
     bundle.truth.push_back({ex.scene.cases[c].name, solutions[c].shape_s, solutions[c].shape});
 
@@ -791,7 +860,9 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
                        EntryKey(static_cast<int>(c), static_cast<int>(o)),
                        spec.camera, &random, static_cast<int>(c)};
       std::string report, contents;
-      if (spec.type == "markers3d" || spec.type == "points3d") {
+      if (spec.type == "markers3d" && ex.scene.dynamics) {
+        contents = SynthSequence(ctx, file, &report);
+      } else if (spec.type == "markers3d" || spec.type == "points3d") {
         contents = Synth3d(ctx, file, &report);
       } else if (spec.type == "image_points") {
         contents = SynthImagePoints(ctx, file, &report);

@@ -1,0 +1,45 @@
+// A moving experiment's observations (docs/formats.md, "Marker sequences"): every case's
+// markers3d sequences read into the motion fit's input (fit/motion_fit.h), and the motion fit's
+// result in the static fit's terms, so that the profile and the report are written as for a
+// static experiment.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "rodfit/fit/fit.h"
+#include "rodfit/fit/motion_fit.h"
+#include "rodfit/io/experiment.h"
+
+namespace rodfit {
+
+inline constexpr int kMaxSequenceTimes = 100000;  ///< distinct sample times in one file
+
+struct SequenceInput {
+  std::vector<MarkerSequence> sequences;  ///< in the order of the cases and their entries
+  std::vector<std::string> labels;        ///< per sequence: "markers3d FILE"
+};
+
+/// Reads every markers3d sequence of an experiment with a dynamics: block. Throws InputError
+/// naming the file, the row's line and the column for a missing file or column, a non-number,
+/// a time outside [0, dynamics.duration], an s outside [0, L], a sample given twice, a row with
+/// some coordinates missing and others not, a `frame` column without the entry's frame_rate,
+/// and a file with no recorded sample; and naming the experiment for one without dynamics:.
+SequenceInput BuildSequenceInput(const Experiment& experiment);
+
+/// The motion fit's settings from the experiment: each fitted parameter's min and max as its
+/// bounds (else start / 100 .. start * 100), fit.max_iterations as the budget of runs,
+/// fit.trusted_sigmas.
+MotionFitOptions SequenceFitOptionsOf(const Experiment& experiment,
+                                      const std::vector<std::string>& names);
+
+/// The names with `fit: true`, in the order of the material parameter table.
+std::vector<std::string> FittedNames(const Experiment& experiment);
+
+/// The motion fit as a FitResult (what ProfileJson and the report read): every parameter of the
+/// experiment with its estimate, the correlations, and per sequence the RMS of its samples'
+/// error norms at the fit (`residuals`, EvaluateSequences at the fitted values).
+FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& input,
+                            const MotionFitResult& motion, const SequenceResiduals& residuals);
+
+}  // namespace rodfit

@@ -1,0 +1,129 @@
+// `rodfit synth` then `rodfit fit` on a moving experiment, as a user would run them (docs/cli.md,
+// "fit"; docs/formats.md, "Marker sequences"): the bundled suture swing (data/suture_swing_fit/)
+// synthesized from its protocol writes a seeded marker sequence with noise and missing samples;
+// fitted from starts 3x off, the bending stiffness and the air drag come back within 3 std, and
+// the profile and report are the static fit's. Bad input exits 1 with one line naming the file,
+// line and key, and writes nothing.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "../io/temp_dir.h"
+#include "run_cli.h"
+
+namespace rodfit {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using test::Quote;
+using test::ReadText;
+using test::Replace;
+using test::RunResult;
+using test::TempDir;
+using ::testing::HasSubstr;
+
+const std::string kExample = std::string(RODFIT_SOURCE_DIR) + "/data/suture_swing_fit/";
+
+// Synthesizes the protocol into `dir` and puts the fit's experiment (the starts) beside the data.
+void Synthesize(const TempDir& dir, int seed) {
+  const RunResult synth = test::RunRodfit(
+      dir, "synth " + Quote(kExample + "protocol.yaml") + " -o " + Quote(dir.File("data")) +
+               " --seed " + std::to_string(seed));
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  fs::copy_file(kExample + "experiment.yaml", dir.File("data/experiment.yaml"),
+                fs::copy_options::overwrite_existing);
+}
+
+TEST(SequenceFitCli, SynthThenFitRecoversBendingStiffnessAndDrag) {
+  TempDir dir;
+  Synthesize(dir, 7);
+  const std::string csv = ReadText(dir.File("data/swing_markers.csv"));
+  EXPECT_EQ(csv.rfind("frame,s,x,y,z\n", 0), 0u);
+  // 26 frames x 4 markers, 10 % of them written as not seen.
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 26 * 4);
+  size_t missing = 0;
+  for (size_t at = csv.find(",,,"); at != std::string::npos; at = csv.find(",,,", at + 1)) ++missing;
+  EXPECT_EQ(missing, 10u);
+  // The same seed gives the same bytes.
+  TempDir again;
+  Synthesize(again, 7);
+  EXPECT_EQ(ReadText(again.File("data/swing_markers.csv")), csv);
+
+  const RunResult fit = test::RunRodfit(
+      dir, "fit " + Quote(dir.File("data/experiment.yaml")) + " -o " +
+               Quote(dir.File("profile.json")) + " --report " + Quote(dir.File("report")));
+  ASSERT_EQ(fit.status, 0) << fit.err;
+  const json profile = json::parse(ReadText(dir.File("profile.json")));
+  const json truth = json::parse(ReadText(dir.File("data/truth.json")));
+  for (const char* name : {"bend_stiffness", "damping"}) {
+    const json& p = profile["parameters"][name];
+    ASSERT_TRUE(p["fitted"].get<bool>()) << name;
+    ASSERT_TRUE(p["identifiable"].get<bool>()) << name;
+    const double value = p["value"], std = p["std"], t = truth["parameters"][name];
+    EXPECT_LT(std::abs(value - t), 3.0 * std) << name << " " << value << " +- " << std;
+    EXPECT_LT(std, 0.1 * t) << name;
+    EXPECT_NE(p["start"].get<double>(), t);
+  }
+  // Held parameters are listed at their values, tied B2 with B1.
+  EXPECT_FALSE(profile["parameters"]["twist_stiffness"]["fitted"].get<bool>());
+  EXPECT_EQ(profile["parameters"]["bend_stiffness_2"]["tied_to"], "bend_stiffness");
+  const json& summary = profile["fit"];
+  EXPECT_TRUE(summary["success"].get<bool>());
+  EXPECT_EQ(summary["num_residuals"].get<int>(), 3 * (26 * 4 - 10));
+  EXPECT_NEAR(summary["residual_variance"].get<double>(), 1.0, 0.3);
+  EXPECT_EQ(summary["correlation"]["parameters"], json({"bend_stiffness", "damping"}));
+  ASSERT_EQ(summary["rms"].size(), 1u);
+  EXPECT_EQ(summary["rms"][0]["observation"], "markers3d swing_markers.csv");
+  EXPECT_EQ(summary["rms"][0]["count"].get<int>(), 26 * 4 - 10);
+  // The report's tables: one summary row, one residual row per recorded sample.
+  const std::string residuals = ReadText(dir.File("report/residuals.csv"));
+  EXPECT_EQ(std::count(residuals.begin(), residuals.end(), '\n'), 1 + 26 * 4 - 10);
+  EXPECT_THAT(ReadText(dir.File("report/summary.csv")),
+              HasSubstr("swing,markers3d swing_markers.csv,markers3d,94,"));
+  EXPECT_TRUE(fs::exists(dir.File("report/index.html")));
+}
+
+TEST(SequenceFitCli, BadInputIsOneLineAndWritesNothing) {
+  TempDir dir;
+  Synthesize(dir, 1);
+  const std::string experiment = ReadText(dir.File("data/experiment.yaml"));
+  auto fails = [&](const std::string& yaml, const std::string& csv, const std::string& where) {
+    dir.Write("data/bad.yaml", yaml);
+    dir.Write("data/bad.csv", csv);
+    const RunResult run = test::RunRodfit(
+        dir, "fit " + Quote(dir.File("data/bad.yaml")) + " -o " + Quote(dir.File("bad.json")));
+    EXPECT_EQ(run.status, 1) << run.err;
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+    EXPECT_THAT(run.err, HasSubstr(where));
+    EXPECT_FALSE(fs::exists(dir.File("bad.json")));
+  };
+  const std::string on_bad = Replace(experiment, "file: swing_markers.csv", "file: bad.csv");
+  // A frame column without the entry's frame_rate.
+  fails(Replace(on_bad, ", frame_rate: 100", ""), "frame,s,x,y,z\n0,0.2,0.2,0,0\n",
+        dir.File("data/bad.csv") + ":1: frame:");
+  // A sample after the run's end (frame 30 at 100 Hz = 0.3 s > 0.25 s).
+  fails(on_bad, "frame,s,x,y,z\n0,0.2,0.2,0,0\n30,0.2,0.2,0,-0.1\n",
+        dir.File("data/bad.csv") + ":3: frame:");
+  // The midpoint integrator has no sensitivities.
+  fails(Replace(experiment, "integrator: bdf2", "integrator: midpoint"), "",
+        "differentiates the bdf2 and backward_euler steps");
+  // A fitted damping without motion.
+  fails("rod: {length: 0.2, segments: 10, radius: 1.0e-4, linear_density: 5.0e-5}\n"
+        "parameters:\n"
+        "  bend_stiffness: {value: 1.0e-6}\n"
+        "  twist_stiffness: {value: 8.0e-7}\n"
+        "  stretch_stiffness: {value: 245}\n"
+        "  damping: {value: 1.0e-4, fit: true}\n"
+        "cases:\n"
+        "  - clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n",
+        "", dir.File("data/bad.yaml") + ":6: parameters.damping.fit:");
+}
+
+}  // namespace
+}  // namespace rodfit

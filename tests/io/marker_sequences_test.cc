@@ -1,0 +1,173 @@
+// Tests of the moving experiment's observations (docs/formats.md, "Marker sequences"): the
+// reader's keys (frame_rate, drop, a fitted damping, what a moving scene allows) and the
+// sequence files (t or frame column, missing samples); every bad input is a one-line InputError
+// naming the file, the 1-based line and the key or column.
+#include "rodfit/io/marker_sequences.h"
+
+#include <cmath>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "rodfit/io/errors.h"
+#include "temp_dir.h"
+
+namespace rodfit {
+namespace {
+
+using test::TempDir;
+using ::testing::HasSubstr;
+
+// A valid moving experiment; the tests change one line each, so the line numbers hold.
+const char* const kMoving =
+    "rod: {length: 0.2, segments: 10, radius: 1.0e-4, linear_density: 5.0e-5}\n"  // 1
+    "parameters:\n"                                                                // 2
+    "  bend_stiffness: {value: 1.0e-6, fit: true}\n"                               // 3
+    "  twist_stiffness: {value: 8.0e-7}\n"                                         // 4
+    "  stretch_stiffness: {value: 245}\n"                                          // 5
+    "  damping: {value: 1.0e-4, fit: true, min: 1.0e-6, max: 1.0e-2}\n"           // 6
+    "dynamics: {time_step: 1.0e-3, duration: 0.1, integrator: bdf2}\n"             // 7
+    "cases:\n"                                                                     // 8
+    "  - name: swing\n"                                                            // 9
+    "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"    // 10
+    "    initial: {shape: start}\n"                                                // 11
+    "    observations:\n"                                                          // 12
+    "      - {type: markers3d, file: seq.csv, sigma: 5.0e-4, s: [0.1, 0.2], frame_rate: 100, "
+    "drop: 0.1}\n";                                                                // 13
+
+class MarkerSequencesTest : public ::testing::Test {
+ protected:
+  static std::string With(const std::string& from, const std::string& to) {
+    std::string text = kMoving;
+    const size_t pos = text.find(from);
+    EXPECT_NE(pos, std::string::npos) << from;
+    if (pos != std::string::npos) text.replace(pos, from.size(), to);
+    return text;
+  }
+
+  // The InputError's message of loading `yaml` (and, when `csv` is given, reading the sequences
+  // with seq.csv holding it); "" and a failure if none.
+  std::string Error(const std::string& yaml, const std::string& csv = "") {
+    const std::string path = dir_.Write("scene.yaml", yaml);
+    if (!csv.empty()) dir_.Write("seq.csv", csv);
+    try {
+      const Experiment ex = LoadExperiment(path);
+      if (!csv.empty()) BuildSequenceInput(ex);
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << "not one line";
+      return e.what();
+    }
+    ADD_FAILURE() << "no InputError for:\n" << yaml << "\n" << csv;
+    return "";
+  }
+
+  void ExpectError(const std::string& yaml, int line, const std::string& key) {
+    EXPECT_THAT(Error(yaml),
+                HasSubstr(dir_.File("scene.yaml") + ":" + std::to_string(line) + ": " + key + ":"));
+  }
+  void ExpectCsvError(const std::string& csv, int line, const std::string& column,
+                      const std::string& yaml = kMoving) {
+    EXPECT_THAT(Error(yaml, csv),
+                HasSubstr(dir_.File("seq.csv") + ":" + std::to_string(line) + ": " + column + ":"));
+  }
+
+  TempDir dir_;
+};
+
+TEST_F(MarkerSequencesTest, MovingExperimentReadsItsKeys) {
+  const Experiment ex = LoadExperiment(dir_.Write("scene.yaml", kMoving));
+  ASSERT_EQ(ex.cases.size(), 1u);
+  const ObservationSpec& o = ex.cases[0].observations.at(0);
+  EXPECT_EQ(o.frame_rate, 100.0);
+  EXPECT_EQ(o.drop, 0.1);
+  EXPECT_TRUE(ex.parameters.at("damping").fit);
+  EXPECT_EQ(*ex.parameters.at("damping").min, 1.0e-6);
+  EXPECT_EQ(FittedNames(ex), (std::vector<std::string>{"bend_stiffness", "damping"}));
+  const MotionFitOptions options = SequenceFitOptionsOf(ex, FittedNames(ex));
+  ASSERT_EQ(options.lower.size(), 2u);
+  EXPECT_TRUE(std::isnan(options.lower[0]));  // bend_stiffness: no min, the default range
+  EXPECT_EQ(options.lower[1], 1.0e-6);
+  EXPECT_EQ(options.upper[1], 1.0e-2);
+}
+
+TEST_F(MarkerSequencesTest, FittedDampingNeedsMotion) {
+  // Without the dynamics: block there is no motion to identify damping from.
+  ExpectError(With("dynamics: {time_step: 1.0e-3, duration: 0.1, integrator: bdf2}\n", ""), 6,
+              "parameters.damping.fit");
+}
+
+TEST_F(MarkerSequencesTest, SequenceKeysOnlyInAMovingScene) {
+  // A static scene (no dynamics:, no initial:) with frame_rate on its markers3d.
+  std::string text = With("dynamics: {time_step: 1.0e-3, duration: 0.1, integrator: bdf2}\n",
+                          "gravity: [0, 0, -9.81]\n");
+  text = text.replace(text.find("    initial: {shape: start}\n"), 28, "    tip_force: [0, 0, 0]\n");
+  text = text.replace(text.find("fit: true, min"), 9, "fit: false");
+  EXPECT_THAT(Error(text), HasSubstr(":13: cases[0].observations[0].frame_rate:"));
+  text = text.replace(text.find("frame_rate: 100, "), 17, "");
+  EXPECT_THAT(Error(text), HasSubstr(":13: cases[0].observations[0].drop:"));
+}
+
+TEST_F(MarkerSequencesTest, BadSequenceKeys) {
+  ExpectError(With("drop: 0.1", "drop: 1.0"), 13, "cases[0].observations[0].drop");
+  ExpectError(With("drop: 0.1", "drop: -0.1"), 13, "cases[0].observations[0].drop");
+  ExpectError(With("frame_rate: 100", "frame_rate: 0"), 13, "cases[0].observations[0].frame_rate");
+  ExpectError(With("frame_rate: 100", "frame_rate: fast"), 13,
+              "cases[0].observations[0].frame_rate");
+  ExpectError(With("drop: 0.1", "outliers: 0.1"), 13, "cases[0].observations[0].outliers");
+  // A moving scene is observed by sequences only.
+  ExpectError(With("type: markers3d", "type: points3d"), 13, "cases[0].observations[0].type");
+  // Its fit is plain least squares.
+  ExpectError(With("cases:\n", "fit: {loss: huber}\ncases:\n"), 8, "fit.loss");
+  ExpectError(With("cases:\n", "fit: {global: true}\ncases:\n"), 8, "fit.global");
+}
+
+TEST_F(MarkerSequencesTest, ReadsFramesAndMissingSamples) {
+  dir_.Write("seq.csv",
+             "frame,s,x,y,z\n"
+             "0,0.1,0.1,0,0\n"
+             "0,0.2,0.2,0,0\n"
+             "1,0.1,0.1,0,-0.001\n"
+             "1,0.2,,,\n"            // not seen
+             "2,0.2,nan,NaN,nan\n"   // not seen
+             "2,0.1,0.1,0,-0.002\n");
+  const Experiment ex = LoadExperiment(dir_.Write("scene.yaml", kMoving));
+  const SequenceInput input = BuildSequenceInput(ex);
+  ASSERT_EQ(input.sequences.size(), 1u);
+  const MarkerSequence& seq = input.sequences[0];
+  EXPECT_EQ(seq.t, (std::vector<double>{0.0, 0.01, 0.02}));
+  EXPECT_EQ(seq.s, (std::vector<double>{0.1, 0.2}));
+  EXPECT_EQ(seq.sigma, 5.0e-4);
+  ASSERT_EQ(seq.samples.size(), 4u);
+  EXPECT_EQ(seq.samples[3].time, 2);
+  EXPECT_EQ(seq.samples[3].marker, 0);
+  EXPECT_EQ(seq.samples[3].position.z(), -0.002);
+  EXPECT_EQ(input.labels[0], "markers3d seq.csv");
+}
+
+TEST_F(MarkerSequencesTest, ReadsTimes) {
+  dir_.Write("seq.csv", "t,s,x,y,z\n0.05,0.2,0.2,0,-0.01\n0,0.2,0.2,0,0\n");
+  const Experiment ex = LoadExperiment(dir_.Write("scene.yaml", With("frame_rate: 100, ", "")));
+  const MarkerSequence seq = BuildSequenceInput(ex).sequences.at(0);
+  EXPECT_EQ(seq.t, (std::vector<double>{0.0, 0.05}));
+  ASSERT_EQ(seq.samples.size(), 2u);
+  EXPECT_EQ(seq.samples[0].time, 1);  // the file's first row is the later time
+}
+
+TEST_F(MarkerSequencesTest, BadSequenceFiles) {
+  const std::string no_rate = With("frame_rate: 100, ", "");
+  ExpectCsvError("frame,s,x,y,z\n0,0.1,0.1,0,0\n", 1, "frame", no_rate);
+  ExpectCsvError("s,x,y,z\n0.1,0.1,0,0\n", 1, "t");
+  ExpectCsvError("t,s,x,y,z\n0,0.1,0.1,0,0\n0.2,0.1,0.1,0,0\n", 3, "t");  // beyond duration 0.1
+  ExpectCsvError("t,s,x,y,z\n-0.01,0.1,0.1,0,0\n", 2, "t");
+  ExpectCsvError("frame,s,x,y,z\n0.5,0.1,0.1,0,0\n", 2, "frame");
+  ExpectCsvError("t,s,x,y,z\n0,0.3,0.1,0,0\n", 2, "s");                   // beyond L = 0.2
+  ExpectCsvError("t,s,x,y,z\n0,0.1,0.1,0,0\n0,0.1,0.1,0,0\n", 3, "s");   // given twice
+  ExpectCsvError("t,s,x,y,z\n0,0.1,0.1,,0\n", 2, "x");                   // partly missing
+  ExpectCsvError("t,s,x,y,z\n0,0.1,0.1,zero,0\n", 2, "y");
+  ExpectCsvError("t,s,x,y,z\n0,0.1,1e9,0,0\n", 2, "x");                  // not on the rod
+  EXPECT_THAT(Error(kMoving, "t,s,x,y,z\n0,0.1,,,\n"), HasSubstr("no recorded sample"));
+}
+
+}  // namespace
+}  // namespace rodfit
