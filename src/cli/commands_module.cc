@@ -1,7 +1,7 @@
 // The commands module (rodfit-commands.so): the commands that need Ceres, OpenCV or the fit, in a
 // library that the `rodfit` executable loads with dlopen only when one of them is run, so that
 // `--help`, `--version`, `simulate` and `export` start without loading those libraries and their
-// ~40 dependencies (docs/cli.md, "Start-up"). Built with hidden symbols: only the entry point is
+// ~45 dependencies (docs/cli.md, "Start-up"). Built with hidden symbols: only the entry point is
 // visible, so no state is shared with the executable's own copy of the libraries.
 #include <cstdio>
 #include <cstdlib>
