@@ -1,54 +1,36 @@
 // The rodfit command (docs/cli.md): a thin table of subcommands in the manner of COLMAP's
 // `commands.emplace_back("name", &RunName)`. Each Run* parses its options with CLI11, calls the
 // library and turns a failure into one line on stderr and a non-zero exit. No physics here.
+//
+// Start-up (docs/cli.md, "Start-up"): this executable links only what `--help`, `--version`,
+// `simulate` and `export` need (model, solve, io's readers and writers, runtime; no Ceres, no
+// OpenCV). The commands that need more are in the commands module (commands_module.cc), which
+// is loaded with dlopen only when one of them is run: loading the ~50 shared libraries of Ceres,
+// SuiteSparse, glog and OpenCV was most of the CPU time of a `--help`.
+#include <dlfcn.h>
+
 #include <cstdio>
-#include <cstdint>
 #include <cstdlib>
-#include <exception>
 #include <filesystem>
 #include <iostream>
-#include <memory>
-#include <new>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include <CLI/CLI.hpp>
-#include <Eigen/Core>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "rodfit/io/csv.h"
+#include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/image_observations.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/shapes_csv.h"
-#include "rodfit/synth/synth.h"
-#include "rodfit/io/errors.h"
-#include "rodfit/solve/case_solve.h"
 #include "rodfit/runtime/profile.h"
+#include "rodfit/solve/case_solve.h"
 #include "rodfit/version.h"
-#include "rodfit/vision/camera_file.h"
-#include "rodfit/vision/centreline.h"
 
 namespace {
-
-std::string OneLine(std::string text) {
-  for (char& c : text) {
-    if (c == '\n' || c == '\r') c = ' ';
-  }
-  return text;
-}
-
-// Parses argv for one subcommand; returns -1 to go on, else the exit status (help or error).
-int Parse(CLI::App& app, int argc, char** argv) {
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);  // --help
-    std::cerr << app.get_name() << ": " << OneLine(e.what()) << " (see --help)\n";
-    return EXIT_FAILURE;
-  }
-  return -1;
-}
 
 /// Strain above which `simulate` warns that an equilibrium is outside a rod model's range.
 constexpr double kLargeStrain = 0.1;
@@ -209,182 +191,74 @@ int RunSimulate(int argc, char** argv) {
   return EXIT_SUCCESS;
 }
 
-int RunSynth(int argc, char** argv) {
-  CLI::App app(
-      "Synthesize every observation file of an experiment from its parameter values (the "
-      "truth); write them, DIR/experiment.yaml and DIR/truth.json.",
-      "rodfit synth");
-  std::string experiment_path, output_dir;
-  std::uint32_t seed = 1;
-  bool noise_free = false;
-  app.add_option("experiment", experiment_path, "experiment YAML (docs/formats.md)")->required();
-  app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
-  app.add_option("--seed", seed, "random seed; the same seed gives the same bytes")
-      ->default_val(1);
-  app.add_flag("--noise-free", noise_free, "no noise, outliers or pixel noise (exact samples)");
-  if (const int status = Parse(app, argc, argv); status >= 0) return status;
-
-  const rodfit::Experiment experiment = rodfit::LoadExperiment(experiment_path);
-  rodfit::SynthOptions options;
-  options.seed = seed;
-  options.add_noise = !noise_free;
-  options.statics = experiment.statics;
-  const rodfit::SynthBundle bundle = rodfit::Synthesize(experiment, output_dir, options);
-  for (const std::string& line : bundle.report) std::cout << line << "\n";
-  std::cout << "wrote " << bundle.files.size() << " files to " << output_dir << "\n";
-  return EXIT_SUCCESS;
-}
-
-// "U,V" -> pixel; false when it is not two finite numbers.
-bool ParsePixel(const std::string& text, Eigen::Vector2d* uv) {
-  const size_t comma = text.find(',');
-  if (comma == std::string::npos) return false;
-  double u = 0.0, v = 0.0;
-  if (!rodfit::ParseDouble(text.substr(0, comma), &u) ||
-      !rodfit::ParseDouble(text.substr(comma + 1), &v)) {
-    return false;
-  }
-  *uv = Eigen::Vector2d(u, v);
-  return true;
-}
-
-int RunExtract(int argc, char** argv) {
-  CLI::App app(
-      "Extract the ordered centre-line of a thread from a camera image (writes u,v), or from two "
-      "images of two calibrated cameras (writes triangulated x,y,z).",
-      "rodfit extract");
-  std::vector<std::string> images, camera_paths, starts, overlays;
-  std::string stereo_path, output_path;
-  app.add_option("images", images, "one image, or two images of two cameras")
-      ->required()
-      ->expected(1, 2);
-  app.add_option("--camera", camera_paths, "camera file, one per image (docs/formats.md)");
-  app.add_option("--stereo", stereo_path, "stereo calibration file holding both cameras");
-  app.add_option("-o,--output", output_path, "output CSV: u,v (one image) or x,y,z (two)")
-      ->required();
-  app.add_option("--overlay", overlays, "image with the centre-line drawn, one per image");
-  app.add_option("--start", starts, "U,V: start the centre-line at the end nearest this pixel, "
-                                    "one per image");
-  if (const int status = Parse(app, argc, argv); status >= 0) return status;
-
-  const size_t n = images.size();
-  auto fail = [](const std::string& why) {
-    std::cerr << "rodfit extract: " << why << " (see --help)\n";
-    return EXIT_FAILURE;
-  };
-  // No output may be one of the inputs (an overlay written over its own image).
-  std::vector<rodfit::InputFile> inputs;
-  for (const std::string& image : images) inputs.emplace_back(image, "an input image");
-  for (const std::string& camera : camera_paths) inputs.emplace_back(camera, "a camera file");
-  if (!stereo_path.empty()) inputs.emplace_back(stereo_path, "the stereo file");
-  rodfit::RefuseOverwritingInput(output_path, inputs);
-  for (const std::string& overlay : overlays) rodfit::RefuseOverwritingInput(overlay, inputs);
-
-  std::vector<rodfit::Camera> cameras;
-  if (!stereo_path.empty()) {
-    if (n != 2 || !camera_paths.empty()) return fail("--stereo needs two images and no --camera");
-    const auto pair = rodfit::LoadStereoCameras(stereo_path);
-    cameras = {pair.first, pair.second};
-  } else {
-    if (camera_paths.size() != n) return fail("give one --camera per image, or --stereo");
-    for (const std::string& path : camera_paths) cameras.push_back(rodfit::LoadCamera(path));
-  }
-  if (!starts.empty() && starts.size() != n) return fail("give one --start per image, or none");
-  if (!overlays.empty() && overlays.size() != n) {
-    return fail("give one --overlay per image, or none");
-  }
-
-  std::vector<rodfit::CentrelineResult> lines;
-  for (size_t k = 0; k < n; ++k) {
-    rodfit::CentrelineOptions options;
-    if (!starts.empty()) {
-      Eigen::Vector2d hint;
-      if (!ParsePixel(starts[k], &hint)) return fail("--start '" + starts[k] + "' is not U,V");
-      options.start_hint = hint;
-    }
-    lines.push_back(rodfit::ExtractCentrelineFromFile(images[k], cameras[k], options));
-  }
-  std::string csv;
-  std::vector<std::vector<Eigen::Vector2d>> reprojected(n);
-  if (n == 1) {
-    csv = rodfit::FormatImagePointsCsv(lines[0].uv);
-  } else {
-    const std::vector<Eigen::Vector3d> points = rodfit::TriangulateCentrelines(
-        cameras[0], lines[0].uv, cameras[1], lines[1].uv, images[0], images[1]);
-    csv = rodfit::FormatPoints3dCsv(points);
-    for (size_t k = 0; k < n; ++k) {
-      for (const Eigen::Vector3d& p : points) {
-        Eigen::Vector2d uv;
-        if (rodfit::Project(cameras[k], p, &uv)) reprojected[k].push_back(uv);
-      }
-    }
-  }
-  // Overlays are encoded before anything is written, so a bad --overlay leaves no CSV behind.
-  std::vector<std::string> encoded;
-  for (size_t k = 0; k < overlays.size(); ++k) {
-    encoded.push_back(rodfit::EncodeImage(
-        overlays[k],
-        rodfit::DrawOverlay(rodfit::ReadImageFile(images[k]), lines[k].uv, reprojected[k])));
-  }
-  // All outputs staged (one staging directory per output folder), then committed together,
-  // the CSV's folder last: a failure on the way leaves every output location as it was, and no
-  // CSV stands without its overlays.
-  std::vector<std::pair<std::string, std::string>> files;  // path, contents; the CSV last
-  for (size_t k = 0; k < overlays.size(); ++k) files.emplace_back(overlays[k], encoded[k]);
-  files.emplace_back(output_path, csv);
-  std::vector<std::pair<std::string, std::unique_ptr<rodfit::StagedDirectory>>> folders;
-  std::vector<std::string> finals;
-  rodfit::StagedDirectory* staged = nullptr;
-  for (const auto& [path, contents] : files) {
-    const std::filesystem::path file(path);
-    const std::string folder =
-        file.has_parent_path() ? file.parent_path().lexically_normal().string() : ".";
-    staged = nullptr;
-    for (const auto& [name, dir] : folders) {
-      if (name == folder) staged = dir.get();
-    }
-    if (staged == nullptr) {
-      folders.emplace_back(folder, std::make_unique<rodfit::StagedDirectory>(folder, true));
-      staged = folders.back().second.get();
-    }
-    const std::string final_path = staged->FinalPath(file.filename().string());
-    for (const std::string& other : finals) {
-      if (other == final_path) return fail(path + " is given as two outputs");
-    }
-    finals.push_back(final_path);
-    staged->Write(file.filename().string(), contents, "output file name");
-  }
-  std::vector<rodfit::StagedDirectory*> order;
-  for (const auto& [name, dir] : folders) {
-    if (dir.get() != staged) order.push_back(dir.get());
-  }
-  order.push_back(staged);  // the CSV's folder
-  rodfit::CommitAll(order);
-  for (size_t k = 0; k < n; ++k) std::cout << images[k] << ": " << lines[k].BriefReport() << "\n";
-  return EXIT_SUCCESS;
-}
-
 struct Command {
   const char* name;
   const char* help;
-  int (*run)(int argc, char** argv);
+  int (*run)(int argc, char** argv);  ///< nullptr: in the commands module
 };
 
-// Every command, in the order --help lists them (docs/cli.md has one section each).
+// Every command, in the order --help lists them (docs/cli.md has one section each). The help
+// lines of the module's commands are here too, so that --help does not load it.
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
       {"simulate", "solve every case of a scene; write DIR/shapes.csv", &RunSimulate},
-      {"synth", "synthesize an experiment's observation files from its parameters", &RunSynth},
-      {"extract", "image(s) of a thread -> centre-line pixels or triangulated points",
-       &RunExtract},
+      {"synth", "synthesize an experiment's observation files from its parameters", nullptr},
+      {"extract", "image(s) of a thread -> centre-line pixels or triangulated points", nullptr},
       {"fit", "fit an experiment's parameters to its observations; write the profile JSON",
-       &RunFit},
+       nullptr},
       {"rollout", "predict a recorded motion open-loop from its first frames; its error",
-       &RunRollout},
-      {"bench", "reference problems: error against time over settings; --stress", &RunBench},
+       nullptr},
+      {"bench", "reference problems: error against time over settings; --stress", nullptr},
       {"export", "a fitted profile for another simulator: sofa, xpbd or json", &RunExport},
   };
   return commands;
+}
+
+// Where the commands module may be, in this order: beside the executable (the build tree), then
+// the install's lib/rodfit, found from the executable's own path (/proc/self/exe), so that an
+// installed tree can be moved as a whole.
+std::vector<std::filesystem::path> ModuleCandidates() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) return {};
+  const std::filesystem::path bin = exe.parent_path();
+  return {bin / RODFIT_COMMANDS_MODULE,
+          (bin / RODFIT_MODULE_DIR_FROM_BIN / RODFIT_COMMANDS_MODULE).lexically_normal()};
+}
+
+// Runs a command of the module; a module that is missing or cannot be loaded is one line.
+int RunInModule(const char* command, int argc, char** argv) {
+  const std::vector<std::filesystem::path> candidates = ModuleCandidates();
+  for (const std::filesystem::path& path : candidates) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec)) continue;
+    // RTLD_LOCAL: the module's copies of the libraries stay its own. RTLD_LAZY, not RTLD_NOW:
+    // binding every symbol of the module and its ~45 libraries up front costs 5 ms of CPU per
+    // command (bench_startup, BM_ProcessModuleHelp: 19 ms against 14 ms); the module is linked
+    // with --no-undefined, so nothing of its own is left to fail later, and its entry point
+    // refuses a module of another version. The handle stays open until the process exits.
+    void* module = dlopen(path.c_str(), RTLD_LAZY | RTLD_LOCAL);
+    if (module == nullptr) {
+      std::cerr << "rodfit: cannot load " << path.string() << " for " << command << ": "
+                << OneLine(dlerror()) << "\n";
+      return EXIT_FAILURE;
+    }
+    const auto run = reinterpret_cast<RodfitRunCommand>(dlsym(module, kRunCommandSymbol));
+    if (run == nullptr) {
+      std::cerr << "rodfit: " << path.string() << " has no " << kRunCommandSymbol
+                << " (not a rodfit commands module)\n";
+      return EXIT_FAILURE;
+    }
+    return run(RODFIT_VERSION, command, argc, argv);
+  }
+  std::string where;
+  for (const std::filesystem::path& path : candidates)
+    where += (where.empty() ? "" : " nor in ") + path.parent_path().string();
+  if (where.empty()) where = "the executable's directory (/proc/self/exe cannot be read)";
+  std::cerr << "rodfit: " << command << " needs the commands module " << RODFIT_COMMANDS_MODULE
+            << ", which is neither in " << where
+            << " (build the rodfit-cli target, or reinstall rodfit)\n";
+  return EXIT_FAILURE;
 }
 
 void PrintUsage(std::ostream& out) {
@@ -417,17 +291,8 @@ int main(int argc, char** argv) {
   }
   for (const Command& c : Commands()) {
     if (name != c.name) continue;
-    try {
-      return c.run(argc - 1, argv + 1);
-    } catch (const std::bad_alloc&) {
-      // Inputs within every documented limit can still ask for more memory than there is.
-      std::cerr << "rodfit: out of memory while running " << c.name
-                << " (inputs or limits too large for this machine)\n";
-      return EXIT_FAILURE;
-    } catch (const std::exception& e) {
-      std::cerr << "rodfit: " << OneLine(e.what()) << "\n";
-      return EXIT_FAILURE;
-    }
+    if (c.run == nullptr) return RunInModule(c.name, argc - 1, argv + 1);
+    return RunReportingErrors(c.name, c.run, argc - 1, argv + 1);
   }
   std::cerr << "rodfit: unknown command '" << name << "' (see rodfit --help)\n";
   return EXIT_FAILURE;

@@ -6,6 +6,8 @@
 //    (three cases) into a temporary directory.
 //  - BM_Simulate100InProcess: the same scene's load and solves in this process (what simulate
 //    does besides starting and writing its outputs).
+//  - BM_ProcessModuleHelp: `rodfit fit --help`, which loads the commands module and with it Ceres
+//    and OpenCV (docs/cli.md, "Start-up"): what the commands in the module pay on top of --help.
 // BM_ProcessSimulate100 - BM_Simulate100InProcess is the time simulate spends outside the solve.
 // Run: build/bench_startup; one core, Release build.
 #include <fcntl.h>
@@ -90,6 +92,9 @@ void RunProcess(benchmark::State& st, const std::vector<std::string>& args) {
 
 void BM_ProcessHelp(benchmark::State& st) { RunProcess(st, {RODFIT_CLI, "--help"}); }
 BENCHMARK(BM_ProcessHelp)->UseManualTime()->Unit(benchmark::kMillisecond)->MinTime(1.0);
+
+void BM_ProcessModuleHelp(benchmark::State& st) { RunProcess(st, {RODFIT_CLI, "fit", "--help"}); }
+BENCHMARK(BM_ProcessModuleHelp)->UseManualTime()->Unit(benchmark::kMillisecond)->MinTime(1.0);
 
 void BM_ProcessSimulate100(benchmark::State& st) {
   const Scene100 s;

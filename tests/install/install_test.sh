@@ -27,6 +27,10 @@ fi
 test -f "$prefix/include/rodfit/version.h"
 test -x "$prefix/bin/rodfit"
 "$prefix/bin/rodfit" --version
+# The commands module is installed in lib/rodfit/ and found there by the installed executable
+# (docs/cli.md, "Start-up"): `fit --help` runs in the module.
+ls "$prefix"/lib*/rodfit/rodfit-commands.so >/dev/null
+"$prefix/bin/rodfit" fit --help >/dev/null
 
 # The installed headers are self-sufficient: one file including all of them compiles against the
 # prefix alone (a public header that includes an internal one fails here).

@@ -339,16 +339,6 @@ void ReportCases(const FitInput& input, const std::vector<Fitted>& fitted,
 
 }  // namespace
 
-const char* RobustLossName(RobustLoss loss) {
-  switch (loss) {
-    case RobustLoss::kNone: return "none";
-    case RobustLoss::kHuber: return "huber";
-    case RobustLoss::kCauchy: return "cauchy";
-    case RobustLoss::kSoftL1: return "soft_l1";
-  }
-  return "none";
-}
-
 bool FitOptions::Check(std::string* why) const {
   auto fail = [&](const char* m) {
     if (why) *why = m;

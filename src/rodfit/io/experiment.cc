@@ -1190,10 +1190,4 @@ std::string CameraKey(const ObservationSpec& spec) {
                                : spec.camera;
 }
 
-Camera LoadObservationCamera(const ObservationSpec& spec) {
-  if (spec.camera_index == 0) return LoadCamera(spec.camera);
-  const std::pair<Camera, Camera> pair = LoadStereoCameras(spec.camera);
-  return spec.camera_index == 1 ? pair.first : pair.second;
-}
-
 }  // namespace rodfit

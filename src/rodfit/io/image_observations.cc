@@ -35,6 +35,15 @@ std::uint32_t LittleEndian(const std::string& b, size_t at, int bytes) {
 
 }  // namespace
 
+// Declared in io/experiment.h beside CameraKey, defined here with the other code that reads
+// cameras: the experiment reader then links no OpenCV, and neither does `rodfit simulate`
+// (docs/cli.md, "Start-up").
+Camera LoadObservationCamera(const ObservationSpec& spec) {
+  if (spec.camera_index == 0) return LoadCamera(spec.camera);
+  const std::pair<Camera, Camera> pair = LoadStereoCameras(spec.camera);
+  return spec.camera_index == 1 ? pair.first : pair.second;
+}
+
 bool ImageHeaderSize(const std::string& bytes, int* width, int* height) {
   auto set = [&](std::uint64_t w, std::uint64_t h) {
     *width = static_cast<int>(std::min<std::uint64_t>(w, 1u << 30));

@@ -1,0 +1,156 @@
+// `rodfit extract IMAGE... -o CSV`: the centre-line of a thread in one image (pixels) or in two
+// images of calibrated cameras (triangulated points) (docs/cli.md, "extract"). In the commands
+// module: it decodes images and reads camera files through OpenCV.
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "rodfit/io/csv.h"
+#include "rodfit/io/image_observations.h"
+#include "rodfit/io/output_dir.h"
+#include "rodfit/observe/camera.h"
+#include "rodfit/synth/synth.h"
+#include "rodfit/vision/camera_file.h"
+#include "rodfit/vision/centreline.h"
+
+namespace {
+
+// "U,V" -> pixel; false when it is not two finite numbers.
+bool ParsePixel(const std::string& text, Eigen::Vector2d* uv) {
+  const size_t comma = text.find(',');
+  if (comma == std::string::npos) return false;
+  double u = 0.0, v = 0.0;
+  if (!rodfit::ParseDouble(text.substr(0, comma), &u) ||
+      !rodfit::ParseDouble(text.substr(comma + 1), &v)) {
+    return false;
+  }
+  *uv = Eigen::Vector2d(u, v);
+  return true;
+}
+
+}  // namespace
+
+int RunExtract(int argc, char** argv) {
+  CLI::App app(
+      "Extract the ordered centre-line of a thread from a camera image (writes u,v), or from two "
+      "images of two calibrated cameras (writes triangulated x,y,z).",
+      "rodfit extract");
+  std::vector<std::string> images, camera_paths, starts, overlays;
+  std::string stereo_path, output_path;
+  app.add_option("images", images, "one image, or two images of two cameras")
+      ->required()
+      ->expected(1, 2);
+  app.add_option("--camera", camera_paths, "camera file, one per image (docs/formats.md)");
+  app.add_option("--stereo", stereo_path, "stereo calibration file holding both cameras");
+  app.add_option("-o,--output", output_path, "output CSV: u,v (one image) or x,y,z (two)")
+      ->required();
+  app.add_option("--overlay", overlays, "image with the centre-line drawn, one per image");
+  app.add_option("--start", starts, "U,V: start the centre-line at the end nearest this pixel, "
+                                    "one per image");
+  if (const int status = Parse(app, argc, argv); status >= 0) return status;
+
+  const size_t n = images.size();
+  auto fail = [](const std::string& why) {
+    std::cerr << "rodfit extract: " << why << " (see --help)\n";
+    return EXIT_FAILURE;
+  };
+  // No output may be one of the inputs (an overlay written over its own image).
+  std::vector<rodfit::InputFile> inputs;
+  for (const std::string& image : images) inputs.emplace_back(image, "an input image");
+  for (const std::string& camera : camera_paths) inputs.emplace_back(camera, "a camera file");
+  if (!stereo_path.empty()) inputs.emplace_back(stereo_path, "the stereo file");
+  rodfit::RefuseOverwritingInput(output_path, inputs);
+  for (const std::string& overlay : overlays) rodfit::RefuseOverwritingInput(overlay, inputs);
+
+  std::vector<rodfit::Camera> cameras;
+  if (!stereo_path.empty()) {
+    if (n != 2 || !camera_paths.empty()) return fail("--stereo needs two images and no --camera");
+    const auto pair = rodfit::LoadStereoCameras(stereo_path);
+    cameras = {pair.first, pair.second};
+  } else {
+    if (camera_paths.size() != n) return fail("give one --camera per image, or --stereo");
+    for (const std::string& path : camera_paths) cameras.push_back(rodfit::LoadCamera(path));
+  }
+  if (!starts.empty() && starts.size() != n) return fail("give one --start per image, or none");
+  if (!overlays.empty() && overlays.size() != n) {
+    return fail("give one --overlay per image, or none");
+  }
+
+  std::vector<rodfit::CentrelineResult> lines;
+  for (size_t k = 0; k < n; ++k) {
+    rodfit::CentrelineOptions options;
+    if (!starts.empty()) {
+      Eigen::Vector2d hint;
+      if (!ParsePixel(starts[k], &hint)) return fail("--start '" + starts[k] + "' is not U,V");
+      options.start_hint = hint;
+    }
+    lines.push_back(rodfit::ExtractCentrelineFromFile(images[k], cameras[k], options));
+  }
+  std::string csv;
+  std::vector<std::vector<Eigen::Vector2d>> reprojected(n);
+  if (n == 1) {
+    csv = rodfit::FormatImagePointsCsv(lines[0].uv);
+  } else {
+    const std::vector<Eigen::Vector3d> points = rodfit::TriangulateCentrelines(
+        cameras[0], lines[0].uv, cameras[1], lines[1].uv, images[0], images[1]);
+    csv = rodfit::FormatPoints3dCsv(points);
+    for (size_t k = 0; k < n; ++k) {
+      for (const Eigen::Vector3d& p : points) {
+        Eigen::Vector2d uv;
+        if (rodfit::Project(cameras[k], p, &uv)) reprojected[k].push_back(uv);
+      }
+    }
+  }
+  // Overlays are encoded before anything is written, so a bad --overlay leaves no CSV behind.
+  std::vector<std::string> encoded;
+  for (size_t k = 0; k < overlays.size(); ++k) {
+    encoded.push_back(rodfit::EncodeImage(
+        overlays[k],
+        rodfit::DrawOverlay(rodfit::ReadImageFile(images[k]), lines[k].uv, reprojected[k])));
+  }
+  // All outputs staged (one staging directory per output folder), then committed together,
+  // the CSV's folder last: a failure on the way leaves every output location as it was, and no
+  // CSV stands without its overlays.
+  std::vector<std::pair<std::string, std::string>> files;  // path, contents; the CSV last
+  for (size_t k = 0; k < overlays.size(); ++k) files.emplace_back(overlays[k], encoded[k]);
+  files.emplace_back(output_path, csv);
+  std::vector<std::pair<std::string, std::unique_ptr<rodfit::StagedDirectory>>> folders;
+  std::vector<std::string> finals;
+  rodfit::StagedDirectory* staged = nullptr;
+  for (const auto& [path, contents] : files) {
+    const std::filesystem::path file(path);
+    const std::string folder =
+        file.has_parent_path() ? file.parent_path().lexically_normal().string() : ".";
+    staged = nullptr;
+    for (const auto& [name, dir] : folders) {
+      if (name == folder) staged = dir.get();
+    }
+    if (staged == nullptr) {
+      folders.emplace_back(folder, std::make_unique<rodfit::StagedDirectory>(folder, true));
+      staged = folders.back().second.get();
+    }
+    const std::string final_path = staged->FinalPath(file.filename().string());
+    for (const std::string& other : finals) {
+      if (other == final_path) return fail(path + " is given as two outputs");
+    }
+    finals.push_back(final_path);
+    staged->Write(file.filename().string(), contents, "output file name");
+  }
+  std::vector<rodfit::StagedDirectory*> order;
+  for (const auto& [name, dir] : folders) {
+    if (dir.get() != staged) order.push_back(dir.get());
+  }
+  order.push_back(staged);  // the CSV's folder
+  rodfit::CommitAll(order);
+  for (size_t k = 0; k < n; ++k) std::cout << images[k] << ": " << lines[k].BriefReport() << "\n";
+  return EXIT_SUCCESS;
+}
