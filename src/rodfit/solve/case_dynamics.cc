@@ -276,6 +276,13 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
 CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
                                const std::vector<double>& s, const std::vector<double>& t,
                                const std::vector<ParameterDirection>& directions) {
+  if (scene.cases[index].symmetry) {
+    // As the static fit does, a symmetric case is sampled on the whole rod: its markers lie on
+    // both halves, and the sensitivities are those of the whole rod's steps.
+    Scene whole = scene;
+    whole.cases[index].symmetry.reset();
+    return SampleCaseDynamics(whole, index, statics, s, t, directions);
+  }
   const DynamicsSpec& spec = *scene.dynamics;
   for (size_t k = 0; k < t.size(); ++k)
     if (!(t[k] >= 0.0 && t[k] <= spec.duration * (1.0 + 1e-12)) || (k > 0 && !(t[k] >= t[k - 1])))
