@@ -145,6 +145,8 @@ struct RingLoad {
 /// Contact node: argmin_k n°_k . F (n°_k the outward rest normal); the lower index on a tie.
 int ContactNode(const RingGeometry& g, const Eigen::Vector2d& force);
 RingLoad MakeRingLoad(const RingGeometry& g, const Eigen::Vector2d& force);
+/// The same into *load, whose vectors keep their storage once sized (the runtime's mesh).
+void MakeRingLoad(const RingGeometry& g, const Eigen::Vector2d& force, RingLoad* load);
 
 /// The two linear constraints' rows (3 x 2N): mass centre (x, y) and mean rotation, each row
 /// normalised; C u = 0.

@@ -59,12 +59,17 @@ struct VertexFrames {
 /// the normalised sum of the two edge tangents and d1 the sum of the two edges' d1 made
 /// perpendicular to it; the end vertices take their edge's frame.
 VertexFrames RodVertexFrames(const RodModel& model, const RodState& state);
+/// The same into *frames (no allocation once it has the size).
+void RodVertexFrames(const RodModel& model, const RodState& state, VertexFrames* frames);
 
 /// Sweeps a circle of `radius` with `ring_vertices` (>= 3) vertices along the frames. Throws
 /// std::invalid_argument for fewer than 2 rings, M < 3 or a non-positive radius.
 TubeMesh BuildTube(const VertexFrames& frames, double radius, int ring_vertices);
 TubeMesh BuildTube(const RodModel& model, const RodState& state, double radius,
                    int ring_vertices);
+/// The same into *mesh: its storage is reused, so a mesh of the same shape as the last one
+/// allocates nothing (the runtime's per-frame mesh).
+void BuildTube(const VertexFrames& frames, double radius, int ring_vertices, TubeMesh* mesh);
 
 /// Vertex adjacency of the mesh's edges (sorted, without duplicates).
 std::vector<std::vector<int>> MeshNeighbours(const TubeMesh& mesh);
@@ -81,12 +86,28 @@ struct LocalDeformation {
   bool stopped_by_threshold = true;
 };
 
+/// Scratch of PropagateLocalDeformation kept between calls on meshes of one shape (the
+/// runtime's per-frame dent): the mesh's adjacency, built on the first call for a shape, and the
+/// fronts' lists, reserved to the mesh's size.
+struct PropagationWorkspace {
+  int rings = 0, ring_vertices = 0;  ///< the shape the buffers are for
+  std::vector<std::vector<int>> neighbours;
+  std::vector<double> side;
+  std::vector<int> selected, active, next, candidates;
+  std::vector<char> reached, in_active;
+};
+
 /// Adds the ring's deformation (`ring.nodes - ring.rest`, section coordinates, nodes at angles
 /// 2 pi k / N from d1) to the mesh by eqs. 12–13. `section` places the rest curve C (a circle of
 /// spec.radius) in the world. Throws std::invalid_argument when the ring does not have
 /// spec.nodes nodes.
 LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& section,
                                            const SectionSpec& spec, const RingResult& ring);
+/// The same into *out with the scratch in *workspace: no allocation once both have been through
+/// a call on a mesh of this shape.
+void PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& section,
+                               const SectionSpec& spec, const RingResult& ring,
+                               PropagationWorkspace* workspace, LocalDeformation* out);
 
 /// The mesh as Wavefront OBJ text ("v x y z" lines, then 1-based "f a b c"), locale-independent,
 /// 12 significant digits. The io layer writes it to a file.

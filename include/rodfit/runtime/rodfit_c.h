@@ -6,7 +6,8 @@
  * vertex.
  *
  * Thread-safety: one handle per thread (or guard it); distinct handles are independent.
- * rodfit_step allocates no memory (rodfit_get_mesh does). */
+ * rodfit_step allocates no memory, nor does rodfit_get_mesh after its first call with buffers
+ * (the handle keeps the mesh's storage). */
 #ifndef RODFIT_RUNTIME_RODFIT_C_H_
 #define RODFIT_RUNTIME_RODFIT_C_H_
 
@@ -77,7 +78,8 @@ rodfit_status rodfit_get_shape(rodfit_runtime* runtime, double* xyz, size_t capa
 rodfit_status rodfit_get_tool_force(rodfit_runtime* runtime, double force[3], double torque[3]);
 /* The tube mesh (with a poke's dent): counts first (vertices, triangles), then, when the
  * buffers are large enough (3 doubles per vertex, 3 ints per triangle), the data. Pass NULL
- * buffers to ask for the counts only. */
+ * buffers to ask for the counts only (they follow from the segments and
+ * mesh_ring_vertices: nothing is built). */
 rodfit_status rodfit_get_mesh(rodfit_runtime* runtime, int* num_vertices, int* num_triangles,
                               double* vertices, size_t vertex_capacity, int* triangles,
                               size_t triangle_capacity);

@@ -7,8 +7,9 @@
 // tissue's tube mesh with the local dent of a poke (model/tube_mesh.h, tissue paper eqs. 12–13).
 //
 // Real-time guarantees:
-//  - Step() does not allocate heap memory: every buffer is sized at construction. (Mesh() does:
-//    it is meant for the graphics rate, not the haptic loop.)
+//  - Step() does not allocate heap memory: every buffer is sized at construction. Nor does
+//    Mesh(TubeMesh*) once the mesh it writes into has the tube's shape (after the first call
+//    with it); Mesh() returning a new mesh does.
 //  - Step() never returns a non-finite state and never loops without a cap: Newton stops at
 //    RuntimeOptions::max_iterations or the wall-time budget, and a step that did not converge
 //    restores the last good state and says so in its status (the tool force stays the last good
@@ -131,8 +132,13 @@ class Runtime {
   double KineticEnergy() const;
   /// The tissue's surface: the tube swept along the rod (radius: the section's, else the rod's)
   /// with, for a poke and a section, the dent of the section ring under the tool's force.
-  /// Allocates; call it at the graphics rate.
+  /// Allocates (a new mesh, the ring solved from rest); Mesh(TubeMesh*) is for the loop. Throws
+  /// std::invalid_argument when the profile gives no radius.
   TubeMesh Mesh() const;
+  /// The same into *mesh, reusing its storage and the runtime's scratch: no heap allocation once
+  /// *mesh has the tube's shape (the first call sizes it). The dent's ring is warm-started from
+  /// the last call's, and solved to the same tolerance.
+  void Mesh(TubeMesh* mesh);
 
   const RodModel& model() const;
   const RodState& state() const;

@@ -185,17 +185,22 @@ int ContactNode(const RingGeometry& g, const Vec2& force) {
 
 RingLoad MakeRingLoad(const RingGeometry& g, const Vec2& force) {
   RingLoad load;
-  load.force = force;
-  load.nodal.setZero(2 * g.n);
-  load.d_nodal_d_force.setZero(2 * g.n, 2);
-  if (force.squaredNorm() == 0.0) return load;
-  load.contact_node = ContactNode(g, force);
-  for (int k = 0; k < g.n; ++k) {
-    const double w = (k == load.contact_node ? 1.0 : 0.0) - g.voronoi[k] / g.length;
-    load.nodal.segment<2>(NodeDof(k)) = w * force;
-    load.d_nodal_d_force.block<2, 2>(NodeDof(k), 0) = w * Mat2::Identity();
-  }
+  MakeRingLoad(g, force, &load);
   return load;
+}
+
+void MakeRingLoad(const RingGeometry& g, const Vec2& force, RingLoad* load) {
+  load->force = force;
+  load->contact_node = -1;
+  load->nodal.setZero(2 * g.n);
+  load->d_nodal_d_force.setZero(2 * g.n, 2);
+  if (force.squaredNorm() == 0.0) return;
+  load->contact_node = ContactNode(g, force);
+  for (int k = 0; k < g.n; ++k) {
+    const double w = (k == load->contact_node ? 1.0 : 0.0) - g.voronoi[k] / g.length;
+    load->nodal.segment<2>(NodeDof(k)) = w * force;
+    load->d_nodal_d_force.block<2, 2>(NodeDof(k), 0) = w * Mat2::Identity();
+  }
 }
 
 Eigen::Matrix<double, 3, Eigen::Dynamic> RingConstraints(const RingGeometry& g) {

@@ -26,21 +26,28 @@ double Falloff(double d, double h) {
 }  // namespace
 
 VertexFrames RodVertexFrames(const RodModel& model, const RodState& state) {
-  const int n = model.num_edges();
-  std::vector<EdgeFrame> edge(n);
-  for (int j = 0; j < n; ++j) edge[j] = model.MaterialFrame(state, j);
   VertexFrames f;
+  RodVertexFrames(model, state, &f);
+  return f;
+}
+
+void RodVertexFrames(const RodModel& model, const RodState& state, VertexFrames* frames) {
+  const int n = model.num_edges();
+  VertexFrames& f = *frames;
   f.centre = state.x;
   f.d1.resize(3, n + 1);
   f.d2.resize(3, n + 1);
+  // Each vertex needs the frames of its two edges: the previous edge's is carried over.
+  EdgeFrame before = model.MaterialFrame(state, 0);
   for (int i = 0; i <= n; ++i) {
+    const EdgeFrame after = i < n ? model.MaterialFrame(state, i) : before;
     Vec3d t, d1;
     if (i == 0 || i == n) {
-      const EdgeFrame& e = edge[i == 0 ? 0 : n - 1];
+      const EdgeFrame& e = i == 0 ? after : before;
       t = e.d3;
       d1 = e.d1;
     } else {
-      const EdgeFrame &a = edge[i - 1], &b = edge[i];
+      const EdgeFrame &a = before, &b = after;
       t = (a.d3 + b.d3).normalized();  // the edges never fold back onto each other
       d1 = a.d1 + b.d1;
       d1 -= d1.dot(t) * t;
@@ -50,11 +57,17 @@ VertexFrames RodVertexFrames(const RodModel& model, const RodState& state) {
     }
     f.d1.col(i) = d1;
     f.d2.col(i) = t.cross(d1);
+    before = after;
   }
-  return f;
 }
 
 TubeMesh BuildTube(const VertexFrames& frames, double radius, int ring_vertices) {
+  TubeMesh mesh;
+  BuildTube(frames, radius, ring_vertices, &mesh);
+  return mesh;
+}
+
+void BuildTube(const VertexFrames& frames, double radius, int ring_vertices, TubeMesh* out) {
   const int rings = static_cast<int>(frames.centre.cols());
   if (rings < 2) throw std::invalid_argument("a tube needs at least 2 rings");
   if (frames.d1.cols() != rings || frames.d2.cols() != rings) {
@@ -62,21 +75,27 @@ TubeMesh BuildTube(const VertexFrames& frames, double radius, int ring_vertices)
   }
   if (ring_vertices < 3) throw std::invalid_argument("a tube ring needs at least 3 vertices");
   if (!(radius > 0.0)) throw std::invalid_argument("tube radius must be positive");
-  TubeMesh mesh;
+  TubeMesh& mesh = *out;
+  // The triangles depend on the shape only: rebuilt when it changed.
+  const size_t triangles = static_cast<size_t>(2 * (rings - 1) * ring_vertices);
+  const bool same_shape = mesh.rings == rings && mesh.ring_vertices == ring_vertices &&
+                          mesh.triangles.size() == triangles;
   mesh.rings = rings;
   mesh.ring_vertices = ring_vertices;
   mesh.radius = radius;
   mesh.vertices.resize(3, rings * ring_vertices);
-  for (int i = 0; i < rings; ++i) {
-    for (int m = 0; m < ring_vertices; ++m) {
-      const double a = kTwoPi * m / ring_vertices;
+  for (int m = 0; m < ring_vertices; ++m) {
+    const double a = kTwoPi * m / ring_vertices;
+    const double c = std::cos(a), s = std::sin(a);
+    for (int i = 0; i < rings; ++i) {
       mesh.vertices.col(mesh.VertexIndex(i, m)) =
-          frames.centre.col(i) +
-          radius * (std::cos(a) * frames.d1.col(i) + std::sin(a) * frames.d2.col(i));
+          frames.centre.col(i) + radius * (c * frames.d1.col(i) + s * frames.d2.col(i));
     }
   }
+  if (same_shape) return;
   // Quad (i, m), (i, m+1), (i+1, m+1), (i+1, m) split along its (i, m)-(i+1, m+1) diagonal; with
   // d1, d2, d3 right-handed both triangles face outward.
+  mesh.triangles.clear();
   for (int i = 0; i + 1 < rings; ++i) {
     for (int m = 0; m < ring_vertices; ++m) {
       const int a = mesh.VertexIndex(i, m), b = mesh.VertexIndex(i, m + 1);
@@ -85,7 +104,6 @@ TubeMesh BuildTube(const VertexFrames& frames, double radius, int ring_vertices)
       mesh.triangles.emplace_back(a, c, d);
     }
   }
-  return mesh;
 }
 
 TubeMesh BuildTube(const RodModel& model, const RodState& state, double radius,
@@ -111,8 +129,22 @@ std::vector<std::vector<int>> MeshNeighbours(const TubeMesh& mesh) {
 
 LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& section,
                                            const SectionSpec& spec, const RingResult& ring) {
-  std::string why;
-  if (!spec.Check(&why)) throw std::invalid_argument(why);
+  PropagationWorkspace workspace;
+  LocalDeformation out;
+  PropagateLocalDeformation(mesh, section, spec, ring, &workspace, &out);
+  return out;
+}
+
+// One function, though long: eq. 12's selection and eq. 13's fronts share the reached set and
+// the displacement they build.
+void PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& section,
+                               const SectionSpec& spec, const RingResult& ring,
+                               PropagationWorkspace* workspace, LocalDeformation* result) {
+  if (!spec.Check(nullptr)) {  // the message is only built on failure: it allocates
+    std::string why;
+    spec.Check(&why);
+    throw std::invalid_argument(why);
+  }
   const int N = spec.nodes;
   if (ring.rest.cols() != N || ring.nodes.cols() != N) {
     throw std::invalid_argument("ring result must have section.nodes nodes");
@@ -123,12 +155,24 @@ LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPl
   const double threshold = spec.stop_threshold();
   const Vec3d c = section.centre, d1 = section.d1, d2 = section.d2;
   const Vec3d normal = section.normal();
-  const Eigen::Matrix2Xd u_ring = ring.nodes - ring.rest;
+  const Eigen::Matrix2Xd& rest = ring.rest;
+  const Eigen::Matrix2Xd& nodes = ring.nodes;
 
-  LocalDeformation out;
-  out.mesh = mesh;
+  PropagationWorkspace& ws = *workspace;
+  if (ws.rings != mesh.rings || ws.ring_vertices != mesh.ring_vertices ||
+      ws.neighbours.size() != static_cast<size_t>(V)) {
+    ws.neighbours = MeshNeighbours(mesh);
+    ws.rings = mesh.rings;
+    ws.ring_vertices = mesh.ring_vertices;
+    for (std::vector<int>* list : {&ws.selected, &ws.active, &ws.next, &ws.candidates})
+      list->reserve(V);  // a list holds each vertex at most once
+  }
+  LocalDeformation& out = *result;
+  out.mesh = mesh;  // the storage of an earlier mesh of this shape is reused
   out.displacement.setZero(3, V);
   out.front.assign(V, -1);
+  out.fronts = 0;
+  const auto& neighbours = ws.neighbours;
 
   // The curve's displacement at the material angle of p, and p's distance to the rest circle.
   auto curve_move = [&](const Vec3d& p, double* d) {
@@ -142,21 +186,25 @@ LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPl
     const double pos = theta / kTwoPi * N;
     const int k0 = std::min(static_cast<int>(pos), N - 1);
     const double t = pos - k0;
-    const Eigen::Vector2d u = (1.0 - t) * u_ring.col(k0) + t * u_ring.col((k0 + 1) % N);
+    const int k1 = (k0 + 1) % N;
+    const Eigen::Vector2d u = (1.0 - t) * (nodes.col(k0) - rest.col(k0)) +
+                              t * (nodes.col(k1) - rest.col(k1));
     return Vec3d(u.x() * d1 + u.y() * d2);
   };
 
   // Eq. 12: vertices of the edges that the rest curve comes across. A vertex within a hair of the
   // plane counts as on it, so a section through a ring selects both neighbouring rings alike.
-  const auto neighbours = MeshNeighbours(mesh);
   const double on_plane = 1e-9 * R;
-  std::vector<double> side(V);
+  std::vector<double>& side = ws.side;
+  side.resize(V);
   for (int v = 0; v < V; ++v) {
     const double s = (mesh.vertices.col(v) - c).dot(normal);
     side[v] = std::abs(s) <= on_plane ? 0.0 : s;
   }
-  std::vector<int> selected;
-  std::vector<char> reached(V, 0);
+  std::vector<int>& selected = ws.selected;
+  selected.clear();
+  std::vector<char>& reached = ws.reached;
+  reached.assign(V, 0);
   for (int a = 0; a < V; ++a) {
     for (int b : neighbours[a]) {
       if (b < a) continue;
@@ -175,7 +223,9 @@ LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPl
       }
     }
   }
-  std::vector<int> active;  // the "selected" vertices: moved by at least the threshold
+  // The "selected" vertices: moved by at least the threshold.
+  std::vector<int>& active = ws.active;
+  active.clear();
   for (int v : selected) {
     double d = 0.0;
     const Vec3d move = curve_move(mesh.vertices.col(v), &d);
@@ -186,11 +236,14 @@ LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPl
 
   // Eq. 13, front by front. Each front is at least one vertex larger than the reached set, so
   // V fronts bound the loop.
-  std::vector<char> in_active(V, 0);
+  std::vector<char>& in_active = ws.in_active;
+  in_active.assign(V, 0);
+  std::vector<int>& candidates = ws.candidates;
+  std::vector<int>& next = ws.next;
   out.stopped_by_threshold = true;
   for (int k = 1; !active.empty() && k <= V; ++k) {
     for (int v : active) in_active[v] = 1;
-    std::vector<int> candidates;
+    candidates.clear();
     for (int v : active) {
       for (int w : neighbours[v]) {
         if (!reached[w]) {
@@ -203,7 +256,7 @@ LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPl
       out.stopped_by_threshold = false;  // ran out of mesh with moves still above the threshold
       break;
     }
-    std::vector<int> next;
+    next.clear();
     for (int w : candidates) {
       Vec3d sum = Vec3d::Zero();
       int count = 0;
@@ -225,7 +278,6 @@ LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPl
     active.swap(next);
   }
   out.mesh.vertices += out.displacement;
-  return out;
 }
 
 std::string FormatObj(const TubeMesh& mesh) {

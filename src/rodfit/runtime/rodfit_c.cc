@@ -18,6 +18,7 @@ struct rodfit_runtime {
   std::string last_error;
   // A step's failure is reported with a static text: the step path allocates nothing.
   const char* step_error = nullptr;
+  rodfit::TubeMesh mesh;  // rodfit_get_mesh's, its storage reused from call to call
 };
 
 namespace {
@@ -205,13 +206,18 @@ rodfit_status rodfit_get_mesh(rodfit_runtime* h, int* num_vertices, int* num_tri
                               double* vertices, size_t vertex_capacity, int* triangles,
                               size_t triangle_capacity) {
   return Guard(h, [&] {
-    const rodfit::TubeMesh mesh = h->runtime->Mesh();
-    const size_t nv = static_cast<size_t>(mesh.num_vertices()), nt = mesh.triangles.size();
+    // The counts follow from the shape (a ring per vertex, two triangles per quad), so a call
+    // for the counts builds nothing.
+    const size_t rings = static_cast<size_t>(h->runtime->Shape().cols());
+    const size_t ring_vertices = static_cast<size_t>(h->runtime->options().mesh_ring_vertices);
+    const size_t nv = rings * ring_vertices, nt = 2 * (rings - 1) * ring_vertices;
     if (num_vertices) *num_vertices = static_cast<int>(nv);
     if (num_triangles) *num_triangles = static_cast<int>(nt);
     if (!vertices && !triangles) return RODFIT_OK;  // counts only
     if (!vertices || vertex_capacity < 3 * nv || !triangles || triangle_capacity < 3 * nt)
       return Fail(h, RODFIT_INVALID_ARGUMENT, "mesh buffers are null or too small");
+    rodfit::TubeMesh& mesh = h->mesh;  // kept: no allocation after the first call
+    h->runtime->Mesh(&mesh);
     std::memcpy(vertices, mesh.vertices.data(), 3 * nv * sizeof(double));
     for (size_t k = 0; k < nt; ++k)
       for (int c = 0; c < 3; ++c) triangles[3 * k + c] = mesh.triangles[k][c];

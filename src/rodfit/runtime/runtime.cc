@@ -141,6 +141,19 @@ struct Runtime::Impl {
   Eigen::Matrix3d rotation_good = Eigen::Matrix3d::Identity();
   Vec3 torque = Vec3::Zero(), checked_torque = Vec3::Zero();
   std::vector<char> held_rows;  // the model's held dofs, and the held edge's twist
+  // Mesh(): the tube and the dent's scratch (the ring, warm-started from the last dent's when
+  // that one converged).
+  struct MeshScratch {
+    VertexFrames frames;
+    TubeMesh tube;
+    std::unique_ptr<RingSolver> ring_solver;
+    RingResult ring;
+    bool ring_warm = false;
+    PropagationWorkspace propagation;
+    LocalDeformation local;
+  };
+  MeshScratch mesh_scratch;
+  void BuildMesh(MeshScratch* scratch, TubeMesh* mesh) const;
   // Dynamic.
   std::unique_ptr<ToolDrive> drive;
   std::unique_ptr<DynamicsStepper> stepper;
@@ -364,6 +377,19 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     m.dynamic.last_step.setZero();
     m.dynamic.last_v.setZero();
     m.dynamic_good = m.dynamic;
+  }
+  if (options.tool == ToolKind::kPoke && scene.section &&
+      RingStiffness{mat.ring_bend_stiffness, mat.ring_stretch_stiffness}.Check(nullptr)) {
+    // A throwaway dent, a gentle push of 1e-3 kb / R^2 along the section's d1, sizes the
+    // mesh's scratch (the ring's solver and result, the propagation's lists), so that
+    // Mesh(TubeMesh*) allocates nothing later.
+    const double R = scene.section->radius;
+    const Vec3 d1 = SectionAt(model, m.state, options.tool_s).d1;
+    m.tool_force = 1e-3 * mat.ring_bend_stiffness / (R * R) * d1;
+    TubeMesh throwaway;
+    m.BuildMesh(&m.mesh_scratch, &throwaway);
+    m.tool_force.setZero();
+    m.mesh_scratch.ring_warm = false;
   }
   m.UpdateReaction();
 }
@@ -697,27 +723,48 @@ double Runtime::KineticEnergy() const {
   return impl_->stepper ? impl_->stepper->KineticEnergy(impl_->dynamic) : 0.0;
 }
 
-TubeMesh Runtime::Mesh() const {
-  const Impl& m = *impl_;
-  const RodModel& model = *m.model;
-  const RodState& s = state();
-  const std::optional<SectionSpec>& section = m.profile.scene.section;
-  const double radius = section ? section->radius : model.rod().radius;
+void Runtime::Impl::BuildMesh(MeshScratch* w, TubeMesh* mesh) const {
+  const RodState& s = options.mode == RuntimeMode::kDynamic ? dynamic.q : state;
+  const std::optional<SectionSpec>& section = profile.scene.section;
+  const double radius = section ? section->radius : model->rod().radius;
   if (!(radius > 0.0)) throw std::invalid_argument("the profile's rod has no radius for a mesh");
-  TubeMesh tube = BuildTube(model, s, radius, m.options.mesh_ring_vertices);
-  if (m.options.tool != ToolKind::kPoke || !section || m.tool_force.isZero(0.0)) return tube;
+  RodVertexFrames(*model, s, &w->frames);
+  if (options.tool != ToolKind::kPoke || !section || tool_force.isZero(0.0)) {
+    BuildTube(w->frames, radius, options.mesh_ring_vertices, mesh);
+    return;
+  }
+  BuildTube(w->frames, radius, options.mesh_ring_vertices, &w->tube);
   // The dent: the section ring at the tool under the force's in-plane part (tissue §4), then
   // propagated onto the tube by eqs. 12–13.
-  const SectionPlacement placement = SectionAt(model, s, m.options.tool_s);
-  const RingStiffness stiffness{model.material().ring_bend_stiffness,
-                                model.material().ring_stretch_stiffness};
-  RingSolveOptions ring_options;
-  ring_options.compute_sensitivities = false;
-  const RingResult ring = SolveRing(*section, stiffness, ProjectToSection(m.tool_force, placement),
-                                    ring_options);
-  if (!ring.summary.IsUsable()) return tube;
-  return PropagateLocalDeformation(tube, placement, *section, ring).mesh;
+  const SectionPlacement placement = SectionAt(*model, s, options.tool_s);
+  if (!w->ring_solver) {
+    RingSolveOptions ring_options;
+    ring_options.compute_sensitivities = false;
+    w->ring_solver = std::make_unique<RingSolver>(
+        *section,
+        RingStiffness{model->material().ring_bend_stiffness,
+                      model->material().ring_stretch_stiffness},
+        ring_options);
+  }
+  w->ring_solver->Solve(ProjectToSection(tool_force, placement),
+                        w->ring_warm ? &w->ring.nodes : nullptr, &w->ring);
+  w->ring_warm = w->ring.summary.IsUsable();
+  if (!w->ring.summary.IsUsable()) {
+    *mesh = w->tube;  // the same storage once sized: a copy, no allocation
+    return;
+  }
+  PropagateLocalDeformation(w->tube, placement, *section, w->ring, &w->propagation, &w->local);
+  *mesh = w->local.mesh;
 }
+
+TubeMesh Runtime::Mesh() const {
+  Impl::MeshScratch scratch;
+  TubeMesh mesh;
+  impl_->BuildMesh(&scratch, &mesh);
+  return mesh;
+}
+
+void Runtime::Mesh(TubeMesh* mesh) { impl_->BuildMesh(&impl_->mesh_scratch, mesh); }
 
 const RodModel& Runtime::model() const { return *impl_->model; }
 const RodState& Runtime::state() const {
