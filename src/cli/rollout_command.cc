@@ -101,6 +101,11 @@ int RunRollout(int argc, char** argv) {
     }
   }
   rodfit::Scene scene = experiment.scene;
+  // Before the fit, so its sensitivities see the twist damping as the constant it is.
+  if (rodfit::DefaultTwistDamping(&scene.material))
+    std::printf("twist_damping not given: %.4g N m^2 s, bending's retardation time (bend_damping / "
+                "bend_stiffness) times twist_stiffness\n",
+                scene.material.twist_damping);
   std::string fit_json;
   if (!fit_text.empty()) {
     SilenceCeresLogging();
