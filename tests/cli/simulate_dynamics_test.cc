@@ -443,7 +443,7 @@ TEST(Rollout, PredictsARecordingMadeBySimulate) {
 // of the samples dropped), rolled out at the scene's time step and at half of it: the pins at
 // markers 1 and n-2 kink the rod and drive the edges' twist, which this scene leaves undamped;
 // the rollout damps it with bending's retardation time (rollout.h, DefaultTwistDamping), without
-// which every one of these stopped at 0.3-0.6 s with a Newton step that did not converge.
+// which each of these stopped at 0.24-0.53 s with a Newton step that did not converge.
 TEST(Rollout, BundledSceneOwnRecordingAtItsStepAndHalf) {
   TempDir dir;
   const std::string scenes = std::string(RODFIT_SOURCE_DIR) + "/data/scenes/";
