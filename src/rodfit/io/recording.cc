@@ -214,7 +214,7 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
     if (!(frame_rate > 0.0)) throw InputError(path, 1, "frame", "a frame column needs --frame-rate");
     rec.frame_interval = 1.0 / frame_rate;
     for (int r = 0; r < table.num_rows(); ++r) {
-      if (key[r] != std::round(key[r]) || key[r] < 0 || key[r] >= kMaxFrames)
+      if (std::abs(key[r] - std::round(key[r])) > 1e-6 || key[r] < 0 || key[r] >= kMaxFrames)
         throw InputError(path, table.line(r), "frame", "must be an integer in [0, 100000)");
       frame_of[r] = std::lround(key[r]);
     }
