@@ -63,6 +63,7 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers);
 /// k * frame_interval. The scene gives the rod (length, radius, density; `segments` is the
 /// target number of edges, spread over the gaps between markers), the material, gravity and
 /// `dynamics` (its time_step must divide the frame interval; its duration is the recording's).
+/// The material is used as given (`rodfit rollout` first applies DefaultTwistDamping).
 /// Throws std::invalid_argument for unusable input (fewer than 3 markers, a held marker missing
 /// from every frame, markers 0 and 1 missing in frame 0 or 1, ...).
 RolloutResult Rollout(const Scene& scene, double frame_interval,
