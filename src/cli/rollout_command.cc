@@ -62,7 +62,7 @@ int RunRollout(int argc, char** argv) {
   app.add_option("--marker-sigma", marker_sigma, "[m] the markers' noise, weighting the fit's residuals")
       ->check(CLI::Range(0.0, 1e9));
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
-  app.add_option("--frame-rate", frame_rate, "[Hz] with a frame column")->check(CLI::Range(1e-6, 1e9));
+  app.add_option("--frame-rate", frame_rate, "[Hz] with a frame column (with a t column: must agree with its times)")->check(CLI::Range(1e-6, 1e9));
   std::string unit = "m";
   app.add_option("--unit", unit, "the recordings' positions: m (default) or mm")
       ->check(CLI::IsMember({"m", "mm"}));
@@ -101,6 +101,11 @@ int RunRollout(int argc, char** argv) {
     }
   }
   rodfit::Scene scene = experiment.scene;
+  // Before the fit, so its sensitivities see the twist damping as the constant it is.
+  if (rodfit::DefaultTwistDamping(&scene.material))
+    std::printf("twist_damping not given: %.4g N m^2 s, bending's retardation time (bend_damping / "
+                "bend_stiffness) times twist_stiffness\n",
+                scene.material.twist_damping);
   std::string fit_json;
   if (!fit_text.empty()) {
     SilenceCeresLogging();

@@ -44,6 +44,16 @@ struct RolloutResult {
   double seconds = 0.0;        ///< wall time of the integration
 };
 
+/// The twist damping a rollout uses when the scene gives none: bending's retardation time
+/// (bend_damping / bend_stiffness) times the twist stiffness, one Kelvin-Voigt time for the
+/// material (docs/cli.md, "rollout"). The pins at markers 1 and n-2 kink the rod there; turning
+/// with the held points, the kinks drive the edges' twist, whose light spin inertia makes it a
+/// fast mode (~1e3-1e4 rad/s). Undamped, BDF2 at steps near its period no longer damps it and its
+/// Newton iterations stop converging (the smaller the step, the sooner). Sets
+/// material->twist_damping and returns true when it was 0 and bend_damping and bend_stiffness
+/// are positive; leaves it otherwise.
+bool DefaultTwistDamping(Material* material);
+
 /// Per marker of a recording with `markers` markers: whether the rollout drives it
 /// (options.held_markers, negative counting from the last). Throws std::invalid_argument for a
 /// held marker that does not exist or marker 0 not held.
@@ -53,6 +63,7 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers);
 /// k * frame_interval. The scene gives the rod (length, radius, density; `segments` is the
 /// target number of edges, spread over the gaps between markers), the material, gravity and
 /// `dynamics` (its time_step must divide the frame interval; its duration is the recording's).
+/// The material is used as given (`rodfit rollout` first applies DefaultTwistDamping).
 /// Throws std::invalid_argument for unusable input (fewer than 3 markers, a held marker missing
 /// from every frame, markers 0 and 1 missing in frame 0 or 1, ...).
 RolloutResult Rollout(const Scene& scene, double frame_interval,

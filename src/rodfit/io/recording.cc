@@ -1,5 +1,7 @@
 #include "rodfit/io/recording.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -8,6 +10,171 @@
 #include "rodfit/io/errors.h"
 
 namespace rodfit {
+
+namespace {
+
+// A coordinate as mocap software exports it: a number, or empty / "nan" (any case) where the
+// marker was not seen (NaN returned). Anything else is an error naming the line and column.
+double ParseCoordinate(const std::string& text, const std::string& path, int line,
+                       const std::string& column) {
+  std::string lower = text;
+  for (char& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (lower.empty() || lower == "nan") return std::numeric_limits<double>::quiet_NaN();
+  double v = 0.0;
+  if (!ParseDouble(text, &v))
+    throw InputError(path, line, column,
+                     "not a number: '" + ClipForMessage(text) + "' (empty or nan: not seen)");
+  return v;
+}
+
+// Frame numbers of the distinct times of a `t` column, and the frame interval [s]. The
+// interval first from the median of successive differences; each time's frame from its
+// predecessor's plus the rounded difference (a dropped frame is a difference of two
+// intervals); then the interval and start refitted by least squares over all times, so jitter
+// does not accumulate. A time further than kMaxJitter intervals from its frame's nominal time
+// is irregular sampling: an error naming the line.
+constexpr double kMaxJitter = 0.1;
+
+struct TimeFrames {
+  std::vector<double> times;  // distinct, increasing
+  std::vector<long> frame;    // per distinct time
+  double interval = 0.0;      // [s]
+};
+
+TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
+                         const std::string& path, double frame_rate) {
+  TimeFrames out;
+  out.times = t;
+  std::sort(out.times.begin(), out.times.end());
+  out.times.erase(std::unique(out.times.begin(), out.times.end()), out.times.end());
+  const size_t n = out.times.size();
+  if (n < 2) throw InputError(path, table.line(0), "t", "needs at least 2 times");
+  auto line_of = [&](double time) {
+    for (int r = 0; r < table.num_rows(); ++r)
+      if (t[r] == time) return table.line(r);
+    return 0;
+  };
+  std::vector<double> diff(n - 1);
+  for (size_t i = 1; i < n; ++i) diff[i - 1] = out.times[i] - out.times[i - 1];
+  std::vector<double> sorted = diff;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  double dt = sorted[sorted.size() / 2];
+  out.frame.assign(n, 0);
+  for (size_t i = 1; i < n; ++i) {
+    const long step = std::lround(diff[i - 1] / dt);
+    if (step < 1 || std::abs(diff[i - 1] - step * dt) > 2.0 * kMaxJitter * dt) {
+      char text[200];
+      std::snprintf(text, sizeof(text),
+                    "irregular sampling: %.6g s after the previous time, not a whole number of "
+                    "frame intervals (%.6g s, jitter up to %.0f %% accepted)",
+                    diff[i - 1], dt, 100.0 * kMaxJitter);
+      throw InputError(path, line_of(out.times[i]), "t", text);
+    }
+    out.frame[i] = out.frame[i - 1] + step;
+  }
+  if (out.frame.back() >= 100000)
+    throw InputError(path, line_of(out.times.back()), "t", "more than 100000 frames");
+  // Least squares t = t0 + k dt.
+  double mk = 0.0, mt = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    mk += out.frame[i];
+    mt += out.times[i];
+  }
+  mk /= n;
+  mt /= n;
+  double skk = 0.0, skt = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    skk += (out.frame[i] - mk) * (out.frame[i] - mk);
+    skt += (out.frame[i] - mk) * (out.times[i] - mt);
+  }
+  const double fitted = skt / skk;
+  if (frame_rate > 0.0) {
+    dt = 1.0 / frame_rate;
+    if (std::abs(fitted - dt) > 0.01 * dt) {
+      char text[200];
+      std::snprintf(text, sizeof(text),
+                    "--frame-rate %.6g Hz disagrees with the times of the t column (%.6g Hz)",
+                    frame_rate, 1.0 / fitted);
+      throw InputError(path, 1, "t", text);
+    }
+  } else {
+    dt = fitted;
+    // Motion capture runs at a whole number of hertz: a fitted rate within 0.1 % of one is
+    // taken as it, so the rollout's time step can divide the interval exactly.
+    const double rate = 1.0 / dt, whole = std::round(rate);
+    if (whole >= 1.0 && std::abs(rate - whole) <= 1e-3 * rate) dt = 1.0 / whole;
+  }
+  const double t0 = mt - mk * dt;
+  for (size_t i = 0; i < n; ++i) {
+    const double off = out.times[i] - (t0 + out.frame[i] * dt);
+    if (std::abs(off) > kMaxJitter * dt) {
+      char text[200];
+      std::snprintf(text, sizeof(text),
+                    "irregular sampling: %.3g s from its frame's nominal time (frame interval "
+                    "%.6g s, jitter up to %.0f %% accepted)",
+                    off, dt, 100.0 * kMaxJitter);
+      throw InputError(path, line_of(out.times[i]), "t", text);
+    }
+  }
+  out.interval = dt;
+  return out;
+}
+
+// Markers numbered out of order along the rod (docs/formats.md, "Recordings"): in frame 0 the
+// polyline through the seen markers in label order folds back (a turn above 150 degrees between
+// successive gaps) or is far longer than the nearest-neighbour path through them.
+void CheckMarkerOrder(const MarkerRecording& rec) {
+  const Eigen::Matrix3Xd& f = rec.frames.front();
+  std::vector<int> seen;
+  for (int m = 0; m < f.cols(); ++m)
+    if (f.col(m).allFinite()) seen.push_back(m);
+  if (seen.size() < 3) return;
+  double label_length = 0.0;
+  for (size_t i = 1; i < seen.size(); ++i) label_length += (f.col(seen[i]) - f.col(seen[i - 1])).norm();
+  for (size_t i = 1; i + 1 < seen.size(); ++i) {
+    const Eigen::Vector3d a = f.col(seen[i]) - f.col(seen[i - 1]), b = f.col(seen[i + 1]) - f.col(seen[i]);
+    const double cos_turn = a.dot(b) / std::max(a.norm() * b.norm(), 1e-300);
+    if (cos_turn < std::cos(150.0 * M_PI / 180.0)) {
+      char text[240];
+      std::snprintf(text, sizeof(text),
+                    "markers out of order along the rod: in frame 0 the line through markers %d, "
+                    "%d, %d folds back (turns %.0f degrees); number the markers 0..M-1 along the rod",
+                    seen[i - 1], seen[i], seen[i + 1], std::acos(std::max(-1.0, cos_turn)) * 180.0 / M_PI);
+      throw InputError(rec.file, 0, "marker", text);
+    }
+  }
+  // The greedy nearest-neighbour path from the first marker.
+  std::vector<char> visited(seen.size(), 0);
+  size_t at = 0;
+  visited[0] = 1;
+  double nn_length = 0.0;
+  for (size_t step = 1; step < seen.size(); ++step) {
+    size_t best = 0;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (size_t j = 0; j < seen.size(); ++j) {
+      if (visited[j]) continue;
+      const double d = (f.col(seen[j]) - f.col(seen[at])).norm();
+      if (d < best_d) {
+        best_d = d;
+        best = j;
+      }
+    }
+    visited[best] = 1;
+    nn_length += best_d;
+    at = best;
+  }
+  if (label_length > 1.5 * nn_length) {
+    char text[240];
+    std::snprintf(text, sizeof(text),
+                  "markers out of order along the rod: in frame 0 the line through them in label "
+                  "order is %.3g m, %.2g times the nearest-neighbour path; number the markers "
+                  "0..M-1 along the rod",
+                  label_length, label_length / nn_length);
+    throw InputError(rec.file, 0, "marker", text);
+  }
+}
+
+}  // namespace
 
 MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
                                     double position_scale) {
@@ -29,37 +196,30 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
   if (!by_frame && !table.HasColumn("t"))
     throw InputError(path, 1, "frame", "needs a frame column (with --frame-rate) or a t column");
   const std::vector<double> key = table.Column(by_frame ? "frame" : "t");
-  const std::vector<double> marker = table.Column("marker"), x = table.Column("x"),
-                            y = table.Column("y"), z = table.Column("z");
+  const std::vector<double> marker = table.Column("marker");
+  const std::vector<std::string> text[3] = {table.TextColumn("x"), table.TextColumn("y"),
+                                            table.TextColumn("z")};
   std::vector<long> frame_of(table.num_rows());
   int markers = 0;
   long frames = 0;
-  double t0 = 0.0;
   if (!by_frame) {
-    // Evenly spaced times: the interval is the smallest positive difference between times.
-    t0 = key[0];
-    double dt = std::numeric_limits<double>::infinity();
+    const TimeFrames tf = FramesOfTimes(table, key, path, frame_rate);
+    rec.frame_interval = tf.interval;
     for (int r = 0; r < table.num_rows(); ++r) {
-      t0 = std::min(t0, key[r]);
-      for (int q = r + 1; q < table.num_rows() && q < r + 100000; ++q) {
-        const double d = std::abs(key[q] - key[r]);
-        if (d > 0.0 && d < dt) dt = d;
-        if (d > 0.0) break;
-      }
+      const size_t i = static_cast<size_t>(
+          std::lower_bound(tf.times.begin(), tf.times.end(), key[r]) - tf.times.begin());
+      frame_of[r] = tf.frame[i];
     }
-    if (!std::isfinite(dt)) throw InputError(path, table.line(0), "t", "needs at least 2 times");
-    rec.frame_interval = dt;
   } else {
     if (!(frame_rate > 0.0)) throw InputError(path, 1, "frame", "a frame column needs --frame-rate");
     rec.frame_interval = 1.0 / frame_rate;
+    for (int r = 0; r < table.num_rows(); ++r) {
+      if (std::abs(key[r] - std::round(key[r])) > 1e-6 || key[r] < 0 || key[r] >= kMaxFrames)
+        throw InputError(path, table.line(r), "frame", "must be an integer in [0, 100000)");
+      frame_of[r] = std::lround(key[r]);
+    }
   }
   for (int r = 0; r < table.num_rows(); ++r) {
-    double f = by_frame ? key[r] : (key[r] - t0) / rec.frame_interval;
-    if (std::abs(f - std::round(f)) > 1e-6 || f < 0 || f >= kMaxFrames)
-      throw InputError(path, table.line(r), by_frame ? "frame" : "t",
-                       by_frame ? "must be an integer in [0, 100000)"
-                                : "times must be evenly spaced (a multiple of the smallest step)");
-    frame_of[r] = std::lround(f);
     if (marker[r] != std::round(marker[r]) || marker[r] < 0 || marker[r] >= kMaxMarkers)
       throw InputError(path, table.line(r), "marker", "must be an integer in [0, 10000)");
     markers = std::max(markers, static_cast<int>(marker[r]) + 1);
@@ -67,13 +227,19 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
   }
   const double nan = std::numeric_limits<double>::quiet_NaN();
   rec.frames.assign(frames, Eigen::Matrix3Xd::Constant(3, markers, nan));
+  std::vector<std::vector<char>> given(frames, std::vector<char>(markers, 0));
+  static const char* const kAxis[3] = {"x", "y", "z"};
   for (int r = 0; r < table.num_rows(); ++r) {
-    Eigen::Matrix3Xd& fr = rec.frames[frame_of[r]];
     const int m = static_cast<int>(marker[r]);
-    if (fr.col(m).allFinite())
+    if (given[frame_of[r]][m])
       throw InputError(path, table.line(r), "marker", "this marker is given twice in one frame");
-    fr.col(m) = position_scale * Eigen::Vector3d(x[r], y[r], z[r]);
+    given[frame_of[r]][m] = 1;
+    Eigen::Vector3d p;
+    for (int a = 0; a < 3; ++a) p[a] = ParseCoordinate(text[a][r], path, table.line(r), kAxis[a]);
+    // A sample with any coordinate missing was not seen (left NaN).
+    if (p.allFinite()) rec.frames[frame_of[r]].col(m) = position_scale * p;
   }
+  CheckMarkerOrder(rec);
   return rec;
 }
 

@@ -1,6 +1,7 @@
 // Motion-capture recordings of tracked markers (docs/formats.md, "Recordings"): a long CSV with
 // one row per marker and frame, `frame,marker,x,y,z` (with a frame rate) or `t,marker,x,y,z`
-// (evenly spaced times). Dropped samples are rows that are absent.
+// (evenly spaced times, up to 10 % jitter). Dropped samples are rows that are absent or
+// coordinates that are empty or `nan`.
 #pragma once
 
 #include <string>
@@ -16,10 +17,14 @@ struct MarkerRecording {
   std::vector<Eigen::Matrix3Xd> frames;     ///< 3 x markers per frame [m], NaN where not seen
 };
 
-/// Reads a recording; `frame_rate` [Hz] is required with a `frame` column and ignored with `t`;
-/// positions are multiplied by `position_scale` [m per file unit] (1e-3 for millimetres).
-/// Throws InputError naming the file, line and column (markers not 0..M-1 integers, a frame
-/// seen twice for one marker, uneven times, more than 100,000 frames or 10,000 markers).
+/// Reads a recording; `frame_rate` [Hz] is required with a `frame` column, and with `t` (when
+/// positive) must agree with the times within 1 %; positions are multiplied by
+/// `position_scale` [m per file unit] (1e-3 for millimetres). A `t` column's times may jitter
+/// by up to 10 % of the frame interval: frame k is taken at its nominal time (the interval
+/// fitted to the times, or 1 / frame_rate). Throws InputError naming the file, line and column
+/// (markers not 0..M-1 integers, a frame seen twice for one marker, a coordinate that is not a
+/// number, empty or nan, irregular times, more than 100,000 frames or 10,000 markers, markers
+/// out of order along the rod in frame 0).
 MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
                                     double position_scale = 1.0);
 

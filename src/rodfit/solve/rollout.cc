@@ -221,6 +221,15 @@ void Score(const std::vector<Eigen::Matrix3Xd>& frames, RolloutResult* result) {
 
 }  // namespace
 
+bool DefaultTwistDamping(Material* material) {
+  if (material->twist_damping != 0.0 || !(material->bend_damping > 0.0) ||
+      !(material->bend_stiffness > 0.0))
+    return false;
+  material->twist_damping =
+      material->bend_damping / material->bend_stiffness * material->twist_stiffness;
+  return true;
+}
+
 std::vector<char> HeldMarkers(const RolloutOptions& options, int markers) {
   std::vector<char> held(markers, 0);
   for (int h : options.held_markers) {

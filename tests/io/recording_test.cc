@@ -1,0 +1,156 @@
+// Motion-capture recordings as mocap software exports them (io/recording.h, docs/formats.md
+// "Recordings"): missing samples as nan or empty fields, jittered timestamps, a frame rate
+// given with a t column, markers numbered out of order along the rod.
+#include <cmath>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "io/temp_dir.h"
+#include "rodfit/io/errors.h"
+#include "rodfit/io/recording.h"
+
+namespace rodfit {
+namespace {
+
+using ::testing::HasSubstr;
+using test::TempDir;
+
+// Four markers along a gently curved rod, `frames` frames at 100 Hz, each time shifted by
+// jitter(k) [s]; `cell(k, m)` replaces marker m's coordinates in frame k when not empty.
+template <typename Jitter, typename Cell>
+std::string Recording(int frames, Jitter jitter, Cell cell) {
+  std::string csv = "t,marker,x,y,z\n";
+  for (int k = 0; k < frames; ++k) {
+    char t[64];
+    std::snprintf(t, sizeof(t), "%.6f", 0.01 * k + jitter(k));
+    for (int m = 0; m < 4; ++m) {
+      std::string xyz = cell(k, m);
+      if (xyz.empty()) {
+        char p[128];
+        std::snprintf(p, sizeof(p), "%.6f,%.6f,%.6f", 0.3 * m, 0.001 * k, -0.02 * m * m);
+        xyz = p;
+      }
+      csv += std::string(t) + "," + std::to_string(m) + "," + xyz + "\n";
+    }
+  }
+  return csv;
+}
+
+std::string ErrorOf(const std::string& path, double frame_rate = 0.0) {
+  try {
+    ReadMarkerRecording(path, frame_rate);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+auto kNoJitter = [](int) { return 0.0; };
+auto kAsIs = [](int, int) { return std::string(); };
+
+TEST(Recording, NanAndEmptyFieldsAreSamplesNotSeen) {
+  TempDir dir;
+  const std::string path = dir.Write("r.csv", Recording(5, kNoJitter, [](int k, int m) {
+    if (k == 2 && m == 1) return std::string("nan,nan,nan");
+    if (k == 3 && m == 2) return std::string("NaN,NaN,NaN");
+    if (k == 4 && m == 3) return std::string(",,");
+    return std::string();
+  }));
+  const MarkerRecording rec = ReadMarkerRecording(path, 0.0);
+  ASSERT_EQ(rec.frames.size(), 5u);
+  EXPECT_DOUBLE_EQ(rec.frame_interval, 0.01);
+  EXPECT_FALSE(rec.frames[2].col(1).allFinite());
+  EXPECT_FALSE(rec.frames[3].col(2).allFinite());
+  EXPECT_FALSE(rec.frames[4].col(3).allFinite());
+  EXPECT_TRUE(rec.frames[4].col(2).allFinite());
+  EXPECT_DOUBLE_EQ(rec.frames[4](0, 2), 0.6);
+  // Text that is neither a number nor a missing sample is still an error, with its line.
+  const std::string bad = dir.Write("b.csv", Recording(3, kNoJitter, [](int k, int m) {
+    return k == 1 && m == 0 ? std::string("0,abc,0") : std::string();
+  }));
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("b.csv:6: y: not a number: 'abc'"));
+  // A marker given twice in one frame, once as nan, is still given twice.
+  const std::string twice =
+      dir.Write("d.csv", Recording(3, kNoJitter, kAsIs) + "0.01,1,nan,nan,nan\n");
+  EXPECT_THAT(ErrorOf(twice), HasSubstr("given twice in one frame"));
+}
+
+TEST(Recording, JitteredTimesAreTakenAtTheirNominalFrames) {
+  TempDir dir;
+  // 0.3 ms of jitter at 100 Hz, alternating, as a mocap clock might stamp frames.
+  const std::string path = dir.Write("j.csv", Recording(
+      40, [](int k) { return k == 0 ? 0.0 : (k % 2 ? 3e-4 : -2e-4) * std::sin(0.7 * k); }, kAsIs));
+  const MarkerRecording rec = ReadMarkerRecording(path, 0.0);
+  ASSERT_EQ(rec.frames.size(), 40u);
+  EXPECT_DOUBLE_EQ(rec.frame_interval, 0.01);  // 100 Hz exactly: the rollout's step divides it
+  for (int k = 0; k < 40; ++k) EXPECT_NEAR(rec.frames[k](1, 0), 0.001 * k, 1e-12) << k;
+  // A whole frame missing is a dropped frame, not irregular sampling.
+  std::string dropped = "t,marker,x,y,z\n";
+  for (int k : {0, 1, 2, 4, 5}) dropped += std::to_string(0.01 * k) + ",0,0,0," + std::to_string(k) + "\n";
+  const MarkerRecording d = ReadMarkerRecording(dir.Write("d.csv", dropped), 0.0);
+  ASSERT_EQ(d.frames.size(), 6u);
+  EXPECT_FALSE(d.frames[3].allFinite());
+  EXPECT_DOUBLE_EQ(d.frames[5](2, 0), 5.0);
+}
+
+TEST(Recording, IrregularTimesAreRefusedWithTheirLine) {
+  TempDir dir;
+  // Frame 5 stamped 4 ms late (40 % of the interval): a gap, not jitter.
+  const std::string late = dir.Write("late.csv", Recording(
+      10, [](int k) { return k == 5 ? 4e-3 : 0.0; }, kAsIs));
+  EXPECT_THAT(ErrorOf(late), HasSubstr("late.csv:22: t: irregular sampling"));
+  // One and a half frame intervals between two times.
+  const std::string half = dir.Write(
+      "half.csv", "t,marker,x,y,z\n0,0,0,0,0\n0.01,0,0,0,1\n0.02,0,0,0,2\n0.035,0,0,0,3\n0.045,0,0,0,4\n");
+  EXPECT_THAT(ErrorOf(half), HasSubstr("half.csv:5: t: irregular sampling"));
+}
+
+TEST(Recording, FrameRateWithATimeColumnMustAgree) {
+  TempDir dir;
+  const std::string path = dir.Write("r.csv", Recording(5, kNoJitter, kAsIs));
+  EXPECT_DOUBLE_EQ(ReadMarkerRecording(path, 100.0).frame_interval, 0.01);
+  EXPECT_THAT(ErrorOf(path, 120.0),
+              HasSubstr("r.csv:1: t: --frame-rate 120 Hz disagrees with the times of the t column (100 Hz)"));
+}
+
+TEST(Recording, MarkersOutOfOrderAlongTheRodAreSaid) {
+  TempDir dir;
+  // Markers 1 and 2 swapped: the label-order line folds back at both.
+  const std::string swapped = dir.Write("s.csv", Recording(3, kNoJitter, [](int k, int m) {
+    const int place = m == 1 ? 2 : m == 2 ? 1 : m;
+    char p[128];
+    std::snprintf(p, sizeof(p), "%.6f,%.6f,%.6f", 0.3 * place, 0.001 * k, -0.02 * place * place);
+    return std::string(p);
+  }));
+  EXPECT_THAT(ErrorOf(swapped), HasSubstr("s.csv: marker: markers out of order along the rod: in frame 0 the line "
+                                      "through markers 0, 1, 2 folds back"));
+  // Eight markers along a rising arc, labelled 0, 2, 4, 6, 1, 3, 5, 7 along it: no turn of
+  // the label-order line reaches 150 degrees (144 at most), but it is 2.3 times as long as the
+  // nearest-neighbour path.
+  std::string shuffled = "t,marker,x,y,z\n";
+  const int place[8] = {0, 2, 4, 6, 1, 3, 5, 7};
+  for (int k = 0; k < 2; ++k)
+    for (int m = 0; m < 8; ++m) {
+      const double a = M_PI * place[m] / 7.0;
+      shuffled += std::to_string(0.01 * k) + "," + std::to_string(m) + "," +
+                  std::to_string(0.3 * std::sin(a)) + "," + std::to_string(0.3 * (1 - std::cos(a))) +
+                  "," + std::to_string(0.05 * place[m]) + "\n";
+    }
+  EXPECT_THAT(ErrorOf(dir.Write("sh.csv", shuffled)),
+              HasSubstr("sh.csv: marker: markers out of order along the rod: in frame 0 the line "
+                        "through them in label order is"));
+  // A cable bent into a U (markers in order) is fine.
+  std::string u = "t,marker,x,y,z\n";
+  for (int k = 0; k < 2; ++k)
+    for (int m = 0; m < 9; ++m) {
+      const double a = M_PI * m / 8.0;
+      u += std::to_string(0.01 * k) + "," + std::to_string(m) + "," + std::to_string(0.2 * std::sin(a)) +
+           "," + std::to_string(0.2 * (1 - std::cos(a))) + ",0\n";
+    }
+  EXPECT_NO_THROW(ReadMarkerRecording(dir.Write("u.csv", u), 0.0));
+}
+
+}  // namespace
+}  // namespace rodfit
