@@ -247,8 +247,10 @@ TEST_F(StartCsvTest, ArcLengthCoversOnlyPartOfTheRod) {
 }
 
 TEST_F(StartCsvTest, MissingFile) {
+  // Named at the key that wants it, so the message says which entry of which file.
   ExpectSimulateFails(kScene + "    start: nowhere.csv\n",
-                      dir_.File("nowhere.csv") + ": cannot open file: No such file or directory");
+                      At(18, "cases[0].start", "cannot open " + dir_.File("nowhere.csv") +
+                                                   ": no such file"));
 }
 
 // ---- reaction observations ------------------------------------------------------------------

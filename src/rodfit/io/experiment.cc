@@ -219,6 +219,15 @@ class Reader {
     if (p.is_relative() && !directory.empty()) p = fs::path(directory) / p;
     return p.lexically_normal().string();
   }
+  // A file the reader opens now (a start shape, a path, a velocity): one that cannot be opened
+  // is named at its key's line, so the message says which entry of which YAML file wants it.
+  std::string ReadablePath(const Field& f, const std::string& directory) const {
+    const std::string path = Path(f, directory);
+    std::error_code ec;
+    if (!fs::exists(path, ec)) Fail(f, "cannot open " + path + ": no such file");
+    if (!fs::is_regular_file(path, ec)) Fail(f, "cannot open " + path + ": not a regular file");
+    return path;
+  }
 
  private:
   std::string file_;
@@ -574,7 +583,7 @@ StartShape ReadStart(const Reader& r, const Field& f, const Experiment& ex, int 
     return start;
   }
   start.kind = StartShape::Kind::kPoints;
-  start.file = r.Path(f, ex.directory);
+  start.file = r.ReadablePath(f, ex.directory);
   const CsvTable table = CsvTable::Read(start.file);
   const std::vector<double> x = table.Column("x"), y = table.Column("y"), z = table.Column("z");
   if (table.num_rows() < 2)
@@ -602,7 +611,7 @@ TimeSeries ReadTimeSeries(const Reader& r, const Field& f, const Experiment& ex,
                           const std::vector<std::string>& a, const std::vector<std::string>& b,
                           const std::vector<std::string>& c) {
   TimeSeries series;
-  series.file = r.Path(f, ex.directory);
+  series.file = r.ReadablePath(f, ex.directory);
   const CsvTable table = CsvTable::Read(series.file);
   if (table.num_rows() < 1) throw InputError(series.file, 0, "", "no rows");
   series.t = table.Column("t");
@@ -801,7 +810,7 @@ void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, int inde
   const Field* v = Reader::Find(im, "velocity");
   if (v && v->node.IsScalar() && v->node.Scalar() == "zero") v = nullptr;  // at rest (default)
   if (v) {
-    c->initial.file = r.Path(*v, ex.directory);
+    c->initial.file = r.ReadablePath(*v, ex.directory);
     const CsvTable table = CsvTable::Read(c->initial.file);
     if (table.num_rows() < 1) throw InputError(c->initial.file, 0, "", "no rows");
     c->initial.velocity_s = table.Column("s");
