@@ -239,15 +239,16 @@ int RunFit(int argc, char** argv) {
   // camera file and the case (the fit would only fail to evaluate).
   rodfit::CheckCamerasSeeTheStart(experiment);
   // Held points the rod reaches only by stretching more than 1 %: a wire between two clamps
-  // measured farther apart than its length, or a length given short. Warned about (even with
-  // --quiet): the fit would take the stiffness to explain what the geometry gets wrong.
+  // measured farther apart than its length, or a length given short. Said after a fit that
+  // succeeds (even with --quiet; a failed fit's one line says why it failed): the fit would take
+  // the stiffness to explain what the geometry gets wrong.
+  std::vector<std::string> stretched;
   for (const rodfit::FitCase& c : input.cases) {
     try {
       const rodfit::RodModel model(input.rod, input.material, input.gravity, c.load_case,
                                    input.springs);
       for (const std::string& span : model.StretchedSpans(0.01))
-        std::fprintf(stderr, "rodfit fit: warning: case %s: %s (check rod.length and the held "
-                             "positions)\n", c.load_case.name.c_str(), span.c_str());
+        stretched.push_back("case " + c.load_case.name + ": " + span);
     } catch (const std::invalid_argument&) {
       // The fit names what is wrong with the case.
     }
@@ -285,6 +286,12 @@ int RunFit(int argc, char** argv) {
     return EXIT_FAILURE;
   }
   WriteOutputs(experiment, input, options, result, profile_path, report_dir);
+  if (!stretched.empty())
+    std::fprintf(stderr, "rodfit fit: warning: %s (check rod.length and the held positions)%s\n",
+                 stretched.front().c_str(),
+                 stretched.size() > 1
+                     ? (" and " + std::to_string(stretched.size() - 1) + " more like it").c_str()
+                     : "");
   const rodfit::ResidualCheck check = WarnAboutResiduals(result, options);
   if (!quiet) {
     PrintEstimates(result);
