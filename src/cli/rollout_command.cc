@@ -231,6 +231,9 @@ int RunRollout(int argc, char** argv) {
     sum_all += result.mae_all;
     sum_predicted += result.mae_predicted;
     samples += result.samples;
+    if (result.halved_steps > 0)
+      std::cout << rec.file << ": " << result.halved_steps << " of its steps were taken in halves "
+                << "(Newton did not converge at dynamics.time_step; dynamics.max_halvings)\n";
   }
   rodfit::StagedDirectory out(output_dir);
   const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);

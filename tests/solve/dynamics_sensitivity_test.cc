@@ -67,16 +67,21 @@ Whip WhippedCantilever(const std::string& integrator) {
   return w;
 }
 
-void CheckStateSensitivities(const std::string& integrator) {
+// Halving: with max_halvings > 0 and a Newton budget of max_newton_iterations, steps that
+// need more iterations are taken in halves; *halved counts the steps of the 25 that were.
+void CheckStateSensitivities(const std::string& integrator, double time_step = 2e-3,
+                             int max_newton_iterations = 100, int max_halvings = 0,
+                             int* halved = nullptr) {
   const Whip w = WhippedCantilever(integrator);
   const RodModel model(w.scene.rod, w.scene.material, w.scene.gravity, CaseAtStart(w.load_case));
   DynamicsOptions options;
-  options.time_step = 2e-3;
+  options.time_step = time_step;
   ASSERT_TRUE(ParseIntegrator(integrator, &options.integrator));
   // Converged far below the differences' step, so that they measure the map, not its tolerance.
   options.residual_tolerance = 1e-14;
   options.step_tolerance = 1e-16;
-  options.max_newton_iterations = 100;
+  options.max_newton_iterations = max_newton_iterations;
+  options.max_halvings = max_halvings;
   DynamicsStepper stepper(model, options);
   const CaseDrive drive(model, w.scene.cases[0]);
   const std::vector<char>& held = HeldDofs(model);
@@ -89,7 +94,7 @@ void CheckStateSensitivities(const std::string& integrator) {
   };
   DynamicState s = stepper.AtRest(model.StraightState());
   s.v = free_random(0.3);
-  for (int k = 0; k < 20; ++k) ASSERT_TRUE(stepper.Step(drive, &s).ok);
+  for (int k = 0; k < 20 * 2e-3 / time_step; ++k) ASSERT_TRUE(stepper.Step(drive, &s).ok);
   // The perturbation, and the sensitivities that carry it (no parameter moves).
   const VecX dq = free_random(1e-2), dv = free_random(1.0), dls = free_random(1e-3),
              dlv = free_random(1.0);
@@ -112,13 +117,20 @@ void CheckStateSensitivities(const std::string& integrator) {
     plus.last_v += eps * dlv;
     minus.last_v -= eps * dlv;
   }
+  if (halved) *halved = 0;
   for (int k = 0; k < 25; ++k) {
     const DynamicState before = s;
-    ASSERT_TRUE(stepper.Step(drive, &s).ok);
+    const DynamicsStepSummary step = stepper.Step(drive, &s);
+    ASSERT_TRUE(step.ok) << step.reason;
     std::string why;
     ASSERT_TRUE(stepper.StepSensitivity(drive, before, s, {ParameterDirection()}, &ds, &why)) << why;
-    ASSERT_TRUE(stepper.Step(drive, &plus).ok);
-    ASSERT_TRUE(stepper.Step(drive, &minus).ok);
+    const DynamicsStepSummary step_plus = stepper.Step(drive, &plus);
+    const DynamicsStepSummary step_minus = stepper.Step(drive, &minus);
+    ASSERT_TRUE(step_plus.ok && step_minus.ok);
+    // The differences compare like with like only when the neighbours were halved alike.
+    ASSERT_EQ(step_plus.substeps, step.substeps) << "step " << k;
+    ASSERT_EQ(step_minus.substeps, step.substeps) << "step " << k;
+    if (halved && step.substeps > 1) ++*halved;
   }
   double worst_x = 0.0, largest_x = 0.0, worst_t = 0.0, largest_t = 0.0;
   for (int i = 1; i <= model.num_edges(); ++i) {
@@ -150,6 +162,57 @@ TEST(DynamicsSensitivity, Bdf2CarriesAStatePerturbationLikeTheStepper) {
 
 TEST(DynamicsSensitivity, BackwardEulerCarriesAStatePerturbationLikeTheStepper) {
   CheckStateSensitivities("backward_euler");
+}
+
+// A step whose Newton iterations do not converge is taken in halves (DynamicsOptions::
+// max_halvings); its sensitivities follow the substeps, BDF2's included (whose first substep
+// after a change of step is backward Euler's). 10 ms steps of the whip, with a budget of 6
+// Newton iterations at the tolerance above: most steps need more, and are halved.
+TEST(DynamicsSensitivity, HalvedStepsCarryAStatePerturbationLikeTheStepper) {
+  for (const std::string integrator : {"bdf2", "backward_euler"}) {
+    SCOPED_TRACE(integrator);
+    int halved = 0;
+    CheckStateSensitivities(integrator, 1e-2, 6, 8, &halved);
+    std::printf("%s: %d of 25 steps halved\n", integrator.c_str(), halved);
+    EXPECT_GT(halved, 0);
+  }
+}
+
+// Without halving the same steps fail and say so; with it they cover the step exactly.
+TEST(DynamicsSensitivity, HalvingCoversTheStepOrFailsAsBefore) {
+  const Whip w = WhippedCantilever("bdf2");
+  const RodModel model(w.scene.rod, w.scene.material, w.scene.gravity, CaseAtStart(w.load_case));
+  DynamicsOptions options;
+  options.time_step = 1e-2;
+  options.integrator = Integrator::kBdf2;
+  options.residual_tolerance = 1e-14;
+  options.step_tolerance = 1e-16;
+  options.max_newton_iterations = 6;
+  const CaseDrive drive(model, w.scene.cases[0]);
+  DynamicsStepper plain(model, options);
+  DynamicState a = plain.AtRest(model.StraightState());
+  a.v.setConstant(model.num_free_dofs(), 0.3);
+  const DynamicState start = a;
+  DynamicsStepSummary r;
+  int k = 0;
+  for (; k < 25 && (r = plain.Step(drive, &a)).ok; ++k) {
+  }
+  ASSERT_LT(k, 25) << "the setting needs no halving";
+  EXPECT_NE(r.reason.find("did not converge"), std::string::npos) << r.reason;
+  options.max_halvings = 8;
+  DynamicsStepper halving(model, options);
+  DynamicState b = start;
+  for (int j = 0; j <= k; ++j) {
+    const double t = b.t;
+    r = halving.Step(drive, &b);
+    ASSERT_TRUE(r.ok) << r.reason;
+    EXPECT_DOUBLE_EQ(b.t, t + 1e-2);
+  }
+  EXPECT_GT(r.substeps, 1);
+  // The history after a halved step is its last substep's: the next full step starts again
+  // with backward Euler, as BDF2 does at its first step.
+  EXPECT_LT(b.last_dt, 0.75e-2);
+  EXPECT_TRUE(b.has_history);
 }
 
 TEST(DynamicsSensitivity, DirectionsFollowTheConstantsAParameterMoves) {

@@ -158,12 +158,18 @@ struct InitialMotion {
 };
 
 /// Time stepping of a scene (`dynamics:`): every case is integrated from its initial state.
+/// Most halvings of an implicit step (DynamicsSpec::max_halvings): 2^20 substeps.
+inline constexpr int kMaxStepHalvings = 20;
+
 struct DynamicsSpec {
   double time_step = 1e-3;      ///< [s]
   double duration = 1.0;        ///< [s]
   std::string integrator = "bdf2";  ///< explicit | backward_euler | midpoint | bdf2
   int output_every = 1;         ///< write every this many steps
   bool substep = false;         ///< explicit: substep a time_step above the stable step
+  /// Implicit: a step whose Newton iterations do not converge is retried in halves, down to
+  /// time_step / 2^max_halvings (DynamicsOptions::max_halvings); 0: it fails.
+  int max_halvings = 4;
 };
 
 /// One quasi-static load case: the rod clamped and loaded, solved to equilibrium.

@@ -43,6 +43,7 @@ struct CaseTrajectory {
   std::vector<double> s;              ///< [m] the vertices' arc lengths
   std::vector<TrajectoryFrame> frames;
   int steps = 0;
+  int halved_steps = 0;               ///< implicit: steps taken in halves (max_halvings)
   int newton_iterations = 0;          ///< implicit: in all
   double stable_step = 0.0;           ///< explicit: the stable step at the start [s]
   double seconds = 0.0;               ///< wall time of the integration

@@ -28,13 +28,21 @@
 // HeldPose given per time by a Drive. Dirichlet rows keep them where the pose puts them.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "rodfit/model/rod.h"
 
 namespace rodfit {
+
+/// Two step lengths [s] that are the same step, within round-off (BDF2's history applies).
+inline bool SameStep(double a, double b) {
+  return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b));
+}
 
 /// The scheme in time (DynamicsSpec::integrator names it).
 enum class Integrator { kExplicit, kBackwardEuler, kMidpoint, kBdf2 };
@@ -56,7 +64,12 @@ struct DynamicsOptions {
   /// energy grows by more than the work done on the rod could explain).
   int stability_check_every = 50;
   /// Implicit: Newton iterations per step before the step counts as failed.
-  int max_newton_iterations = 25;
+  int max_newton_iterations = 50;
+  /// Implicit: a step whose Newton iterations do not converge is retried as two half steps,
+  /// each of which may be halved again, down to time_step / 2^max_halvings (a driven rod
+  /// whose held points jump far in one step leaves Newton's basin); 0: the step fails. A
+  /// halved step's sensitivities follow its substeps (StepSensitivity).
+  int max_halvings = 0;
   /// Implicit: converged when the scaled residual (ScaledGradientNorm) is below this times the
   /// larger of the case's load scale and its inertial forces, or when a Newton step moves no
   /// vertex by more than step_tolerance L (and no twist angle by more than that in radians).
@@ -95,6 +108,7 @@ struct DynamicState {
   /// step; a state without it starts with a backward Euler step).
   VecX last_step, last_v;
   bool has_history = false;
+  double last_dt = 0.0;  ///< [s] the step of that history (BDF2 uses it only at the same step)
 };
 
 /// A direction in the log of the constants the dynamics read (sensitivities): how much the log of
@@ -123,7 +137,7 @@ struct DynamicSensitivity {
 struct DynamicsStepSummary {
   bool ok = false;
   int newton_iterations = 0;  ///< implicit: Newton iterations in this step
-  int substeps = 1;           ///< explicit with substep: substeps taken
+  int substeps = 1;           ///< substeps taken (explicit with substep; implicit halved)
   double residual = 0.0;      ///< implicit: scaled residual at exit [N]
   std::string reason;         ///< why a step failed
 };
@@ -153,11 +167,13 @@ class DynamicsStepper {
   DynamicState AtRest(const RodState& q) const;
 
   /// One step of options().time_step from s->t. On failure *s is unchanged and the summary says
-  /// why (explicit: the step is above the stable step; implicit: Newton did not converge).
+  /// why (explicit: the step is above the stable step; implicit: Newton did not converge, in
+  /// the smallest substep when max_halvings allows halving).
   DynamicsStepSummary Step(const Drive& drive, DynamicState* s);
 
   /// Forward sensitivities through the step just taken from `before` to `after` (docs/solvers.md,
-  /// "Sensitivities in time"): the step's stationarity g(q_n+1; q_n, v_n, history, p) = 0 is
+  /// "Sensitivities in time"; through each substep when the step was halved): the step's
+  /// stationarity g(q_n+1; q_n, v_n, history, p) = 0 is
   /// differentiated, dq_n+1/dp = -H^-1 (dg/dp + dg/dq_n dq_n/dp + dg/d(history) d(history)/dp),
   /// with H = K(q_n+1) + a M + c C(q_n) the Newton matrix at the solution (assembled and
   /// factored here: the step's own factor may be a chord iteration's older one). Backward Euler
@@ -184,7 +200,14 @@ class DynamicsStepper {
 
  private:
   DynamicsStepSummary StepExplicit(const Drive& drive, double dt, DynamicState* s);
-  DynamicsStepSummary StepImplicit(const Drive& drive, DynamicState* s);
+  DynamicsStepSummary StepImplicit(const Drive& drive, double dt, DynamicState* s);
+  /// Covers dt from s->t by one implicit step, or by halves of it down to `depth` halvings;
+  /// each substep's start and step are appended to substeps_. On failure *s is partly advanced.
+  bool StepHalving(const Drive& drive, double dt, int depth, DynamicState* s,
+                   DynamicsStepSummary* summary);
+  bool OneStepSensitivity(const Drive& drive, double dt, const DynamicState& before,
+                          const DynamicState& after, const std::vector<ParameterDirection>& directions,
+                          DynamicSensitivity* ds, std::string* why);
   /// Gradient of Pi at q plus the pose's extra tip loads' (held rows zeroed).
   void Forces(const RodState& q, const HeldPose& pose, VecX* g);
   /// The damping matrix C (external drag and internal viscosities) at q into the scratch band `damping`.
@@ -203,7 +226,7 @@ class DynamicsStepper {
   // Scratch.
   HeldPose pose_, pose_mid_;
   RodState trial_, prev_;
-  VecX g_, step_, delta_, delta0_, force_, cv_, cd_, y_, z_;
+  VecX g_, g_trial_, step_, delta_, delta0_, force_, cv_, cd_, y_, z_;
   // The frames, the band matrices and their factor: internal types (dynamics.cc).
   struct Scratch;
   std::unique_ptr<Scratch> scratch_;
@@ -211,6 +234,10 @@ class DynamicsStepper {
   double force_time_ = -1.0;
   double stable_dt_ = 0.0;
   int steps_since_check_ = 0;
+  // The last implicit step's substeps when it was halved (empty otherwise): their starts and
+  // steps, and the time it ended at.
+  std::vector<std::pair<DynamicState, double>> substeps_;
+  double substeps_end_ = 0.0;
 };
 
 }  // namespace rodfit

@@ -42,6 +42,7 @@ struct RolloutResult {
   double mae_predicted = 0.0;  ///< [m] the same over the markers not driven
   int samples = 0;             ///< marker samples compared (present in the recording)
   double seconds = 0.0;        ///< wall time of the integration
+  int halved_steps = 0;        ///< steps whose Newton needed halves (dynamics.max_halvings)
 };
 
 /// The twist damping a rollout uses when the scene gives none: bending's retardation time

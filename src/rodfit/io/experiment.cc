@@ -1021,7 +1021,7 @@ constexpr double kMaxDynamicSteps = 1e8;
 
 DynamicsSpec ReadDynamics(const Reader& r, const Field& f) {
   const Entries m =
-      r.Map(f, {"time_step", "duration", "integrator", "output_every", "substep"});
+      r.Map(f, {"time_step", "duration", "integrator", "output_every", "substep", "max_halvings"});
   DynamicsSpec d;
   const Field& dt = r.Require(m, f, "time_step");
   d.time_step = r.InRange(dt, 1e-12, 10.0);
@@ -1045,6 +1045,13 @@ DynamicsSpec ReadDynamics(const Reader& r, const Field& f) {
   }
   if (const Field* sub = Reader::Find(m, "substep")) d.substep = r.Bool(*sub);
   if (d.substep && d.integrator != "explicit") r.Fail(*Reader::Find(m, "substep"), "is for the explicit integrator only");
+  if (const Field* halvings = Reader::Find(m, "max_halvings")) {
+    if (d.integrator == "explicit") r.Fail(*halvings, "is for the implicit integrators only");
+    d.max_halvings = r.Integer(*halvings);
+    if (d.max_halvings < 0 || d.max_halvings > kMaxStepHalvings)
+      r.Fail(*halvings, "must be in [0, " + std::to_string(kMaxStepHalvings) + "], got " +
+                            std::to_string(d.max_halvings));
+  }
   return d;
 }
 

@@ -198,6 +198,7 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
   DynamicsOptions options;
   options.time_step = spec.time_step;
   options.substep = spec.substep;
+  options.max_halvings = spec.max_halvings;
   if (!ParseIntegrator(spec.integrator, &options.integrator))
     throw std::invalid_argument("unknown integrator " + spec.integrator);
   DynamicsStepper stepper(model, options);
@@ -264,6 +265,7 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
       break;
     }
     ++out.steps;
+    if (r.substeps > 1) ++out.halved_steps;
     out.newton_iterations += r.newton_iterations;
     if ((k + 1) % spec.output_every == 0 || k + 1 == steps) record(spec.time_step);
     if (progress) progress(s.t);
@@ -305,6 +307,7 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
   DynamicsOptions options;
   options.time_step = spec.time_step;
   options.substep = spec.substep;
+  options.max_halvings = spec.max_halvings;
   if (!ParseIntegrator(spec.integrator, &options.integrator))
     throw std::invalid_argument("unknown integrator " + spec.integrator);
   DynamicsStepper stepper(model, options);

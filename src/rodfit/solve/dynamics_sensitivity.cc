@@ -171,6 +171,22 @@ bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& be
                                       const DynamicState& after,
                                       const std::vector<ParameterDirection>& directions,
                                       DynamicSensitivity* ds, std::string* why) {
+  // A halved step: through each of its substeps, in order.
+  if (!substeps_.empty() && substeps_.front().first.t == before.t && substeps_end_ == after.t) {
+    for (size_t k = 0; k < substeps_.size(); ++k) {
+      const DynamicState& end = k + 1 < substeps_.size() ? substeps_[k + 1].first : after;
+      if (!OneStepSensitivity(drive, substeps_[k].second, substeps_[k].first, end, directions, ds, why))
+        return false;
+    }
+    return true;
+  }
+  return OneStepSensitivity(drive, options_.time_step, before, after, directions, ds, why);
+}
+
+bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const DynamicState& before,
+                                         const DynamicState& after,
+                                         const std::vector<ParameterDirection>& directions,
+                                         DynamicSensitivity* ds, std::string* why) {
   const int N = model_.num_free_dofs();
   const int m = static_cast<int>(directions.size());
   if (options_.integrator != Integrator::kBackwardEuler && options_.integrator != Integrator::kBdf2) {
@@ -189,9 +205,9 @@ bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& be
   }
   if (ds->dv.rows() != N || ds->dv.cols() != m) ds->dv.setZero(N, m);
   // The coefficients and offsets StepImplicit used (its first BDF2 step is backward Euler's).
-  const double dt = options_.time_step;
   const bool bdf2 = options_.integrator == Integrator::kBdf2 && before.has_history &&
-                    before.last_step.size() == N && before.last_v.size() == N;
+                    before.last_step.size() == N && before.last_v.size() == N &&
+                    SameStep(before.last_dt, dt);
   if (bdf2 && (ds->dlast_step.rows() != N || ds->dlast_step.cols() != m ||
                ds->dlast_v.rows() != N || ds->dlast_v.cols() != m)) {
     *why = "the sensitivities lack the BDF2 history the state has (follow every step)";

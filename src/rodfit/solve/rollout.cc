@@ -250,6 +250,7 @@ RolloutResult Rollout(const Scene& scene, double frame_interval,
   const int M = static_cast<int>(frames[0].cols());
   const CaseTrajectory traj = SimulateCaseDynamics(problem.scene, 0, statics);
   out.seconds = traj.seconds;
+  out.halved_steps = traj.halved_steps;
   out.ok = traj.ok;
   out.reason = traj.reason;
   for (size_t k = 0; k < traj.frames.size() && k < frames.size(); ++k) {
@@ -279,6 +280,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
   DynamicsOptions dyn;
   dyn.time_step = spec.time_step;
   dyn.substep = spec.substep;
+  dyn.max_halvings = spec.max_halvings;
   if (!ParseIntegrator(spec.integrator, &dyn.integrator))
     throw std::invalid_argument("unknown integrator " + spec.integrator);
   DynamicsStepper stepper(model, dyn);
@@ -313,6 +315,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
       out.reason = "t = " + std::to_string(s.t) + " s: " + r.reason;
       break;
     }
+    if (r.substeps > 1) ++out.halved_steps;
     std::string why;
     if (!stepper.StepSensitivity(drive, before, s, directions, &ds, &why)) {
       out.reason = "t = " + std::to_string(s.t) + " s: " + why;
