@@ -299,6 +299,62 @@ TEST(Dynamics, SlowDriveReproducesTheStaticsSolver) {
   EXPECT_LT(worst, 1e-6 * suture.rod.length);
 }
 
+// A point force of the pose (a tool pushing the rod between two vertices, as the runtime's
+// dynamic poke applies it) settles, with damping, in the statics' equilibrium under the same
+// dead force at that arc length (LoadCase::point_forces), for BDF2 and the explicit integrator.
+TEST(Dynamics, PointForceOfThePoseSettlesInTheStaticsEquilibrium) {
+  Suture suture(20);
+  const double omega = suture.Omega(0);
+  suture.material.damping = 2.0 * 0.7 * suture.rod.linear_density * omega;
+  const Vec3 gravity(0, 0, -9.81);
+  const double s_point = 0.37 * suture.rod.length;  // between vertices 7 and 8
+  const Vec3 force(0.0, 2e-4, 1e-4);                // [N], of the order of the rod's weight
+  LoadCase pushed = suture.load_case;
+  pushed.point_forces.push_back({s_point, force});
+  const RodModel statics_model(suture.rod, suture.material, gravity, pushed);
+  RodState expected = statics_model.StraightState();
+  ASSERT_TRUE(SolveStatics(statics_model, StaticsOptions(), &expected).converged);
+  const RodModel model(suture.rod, suture.material, gravity, suture.load_case);
+  struct Push : Drive {
+    Vec3 force;
+    int vertex = 0;
+    double weight = 0.0;
+    void PoseAt(const RodModel& m, double t, HeldPose* pose) const override {
+      Drive::PoseAt(m, t, pose);
+      pose->point_force = force;
+      pose->point_vertex = vertex;
+      pose->point_weight = weight;
+    }
+  } push;
+  push.force = force;
+  const double edge = suture.rod.length / 20;
+  push.vertex = static_cast<int>(s_point / edge);
+  push.weight = s_point / edge - push.vertex;
+  for (const Integrator integrator : {Integrator::kBdf2, Integrator::kExplicit}) {
+    SCOPED_TRACE(IntegratorName(integrator));
+    DynamicsOptions options;
+    options.integrator = integrator;
+    options.substep = true;
+    options.time_step = 2e-3;
+    DynamicsStepper stepper(model, options);
+    RodState start = model.StraightState();
+    ASSERT_TRUE(SolveStatics(model, StaticsOptions(), &start).converged);
+    DynamicState s = stepper.AtRest(start);
+    const int steps = static_cast<int>(40.0 / omega / options.time_step);
+    for (int k = 0; k < steps; ++k) {
+      const DynamicsStepSummary r = stepper.Step(push, &s);
+      ASSERT_TRUE(r.ok) << r.reason << " at t = " << s.t;
+    }
+    double worst = 0.0, moved = 0.0;
+    for (int i = 0; i <= model.num_edges(); ++i) {
+      worst = std::max(worst, (s.q.x.col(i) - expected.x.col(i)).norm());
+      moved = std::max(moved, (start.x.col(i) - expected.x.col(i)).norm());
+    }
+    EXPECT_GT(moved, 1e-3 * suture.rod.length);  // the force moves the rod visibly
+    EXPECT_LT(worst, 1e-6 * suture.rod.length);
+  }
+}
+
 TEST(Dynamics, RefusesARodWithoutMassAndExplicitWithoutRadius) {
   Suture suture(10);
   suture.rod.linear_density = 0.0;

@@ -89,6 +89,12 @@ struct HeldPose {
   Vec3 end_d1 = Vec3::UnitZ();            ///< end clamp with a held normal only
   Vec3 tip_force = Vec3::Zero();          ///< [N] added to the case's (dead, at s = L)
   Vec3 tip_moment = Vec3::Zero();         ///< [N m] added at s = L (dead, world components)
+  /// A dead force [N] at a point between vertices point_vertex and point_vertex + 1, shared
+  /// (1 - point_weight, point_weight): a tool pushing the rod (the runtime's poke). None when
+  /// point_vertex < 0.
+  Vec3 point_force = Vec3::Zero();
+  int point_vertex = -1;
+  double point_weight = 0.0;
 };
 
 /// The pose of the held boundary over time. The default holds the model's own targets.

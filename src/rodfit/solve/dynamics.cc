@@ -71,6 +71,8 @@ void Drive::PoseAt(const RodModel& model, double /*t*/, HeldPose* pose) const {
   }
   pose->tip_force.setZero();
   pose->tip_moment.setZero();
+  pose->point_force.setZero();
+  pose->point_vertex = -1;
 }
 
 namespace {
@@ -86,6 +88,9 @@ void MidPose(const HeldPose& a, const HeldPose& b, HeldPose* m) {
   m->end_tangent = (a.end_tangent.normalized() + b.end_tangent.normalized()).normalized();
   m->end_d1 = a.end_d1 + b.end_d1;
   m->tip_force = 0.5 * (a.tip_force + b.tip_force);
+  m->point_force = 0.5 * (a.point_force + b.point_force);
+  m->point_vertex = b.point_vertex;
+  m->point_weight = b.point_weight;
   m->tip_moment = 0.5 * (a.tip_moment + b.tip_moment);
 }
 
@@ -214,12 +219,36 @@ bool DynamicsStepper::Advance(const RodState& q, const VecX& dx, const HeldPose&
   return UpdateReferenceFrames(model_, q, out);
 }
 
+namespace {
+
+// The pose's point force on the rows of its two vertices, subtracted from a gradient (vertex
+// 0 is the clamp's: no rows; held rows are zeroed by the caller).
+void AddPointForce(const HeldPose& pose, VecX* g) {
+  if (pose.point_vertex < 0 || pose.point_force.squaredNorm() == 0.0) return;
+  for (int k = 0; k < 2; ++k) {
+    const int i = pose.point_vertex + k;
+    const double w = k == 0 ? 1.0 - pose.point_weight : pose.point_weight;
+    if (i >= 1) g->segment<3>(RodModel::VertexDof(i)) -= w * pose.point_force;
+  }
+}
+
+// The point force's potential -f . x(s) at a state.
+double PointForcePotential(const HeldPose& pose, const RodState& q) {
+  if (pose.point_vertex < 0 || pose.point_force.squaredNorm() == 0.0) return 0.0;
+  const double w = pose.point_weight;
+  return -pose.point_force.dot((1.0 - w) * q.x.col(pose.point_vertex) +
+                               w * q.x.col(pose.point_vertex + 1));
+}
+
+}  // namespace
+
 void DynamicsStepper::Forces(const RodState& q, const HeldPose& pose, VecX* g) {
   const int n = model_.num_edges();
   ComputeRodFrames(model_, q, &scratch_->frames);
   AssembleGradient(model_, q, EnergyTerms(), g, &scratch_->frames);
   if (model_.nonconservative()) AddMomentLoads(model_, q, scratch_->frames, 1.0, g, nullptr);
   if (pose.tip_force.squaredNorm() > 0.0) g->segment<3>(RodModel::VertexDof(n)) -= pose.tip_force;
+  AddPointForce(pose, g);
   if (pose.tip_moment.squaredNorm() > 0.0) {
     EdgeMoment em;
     em.edge = n - 1;
@@ -454,6 +483,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
     Delta(q0, state, &delta_);
     double e = PotentialEnergyFreshFrames(model_, state, EnergyTerms(), &frames);
     e -= pose->tip_force.dot(state.x.col(n));
+    e += PointForcePotential(*pose, state);
     VecX& r = cv_;
     r = delta_ - y_;
     delta0_ = delta_ - z_;
@@ -474,6 +504,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   auto AddLoads = [&](const RodState& state, const RodFrames& frames, VecX* g) {
     if (model_.nonconservative()) AddMomentLoads(model_, state, frames, 1.0, g, nullptr);
     if (pose->tip_force.squaredNorm() > 0.0) g->segment<3>(RodModel::VertexDof(n)) -= pose->tip_force;
+    AddPointForce(*pose, g);
     if (pose->tip_moment.squaredNorm() > 0.0) {
       EdgeMoment em;
       em.edge = n - 1;
