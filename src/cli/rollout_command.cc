@@ -69,6 +69,10 @@ int RunRollout(int argc, char** argv) {
   app.add_option("--held", held_text, "driven markers, comma separated; negative from the last (default 0,1,-2,-1)");
   app.add_option("--initial", initial, "equilibrium (default) or markers: the start shape")
       ->check(CLI::IsMember({"equilibrium", "markers"}));
+  std::string parameters_path;
+  app.add_option("--parameters", parameters_path,
+                 "a motion_fit.json of rollout --fit on other recordings of the rod: its values "
+                 "replace the scene's (with --fit: the start)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -101,6 +105,12 @@ int RunRollout(int argc, char** argv) {
     }
   }
   rodfit::Scene scene = experiment.scene;
+  if (!parameters_path.empty()) {
+    for (const auto& [name, value] : rodfit::ReadMotionFitValues(parameters_path)) {
+      rodfit::SetMotionParameter(name, value, &scene);
+      std::printf("%s = %.6g from %s\n", name.c_str(), value, parameters_path.c_str());
+    }
+  }
   // Before the fit, so its sensitivities see the twist damping as the constant it is.
   if (rodfit::DefaultTwistDamping(&scene.material))
     std::printf("twist_damping not given: %.4g N m^2 s, bending's retardation time (bend_damping / "
@@ -236,7 +246,8 @@ int RunRollout(int argc, char** argv) {
                 << "(Newton did not converge at dynamics.time_step; dynamics.max_halvings)\n";
   }
   rodfit::StagedDirectory out(output_dir);
-  const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
+  std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
+  if (!parameters_path.empty()) inputs.emplace_back(parameters_path, "--parameters");
   out.Write("rollout.csv", csv, "output file name");
   rodfit::RefuseOverwritingInput(out.FinalPath("rollout.csv"), inputs);
   if (!fit_json.empty()) {

@@ -393,6 +393,41 @@ TEST(Rollout, PredictsARecordingMadeBySimulate) {
   EXPECT_EQ(run.status, 1);
   EXPECT_THAT(run.err, HasSubstr("--fit did not converge: stopped at max_evaluations"));
   EXPECT_FALSE(std::ifstream(dir.File("n/motion_fit.json")).good());
+  // --parameters: the values fitted to one recording carried to the rollout of another (here
+  // the same one, as a held-out recording of the rod would be): the same prediction as the fit's
+  // own rollout, and the file's mistakes said in one line naming it, its line and the key.
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("p")) + " --held 0,1,-1 --parameters " +
+                           Quote(dir.File("b/motion_fit.json")));
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_THAT(run.out, HasSubstr("damping = 0.0"));
+  {
+    std::ifstream fitted_in(dir.File("b/rollout.csv")), carried_in(dir.File("p/rollout.csv"));
+    const std::string fitted((std::istreambuf_iterator<char>(fitted_in)), std::istreambuf_iterator<char>());
+    const std::string carried((std::istreambuf_iterator<char>(carried_in)), std::istreambuf_iterator<char>());
+    EXPECT_FALSE(fitted.empty());
+    EXPECT_EQ(carried, fitted);
+  }
+  const struct {
+    std::string json, message;
+  } bad_files[] = {
+      {"{\"parameters\": ", "p.json: not JSON: "},
+      {"{\"converged\": true}", "p.json: parameters: a motion fit file has a parameters object"},
+      {"{\n  \"parameters\": {\n    \"length\": {\"value\": 1}\n  }\n}\n",
+       "p.json:3: parameters.length: not a parameter of the motion"},
+      {"{\n  \"parameters\": {\n    \"damping\": {\"value\": -1}\n  }\n}\n",
+       "p.json:3: parameters.damping.value: must be a number > 0"},
+  };
+  for (const auto& bad : bad_files) {
+    dir.Write("p.json", bad.json);
+    run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                             " -o " + Quote(dir.File("q")) + " --held 0,1,-1 --parameters " +
+                             Quote(dir.File("p.json")));
+    EXPECT_EQ(run.status, 1) << bad.message;
+    EXPECT_THAT(run.err, HasSubstr(bad.message));
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+  }
+  EXPECT_FALSE(std::ifstream(dir.File("q/rollout.csv")).good());
   // The derivative-free search it replaced, on request.
   run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
                            " -o " + Quote(dir.File("y")) + " --held 0,1,-1 --fit damping "

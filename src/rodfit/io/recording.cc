@@ -5,9 +5,14 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <stdexcept>
 
+#include <nlohmann/json.hpp>
+
+#include "rodfit/fit/motion_fit.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/model/scene.h"
 
 namespace rodfit {
 
@@ -275,6 +280,51 @@ void CheckRecordingScale(const MarkerRecording& recording, double rod_length,
                   span, rod_length, hint.c_str());
     throw InputError(recording.file, 0, "x", text);
   }
+}
+
+namespace {
+
+// The 1-based line of the first `"key"` at or after byte `from` of a JSON text (0: not found),
+// so that a message points at the entry.
+int JsonKeyLine(const std::string& text, const std::string& key, size_t from = 0) {
+  const size_t at = text.find("\"" + key + "\"", from);
+  if (at == std::string::npos) return 0;
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, double>> ReadMotionFitValues(const std::string& path) {
+  constexpr std::uintmax_t kMaxBytes = std::uintmax_t{1} << 20;  // a few parameters: 1 MiB is ample
+  const std::string text = ReadInputFile(path, "a motion fit file (motion_fit.json)", kMaxBytes);
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(path, 0, "", std::string("not JSON: ") + e.what());
+  }
+  const size_t params_at = text.find("\"parameters\"");
+  if (!doc.is_object() || !doc.contains("parameters") || !doc["parameters"].is_object() ||
+      doc["parameters"].empty())
+    throw InputError(path, JsonKeyLine(text, "parameters"), "parameters",
+                     "a motion fit file has a parameters object with each fitted value (written "
+                     "by rollout --fit)");
+  Scene probe;
+  std::vector<std::pair<std::string, double>> values;
+  for (const auto& [name, entry] : doc["parameters"].items()) {
+    const int line = JsonKeyLine(text, name, params_at == std::string::npos ? 0 : params_at);
+    try {
+      MotionParameter(name, probe);
+    } catch (const std::invalid_argument&) {
+      throw InputError(path, line, "parameters." + ClipForMessage(name),
+                       "not a parameter of the motion (bend_stiffness, damping, ...)");
+    }
+    if (!entry.is_object() || !entry.contains("value") || !entry["value"].is_number() ||
+        !(entry["value"].get<double>() > 0.0) || !std::isfinite(entry["value"].get<double>()))
+      throw InputError(path, line, "parameters." + name + ".value", "must be a number > 0");
+    values.emplace_back(name, entry["value"].get<double>());
+  }
+  return values;
 }
 
 }  // namespace rodfit

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -34,5 +35,12 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
 /// the first frame; metres read as millimetres), with the hint `hint` (e.g. the option that sets the unit).
 void CheckRecordingScale(const MarkerRecording& recording, double rod_length,
                          const std::string& hint);
+
+/// The fitted values of a `rollout --fit` result file (motion_fit.json, docs/cli.md,
+/// "rollout"): per parameter name, its `value` in SI units, in the file's order. Throws
+/// InputError naming the file, the line and the key for a file that cannot be read or is not
+/// JSON, no `parameters` object, a name MotionParameter does not know, or a value that is not a
+/// number > 0.
+std::vector<std::pair<std::string, double>> ReadMotionFitValues(const std::string& path);
 
 }  // namespace rodfit
