@@ -67,6 +67,23 @@ TEST(CsvTable, MissingColumnNamesFileAndColumn) {
   EXPECT_THAT(ErrorOf([&] { t.TextColumn("case"); }), HasSubstr("markers.csv: case: missing"));
 }
 
+// As motion-capture software and spreadsheets export them: capitalised headers are read;
+// a header separated by ';' or tabs is said as such rather than as missing columns.
+TEST(CsvTable, ColumnNamesInAnyCaseAndOtherSeparatorsSaid) {
+  const CsvTable t = CsvTable::Parse("Frame,Marker,X,Y,Z\n0,1,2,3,4\n", "mocap.csv");
+  EXPECT_THAT(t.Column("frame"), ElementsAre(0.0));
+  EXPECT_THAT(t.Column("x"), ElementsAre(2.0));
+  EXPECT_TRUE(t.HasColumn("marker"));
+  EXPECT_THAT(ErrorOf([] { CsvTable::Parse("x,X\n1,2\n", "m.csv"); }),
+              HasSubstr("m.csv:1: X: duplicate column name"));
+  EXPECT_THAT(ErrorOf([] { CsvTable::Parse("t;s;x;y;z\n0;0;0,1;0;0\n", "excel.csv"); }),
+              HasSubstr("excel.csv:1: the header is separated by ';': rodfit reads comma-separated"));
+  EXPECT_THAT(ErrorOf([] { CsvTable::Parse("t\ts\tx\n0\t0\t1\n", "tab.csv"); }),
+              HasSubstr("tab.csv:1: the header is separated by tabs"));
+  const CsvTable u = CsvTable::Parse("s,x,y\n0,1,2\n", "markers.csv");
+  EXPECT_THAT(ErrorOf([&] { u.Column("z"); }), HasSubstr("missing column (the header has s,x,y)"));
+}
+
 TEST(CsvTable, BadNumbersNameFileLineAndColumn) {
   const CsvTable t =
       CsvTable::Parse("s,x\n0,1\n\n0.1,abc\n0.2,nan\n0.3,-inf\n0.4,1.5x\n0.5,\n", "m.csv");

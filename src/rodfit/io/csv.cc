@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <cctype>
 #include <fstream>
 #include <sstream>
 #include <system_error>
@@ -20,6 +21,11 @@
 
 namespace rodfit {
 namespace {
+
+std::string Lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
 
 std::string Trim(const std::string& s) {
   const auto first = s.find_first_not_of(" \t");
@@ -163,12 +169,26 @@ CsvTable CsvTable::Parse(const std::string& text, const std::string& name) {
       }
     }
     if (!have_header) {
+      // A spreadsheet's export in a locale whose list separator is ';' (or a tab-separated
+      // file): one column whose name holds the separator. Said as such, not as the columns
+      // that are missing.
+      if (fields.size() == 1) {
+        const char* separator = fields[0].find(';') != std::string::npos    ? "';'"
+                                : fields[0].find('\t') != std::string::npos ? "tabs"
+                                                                            : nullptr;
+        if (separator)
+          throw InputError(name, line_number, "",
+                           std::string("the header is separated by ") + separator +
+                               ": rodfit reads comma-separated files with '.' as the decimal "
+                               "point (export as CSV with comma delimiters)");
+      }
       for (size_t c = 0; c < fields.size(); ++c) {
         if (fields[c].empty()) {
           throw InputError(name, line_number, "", "empty column name in the header");
         }
         for (size_t d = 0; d < c; ++d) {
-          if (fields[d] == fields[c]) {
+          // Column names match regardless of case (Index), so they must differ beyond it.
+          if (Lower(fields[d]) == Lower(fields[c])) {
             throw InputError(name, line_number, ClipForMessage(fields[c]),
                              "duplicate column name");
           }
@@ -194,16 +214,24 @@ CsvTable CsvTable::Parse(const std::string& text, const std::string& name) {
   return table;
 }
 
+// Motion-capture and spreadsheet exports often capitalise their headers (X, Y, Z, Frame): a
+// column is found by its name in any case (the header cannot hold two names that differ only
+// in case).
 int CsvTable::Index(const std::string& column) const {
+  const std::string wanted = Lower(column);
   for (size_t c = 0; c < header_.size(); ++c) {
-    if (header_[c] == column) return static_cast<int>(c);
+    if (Lower(header_[c]) == wanted) return static_cast<int>(c);
   }
   return -1;
 }
 
 int CsvTable::RequireIndex(const std::string& column) const {
   const int c = Index(column);
-  if (c < 0) throw InputError(name_, 0, column, "missing column");
+  if (c < 0) {
+    std::string have;
+    for (const std::string& h : header_) have += (have.empty() ? "" : ",") + h;
+    throw InputError(name_, 0, column, "missing column (the header has " + ClipForMessage(have, 120) + ")");
+  }
   return c;
 }
 
