@@ -1,13 +1,12 @@
 // A synthetic motion-capture sequence of the form the held-out lab data has: a 1 m cable held
 // at both ends by two grippers that move it, 12 markers at 100 Hz, with noise and dropped
-// samples (the rollout and motion-fit tests).
+// samples (the rollout and motion-fit tests, and bench_fit).
 #pragma once
 
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "rodfit/solve/case_dynamics.h"
 
@@ -70,7 +69,8 @@ inline std::vector<Eigen::Matrix3Xd> Recording(double seconds, double noise, dou
   c.drives = {left, right};
   s.cases = {c};
   const CaseTrajectory truth = SimulateCaseDynamics(s, 0, StaticsOptions());
-  EXPECT_TRUE(truth.ok) << truth.reason;
+  // No test framework here: the benchmarks build recordings too.
+  if (!truth.ok) throw std::runtime_error("the synthetic recording did not integrate: " + truth.reason);
   std::mt19937 rng(seed);
   std::normal_distribution<double> gauss(0.0, noise);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
