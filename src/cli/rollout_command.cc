@@ -35,7 +35,7 @@ int RunRollout(int argc, char** argv) {
   int max_evaluations = 150;
   double frame_rate = 0.0;
   app.add_option("scene", scene_path, "scene YAML with a dynamics: block (docs/formats.md)")->required();
-  app.add_option("recordings", recording_paths, "markers CSV(s): frame,marker,x,y,z or t,marker,x,y,z")->required();
+  app.add_option("recordings", recording_paths, "markers CSV(s): frame,marker,x,y,z or t,marker,x,y,z (or one row per frame: t,x0,y0,z0,x1,...)")->required();
   // What a motion sees: the rod's stiffness and damping rows of the parameter table, and the
   // rod's linear density (not a material row).
   std::string fittable;

@@ -77,6 +77,47 @@ TEST(Recording, NanAndEmptyFieldsAreSamplesNotSeen) {
   EXPECT_THAT(ErrorOf(twice), HasSubstr("given twice in one frame"));
 }
 
+// One row per frame, x0,y0,z0,x1,... (wide, as motion-capture software exports): the same
+// recording as the long form, capitalised headers and missing samples included.
+TEST(Recording, WideFormIsTheLongFormOneRowPerFrame) {
+  TempDir dir;
+  const std::string long_path = dir.Write("long.csv", Recording(5, kNoJitter, [](int k, int m) {
+    return k == 3 && m == 2 ? std::string("nan,nan,nan") : std::string();
+  }));
+  std::string wide = "Frame,X0,Y0,Z0,X1,Y1,Z1,X2,Y2,Z2,X3,Y3,Z3\n";
+  for (int k = 0; k < 5; ++k) {
+    wide += std::to_string(k);
+    for (int m = 0; m < 4; ++m) {
+      char p[128];
+      if (k == 3 && m == 2)
+        std::snprintf(p, sizeof(p), ",,,");
+      else
+        std::snprintf(p, sizeof(p), ",%.6f,%.6f,%.6f", 0.3 * m, 0.001 * k, -0.02 * m * m);
+      wide += p;
+    }
+    wide += "\n";
+  }
+  const std::string wide_path = dir.Write("wide.csv", wide);
+  const MarkerRecording a = ReadMarkerRecording(long_path, 0.0);
+  const MarkerRecording b = ReadMarkerRecording(wide_path, 100.0);
+  ASSERT_EQ(b.frames.size(), a.frames.size());
+  EXPECT_DOUBLE_EQ(b.frame_interval, a.frame_interval);
+  for (size_t k = 0; k < a.frames.size(); ++k) {
+    ASSERT_EQ(b.frames[k].cols(), 4);
+    for (int m = 0; m < 4; ++m) {
+      EXPECT_EQ(b.frames[k].col(m).allFinite(), a.frames[k].col(m).allFinite());
+      if (a.frames[k].col(m).allFinite()) EXPECT_EQ(b.frames[k].col(m), a.frames[k].col(m));
+    }
+  }
+  // A marker without its z, a frame given twice and a bad number, each at its line and column.
+  const std::string no_z = dir.Write("nz.csv", "t,x0,y0,z0,x1,y1\n0,0,0,0,1,0\n");
+  EXPECT_THAT(ErrorOf(no_z), HasSubstr("nz.csv: z1: missing column"));
+  const std::string twice = dir.Write("tw.csv", "frame,x0,y0,z0\n0,0,0,0\n0,1,0,0\n");
+  EXPECT_THAT(ErrorOf(twice, 100.0), HasSubstr("tw.csv:3: frame: this frame is given twice"));
+  const std::string bad = dir.Write("bd.csv", "frame,x0,y0,z0\n0,0,0,0\n1,0,q,0\n");
+  EXPECT_THAT(ErrorOf(bad, 100.0), HasSubstr("bd.csv:3: y0: not a number: 'q'"));
+}
+
 TEST(Recording, JitteredTimesAreTakenAtTheirNominalFrames) {
   TempDir dir;
   // 0.3 ms of jitter at 100 Hz, alternating, as a mocap clock might stamp frames.

@@ -201,9 +201,22 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
   if (!by_frame && !table.HasColumn("t"))
     throw InputError(path, 1, "frame", "needs a frame column (with --frame-rate) or a t column");
   const std::vector<double> key = table.Column(by_frame ? "frame" : "t");
-  const std::vector<double> marker = table.Column("marker");
-  const std::vector<std::string> text[3] = {table.TextColumn("x"), table.TextColumn("y"),
-                                            table.TextColumn("z")};
+  // Wide (one row per frame, as motion-capture software exports): x0,y0,z0,x1,y1,z1,... with
+  // no marker column. Long: one row per marker and frame.
+  const bool wide = !table.HasColumn("marker") && table.HasColumn("x0");
+  std::vector<std::vector<std::string>> wide_text;  // per marker: x, y, z columns
+  if (wide) {
+    for (int m = 0; table.HasColumn("x" + std::to_string(m)); ++m) {
+      if (m >= kMaxMarkers) throw InputError(path, 1, "x" + std::to_string(m), "more than 10000 markers");
+      for (const char* axis : {"x", "y", "z"})
+        wide_text.push_back(table.TextColumn(axis + std::to_string(m)));
+    }
+  }
+  const std::vector<double> marker = wide ? std::vector<double>() : table.Column("marker");
+  const std::vector<std::string> text[3] = {
+      wide ? std::vector<std::string>() : table.TextColumn("x"),
+      wide ? std::vector<std::string>() : table.TextColumn("y"),
+      wide ? std::vector<std::string>() : table.TextColumn("z")};
   std::vector<long> frame_of(table.num_rows());
   int markers = 0;
   long frames = 0;
@@ -225,16 +238,30 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
     }
   }
   for (int r = 0; r < table.num_rows(); ++r) {
+    frames = std::max(frames, frame_of[r] + 1);
+    if (wide) continue;
     if (marker[r] != std::round(marker[r]) || marker[r] < 0 || marker[r] >= kMaxMarkers)
       throw InputError(path, table.line(r), "marker", "must be an integer in [0, 10000)");
     markers = std::max(markers, static_cast<int>(marker[r]) + 1);
-    frames = std::max(frames, frame_of[r] + 1);
   }
+  if (wide) markers = static_cast<int>(wide_text.size() / 3);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   rec.frames.assign(frames, Eigen::Matrix3Xd::Constant(3, markers, nan));
   std::vector<std::vector<char>> given(frames, std::vector<char>(markers, 0));
   static const char* const kAxis[3] = {"x", "y", "z"};
-  for (int r = 0; r < table.num_rows(); ++r) {
+  for (int r = 0; wide && r < table.num_rows(); ++r) {
+    if (given[frame_of[r]][0])
+      throw InputError(path, table.line(r), by_frame ? "frame" : "t", "this frame is given twice");
+    for (int m = 0; m < markers; ++m) {
+      given[frame_of[r]][m] = 1;
+      Eigen::Vector3d p;
+      for (int a = 0; a < 3; ++a)
+        p[a] = ParseCoordinate(wide_text[3 * m + a][r], path, table.line(r),
+                               kAxis[a] + std::to_string(m));
+      if (p.allFinite()) rec.frames[frame_of[r]].col(m) = position_scale * p;
+    }
+  }
+  for (int r = 0; !wide && r < table.num_rows(); ++r) {
     const int m = static_cast<int>(marker[r]);
     if (given[frame_of[r]][m])
       throw InputError(path, table.line(r), "marker", "this marker is given twice in one frame");
