@@ -29,11 +29,11 @@ Scene SceneAt(const Scene& scene, const std::vector<std::string>& names, const d
   return s;
 }
 
+struct SequencePlan;
+
 // Everything one evaluation of the fit reads, and the rollouts it has spent. The least-squares
 // residuals are laid out once (recordings: recording, frame >= 1, marker not driven and seen,
 // coordinate; sequences: SequencePlan): their number is the same at every parameter value.
-struct SequencePlan;
-
 struct Ctx {
   const Scene* scene = nullptr;
   const std::vector<MotionRecordingData>* recordings = nullptr;
@@ -242,9 +242,8 @@ std::vector<ParameterDirection> LogDirections(const Scene& scene,
   return directions;
 }
 
-// The start values and each parameter's direction in the model's constants, read off the scene
-// scaled by e in it (the same at every value: the constants scale with their parameters); the
-// start point x and the log-bounds.
+// The start values and each parameter's direction (LogDirections); the start point x and the
+// log-bounds.
 void SetUpParameters(const Scene& scene, const std::vector<std::string>& names,
                      const MotionFitOptions& fit_options, MotionFitResult* result, Ctx* ctx,
                      std::vector<double>* x, std::vector<double>* lo, std::vector<double>* hi) {

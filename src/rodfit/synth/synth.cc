@@ -257,7 +257,7 @@ std::string Synth3d(const EntryContext& ctx, const std::string& file, std::strin
   return markers ? FormatMarkersCsv(s, p) : FormatPoints3dCsv(p);
 }
 
-// The sample times of a markers3d sequence: every 1 / frame_rate, or every written frame of the
+// The sample times of a sequence: every 1 / frame_rate, or every written frame of the
 // dynamics (output_every steps), from 0 to dynamics.duration.
 std::vector<double> SequenceTimes(const ObservationSpec& spec, const DynamicsSpec& dynamics) {
   const double interval =
@@ -269,8 +269,8 @@ std::vector<double> SequenceTimes(const ObservationSpec& spec, const DynamicsSpe
   return t;
 }
 
-// A markers3d sequence of a moving case (docs/formats.md, "Marker sequences"): the case run from
-// its initial state, the markers' positions at every sample time with Gaussian noise of the
+// A markers3d sequence of a moving case (docs/formats.md, "Observation sequences"): the case run
+// from its initial state, the markers' positions at every sample time with Gaussian noise of the
 // entry's sigma, a fraction `drop` of the samples left empty (not seen). Rows time-major;
 // columns frame,s,x,y,z with the entry's frame_rate, else t,s,x,y,z.
 std::string SynthSequence(const EntryContext& ctx, const std::string& file, std::string* report) {
