@@ -147,8 +147,8 @@ TEST(SequenceFitCli, PixelsOfOneCameraRecoverBendingStiffnessAndDrag) {
   ASSERT_EQ(synth.status, 0) << synth.err;
   const std::string csv = ReadText(dir.File("data/swing_pixels.csv"));
   EXPECT_EQ(csv.rfind("frame,u,v\n", 0), 0u);
-  // 26 frames of 11 pixels (one per vertex, the default), all on the sensor; 10 % not seen.
-  const int samples = 26 * 11, seen = samples - 29;
+  // 26 frames of 10 pixels (one per edge, the default), all on the sensor; 10 % not seen.
+  const int samples = 26 * 10, seen = samples - 26;
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + samples);
   size_t missing = 0;
   for (size_t at = csv.find(",,\n"); at != std::string::npos; at = csv.find(",,\n", at + 1))

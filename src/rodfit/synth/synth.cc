@@ -146,6 +146,16 @@ std::vector<double> EvenlySpaced(int count, double total) {
   return t;
 }
 
+// Positions t_k = (k + 1/2) total / count: the middles of `count` equal parts of [0, total]. A
+// sequence's closest-point samples sit there: with the default count, one per edge, none lies on
+// a vertex or an end, where its foot would be that vertex and its residual would carry the noise
+// along the curve too (more than Observation::num_noise_residuals counts).
+std::vector<double> MiddlesOfParts(int count, double total) {
+  std::vector<double> t(count);
+  for (int k = 0; k < count; ++k) t[k] = total * (k + 0.5) / count;
+  return t;
+}
+
 // The point at 2-D arc length t along a polyline with cumulative lengths `cum`.
 Eigen::Vector2d AlongPolyline(const std::vector<Eigen::Vector2d>& p, const std::vector<double>& cum,
                               double t) {
@@ -317,17 +327,18 @@ std::string SynthSequence(const EntryContext& ctx, const std::string& file, std:
 }
 
 // The pixels an image_points entry's camera records of the shape ctx.shape: at the entry's `s`
-// (markers), else `count` (default: segments + 1) points evenly spaced along the projected
-// centre-line, both ends included. Noise is drawn for every sample, visible or not, so that the
-// draws do not depend on which samples the camera sees; then samples behind the camera or whose
-// true or measured pixel is off the sensor are left out.
+// (markers), else along the projected centre-line `count` points evenly spaced, both ends
+// included (default segments + 1), or for a sequence's frame at the middles of `count` equal
+// parts (MiddlesOfParts, default segments). Noise is drawn for every sample, visible or not, so
+// that the draws do not depend on which samples the camera sees; then samples behind the camera
+// or whose true or measured pixel is off the sensor are left out.
 struct PixelSamples {
   std::vector<Eigen::Vector2d> uv;  // [px] as measured
   std::vector<double> s;            // [m] per pixel, markers only
   int total = 0;                    // samples before those off the sensor were left out
 };
 
-PixelSamples SamplePixels(const EntryContext& ctx) {
+PixelSamples SamplePixels(const EntryContext& ctx, bool sequence_frame) {
   const Camera& camera = *ctx.camera;
   const bool with_s = !ctx.spec->s.empty();
   std::vector<double> s;
@@ -347,9 +358,11 @@ PixelSamples SamplePixels(const EntryContext& ctx) {
     for (size_t i = 1; i < vertices.size(); ++i) {
       cum[i] = cum[i - 1] + (vertices[i] - vertices[i - 1]).norm();
     }
+    const int segments = ctx.experiment->scene.rod.segments;
     const int count =
-        ctx.spec->count > 0 ? ctx.spec->count : ctx.experiment->scene.rod.segments + 1;
-    for (const double t : EvenlySpaced(count, cum.back())) {
+        ctx.spec->count > 0 ? ctx.spec->count : sequence_frame ? segments : segments + 1;
+    for (const double t : sequence_frame ? MiddlesOfParts(count, cum.back())
+                                         : EvenlySpaced(count, cum.back())) {
       uv.push_back(AlongPolyline(vertices, cum, t));
     }
     in_front.assign(uv.size(), true);
@@ -376,7 +389,7 @@ PixelSamples SamplePixels(const EntryContext& ctx) {
 std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
                              std::string* report) {
   const Camera& camera = *ctx.camera;
-  PixelSamples samples = SamplePixels(ctx);
+  PixelSamples samples = SamplePixels(ctx, /*sequence_frame=*/false);
   if (samples.uv.empty()) FailSeesNothing(ctx);
   // Tracking mistakes land anywhere on the sensor.
   const int outliers = ReplaceOutliers(
@@ -389,24 +402,19 @@ std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
 
 // A points3d or image_points sequence of a moving case (docs/formats.md, "Observation
 // sequences"): the case run from its initial state, and at every sample time (SequenceTimes) the
-// static entry's samples of the shape then — points3d `count` (default segments + 1) points
-// evenly spaced in s, image_points as SamplePixels (pixels off the sensor left out) — with
-// Gaussian noise of the entry's sigma and a fraction `drop` of the samples written empty (not
-// seen). Rows time-major; a frame column with the entry's frame_rate, else t.
+// samples of the shape then — points3d at the middles of `count` (default segments) equal parts
+// of [0, L] in s, image_points as SamplePixels (pixels off the sensor left out) — with Gaussian
+// noise of the entry's sigma and a fraction `drop` of the samples written empty (not seen). Rows
+// time-major; a frame column with the entry's frame_rate, else t.
 std::string SynthShapeSequence(const EntryContext& ctx, const std::string& file,
                                std::string* report) {
   const Scene& scene = ctx.experiment->scene;
   const std::vector<double> t = SequenceTimes(*ctx.spec, *scene.dynamics);
   const bool pixels = ctx.spec->type == "image_points";
   const bool with_s = pixels && !ctx.spec->s.empty();
-  const std::vector<double> s_points =
-      EvenlySpaced(ctx.spec->count > 0 ? ctx.spec->count : scene.rod.segments + 1,
-                   scene.rod.length);
-  const size_t per_frame = pixels ? (with_s ? ctx.spec->s.size()
-                                            : static_cast<size_t>(ctx.spec->count > 0
-                                                                      ? ctx.spec->count
-                                                                      : scene.rod.segments + 1))
-                                  : s_points.size();
+  const int count = ctx.spec->count > 0 ? ctx.spec->count : scene.rod.segments;
+  const std::vector<double> s_points = MiddlesOfParts(count, scene.rod.length);
+  const size_t per_frame = with_s ? ctx.spec->s.size() : static_cast<size_t>(count);
   if (per_frame * t.size() > static_cast<size_t>(kMaxCsvRows))
     ctx.Fail(std::to_string(per_frame * t.size()) + " samples (samples x times), above the limit "
              "of " + std::to_string(kMaxCsvRows) + " rows (lower frame_rate or count)");
@@ -430,7 +438,7 @@ std::string SynthShapeSequence(const EntryContext& ctx, const std::string& file,
     frame.shape = &shape;
     frame.when = " at t = " + FormatDouble(t[k]) + " s";
     if (pixels) {
-      const PixelSamples samples = SamplePixels(frame);
+      const PixelSamples samples = SamplePixels(frame, /*sequence_frame=*/true);
       total += samples.total;
       for (const Eigen::Vector2d& uv : samples.uv) values[k].emplace_back(uv.x(), uv.y(), 0.0);
       s_of[k] = samples.s;

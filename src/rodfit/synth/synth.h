@@ -90,7 +90,9 @@ struct SynthBundle {
 /// In a moving scene (a dynamics: block) the truth is each case's initial equilibrium, and
 /// markers3d, points3d and image_points entries are sequences (docs/formats.md, "Observation
 /// sequences"): the case run from its initial state and, at every 1 / frame_rate (a `frame`
-/// column) or every written frame (a `t` column), the samples above of the shape at that time,
+/// column) or every written frame (a `t` column), the samples above of the shape at that time
+/// (closest-point samples, points3d and image_points without s, at the middles of `count`,
+/// default segments, equal parts of the rod or its image instead: away from vertices and ends),
 /// with a fraction `drop` of them written empty (not seen); pixels off the sensor are left out
 /// (a camera that sees nothing at any time is an error).
 /// grasp_force also throws InputError for a case without a grasp, an entry whose s grasps
