@@ -10,6 +10,8 @@
 // Target: the 4-case recipe (50 segments, 2 parameters, 40 markers) in <= 0.1 s on one core.
 // BM_FitSequences: the motion fit of data/suture_swing_fit (bending stiffness and air drag from
 // 4 markers at 100 Hz over a 0.25 s swing, 10 edges, 100 BDF2 steps per run), from its starts.
+// BM_FitPixelSequences: the same fit to one camera's centre-line pixels instead (10 per frame at
+// 100 Hz, 0.5 px of noise; closest-point residuals).
 // Run: build/bench_fit [--benchmark_filter=...]; Release build.
 #include <algorithm>
 #include <cmath>
@@ -25,7 +27,9 @@
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/fit_input.h"
 #include "rodfit/io/marker_sequences.h"
+#include "rodfit/solve/case_dynamics.h"
 #include "rodfit/solve/statics.h"
+#include "rodfit/vision/camera_file.h"
 
 namespace rodfit {
 namespace {
@@ -218,6 +222,52 @@ void BM_FitSequences(benchmark::State& st) {
   st.counters["runs"] = r.evaluations;
 }
 BENCHMARK(BM_FitSequences)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The example's swing seen by tests/data/synth/cam_swing.yaml: the truth of protocol.yaml run
+// once in the setup, 10 pixels per frame (the middles of the edges' images) with Gaussian noise
+// of 0.5 px; every timed iteration fits from the example's starts.
+void BM_FitPixelSequences(benchmark::State& st) {
+  const std::string example = std::string(RODFIT_SOURCE_DIR) + "/data/suture_swing_fit/";
+  const std::string camera_file = std::string(RODFIT_SOURCE_DIR) + "/tests/data/synth/cam_swing.yaml";
+  if (!std::filesystem::is_regular_file(example + "protocol.yaml") ||
+      !std::filesystem::is_regular_file(camera_file)) {
+    st.SkipWithError(("no example at " + example).c_str());
+    return;
+  }
+  const Experiment truth = LoadExperiment(example + "protocol.yaml");
+  const Experiment experiment = LoadExperiment(example + "experiment.yaml");
+  const Camera camera = LoadCamera(camera_file);
+  const std::vector<double> arc = CaseVertexArcLengths(truth.scene, 0);
+  std::vector<double> t;
+  for (int k = 0; k <= 25; ++k) t.push_back(0.01 * k);
+  const CaseSamples run = SampleCaseDynamics(truth.scene, 0, truth.statics, arc, t, {});
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 0.5);
+  ObservationSequence seq;
+  for (size_t k = 0; k < run.x.size(); ++k) {
+    std::vector<Eigen::Vector2d> pixels;
+    for (size_t j = 0; j + 1 < arc.size(); ++j) {
+      Eigen::Vector2d uv;
+      Project(camera, Eigen::Vector3d(0.5 * (run.x[k].col(j) + run.x[k].col(j + 1))), &uv);
+      pixels.push_back(uv + Eigen::Vector2d(noise(rng), noise(rng)));
+    }
+    seq.frames.push_back({t[k],
+                          std::make_shared<ImageCurveObservation>(static_cast<int>(arc.size()),
+                                                                  camera, pixels, 0.5),
+                          {}});
+  }
+  const std::vector<std::string> names = FittedNames(experiment);
+  const MotionFitOptions options = SequenceFitOptionsOf(experiment, names);
+  MotionFitResult r;
+  for (auto _ : st) {
+    r = FitSequences(experiment.scene, {seq}, names, experiment.statics, options);
+    benchmark::DoNotOptimize(r.values.data());
+  }
+  if (!r.converged) st.SkipWithError(("the fit did not converge: " + r.message).c_str());
+  st.counters["iterations"] = r.iterations;
+  st.counters["runs"] = r.evaluations;
+}
+BENCHMARK(BM_FitPixelSequences)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace rodfit
