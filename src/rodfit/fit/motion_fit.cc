@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <limits>
 #include <stdexcept>
@@ -577,9 +578,10 @@ bool SequencesAt(const Scene& s, const SequencePlan& plan,
       const ObservationSequence::Frame& frame = sequences[q].frames[f];
       const Observation& obs = *frame.observation;
       if (!obs.Evaluate(run.x[at.time], &rf, J ? &jf : nullptr)) {
-        fail(s.cases[sequences[q].case_index].name + ": " + obs.type() + " at t = " +
-             std::to_string(frame.t) + " s: the rod cannot be observed (a point at or behind "
-             "the camera)");
+        char when[48];
+        std::snprintf(when, sizeof(when), " at t = %.9g s", frame.t);
+        fail(s.cases[sequences[q].case_index].name + ": " + obs.type() + when +
+             ": the rod cannot be observed (a point at or behind the camera)");
         continue;
       }
       r->segment(at.row, rf.size()) = rf;
