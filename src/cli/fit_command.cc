@@ -130,8 +130,9 @@ int FitStatus(const rodfit::FitResult& result, const rodfit::ResidualCheck& chec
 }
 
 // A moving experiment (a dynamics: block): its fit: true parameters, damping included, fitted
-// to its markers3d sequences by the motion fit (docs/cli.md, "fit"); the same outputs as the
-// static fit. The report's page has no per-case figures (no static shapes).
+// to its observation sequences (markers, points or pixels over time) by the motion fit
+// (docs/cli.md, "fit"); the same outputs as the static fit. The report's page has no per-case
+// figures (no static shapes).
 int RunSequenceFit(const rodfit::Experiment& experiment, const std::string& experiment_path,
                    const std::string& profile_path, const std::string& report_dir, bool quiet) {
   const rodfit::SequenceInput input = rodfit::BuildSequenceInput(experiment);

@@ -14,6 +14,8 @@
 // air drag of a 1 m cable from one 5 s recording of 12 markers at 100 Hz (500 frames, 1 mm
 // noise, 2 % dropped; two grippers moving it: solve/mocap_fixture.h), rolled out at the
 // protocol's 10 ms step on 44 edges, from starts 3x off. Target: a 500-frame fit under 10 s.
+// BM_FitPixelSequences: the same fit to one camera's centre-line pixels instead (10 per frame at
+// 100 Hz, 0.5 px of noise; closest-point residuals).
 // Run: build/bench_fit [--benchmark_filter=...]; Release build.
 #include <algorithm>
 #include <cmath>
@@ -30,8 +32,10 @@
 #include "rodfit/io/fit_input.h"
 #include "rodfit/io/marker_sequences.h"
 #include "rodfit/fit/motion_fit.h"
+#include "rodfit/solve/case_dynamics.h"
 #include "rodfit/solve/rollout.h"
 #include "rodfit/solve/statics.h"
+#include "rodfit/vision/camera_file.h"
 #include "solve/mocap_fixture.h"
 
 namespace rodfit {
@@ -249,6 +253,52 @@ void BM_FitRecording500Frames(benchmark::State& st) {
   st.counters["error_mm"] = 1e3 * r.error_fitted;
 }
 BENCHMARK(BM_FitRecording500Frames)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+
+// The example's swing seen by tests/data/synth/cam_swing.yaml: the truth of protocol.yaml run
+// once in the setup, 10 pixels per frame (the middles of the edges' images) with Gaussian noise
+// of 0.5 px; every timed iteration fits from the example's starts.
+void BM_FitPixelSequences(benchmark::State& st) {
+  const std::string example = std::string(RODFIT_SOURCE_DIR) + "/data/suture_swing_fit/";
+  const std::string camera_file = std::string(RODFIT_SOURCE_DIR) + "/tests/data/synth/cam_swing.yaml";
+  if (!std::filesystem::is_regular_file(example + "protocol.yaml") ||
+      !std::filesystem::is_regular_file(camera_file)) {
+    st.SkipWithError(("no example at " + example).c_str());
+    return;
+  }
+  const Experiment truth = LoadExperiment(example + "protocol.yaml");
+  const Experiment experiment = LoadExperiment(example + "experiment.yaml");
+  const Camera camera = LoadCamera(camera_file);
+  const std::vector<double> arc = CaseVertexArcLengths(truth.scene, 0);
+  std::vector<double> t;
+  for (int k = 0; k <= 25; ++k) t.push_back(0.01 * k);
+  const CaseSamples run = SampleCaseDynamics(truth.scene, 0, truth.statics, arc, t, {});
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 0.5);
+  ObservationSequence seq;
+  for (size_t k = 0; k < run.x.size(); ++k) {
+    std::vector<Eigen::Vector2d> pixels;
+    for (size_t j = 0; j + 1 < arc.size(); ++j) {
+      Eigen::Vector2d uv;
+      Project(camera, Eigen::Vector3d(0.5 * (run.x[k].col(j) + run.x[k].col(j + 1))), &uv);
+      pixels.push_back(uv + Eigen::Vector2d(noise(rng), noise(rng)));
+    }
+    seq.frames.push_back({t[k],
+                          std::make_shared<ImageCurveObservation>(static_cast<int>(arc.size()),
+                                                                  camera, pixels, 0.5),
+                          {}});
+  }
+  const std::vector<std::string> names = FittedNames(experiment);
+  const MotionFitOptions options = SequenceFitOptionsOf(experiment, names);
+  MotionFitResult r;
+  for (auto _ : st) {
+    r = FitSequences(experiment.scene, {seq}, names, experiment.statics, options);
+    benchmark::DoNotOptimize(r.values.data());
+  }
+  if (!r.converged) st.SkipWithError(("the fit did not converge: " + r.message).c_str());
+  st.counters["iterations"] = r.iterations;
+  st.counters["runs"] = r.evaluations;
+}
+BENCHMARK(BM_FitPixelSequences)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace rodfit

@@ -5,59 +5,44 @@
 // several noise draws the errors in standard deviations scatter as a unit normal would.
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <random>
 
 #include <gtest/gtest.h>
 
 #include "rodfit/fit/motion_fit.h"
 #include "rodfit/solve/case_dynamics.h"
+#include "fit/swing_fixture.h"
 
 namespace rodfit {
 namespace {
 
-// The suture of data/scenes/suture_swing.yaml on 10 edges over 0.25 s, with a drag whose time
-// scale (linear_density / damping = 0.28 s) is the run's, so that the data determine it.
-Scene Swing() {
-  Scene s;
-  s.rod.length = 0.2;
-  s.rod.segments = 10;
-  s.rod.radius = 1.25e-4;
-  s.rod.linear_density = 5.6e-5;
-  s.material.bend_stiffness = 9.6e-7;  // B2 tied to it (isotropic)
-  s.material.twist_stiffness = 8.0e-7;
-  s.material.stretch_stiffness = 245.0;
-  s.material.damping = 2.0e-4;
-  DynamicsSpec d;
-  d.time_step = 2.5e-3;
-  d.duration = 0.25;
-  d.integrator = "bdf2";
-  s.dynamics = d;
-  LoadCase c;
-  c.name = "swing";
-  c.initial.equilibrium = false;  // released straight, at rest
-  s.cases = {c};
-  return s;
-}
+using testing::Swing;
 
 // Markers at 4 arc lengths every 10 ms (t = 0 included), Gaussian noise of `sigma` per
-// coordinate, every 7th sample missing.
-MarkerSequence Record(const Scene& truth, double sigma, unsigned seed) {
-  MarkerSequence seq;
-  seq.s = {0.05, 0.1, 0.15, 0.2};
-  for (int k = 0; k <= 25; ++k) seq.t.push_back(0.01 * k);
-  seq.sigma = sigma;
-  const CaseSamples run = SampleCaseDynamics(truth, 0, StaticsOptions(), seq.s, seq.t, {});
+// coordinate (unless told not to add it), every 7th sample missing: one markers3d observation
+// per time.
+ObservationSequence Record(const Scene& truth, double sigma, unsigned seed, bool add_noise = true) {
+  const std::vector<double> s = {0.05, 0.1, 0.15, 0.2};
+  std::vector<double> t;
+  for (int k = 0; k <= 25; ++k) t.push_back(0.01 * k);
+  const CaseSamples run = SampleCaseDynamics(truth, 0, StaticsOptions(), s, t, {});
   EXPECT_TRUE(run.ok) << run.reason;
+  const std::vector<double> arc = CaseVertexArcLengths(truth, 0);
   std::mt19937 rng(seed);
   std::normal_distribution<double> gauss(0.0, sigma);
+  ObservationSequence seq;
   int n = 0;
-  for (size_t k = 0; k < seq.t.size() && k < run.x.size(); ++k)
-    for (size_t m = 0; m < seq.s.size(); ++m) {
+  for (size_t k = 0; k < t.size() && k < run.x.size(); ++k) {
+    std::vector<Marker3d> seen;
+    for (size_t m = 0; m < s.size(); ++m) {
       const Eigen::Vector3d noise(gauss(rng), gauss(rng), gauss(rng));
       if (++n % 7 == 0) continue;  // not seen
-      seq.samples.push_back({static_cast<int>(k), static_cast<int>(m),
-                             run.x[k].col(m) + noise});
+      seen.push_back({s[m], run.x[k].col(m) + (add_noise ? noise : Eigen::Vector3d::Zero())});
     }
+    if (!seen.empty())
+      seq.frames.push_back({t[k], std::make_shared<Markers3dObservation>(arc, seen, sigma), {}});
+  }
   return seq;
 }
 
@@ -71,11 +56,12 @@ TEST(SequenceFit, RecoversBendingStiffnessAndDragWithCredibleStd) {
   double sum_z2 = 0.0;
   int fits = 0;
   for (unsigned seed : {1u, 2u, 3u, 4u}) {
-    const MarkerSequence seq = Record(truth, 1e-3, seed);
+    const ObservationSequence seq = Record(truth, 1e-3, seed);
     const MotionFitResult r =
         FitSequences(start, {seq}, names, StaticsOptions(), MotionFitOptions());
     ASSERT_TRUE(r.converged) << r.message;
-    EXPECT_EQ(r.residuals, 3 * static_cast<int>(seq.samples.size()));
+    EXPECT_EQ(r.residuals, 3 * seq.num_samples());
+    EXPECT_EQ(r.noise_residuals, r.residuals);
     // The noise is what the sigma says: the residual variance is 1 within its spread
     // (sqrt(2 / dof) = 0.07 for 264 residuals).
     EXPECT_NEAR(r.residual_variance, 1.0, 0.3);
@@ -98,7 +84,7 @@ TEST(SequenceFit, RecoversBendingStiffnessAndDragWithCredibleStd) {
 
 TEST(SequenceFit, RefusesAnIntegratorItCannotDifferentiate) {
   Scene s = Swing();
-  const MarkerSequence seq = Record(s, 1e-3, 1);
+  const ObservationSequence seq = Record(s, 1e-3, 1);
   s.dynamics->integrator = "midpoint";
   EXPECT_THROW(FitSequences(s, {seq}, {"damping"}, StaticsOptions(), MotionFitOptions()),
                std::invalid_argument);
@@ -106,14 +92,14 @@ TEST(SequenceFit, RefusesAnIntegratorItCannotDifferentiate) {
 
 TEST(SequenceFit, EvaluateSequencesIsZeroAtTheTruthWithoutNoise) {
   const Scene truth = Swing();
-  MarkerSequence seq = Record(truth, 1e-3, 5);
-  const CaseSamples run = SampleCaseDynamics(truth, 0, StaticsOptions(), seq.s, seq.t, {});
-  for (MarkerSequence::Sample& sample : seq.samples)
-    sample.position = run.x[sample.time].col(sample.marker);
+  const ObservationSequence seq = Record(truth, 1e-3, 5, /*add_noise=*/false);
   const SequenceResiduals r = EvaluateSequences(truth, {seq}, StaticsOptions());
   ASSERT_TRUE(r.ok) << r.reason;
   ASSERT_EQ(r.error.size(), 1u);
-  for (const Eigen::Vector3d& e : r.error[0]) EXPECT_EQ(e.norm(), 0.0);
+  ASSERT_EQ(static_cast<int>(r.error[0].size()), seq.num_samples());
+  // The predictions come from the vertices at each time (a marker interpolated between two),
+  // the recording from the markers' own interpolation: equal to round-off of a 0.2 m rod.
+  for (const Eigen::Vector3d& e : r.error[0]) EXPECT_LT(e.norm(), 1e-11);
 }
 
 }  // namespace

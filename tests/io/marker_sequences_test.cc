@@ -1,10 +1,12 @@
-// Tests of the moving experiment's observations (docs/formats.md, "Marker sequences"): the
+// Tests of the moving experiment's observations (docs/formats.md, "Observation sequences"): the
 // reader's keys (frame_rate, drop, a fitted damping, what a moving scene allows) and the
-// sequence files (t or frame column, missing samples); every bad input is a one-line InputError
+// sequence files (t or frame column, missing samples; markers3d, points3d and image_points with
+// and without s, one static observation per frame); every bad input is a one-line InputError
 // naming the file, the 1-based line and the key or column.
 #include "rodfit/io/marker_sequences.h"
 
 #include <cmath>
+#include <filesystem>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -115,8 +117,8 @@ TEST_F(MarkerSequencesTest, BadSequenceKeys) {
   ExpectError(With("frame_rate: 100", "frame_rate: fast"), 13,
               "cases[0].observations[0].frame_rate");
   ExpectError(With("drop: 0.1", "outliers: 0.1"), 13, "cases[0].observations[0].outliers");
-  // A moving scene is observed by sequences only.
-  ExpectError(With("type: markers3d", "type: points3d"), 13, "cases[0].observations[0].type");
+  // A moving scene is observed by sequences of centre-line observations only.
+  ExpectError(With("type: markers3d", "type: images"), 13, "cases[0].observations[0].type");
   // Its fit is plain least squares.
   ExpectError(With("cases:\n", "fit: {loss: huber}\ncases:\n"), 8, "fit.loss");
   ExpectError(With("cases:\n", "fit: {global: true}\ncases:\n"), 8, "fit.global");
@@ -134,24 +136,33 @@ TEST_F(MarkerSequencesTest, ReadsFramesAndMissingSamples) {
   const Experiment ex = LoadExperiment(dir_.Write("scene.yaml", kMoving));
   const SequenceInput input = BuildSequenceInput(ex);
   ASSERT_EQ(input.sequences.size(), 1u);
-  const MarkerSequence& seq = input.sequences[0];
-  EXPECT_EQ(seq.t, (std::vector<double>{0.0, 0.01, 0.02}));
-  EXPECT_EQ(seq.s, (std::vector<double>{0.1, 0.2}));
-  EXPECT_EQ(seq.sigma, 5.0e-4);
-  ASSERT_EQ(seq.samples.size(), 4u);
-  EXPECT_EQ(seq.samples[3].time, 2);
-  EXPECT_EQ(seq.samples[3].marker, 0);
-  EXPECT_EQ(seq.samples[3].position.z(), -0.002);
+  const ObservationSequence& seq = input.sequences[0];
+  EXPECT_EQ(seq.num_samples(), 4);
+  ASSERT_EQ(seq.frames.size(), 3u);
+  EXPECT_EQ(seq.frames[1].t, 0.01);
+  EXPECT_EQ(seq.frames[2].t, 0.02);
+  // Each frame is the static markers3d observation of the samples seen then, on the case's
+  // vertices, numbered in the file's order.
+  const auto* last = dynamic_cast<const Markers3dObservation*>(seq.frames[2].observation.get());
+  ASSERT_NE(last, nullptr);
+  EXPECT_EQ(last->sigma(), 5.0e-4);
+  EXPECT_EQ(last->num_vertices(), 11);
+  ASSERT_EQ(last->markers().size(), 1u);
+  EXPECT_EQ(last->markers()[0].s, 0.1);
+  EXPECT_EQ(last->markers()[0].p_world.z(), -0.002);
+  EXPECT_EQ(seq.frames[0].sample, (std::vector<int>{0, 1}));
+  EXPECT_EQ(seq.frames[2].sample, (std::vector<int>{3}));
   EXPECT_EQ(input.labels[0], "markers3d seq.csv");
 }
 
 TEST_F(MarkerSequencesTest, ReadsTimes) {
   dir_.Write("seq.csv", "t,s,x,y,z\n0.05,0.2,0.2,0,-0.01\n0,0.2,0.2,0,0\n");
   const Experiment ex = LoadExperiment(dir_.Write("scene.yaml", With("frame_rate: 100, ", "")));
-  const MarkerSequence seq = BuildSequenceInput(ex).sequences.at(0);
-  EXPECT_EQ(seq.t, (std::vector<double>{0.0, 0.05}));
-  ASSERT_EQ(seq.samples.size(), 2u);
-  EXPECT_EQ(seq.samples[0].time, 1);  // the file's first row is the later time
+  const ObservationSequence seq = BuildSequenceInput(ex).sequences.at(0);
+  ASSERT_EQ(seq.frames.size(), 2u);
+  EXPECT_EQ(seq.frames[0].t, 0.0);
+  EXPECT_EQ(seq.frames[1].t, 0.05);
+  EXPECT_EQ(seq.frames[1].sample, (std::vector<int>{0}));  // the file's first row is the later
 }
 
 TEST_F(MarkerSequencesTest, BadSequenceFiles) {
@@ -167,6 +178,114 @@ TEST_F(MarkerSequencesTest, BadSequenceFiles) {
   ExpectCsvError("t,s,x,y,z\n0,0.1,0.1,zero,0\n", 2, "y");
   ExpectCsvError("t,s,x,y,z\n0,0.1,1e9,0,0\n", 2, "x");                  // not on the rod
   EXPECT_THAT(Error(kMoving, "t,s,x,y,z\n0,0.1,,,\n"), HasSubstr("no recorded sample"));
+}
+
+
+// The same scene observed through a camera (tests/data/synth/cam_swing.yaml) and as 3-D points:
+// each a sequence of the static models of image_points (with and without s) and points3d.
+class PixelSequencesTest : public MarkerSequencesTest {
+ protected:
+  void SetUp() override {
+    std::filesystem::copy_file(std::string(RODFIT_SOURCE_DIR) + "/tests/data/synth/cam_swing.yaml",
+                               dir_.File("cam.yaml"));
+  }
+  // The experiment with line 13's entry replaced.
+  static std::string Entry(const std::string& entry) {
+    return With("{type: markers3d, file: seq.csv, sigma: 5.0e-4, s: [0.1, 0.2], frame_rate: 100, "
+                "drop: 0.1}",
+                entry);
+  }
+  static std::string Pixels(const std::string& rate = "frame_rate: 100, ") {
+    return Entry("{type: image_points, file: seq.csv, camera: cam.yaml, sigma: 0.5, " + rate +
+                 "drop: 0.1}");
+  }
+  ObservationSequence Read(const std::string& yaml, const std::string& csv, std::string* label) {
+    dir_.Write("seq.csv", csv);
+    const SequenceInput input = BuildSequenceInput(LoadExperiment(dir_.Write("scene.yaml", yaml)));
+    EXPECT_EQ(input.sequences.size(), 1u);
+    *label = input.labels.at(0);
+    return input.sequences.at(0);
+  }
+};
+
+TEST_F(PixelSequencesTest, ReadsPixelMarkersPerFrame) {
+  std::string label;
+  const ObservationSequence seq = Read(Pixels(),
+                                       "frame,s,u,v\n"
+                                       "0,0.2,973,511\n"
+                                       "0,0.1,806,512\n"
+                                       "1,0.2,,\n"        // not seen
+                                       "1,0.1,nan,NaN\n"  // not seen
+                                       "2,0.1,805,530\n",
+                                       &label);
+  EXPECT_EQ(label, "image_points seq.csv");
+  ASSERT_EQ(seq.frames.size(), 2u);  // nothing seen in frame 1
+  EXPECT_EQ(seq.frames[1].t, 0.02);
+  EXPECT_EQ(seq.num_samples(), 3);
+  const auto* first = dynamic_cast<const ImageMarkersObservation*>(seq.frames[0].observation.get());
+  ASSERT_NE(first, nullptr);
+  EXPECT_STREQ(first->unit(), "px");
+  EXPECT_EQ(first->sigma(), 0.5);
+  EXPECT_EQ(first->camera().K.fx, 1000.0);
+  ASSERT_EQ(first->markers().size(), 2u);
+  EXPECT_EQ(first->markers()[0].s, 0.2);
+  EXPECT_EQ(first->markers()[1].uv, Eigen::Vector2d(806, 512));
+  EXPECT_EQ(seq.frames[1].sample, (std::vector<int>{2}));
+}
+
+TEST_F(PixelSequencesTest, ReadsCentreLinePixelsAndPoints) {
+  std::string label;
+  // Without s: closest-point pixels, several per frame; a t column.
+  const ObservationSequence curve =
+      Read(Pixels(""), "t,u,v\n0.05,700,540\n0,700,512\n0,800,512\n", &label);
+  ASSERT_EQ(curve.frames.size(), 2u);
+  const auto* at_0 = dynamic_cast<const ImageCurveObservation*>(curve.frames[0].observation.get());
+  ASSERT_NE(at_0, nullptr);
+  EXPECT_EQ(at_0->pixels().size(), 2u);
+  EXPECT_EQ(at_0->num_noise_residuals(), 2);  // one per pixel: across the curve
+  EXPECT_EQ(curve.frames[0].sample, (std::vector<int>{1, 2}));
+  EXPECT_EQ(curve.frames[1].sample, (std::vector<int>{0}));
+  // points3d: t,x,y,z.
+  const ObservationSequence points =
+      Read(Entry("{type: points3d, file: seq.csv, sigma: 1.0e-3}"),
+           "t,x,y,z\n0,0.05,0,0\n0,0.1,0,0\n0.01,0.1,0,-0.001\n0.01,,,\n", &label);
+  EXPECT_EQ(label, "points3d seq.csv");
+  ASSERT_EQ(points.frames.size(), 2u);
+  const auto* p = dynamic_cast<const Points3dObservation*>(points.frames[1].observation.get());
+  ASSERT_NE(p, nullptr);
+  ASSERT_EQ(p->samples().size(), 1u);
+  EXPECT_EQ(p->samples()[0].z(), -0.001);
+}
+
+TEST_F(PixelSequencesTest, MovingSceneKeysOfPixelsAndPoints) {
+  // image_points needs its camera; outliers are not part of a sequence.
+  EXPECT_THAT(Error(Entry("{type: image_points, file: seq.csv, sigma: 0.5}")),
+              HasSubstr(":13: cases[0].observations[0]"));
+  EXPECT_THAT(Error(Entry("{type: image_points, file: seq.csv, camera: cam.yaml, sigma: 0.5, "
+                          "outliers: 0.1}")),
+              HasSubstr(":13: cases[0].observations[0].outliers:"));
+  EXPECT_THAT(Error(Entry("{type: points3d, file: seq.csv, sigma: 1.0e-3, s: [0.1]}")),
+              HasSubstr(":13: cases[0].observations[0].s:"));
+}
+
+TEST_F(PixelSequencesTest, BadPixelAndPointFiles) {
+  const std::string pixels = Pixels();
+  ExpectCsvError("s,u,v\n0.1,800,512\n", 1, "t", pixels);                 // no time
+  EXPECT_THAT(Error(pixels, "frame,s,u\n0,0.1,800\n"),
+              HasSubstr(dir_.File("seq.csv") + ": v: missing column"));
+  ExpectCsvError("frame,s,u,v\n0,0.1,800,\n", 2, "u", pixels);            // partly missing
+  ExpectCsvError("frame,s,u,v\n0,0.1,800,low\n", 2, "v", pixels);         // not a number
+  ExpectCsvError("frame,s,u,v\n0,0.1,800,1e9\n", 2, "u", pixels);         // off the sensor
+  ExpectCsvError("frame,s,u,v\n0,0.5,800,512\n", 2, "s", pixels);         // beyond L
+  ExpectCsvError("frame,s,u,v\n0,0.1,800,512\n0,0.1,801,512\n", 3, "s", pixels);  // twice
+  ExpectCsvError("frame,u,v\n0,800,512\n40,800,512\n", 3, "frame", pixels);  // after the run
+  ExpectCsvError("frame,u,v\n-1,800,512\n", 2, "frame", pixels);
+  EXPECT_THAT(Error(pixels, "frame,u,v\n0,,\n"), HasSubstr("no recorded sample"));
+  const std::string points = Entry("{type: points3d, file: seq.csv, sigma: 1.0e-3}");
+  ExpectCsvError("x,y,z\n0.1,0,0\n", 1, "t", points);
+  ExpectCsvError("t,x,y,z\n0,0.1,0,\n", 2, "x", points);                  // partly missing
+  ExpectCsvError("t,x,y,z\n0,100,0,0\n", 2, "x", points);                 // not on the rod
+  ExpectCsvError("t,x,y,z\n0.5,0.1,0,0\n", 2, "t", points);               // after the run
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 // Tests of `rodfit synth` as a library (synth/synth.h): reproducible bytes for a seed and only for
 // that seed, independence of entry order, exact samples on the solved shape without noise, the
 // noise and outlier statistics asked for, a self-contained output directory that loads again,
-// and one-line errors that leave nothing written.
+// one-line errors that leave nothing written, and a moving scene's sequences.
 #include "rodfit/synth/synth.h"
 
 #include <algorithm>
@@ -20,6 +20,8 @@
 #include "rodfit/io/experiment.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
+#include "rodfit/observe/observations.h"
+#include "rodfit/solve/case_dynamics.h"
 #include "rodfit/solve/statics.h"
 #include "rodfit/vision/camera_file.h"
 #include "io/temp_dir.h"
@@ -429,6 +431,101 @@ TEST_F(SynthTest, RefusesToOverwriteTheInputExperiment) {
   EXPECT_FALSE(fs::exists(dir_.File("exp/m.csv")));
   EXPECT_EQ(ReadText(path), ExperimentText("      - {type: markers3d, file: m.csv, "
                                            "sigma: 1.0e-3}\n"));
+}
+
+// A moving scene's pixel and point sequences (docs/formats.md, "Files `synth` writes"): without
+// noise, pixel markers are the camera's projections of the run's markers, centre-line pixels and
+// 3-D points lie on the run's shape at their times (between its vertices), one row per sample
+// and frame; with noise, the fraction `drop` is written empty.
+TEST_F(SynthTest, MovingSceneWritesPixelAndPointSequences) {
+  const std::string camera = RODFIT_SOURCE_DIR "/tests/data/synth/cam_swing.yaml";
+  const std::string yaml =
+      "rod: {length: 0.2, segments: 10, radius: 1.25e-4, linear_density: 5.6e-5}\n"
+      "parameters:\n"
+      "  bend_stiffness: {value: 9.6e-7}\n"
+      "  twist_stiffness: {value: 8.0e-7}\n"
+      "  stretch_stiffness: {value: 245}\n"
+      "  damping: {value: 2.0e-4}\n"
+      "gravity: [0, 0, -9.81]\n"
+      "dynamics: {time_step: 2.5e-3, duration: 0.1, integrator: bdf2}\n"
+      "cases:\n"
+      "  - name: swing\n"
+      "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"
+      "    initial: {shape: start}\n"
+      "    observations:\n"
+      "      - {type: image_points, file: suv.csv, camera: " + camera +
+      ", sigma: 0.5, s: [0.1, 0.2], frame_rate: 50, drop: 0.25}\n"
+      "      - {type: image_points, file: uv.csv, camera: " + camera +
+      ", sigma: 0.5, count: 4, drop: 0.25}\n"
+      "      - {type: points3d, file: p.csv, sigma: 1.0e-3, frame_rate: 100}\n";
+  const Experiment ex = LoadExperiment(dir_.Write("exp/swing.yaml", yaml));
+  Run(ex, "exact", 1, /*noise=*/false);
+  const Camera cam = LoadCamera(camera);
+  const std::vector<double> arc = {0,    0.02, 0.04, 0.06, 0.08, 0.1,
+                                   0.12, 0.14, 0.16, 0.18, 0.2};
+
+  // Pixel markers at 50 Hz: frames 0..5, two markers each, the projections of the run's points.
+  const CsvTable suv = CsvTable::Read(dir_.File("exact/suv.csv"));
+  EXPECT_EQ(suv.header(), (std::vector<std::string>{"frame", "s", "u", "v"}));
+  ASSERT_EQ(suv.num_rows(), 6 * 2);
+  std::vector<double> t;
+  for (int k = 0; k <= 5; ++k) t.push_back(0.02 * k);
+  const CaseSamples markers =
+      SampleCaseDynamics(ex.scene, 0, StaticsOptions(), {0.1, 0.2}, t, {});
+  ASSERT_TRUE(markers.ok) << markers.reason;
+  const std::vector<double> frame = suv.Column("frame"), s = suv.Column("s");
+  const std::vector<Eigen::Vector2d> uv = Pixels(suv);
+  for (int r = 0; r < suv.num_rows(); ++r) {
+    EXPECT_EQ(frame[r], r / 2);
+    EXPECT_EQ(s[r], r % 2 ? 0.2 : 0.1);
+    Eigen::Vector2d expected;
+    ASSERT_TRUE(Project(cam, Eigen::Vector3d(markers.x[r / 2].col(r % 2)), &expected));
+    EXPECT_LT((uv[r] - expected).norm(), 1e-9) << "row " << r;
+  }
+
+  // Centre-line pixels at every written step (a t column): 4 per frame, on the projected shape
+  // and away from its vertices (the middles of 4 equal parts of its image).
+  const CsvTable curve = CsvTable::Read(dir_.File("exact/uv.csv"));
+  EXPECT_EQ(curve.header(), (std::vector<std::string>{"t", "u", "v"}));
+  ASSERT_EQ(curve.num_rows(), 41 * 4);
+  const std::vector<double> curve_t = curve.Column("t");
+  std::vector<double> steps;
+  for (int k = 0; k <= 40; ++k) steps.push_back(2.5e-3 * k);
+  const CaseSamples shapes = SampleCaseDynamics(ex.scene, 0, StaticsOptions(), arc, steps, {});
+  ASSERT_TRUE(shapes.ok) << shapes.reason;
+  const std::vector<Eigen::Vector2d> curve_uv = Pixels(curve);
+  for (int r = 0; r < curve.num_rows(); ++r) {
+    const int k = r / 4;
+    EXPECT_NEAR(curve_t[r], steps[k], 1e-15);
+    Eigen::Matrix2Xd image(2, arc.size());
+    for (size_t i = 0; i < arc.size(); ++i) {
+      Eigen::Vector2d p;
+      ASSERT_TRUE(Project(cam, Eigen::Vector3d(shapes.x[k].col(i)), &p));
+      image.col(i) = p;
+    }
+    const PolylineFoot foot = ClosestPointOnPolyline<2>(image, curve_uv[r]);
+    EXPECT_LT(std::sqrt(foot.distance_squared), 1e-9) << "row " << r;
+    EXPECT_EQ(foot.vertex, -1) << "row " << r;  // strictly inside an edge
+  }
+
+  // 3-D points at 100 Hz: 10 per frame (one per edge), each the middle of its edge.
+  const CsvTable points = CsvTable::Read(dir_.File("exact/p.csv"));
+  EXPECT_EQ(points.header(), (std::vector<std::string>{"frame", "x", "y", "z"}));
+  ASSERT_EQ(points.num_rows(), 11 * 10);
+  const std::vector<Eigen::Vector3d> p = Points(points);
+  for (int r = 0; r < points.num_rows(); ++r) {
+    const int k = r / 10, j = r % 10;  // frame k at 0.01 k s is step 4 k
+    const Eigen::Vector3d middle = 0.5 * (shapes.x[4 * k].col(j) + shapes.x[4 * k].col(j + 1));
+    EXPECT_LT((p[r] - middle).norm(), 1e-15) << "row " << r;
+  }
+
+  // With noise: a quarter of the samples written empty (not seen).
+  Run(ex, "noisy", 1, /*noise=*/true);
+  const std::string text = ReadText(dir_.File("noisy/uv.csv"));
+  size_t empty = 0;
+  for (size_t at = text.find(",,\n"); at != std::string::npos; at = text.find(",,\n", at + 1))
+    ++empty;
+  EXPECT_EQ(empty, 41u);  // round(0.25 * 164)
 }
 
 }  // namespace

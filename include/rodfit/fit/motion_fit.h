@@ -8,14 +8,21 @@
 // through the implicit steps. It reports the covariance of the parameters and an identifiability
 // verdict by the static fit's rules. The derivative-free search it replaced (NLopt BOBYQA on the
 // markers' mean absolute error) is kept as an option.
+//
+// The same least-squares fit serves a moving experiment's observation sequences (docs/cli.md,
+// "fit"): every frame of an entry is a static observation model (observe/observations.h) —
+// markers, 3-D points or pixels — evaluated on the case's vertices at its time, its closed-form
+// vertex Jacobian chained with the trajectory's sensitivities d x / d log p.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "rodfit/model/scene.h"
+#include "rodfit/observe/observations.h"
 #include "rodfit/solve/rollout.h"
 
 namespace rodfit {
@@ -63,8 +70,10 @@ struct MotionFitResult {
   std::vector<std::string> reason;     ///< per name: why not identifiable (empty when it is)
   std::vector<bool> at_bound;          ///< per name: the estimate is on its bound (start * range^+-1)
   Eigen::MatrixXd covariance_log;      ///< of the log-parameters (NaN rows: not identifiable)
-  int residuals = 0;                   ///< marker coordinates compared
-  double residual_variance = 0.0;      ///< sum r^2 / (residuals - parameters), r in sigmas
+  int residuals = 0;                   ///< marker coordinates (or sequence residuals) compared
+  /// Of those, the ones that carry noise (fewer for closest-point residuals of sequences).
+  int noise_residuals = 0;
+  double residual_variance = 0.0;      ///< sum r^2 / (noise_residuals - parameters), r in sigmas
   /// 1/2 sum r^2 (r in sigmas) at the start and at the solution (least squares only).
   double initial_cost = 0.0, final_cost = 0.0;
   int iterations = 0;                  ///< iterations of the search
@@ -90,41 +99,79 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
                           const std::vector<std::string>& names, const RolloutOptions& options,
                           const StaticsOptions& statics, const MotionFitOptions& fit_options);
 
-/// A markers3d sequence of one case of a moving scene (docs/formats.md, "Observation entries"):
-/// markers identified by their arc length, sampled over time, some samples missing.
-struct MarkerSequence {
-  int case_index = 0;              ///< into Scene::cases
-  std::vector<double> s;           ///< [m] the markers' arc lengths
-  std::vector<double> t;           ///< [s] the sample times, ascending
-  struct Sample {
-    int time = 0, marker = 0;      ///< indices into t and s
-    Eigen::Vector3d position;      ///< [m] as recorded
+/// An observation entry of a moving case over time (docs/formats.md, "Observation sequences"):
+/// at each of its frames, the static model of what was seen then (observe/observations.h:
+/// markers3d, points3d, image_points with or without s) on the vertices of the case's whole rod
+/// (CaseVertexArcLengths). Every frame's model is of one type, unit and sigma.
+struct ObservationSequence {
+  struct Frame {
+    double t = 0.0;                                  ///< [s]
+    std::shared_ptr<const Observation> observation;  ///< what was seen at t
+    /// Per measurement of `observation`: its index among the entry's samples (the report lists
+    /// the samples in that order, e.g. the file's rows that were seen). Empty in every frame:
+    /// the frames' measurements in turn.
+    std::vector<int> sample;
   };
-  std::vector<Sample> samples;     ///< the recorded ones (a missing sample is not listed)
-  double sigma = 1.0;              ///< [m] per coordinate
+  int case_index = 0;         ///< into Scene::cases
+  std::vector<Frame> frames;  ///< t ascending, each within [0, dynamics.duration]
+
+  /// The measurements of all frames (the entry's recorded samples).
+  int num_samples() const;
 };
 
-/// The residuals of a sequence fit at one parameter value, for reports: per sequence, per
-/// sample, predicted minus recorded [m] (NaN rows where the run failed).
+/// The rest arc lengths [m] of the vertices a sequence of case `index` is observed on: those of
+/// the case's whole rod (a symmetric case's too, as the fit runs it), held points on the vertex
+/// nearest them. Throws std::invalid_argument for a case that is not a valid rod.
+std::vector<double> CaseVertexArcLengths(const Scene& scene, int index);
+
+/// The sequences' weighted residuals (model - measured) / sigma at one parameter value, laid out
+/// sequence by sequence, frame by frame, as the frame's observation lays out its own, and with
+/// fitted names their Jacobian d r / d log p from the forward sensitivities.
+struct SequenceEvaluation {
+  bool ok = false;
+  std::string reason;           ///< the first case or frame that could not be evaluated
+  Eigen::VectorXd residuals;    ///< NaN rows where a case's run or a frame's model failed
+  Eigen::MatrixXd jacobian;     ///< residuals x names (empty without names)
+  int noise_residuals = 0;      ///< rows that carry noise (Observation::num_noise_residuals)
+};
+
+/// Runs each case that has sequences once from its initial state (SampleCaseDynamics at every
+/// vertex, at the union of its sequences' frame times; with `names`, with the sensitivities of
+/// their logs) and evaluates every frame's observation on the vertices at its time, chained with
+/// d x / d log p. Throws std::invalid_argument as FitSequences.
+SequenceEvaluation EvaluateSequenceResiduals(const Scene& scene,
+                                             const std::vector<ObservationSequence>& sequences,
+                                             const std::vector<std::string>& names,
+                                             const StaticsOptions& statics);
+
+/// The errors of a sequence fit at one parameter value, for reports: per sequence, per sample
+/// (ObservationSequence::Frame::sample), model minus measured in the entry's unit ([m]; [px]
+/// with the third component 0), NaN where the run or the frame's model failed.
 struct SequenceResiduals {
   bool ok = false;
   std::string reason;
   std::vector<std::vector<Eigen::Vector3d>> error;
 };
 
-/// Fits `names` of a moving scene (Scene::dynamics set; each with a start value > 0) to marker
-/// sequences of its cases by the least-squares fit above: residuals (predicted - recorded) /
-/// sigma for every recorded coordinate, the predictions the open-loop trajectory of the case
-/// from its initial state (solve/case_dynamics.h, SampleCaseDynamics) with its exact
-/// sensitivities. options.method must be Levenberg–Marquardt; options.marker_sigma is unused
-/// (each sequence has its sigma). error_start / error_fitted are the mean absolute coordinate
-/// errors over all samples. Throws std::invalid_argument as FitMotion does.
-MotionFitResult FitSequences(const Scene& scene, const std::vector<MarkerSequence>& sequences,
+/// Fits `names` of a moving scene (Scene::dynamics set; each with a start value > 0) to
+/// observation sequences of its cases by the least-squares fit above on the residuals of
+/// EvaluateSequenceResiduals: the predictions the open-loop trajectory of each case from its
+/// initial state (solve/case_dynamics.h), each case integrated once per evaluation with its
+/// exact sensitivities. options.method must be Levenberg–Marquardt; options.marker_sigma is
+/// unused (each frame's observation has its sigma). The residual variance counts the residuals
+/// that carry noise (a closest-point residual fewer, Observation::num_noise_residuals).
+/// error_start / error_fitted are the mean absolute residual components times their sigma
+/// (in the entries' units). Throws std::invalid_argument as FitMotion does, and for a sequence
+/// with no frames, a frame without an observation, with another case's vertex count, at a time
+/// outside the run or out of order, or with a sample index list that is not a numbering of the
+/// entry's samples.
+MotionFitResult FitSequences(const Scene& scene, const std::vector<ObservationSequence>& sequences,
                              const std::vector<std::string>& names, const StaticsOptions& statics,
                              const MotionFitOptions& fit_options);
 
 /// The errors of every sample of `sequences` along the scene's trajectories.
-SequenceResiduals EvaluateSequences(const Scene& scene, const std::vector<MarkerSequence>& sequences,
+SequenceResiduals EvaluateSequences(const Scene& scene,
+                                    const std::vector<ObservationSequence>& sequences,
                                     const StaticsOptions& statics);
 
 /// FitMotion with the default method, at most `max_evaluations` rollouts of every recording,

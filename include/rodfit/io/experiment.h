@@ -78,10 +78,11 @@ struct ObservationSpec {
   double max_speed = 1e-3;
   double blur = 0.0;      ///< [px] `images`: Gaussian blur sigma of synthesized images, >= 0
   double noise = 0.0;     ///< [grey levels] `images`: pixel noise sigma of synthesized images
-  /// [Hz] a markers3d sequence's frames: reading, the rate of a `frame` column; synth, the
-  /// sampling rate (0: not given; synth then samples every written frame of the dynamics).
+  /// [Hz] a sequence's frames (an entry of a moving scene): reading, the rate of a `frame`
+  /// column; synth, the sampling rate (0: not given; synth then samples every written frame of
+  /// the dynamics).
   double frame_rate = 0.0;
-  double drop = 0.0;      ///< a markers3d sequence: fraction of samples synth leaves missing, [0, 1)
+  double drop = 0.0;      ///< a sequence: fraction of samples synth leaves missing, [0, 1)
   std::string point;      ///< `reaction`: the held point (HeldReaction::point)
   double sigma_moment = 0.0;  ///< [N m] `reaction`: moment sigma; 0: no moment
   /// grasp_force: how the device logged. A row's tool position p and force f, in the device's

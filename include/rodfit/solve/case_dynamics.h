@@ -62,8 +62,9 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
 /// The model of a case for dynamics: its held points where the driven paths start.
 LoadCase CaseAtStart(const LoadCase& load_case);
 
-/// Points of the centre-line at given arc lengths and times along a case's trajectory (a
-/// markers3d sequence's predictions, docs/formats.md, "Observation entries").
+/// Points of the centre-line at given arc lengths and times along a case's trajectory (at the
+/// vertices' arc lengths: the shapes an observation sequence's frames are evaluated on,
+/// docs/formats.md, "Observation sequences").
 struct CaseSamples {
   bool ok = false;
   std::string reason;                 ///< why the integration stopped early

@@ -1,10 +1,12 @@
 // Motion fit (motion_fit.h): the least-squares fit on the rollout's sensitivities, and the
-// derivative-free search it replaced. Fit layer: calls the rollout (solve) only.
+// derivative-free search it replaced; and the fit to observation sequences, whose frames are the
+// static observation models (observe) evaluated on the case's trajectory (solve).
 #include "rodfit/fit/motion_fit.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <limits>
 #include <stdexcept>
@@ -28,14 +30,16 @@ Scene SceneAt(const Scene& scene, const std::vector<std::string>& names, const d
   return s;
 }
 
+struct SequencePlan;
+
 // Everything one evaluation of the fit reads, and the rollouts it has spent. The least-squares
 // residuals are laid out once (recordings: recording, frame >= 1, marker not driven and seen,
-// coordinate; sequences: sequence, recorded sample, coordinate): their number is the same at
-// every parameter value.
+// coordinate; sequences: SequencePlan): their number is the same at every parameter value.
 struct Ctx {
   const Scene* scene = nullptr;
   const std::vector<MotionRecordingData>* recordings = nullptr;
-  const std::vector<MarkerSequence>* sequences = nullptr;
+  const std::vector<ObservationSequence>* sequences = nullptr;
+  const SequencePlan* plan = nullptr;
   const std::vector<std::string>* names = nullptr;
   const RolloutOptions* options = nullptr;
   const StaticsOptions* statics = nullptr;
@@ -43,6 +47,7 @@ struct Ctx {
   std::vector<std::vector<char>> held;  // per recording, per marker: driven
   double sigma = 1.0;
   int residuals = 0;
+  int noise_residuals = 0;  // those that carry noise: the residual variance's count
   // Fills cached_r, cached_J and cached_mae at a scene (false with last_failure set): the
   // recordings' rollouts or the sequences' case runs.
   std::function<bool(const Scene&, struct Ctx*)> forward;
@@ -123,34 +128,6 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
       }
   }
   c->cached_mae = mae / static_cast<double>(c->recordings->size());
-  return true;
-}
-
-// The sequences' residuals and Jacobian at scene `s` (each case's run with sensitivities).
-bool SequencesForward(const Scene& s, Ctx* c) {
-  int row = 0;
-  double sum_abs = 0.0;
-  for (const MarkerSequence& seq : *c->sequences) {
-    CaseSamples out;
-    try {
-      out = SampleCaseDynamics(s, seq.case_index, *c->statics, seq.s, seq.t, c->directions);
-    } catch (const std::runtime_error& e) {
-      c->last_failure = s.cases[seq.case_index].name + ": " + e.what();
-      return false;
-    }
-    if (!out.ok || out.x.size() != seq.t.size()) {
-      c->last_failure = s.cases[seq.case_index].name + ": " + out.reason;
-      return false;
-    }
-    for (const MarkerSequence::Sample& sample : seq.samples)
-      for (int a = 0; a < 3; ++a, ++row) {
-        const double e = out.x[sample.time](a, sample.marker) - sample.position[a];
-        sum_abs += std::abs(e);
-        c->cached_r[row] = e / seq.sigma;
-        c->cached_J.row(row) = out.dx[sample.time].row(3 * sample.marker + a) / seq.sigma;
-      }
-  }
-  c->cached_mae = sum_abs / static_cast<double>(c->residuals);
   return true;
 }
 
@@ -252,9 +229,22 @@ double MotionParameter(const std::string& name, const Scene& scene) {
 
 namespace {
 
-// The start values and each parameter's direction in the model's constants, read off the scene
-// scaled by e in it (the same at every value: the constants scale with their parameters); the
-// start point x and the log-bounds.
+// Each parameter's direction in the model's constants, read off the scene scaled by e in it (the
+// same at every value: the constants scale with their parameters).
+std::vector<ParameterDirection> LogDirections(const Scene& scene,
+                                              const std::vector<std::string>& names) {
+  std::vector<ParameterDirection> directions;
+  for (const std::string& name : names) {
+    Scene up = scene;
+    SetMotionParameter(name, std::exp(1.0) * MotionParameter(name, scene), &up);
+    directions.push_back(ParameterDirection::Between(
+        scene.material, scene.rod.linear_density, up.material, up.rod.linear_density, 1.0));
+  }
+  return directions;
+}
+
+// The start values and each parameter's direction (LogDirections); the start point x and the
+// log-bounds.
 void SetUpParameters(const Scene& scene, const std::vector<std::string>& names,
                      const MotionFitOptions& fit_options, MotionFitResult* result, Ctx* ctx,
                      std::vector<double>* x, std::vector<double>* lo, std::vector<double>* hi) {
@@ -273,12 +263,7 @@ void SetUpParameters(const Scene& scene, const std::vector<std::string>& names,
                                          "log space)");
     result->start.push_back(v);
   }
-  for (const std::string& name : names) {
-    Scene up = scene;
-    SetMotionParameter(name, std::exp(1.0) * MotionParameter(name, scene), &up);
-    ctx->directions.push_back(ParameterDirection::Between(
-        scene.material, scene.rod.linear_density, up.material, up.rod.linear_density, 1.0));
-  }
+  ctx->directions = LogDirections(scene, names);
   x->resize(m);
   lo->resize(m);
   hi->resize(m);
@@ -365,9 +350,11 @@ void Uncertainty(Ctx* ctx, std::vector<double>* x_io, const std::vector<double>&
   result->reason.assign(m, "no Jacobian at the solution (the rollout fails there)");
   result->covariance_log = Eigen::MatrixXd::Constant(m, m, std::numeric_limits<double>::quiet_NaN());
   result->residuals = ctx->residuals;
+  result->noise_residuals = ctx->noise_residuals;
   if (EvaluateWithSensitivities(x.data(), ctx)) {
     if (fit_options.method == MotionFitMethod::kLevenbergMarquardt) result->error_fitted = ctx->cached_mae;
-    result->residual_variance = ctx->cached_r.squaredNorm() / static_cast<double>(ctx->residuals - m);
+    result->residual_variance =
+        ctx->cached_r.squaredNorm() / static_cast<double>(ctx->noise_residuals - m);
     result->final_cost = 0.5 * ctx->cached_r.squaredNorm();
     // The static fit's verdict (covariance.h): its full-rank covariance is Ceres' over a problem
     // at the solution, whose Jacobian is the cached one (no further rollout).
@@ -424,6 +411,7 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
       for (int mk = 0; mk < static_cast<int>(r.frames[k].cols()); ++mk)
         if (!ctx.held.back()[mk] && r.frames[k].col(mk).allFinite()) ctx.residuals += 3;
   }
+  ctx.noise_residuals = ctx.residuals;
   if (ctx.residuals <= m)
     throw std::invalid_argument("the recordings have " + std::to_string(ctx.residuals) +
                                 " predicted marker coordinates: too few for " +
@@ -470,75 +458,244 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
 
 namespace {
 
-// The sequences' shared checks: a moving scene with a differentiable integrator, cases and
-// samples that exist, times within the run.
-void CheckSequences(const Scene& scene, const std::vector<MarkerSequence>& sequences) {
-  if (!scene.dynamics) throw std::invalid_argument("marker sequences need a dynamics: block");
-  if (sequences.empty()) throw std::invalid_argument("no marker sequences");
-  for (const MarkerSequence& seq : sequences) {
+// Where each frame of the sequences is evaluated. Each case with sequences is run once per
+// evaluation, at every vertex (so that any observation model can be evaluated on the shape) and
+// at the union of its sequences' frame times; frame f of sequence q reads time `time` of run
+// `run` and writes its residuals from row `row`.
+struct SequencePlan {
+  struct Run {
+    int case_index = 0;
+    std::vector<double> s;  // [m] the case's vertex arc lengths
+    std::vector<double> t;  // [s] ascending, distinct
+  };
+  struct FrameAt {
+    int run = 0, time = 0, row = 0;
+  };
+  std::vector<Run> runs;
+  std::vector<std::vector<FrameAt>> frames;  // per sequence, per frame
+  int residuals = 0, noise_residuals = 0;
+};
+
+// The sequences' checks (a moving scene, cases and frames that exist, times within the run,
+// one observation type and sigma per sequence, sample numbers that number the samples) and
+// their layout.
+SequencePlan PlanSequences(const Scene& scene, const std::vector<ObservationSequence>& sequences) {
+  if (!scene.dynamics) throw std::invalid_argument("observation sequences need a dynamics: block");
+  if (sequences.empty()) throw std::invalid_argument("no observation sequences");
+  const double duration = scene.dynamics->duration;
+  SequencePlan plan;
+  std::vector<int> run_of(scene.cases.size(), -1);
+  for (const ObservationSequence& seq : sequences) {
     if (seq.case_index < 0 || seq.case_index >= static_cast<int>(scene.cases.size()))
-      throw std::invalid_argument("a marker sequence names no case of the scene");
-    if (!(seq.sigma > 0.0)) throw std::invalid_argument("a marker sequence needs a sigma > 0");
-    for (const MarkerSequence::Sample& sample : seq.samples)
-      if (sample.time < 0 || sample.time >= static_cast<int>(seq.t.size()) || sample.marker < 0 ||
-          sample.marker >= static_cast<int>(seq.s.size()) || !sample.position.allFinite())
-        throw std::invalid_argument("a marker sequence's sample has no time, marker or position");
+      throw std::invalid_argument("an observation sequence names no case of the scene");
+    if (seq.frames.empty()) throw std::invalid_argument("an observation sequence has no frames");
+    int& run = run_of[seq.case_index];
+    if (run < 0) {
+      run = static_cast<int>(plan.runs.size());
+      plan.runs.push_back({seq.case_index, CaseVertexArcLengths(scene, seq.case_index), {}});
+    }
+    const Observation* first = seq.frames.front().observation.get();
+    const bool numbered = !seq.frames.front().sample.empty();
+    std::vector<char> numbered_once(seq.num_samples() > 0 ? seq.num_samples() : 0, 0);
+    for (size_t f = 0; f < seq.frames.size(); ++f) {
+      const ObservationSequence::Frame& frame = seq.frames[f];
+      const Observation* obs = frame.observation.get();
+      if (!obs) throw std::invalid_argument("a frame of an observation sequence has no observation");
+      if (obs->num_vertices() != static_cast<int>(plan.runs[run].s.size()))
+        throw std::invalid_argument("a frame's observation is not on the case's " +
+                                    std::to_string(plan.runs[run].s.size()) + " vertices");
+      if (std::string(obs->type()) != first->type() || obs->sigma() != first->sigma())
+        throw std::invalid_argument("the frames of an observation sequence differ in type or sigma");
+      if (!(frame.t >= 0.0 && frame.t <= duration * (1.0 + 1e-12)) ||
+          (f > 0 && !(frame.t >= seq.frames[f - 1].t)))
+        throw std::invalid_argument("frame times must ascend within [0, dynamics.duration]");
+      if (numbered != !frame.sample.empty() ||
+          (numbered && static_cast<int>(frame.sample.size()) != obs->num_measurements()))
+        throw std::invalid_argument("a frame's sample numbers must be given per measurement, in "
+                                    "every frame or in none");
+      for (const int k : frame.sample) {
+        if (k < 0 || k >= static_cast<int>(numbered_once.size()) || numbered_once[k])
+          throw std::invalid_argument("a frame's sample numbers must number the sequence's "
+                                      "samples 0.. once each");
+        numbered_once[k] = 1;
+      }
+      plan.runs[run].t.push_back(frame.t);
+    }
   }
+  for (SequencePlan::Run& run : plan.runs) {
+    std::sort(run.t.begin(), run.t.end());
+    run.t.erase(std::unique(run.t.begin(), run.t.end()), run.t.end());
+  }
+  for (const ObservationSequence& seq : sequences) {
+    plan.frames.emplace_back();
+    const int run = run_of[seq.case_index];
+    const std::vector<double>& times = plan.runs[run].t;
+    for (const ObservationSequence::Frame& frame : seq.frames) {
+      const int time = static_cast<int>(std::lower_bound(times.begin(), times.end(), frame.t) -
+                                        times.begin());
+      plan.frames.back().push_back({run, time, plan.residuals});
+      plan.residuals += frame.observation->num_residuals();
+      plan.noise_residuals += frame.observation->num_noise_residuals();
+    }
+  }
+  return plan;
+}
+
+// The sequences' residuals, and with directions their Jacobian d r / d log p, at scene `s`: each
+// planned run once, then every frame's observation on the vertices at its time, its vertex
+// Jacobian chained with the vertices' sensitivities. The rows of a run or frame that fails stay
+// NaN; false with the first failure in *why.
+bool SequencesAt(const Scene& s, const SequencePlan& plan,
+                 const std::vector<ObservationSequence>& sequences, const StaticsOptions& statics,
+                 const std::vector<ParameterDirection>& directions, Eigen::VectorXd* r,
+                 Eigen::MatrixXd* J, std::string* why) {
+  r->setConstant(plan.residuals, std::numeric_limits<double>::quiet_NaN());
+  if (J) J->setConstant(plan.residuals, directions.size(), std::numeric_limits<double>::quiet_NaN());
+  bool ok = true;
+  auto fail = [&](const std::string& reason) {
+    if (ok) *why = reason;
+    ok = false;
+  };
+  std::vector<CaseSamples> runs(plan.runs.size());
+  for (size_t k = 0; k < plan.runs.size(); ++k) {
+    const SequencePlan::Run& run = plan.runs[k];
+    const std::string& name = s.cases[run.case_index].name;
+    try {
+      runs[k] = SampleCaseDynamics(s, run.case_index, statics, run.s, run.t, directions);
+    } catch (const std::runtime_error& e) {
+      fail(name + ": " + e.what());
+      continue;
+    }
+    if (!runs[k].ok) fail(name + ": " + runs[k].reason);
+  }
+  VecX rf;
+  VertexJacobian jf;
+  for (size_t q = 0; q < sequences.size(); ++q)
+    for (size_t f = 0; f < sequences[q].frames.size(); ++f) {
+      const SequencePlan::FrameAt& at = plan.frames[q][f];
+      const CaseSamples& run = runs[at.run];
+      if (at.time >= static_cast<int>(run.x.size())) continue;  // the run stopped before it
+      const ObservationSequence::Frame& frame = sequences[q].frames[f];
+      const Observation& obs = *frame.observation;
+      if (!obs.Evaluate(run.x[at.time], &rf, J ? &jf : nullptr)) {
+        char when[48];
+        std::snprintf(when, sizeof(when), " at t = %.9g s", frame.t);
+        fail(s.cases[sequences[q].case_index].name + ": " + obs.type() + when +
+             ": the rod cannot be observed (a point at or behind the camera)");
+        continue;
+      }
+      r->segment(at.row, rf.size()) = rf;
+      if (J) J->middleRows(at.row, rf.size()) = jf.Multiply(run.dx[at.time]);
+    }
+  return ok;
+}
+
+// The sequences' residuals and Jacobian at scene `s` into the cache, and the mean absolute
+// residual component in the entries' units.
+bool SequencesForward(const Scene& s, Ctx* c) {
+  if (!SequencesAt(s, *c->plan, *c->sequences, *c->statics, c->directions, &c->cached_r,
+                   &c->cached_J, &c->last_failure))
+    return false;
+  double sum_abs = 0.0;
+  for (size_t q = 0; q < c->sequences->size(); ++q)
+    for (size_t f = 0; f < (*c->sequences)[q].frames.size(); ++f) {
+      const Observation& obs = *(*c->sequences)[q].frames[f].observation;
+      sum_abs += obs.sigma() *
+                 c->cached_r.segment(c->plan->frames[q][f].row, obs.num_residuals()).lpNorm<1>();
+    }
+  c->cached_mae = sum_abs / static_cast<double>(c->residuals);
+  return true;
+}
+
+void CheckIntegrator(const Scene& scene) {
+  if (scene.dynamics->integrator != "bdf2" && scene.dynamics->integrator != "backward_euler")
+    throw std::invalid_argument("the motion fit differentiates the bdf2 and backward_euler steps, "
+                                "not " + scene.dynamics->integrator + " (set dynamics.integrator)");
 }
 
 }  // namespace
 
-MotionFitResult FitSequences(const Scene& scene, const std::vector<MarkerSequence>& sequences,
+int ObservationSequence::num_samples() const {
+  int n = 0;
+  for (const Frame& frame : frames)
+    if (frame.observation) n += frame.observation->num_measurements();
+  return n;
+}
+
+std::vector<double> CaseVertexArcLengths(const Scene& scene, int index) {
+  // As SampleCaseDynamics builds it: the whole rod, the held points where their paths start.
+  LoadCase whole = CaseAtStart(scene.cases.at(index));
+  whole.symmetry.reset();
+  return RodModel(scene.rod, scene.material, scene.gravity, whole, scene.springs).arc_lengths();
+}
+
+SequenceEvaluation EvaluateSequenceResiduals(const Scene& scene,
+                                             const std::vector<ObservationSequence>& sequences,
+                                             const std::vector<std::string>& names,
+                                             const StaticsOptions& statics) {
+  const SequencePlan plan = PlanSequences(scene, sequences);
+  const std::vector<ParameterDirection> directions = LogDirections(scene, names);
+  if (!directions.empty()) CheckIntegrator(scene);
+  SequenceEvaluation out;
+  out.noise_residuals = plan.noise_residuals;
+  out.ok = SequencesAt(scene, plan, sequences, statics, directions, &out.residuals,
+                       directions.empty() ? nullptr : &out.jacobian, &out.reason);
+  return out;
+}
+
+MotionFitResult FitSequences(const Scene& scene, const std::vector<ObservationSequence>& sequences,
                              const std::vector<std::string>& names, const StaticsOptions& statics,
                              const MotionFitOptions& fit_options) {
   const auto started = Clock::now();
-  CheckSequences(scene, sequences);
+  const SequencePlan plan = PlanSequences(scene, sequences);
   if (fit_options.method != MotionFitMethod::kLevenbergMarquardt)
-    throw std::invalid_argument("marker sequences are fitted by least squares only");
-  if (scene.dynamics->integrator != "bdf2" && scene.dynamics->integrator != "backward_euler")
-    throw std::invalid_argument("the motion fit differentiates the bdf2 and backward_euler steps, "
-                                "not " + scene.dynamics->integrator + " (set dynamics.integrator)");
+    throw std::invalid_argument("observation sequences are fitted by least squares only");
+  CheckIntegrator(scene);
   MotionFitResult result;
   Ctx ctx;
   std::vector<double> x, lo, hi;
   SetUpParameters(scene, names, fit_options, &result, &ctx, &x, &lo, &hi);
   ctx.scene = &scene;
   ctx.sequences = &sequences;
+  ctx.plan = &plan;
   ctx.names = &names;
   ctx.statics = &statics;
   ctx.forward = SequencesForward;
-  for (const MarkerSequence& seq : sequences) ctx.residuals += 3 * static_cast<int>(seq.samples.size());
+  ctx.residuals = plan.residuals;
+  ctx.noise_residuals = plan.noise_residuals;
   const int m = static_cast<int>(names.size());
-  if (ctx.residuals <= m)
-    throw std::invalid_argument("the sequences have " + std::to_string(ctx.residuals) +
-                                " recorded marker coordinates: too few for " + std::to_string(m) +
-                                " parameters");
+  if (ctx.noise_residuals <= m)
+    throw std::invalid_argument("the sequences have " + std::to_string(ctx.noise_residuals) +
+                                " recorded residuals that carry noise: too few for " +
+                                std::to_string(m) + " parameters");
   if (SearchLeastSquares(&ctx, &x, lo, hi, fit_options, &result))
     Uncertainty(&ctx, &x, lo, hi, fit_options, &result);
   result.seconds = std::chrono::duration<double>(Clock::now() - started).count();
   return result;
 }
 
-SequenceResiduals EvaluateSequences(const Scene& scene, const std::vector<MarkerSequence>& sequences,
+SequenceResiduals EvaluateSequences(const Scene& scene,
+                                    const std::vector<ObservationSequence>& sequences,
                                     const StaticsOptions& statics) {
-  CheckSequences(scene, sequences);
+  const SequenceEvaluation at = EvaluateSequenceResiduals(scene, sequences, {}, statics);
   SequenceResiduals out;
-  for (const MarkerSequence& seq : sequences) {
-    out.error.emplace_back(seq.samples.size(), Eigen::Vector3d::Constant(NAN));
-    CaseSamples run;
-    try {
-      run = SampleCaseDynamics(scene, seq.case_index, statics, seq.s, seq.t, {});
-    } catch (const std::runtime_error& e) {
-      run.reason = e.what();
-    }
-    if (!run.ok && out.reason.empty()) out.reason = scene.cases[seq.case_index].name + ": " + run.reason;
-    for (size_t k = 0; k < seq.samples.size(); ++k) {
-      const MarkerSequence::Sample& sample = seq.samples[k];
-      if (sample.time < static_cast<int>(run.x.size()))
-        out.error.back()[k] = run.x[sample.time].col(sample.marker) - sample.position;
+  out.ok = at.ok;
+  out.reason = at.reason;
+  int row = 0;
+  for (const ObservationSequence& seq : sequences) {
+    out.error.emplace_back(seq.num_samples(), Eigen::Vector3d::Constant(NAN));
+    int next = 0;  // the sample of a measurement when the frames give no numbers
+    for (const ObservationSequence::Frame& frame : seq.frames) {
+      const Observation& obs = *frame.observation;
+      const int dim = obs.num_residuals() / obs.num_measurements();
+      for (int k = 0; k < obs.num_measurements(); ++k, ++next) {
+        Eigen::Vector3d e = Eigen::Vector3d::Zero();
+        e.head(dim) = obs.sigma() * at.residuals.segment(row + dim * k, dim);
+        out.error.back()[frame.sample.empty() ? next : frame.sample[k]] = e;
+      }
+      row += obs.num_residuals();
     }
   }
-  out.ok = out.reason.empty();
   return out;
 }
 

@@ -396,15 +396,15 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
            "unknown observation type '" + ClipForMessage(o.type) +
                "' (allowed: " + Join(kObservationTypes) + ")");
   }
-  // A moving scene is observed over time: its markers3d entries are sequences (the only type
-  // its fit reads, docs/formats.md, "Marker sequences").
+  // A moving scene is observed over time: its centre-line entries are sequences, one static
+  // observation per frame (the types its fit reads, docs/formats.md, "Observation sequences").
   const bool moving = ex.scene.dynamics.has_value();
-  if (moving && o.type != "markers3d")
-    r.Fail(type, "a moving scene (dynamics:) is observed by markers3d sequences only, not " +
-                     o.type);
+  if (moving && o.type != "markers3d" && o.type != "points3d" && o.type != "image_points")
+    r.Fail(type, "a moving scene (dynamics:) is observed by markers3d, points3d and image_points "
+                 "sequences only, not " + o.type);
   for (const char* key : {"frame_rate", "drop"})
     if (const Field* k = Reader::Find(m, key); k && !moving)
-      r.Fail(k->key_line, k->key, "only for a markers3d sequence (a scene with a dynamics: block)");
+      r.Fail(k->key_line, k->key, "only for a sequence (a scene with a dynamics: block)");
   const bool image = o.type == "image_points" || o.type == "images";
   std::vector<std::string> allowed = {"type", "file", "sigma"};
   const bool force = o.type == "grasp_force";
@@ -1171,11 +1171,12 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   for (const auto& [name, p] : ex.parameters)
     if (p.fit && IsDampingParameter(name) && !ex.scene.dynamics)
       r.Fail(p.fit_line, "parameters." + name + ".fit",
-             "damping is identified from motion: fitting it needs a dynamics: block and markers3d "
-             "sequences (else give its value, fit: false)");
+             "damping is identified from motion: fitting it needs a dynamics: block and "
+             "observation sequences (else give its value, fit: false)");
   if (ex.scene.dynamics && ex.fit.line > 0) {
-    // A moving scene's fit is plain least squares on the sequences (docs/formats.md, "Marker
-    // sequences"): the static fit's robust losses and global search are not part of it.
+    // A moving scene's fit is plain least squares on the sequences (docs/formats.md,
+    // "Observation sequences"): the static fit's robust losses and global search are not part
+    // of it.
     if (ex.fit.loss != RobustLoss::kNone)
       r.Fail(ex.fit.line, "fit.loss", "a moving scene's fit takes no robust loss (loss: none)");
     if (ex.fit.global) r.Fail(ex.fit.line, "fit.global", "a moving scene's fit has no global search");

@@ -11,6 +11,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/image_observations.h"
+#include "rodfit/io/sensor_check.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/vision/camera_file.h"
@@ -39,21 +40,6 @@ void CheckReach(const CsvTable& t, int row, const Eigen::Vector3d& p, const Vec3
                   "not on the rod (wrong units or frame?)",
                   d, lengths, length);
     throw InputError(t.name(), t.line(row), column, b);
-  }
-}
-
-// An observed pixel must lie on its camera's sensor, give or take a quarter of the image (noise
-// added to samples near the border, refinement at the border): one farther out is not a pixel
-// of that camera (another camera's file, a value such as 1e308).
-void CheckOnSensor(const CsvTable& t, int row, const Eigen::Vector2d& uv, const Camera& cam,
-                   const std::string& camera_file) {
-  if (!cam.InImage(uv, -0.25 * std::max(cam.K.width, cam.K.height))) {
-    char b[64];
-    std::snprintf(b, sizeof(b), "pixel (%.6g, %.6g)", uv.x(), uv.y());
-    throw InputError(t.name(), t.line(row), "u",
-                     std::string(b) + " lies outside the " + std::to_string(cam.K.width) + "x" +
-                         std::to_string(cam.K.height) + " image of camera " +
-                         ClipForMessage(camera_file));
   }
 }
 

@@ -1,4 +1,4 @@
-// Marker sequences of a moving experiment (marker_sequences.h).
+// Observation sequences of a moving experiment (marker_sequences.h).
 #include "rodfit/io/marker_sequences.h"
 
 #include <algorithm>
@@ -7,11 +7,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <utility>
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/fit_input.h"
+#include "rodfit/io/sensor_check.h"
 #include "rodfit/model/material_parameters.h"
 
 namespace rodfit {
@@ -24,7 +26,7 @@ std::string Short(double v) {
   return buffer;
 }
 
-// A coordinate field: a number, or missing (empty, nan, NaN: the marker was not seen).
+// A coordinate field: a number, or missing (empty, nan, NaN: the sample was not seen).
 bool ReadCoordinate(const CsvTable& table, int row, const std::string& column,
                     const std::string& text, double* value) {
   std::string lower = text;
@@ -33,11 +35,47 @@ bool ReadCoordinate(const CsvTable& table, int row, const std::string& column,
   if (!ParseDouble(text, value))
     throw InputError(table.name(), table.line(row), column,
                      "not a number: '" + ClipForMessage(text) + "' (leave it empty or nan when "
-                     "the marker was not seen)");
+                     "the sample was not seen)");
   return true;
 }
 
-MarkerSequence ReadSequence(const Experiment& ex, int case_index, const ObservationSpec& spec) {
+// One recorded sample of a sequence file: its time, arc length (markers) and coordinates.
+struct Sample {
+  double t = 0.0, s = 0.0;
+  Eigen::Vector3d value = Eigen::Vector3d::Zero();  // x, y, z [m] or u, v (and 0) [px]
+};
+
+// The static observation of one frame's samples (observe/observations.h).
+std::shared_ptr<const Observation> FrameObservation(const ObservationSpec& spec, bool with_s,
+                                                    const std::vector<double>& arc,
+                                                    const Camera* camera,
+                                                    const std::vector<const Sample*>& seen) {
+  const int nv = static_cast<int>(arc.size());
+  if (spec.type == "markers3d") {
+    std::vector<Marker3d> markers;
+    for (const Sample* q : seen) markers.push_back({q->s, q->value});
+    return std::make_shared<Markers3dObservation>(arc, std::move(markers), spec.sigma);
+  }
+  if (spec.type == "points3d") {
+    std::vector<Eigen::Vector3d> points;
+    for (const Sample* q : seen) points.push_back(q->value);
+    return std::make_shared<Points3dObservation>(nv, std::move(points), spec.sigma);
+  }
+  if (with_s) {
+    std::vector<MarkerPixel> markers;
+    for (const Sample* q : seen) markers.push_back({q->s, q->value.head<2>()});
+    return std::make_shared<ImageMarkersObservation>(arc, *camera, std::move(markers), spec.sigma);
+  }
+  std::vector<Eigen::Vector2d> pixels;
+  for (const Sample* q : seen) pixels.push_back(q->value.head<2>());
+  return std::make_shared<ImageCurveObservation>(nv, *camera, std::move(pixels), spec.sigma);
+}
+
+// An entry's file as a sequence: markers3d `t,s,x,y,z`, points3d `t,x,y,z`, image_points
+// `t,s,u,v` or `t,u,v` (a `frame` column with the entry's frame_rate instead of `t`), one static
+// observation per time at which something was seen.
+ObservationSequence ReadSequence(const Experiment& ex, int case_index, const ObservationSpec& spec,
+                                 const std::vector<double>& arc, const Camera* camera) {
   const double length = ex.scene.rod.length;
   const double duration = ex.scene.dynamics->duration;
   const CsvTable table = CsvTable::Read(spec.file);
@@ -45,72 +83,88 @@ MarkerSequence ReadSequence(const Experiment& ex, int case_index, const Observat
   if (table.num_rows() < 1) throw InputError(file, 0, "", "no rows");
   const bool by_time = table.HasColumn("t");
   if (!by_time && !table.HasColumn("frame"))
-    throw InputError(file, 1, "t", "a markers3d sequence needs a t column (or frame with the "
-                                   "entry's frame_rate)");
+    throw InputError(file, 1, "t", "a " + spec.type + " sequence needs a t column (or frame with "
+                                   "the entry's frame_rate)");
   if (!by_time && !(spec.frame_rate > 0.0))
     throw InputError(file, 1, "frame", "a frame column needs frame_rate [Hz] in the entry (" +
                                            ex.path + " line " + std::to_string(spec.line) + ")");
+  const bool pixels = spec.type == "image_points";
+  // Markers are identified by s; points3d and pixels without s are closest-point samples.
+  const bool with_s = spec.type == "markers3d" || (pixels && table.HasColumn("s"));
+  const std::vector<std::string> columns =
+      pixels ? std::vector<std::string>{"u", "v"} : std::vector<std::string>{"x", "y", "z"};
   const std::vector<double> key = table.Column(by_time ? "t" : "frame");
-  const std::vector<double> s = table.Column("s");
-  const std::vector<std::string> x = table.TextColumn("x"), y = table.TextColumn("y"),
-                                 z = table.TextColumn("z");
-  MarkerSequence seq;
-  seq.case_index = case_index;
-  seq.sigma = spec.sigma;
-  std::map<double, int> times, markers;
-  std::vector<std::pair<double, double>> rows;  // (t, s) of every row
+  const std::vector<double> s = with_s ? table.Column("s") : std::vector<double>();
+  std::vector<std::vector<std::string>> text;
+  for (const std::string& column : columns) text.push_back(table.TextColumn(column));
+  const Vec3& clamp = ex.scene.cases[case_index].clamp.position;
+  std::map<double, std::vector<int>> by_t;  // time -> its recorded samples, in file order
+  std::map<std::pair<double, double>, int> marker_line;  // (t, s) -> line (markers only)
+  std::vector<Sample> samples;
   for (int r = 0; r < table.num_rows(); ++r) {
-    double t = key[r];
+    Sample q;
+    q.t = key[r];
     if (!by_time) {
-      if (t != std::round(t) || t < 0.0)
+      if (q.t != std::round(q.t) || q.t < 0.0)
         throw InputError(file, table.line(r), "frame", "must be an integer >= 0");
-      t /= spec.frame_rate;
+      q.t /= spec.frame_rate;
     }
-    if (t < 0.0 || t > duration * (1.0 + 1e-12))
+    if (q.t < 0.0 || q.t > duration * (1.0 + 1e-12))
       throw InputError(file, table.line(r), by_time ? "t" : "frame",
-                       "the sample's time " + Short(t) + " s lies outside the run [0, " +
+                       "the sample's time " + Short(q.t) + " s lies outside the run [0, " +
                            Short(duration) + "] s (dynamics.duration)");
-    if (s[r] < 0.0 || s[r] > length)
-      throw InputError(file, table.line(r), "s",
-                       "must be in [0, " + Short(length) + "] (the rod's length)");
-    times.emplace(t, 0);
-    markers.emplace(s[r], 0);
-    if (static_cast<int>(times.size()) > kMaxSequenceTimes)
+    if (with_s) {
+      q.s = s[r];
+      if (q.s < 0.0 || q.s > length)
+        throw InputError(file, table.line(r), "s",
+                         "must be in [0, " + Short(length) + "] (the rod's length)");
+      if (const auto [it, fresh] = marker_line.emplace(std::make_pair(q.t, q.s), table.line(r));
+          !fresh)
+        throw InputError(file, table.line(r), "s",
+                         "this marker's sample at this time is given twice (also line " +
+                             std::to_string(it->second) + ")");
+    }
+    // Every time counts towards the limit, seen or not: it bounds the work of reading.
+    by_t.emplace(q.t, std::vector<int>());
+    if (static_cast<int>(by_t.size()) > kMaxSequenceTimes)
       throw InputError(file, table.line(r), by_time ? "t" : "frame",
                        "more than " + std::to_string(kMaxSequenceTimes) + " sample times");
-    rows.emplace_back(t, s[r]);
-  }
-  for (auto& [t, index] : times) {
-    index = static_cast<int>(seq.t.size());
-    seq.t.push_back(t);
-  }
-  for (auto& [sm, index] : markers) {
-    index = static_cast<int>(seq.s.size());
-    seq.s.push_back(sm);
-  }
-  std::map<std::pair<int, int>, int> seen;  // (time, marker) -> line
-  for (int r = 0; r < table.num_rows(); ++r) {
-    const int time = times.at(rows[r].first), marker = markers.at(rows[r].second);
-    if (const auto [it, fresh] = seen.emplace(std::make_pair(time, marker), table.line(r)); !fresh)
-      throw InputError(file, table.line(r), "s",
-                       "this marker's sample at this time is given twice (also line " +
-                           std::to_string(it->second) + ")");
-    Eigen::Vector3d p;
-    const int given = int(ReadCoordinate(table, r, "x", x[r], &p.x())) +
-                      int(ReadCoordinate(table, r, "y", y[r], &p.y())) +
-                      int(ReadCoordinate(table, r, "z", z[r], &p.z()));
+    int given = 0;
+    for (size_t a = 0; a < columns.size(); ++a)
+      given += int(ReadCoordinate(table, r, columns[a], text[a][r], &q.value[a]));
     if (given == 0) continue;  // not seen
-    if (given < 3)
-      throw InputError(file, table.line(r), given ? "x" : "",
-                       "x, y and z must be all given or all missing (a marker not seen)");
-    const Vec3& clamp = ex.scene.cases[case_index].clamp.position;
-    if (!((p - clamp).norm() <= 100.0 * length))
+    if (given < static_cast<int>(columns.size()))
+      throw InputError(file, table.line(r), columns[0],
+                       pixels ? "u and v must be both given or both missing (a sample not seen)"
+                              : "x, y and z must be all given or all missing (a sample not seen)");
+    if (pixels) {
+      CheckOnSensor(table, r, q.value.head<2>(), *camera, spec.camera);
+    } else if (!((q.value - clamp).norm() <= 100.0 * length)) {
       throw InputError(file, table.line(r), "x",
                        "the point lies more than 100 rod lengths from the clamp: not on the rod "
                        "(wrong units or frame?)");
-    seq.samples.push_back({time, marker, p});
+    }
+    by_t[q.t].push_back(static_cast<int>(samples.size()));
+    samples.push_back(q);
   }
-  if (seq.samples.empty()) throw InputError(file, 0, "", "no recorded sample (every row is missing)");
+  if (samples.empty()) throw InputError(file, 0, "", "no recorded sample (every row is missing)");
+  ObservationSequence seq;
+  seq.case_index = case_index;
+  for (const auto& [t, indices] : by_t) {
+    if (indices.empty()) continue;
+    std::vector<const Sample*> seen;
+    for (const int k : indices) seen.push_back(&samples[k]);
+    ObservationSequence::Frame frame;
+    frame.t = t;
+    frame.sample = indices;
+    try {
+      frame.observation = FrameObservation(spec, with_s, arc, camera, seen);
+    } catch (const std::invalid_argument& e) {
+      // The observation models' own checks (a camera failing its check).
+      throw InputError(file, 0, spec.type, e.what());
+    }
+    seq.frames.push_back(std::move(frame));
+  }
   return seq;
 }
 
@@ -118,17 +172,37 @@ MarkerSequence ReadSequence(const Experiment& ex, int case_index, const Observat
 
 SequenceInput BuildSequenceInput(const Experiment& experiment) {
   if (!experiment.scene.dynamics)
-    throw InputError(experiment.path, 1, "dynamics", "marker sequences need a dynamics: block");
+    throw InputError(experiment.path, 1, "dynamics",
+                     "observation sequences need a dynamics: block");
   SequenceInput input;
-  for (size_t c = 0; c < experiment.cases.size(); ++c)
-    for (const ObservationSpec& spec : experiment.cases[c].observations) {
-      if (spec.type != "markers3d") continue;  // the reader admits no other in a moving scene
-      input.sequences.push_back(ReadSequence(experiment, static_cast<int>(c), spec));
-      input.labels.push_back("markers3d " + std::filesystem::path(spec.file).filename().string());
+  std::map<std::string, Camera> cameras;  // by CameraKey, each file read once
+  for (size_t c = 0; c < experiment.cases.size(); ++c) {
+    std::vector<double> arc;
+    try {
+      arc = CaseVertexArcLengths(experiment.scene, static_cast<int>(c));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(experiment.path, experiment.cases[c].line,
+                       "cases[" + std::to_string(c) + "]", e.what());
     }
+    for (const ObservationSpec& spec : experiment.cases[c].observations) {
+      // The experiment reader admits no other type in a moving scene.
+      if (spec.type != "markers3d" && spec.type != "points3d" && spec.type != "image_points")
+        continue;
+      const Camera* camera = nullptr;
+      if (spec.type == "image_points") {
+        auto it = cameras.find(CameraKey(spec));
+        if (it == cameras.end())
+          it = cameras.emplace(CameraKey(spec), LoadObservationCamera(spec)).first;
+        camera = &it->second;
+      }
+      input.sequences.push_back(ReadSequence(experiment, static_cast<int>(c), spec, arc, camera));
+      input.labels.push_back(spec.type + " " +
+                             std::filesystem::path(spec.file).filename().string());
+    }
+  }
   if (input.sequences.empty())
     throw InputError(experiment.path, 0, "cases",
-                     "no markers3d sequence to fit to (add observations to a case)");
+                     "no observation sequence to fit to (add observations to a case)");
   return input;
 }
 
@@ -163,7 +237,7 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
   r.initial_cost = motion.initial_cost;
   r.final_cost = motion.final_cost;
   r.num_residuals = motion.residuals;
-  r.residual_dof = std::max(1, motion.residuals - static_cast<int>(motion.names.size()));
+  r.residual_dof = std::max(1, motion.noise_residuals - static_cast<int>(motion.names.size()));
   r.residual_variance = motion.residual_variance;
   r.seconds = motion.seconds;
   r.forward_solves = motion.evaluations;
@@ -203,14 +277,15 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
       r.correlation(i, j) = motion.covariance_log(i, j) /
                             std::sqrt(motion.covariance_log(i, i) * motion.covariance_log(j, j));
   for (size_t q = 0; q < input.sequences.size(); ++q) {
-    const MarkerSequence& seq = input.sequences[q];
+    const ObservationSequence& seq = input.sequences[q];
+    const Observation& model = *seq.frames.front().observation;
     ObservationFit o;
     o.case_index = seq.case_index;
     o.case_name = experiment.scene.cases[seq.case_index].name;
     o.label = input.labels[q];
-    o.type = "markers3d";
-    o.unit = "m";
-    o.num_measurements = static_cast<int>(seq.samples.size());
+    o.type = model.type();
+    o.unit = model.unit();
+    o.num_measurements = seq.num_samples();
     double sum = 0.0;
     if (q < residuals.error.size()) {
       // Each sample's error in the report's residuals.csv, in the file's order of samples.
@@ -221,10 +296,10 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
         mr.case_index = seq.case_index;
         mr.case_name = o.case_name;
         mr.observation = o.label;
-        mr.unit = "m";
+        mr.unit = o.unit;
         mr.measurement = static_cast<int>(k);
         mr.error = e;
-        mr.sigma = seq.sigma;
+        mr.sigma = model.sigma();
         r.measurement_residuals.push_back(mr);
       }
     }

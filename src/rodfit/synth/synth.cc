@@ -22,6 +22,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/fit/motion_fit.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
@@ -145,6 +146,16 @@ std::vector<double> EvenlySpaced(int count, double total) {
   return t;
 }
 
+// Positions t_k = (k + 1/2) total / count: the middles of `count` equal parts of [0, total]. A
+// sequence's closest-point samples sit there: with the default count, one per edge, none lies on
+// a vertex or an end, where its foot would be that vertex and its residual would carry the noise
+// along the curve too (more than Observation::num_noise_residuals counts).
+std::vector<double> MiddlesOfParts(int count, double total) {
+  std::vector<double> t(count);
+  for (int k = 0; k < count; ++k) t[k] = total * (k + 0.5) / count;
+  return t;
+}
+
 // The point at 2-D arc length t along a polyline with cumulative lengths `cum`.
 Eigen::Vector2d AlongPolyline(const std::vector<Eigen::Vector2d>& p, const std::vector<double>& cum,
                               double t) {
@@ -167,11 +178,12 @@ struct EntryContext {
   std::string camera_label;  // the camera file as written in messages
   Random* random;
   int case_index;            // the entry's case in experiment->scene.cases
+  std::string when;          // a sequence's frame: " at t = ... s"; empty otherwise
 
   [[noreturn]] void Fail(const std::string& message) const {
     throw InputError(experiment->path, spec->line, key, message);
   }
-  std::string CaseName() const { return "'" + shape->name + "'"; }
+  std::string CaseName() const { return "'" + shape->name + "'" + when; }
 };
 
 // Projects every vertex; a vertex at or behind the camera is an error (the rod would cross the
@@ -255,7 +267,7 @@ std::string Synth3d(const EntryContext& ctx, const std::string& file, std::strin
   return markers ? FormatMarkersCsv(s, p) : FormatPoints3dCsv(p);
 }
 
-// The sample times of a markers3d sequence: every 1 / frame_rate, or every written frame of the
+// The sample times of a sequence: every 1 / frame_rate, or every written frame of the
 // dynamics (output_every steps), from 0 to dynamics.duration.
 std::vector<double> SequenceTimes(const ObservationSpec& spec, const DynamicsSpec& dynamics) {
   const double interval =
@@ -267,8 +279,8 @@ std::vector<double> SequenceTimes(const ObservationSpec& spec, const DynamicsSpe
   return t;
 }
 
-// A markers3d sequence of a moving case (docs/formats.md, "Marker sequences"): the case run from
-// its initial state, the markers' positions at every sample time with Gaussian noise of the
+// A markers3d sequence of a moving case (docs/formats.md, "Observation sequences"): the case run
+// from its initial state, the markers' positions at every sample time with Gaussian noise of the
 // entry's sigma, a fraction `drop` of the samples left empty (not seen). Rows time-major;
 // columns frame,s,x,y,z with the entry's frame_rate, else t,s,x,y,z.
 std::string SynthSequence(const EntryContext& ctx, const std::string& file, std::string* report) {
@@ -314,8 +326,19 @@ std::string SynthSequence(const EntryContext& ctx, const std::string& file, std:
   return out;
 }
 
-std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
-                             std::string* report) {
+// The pixels an image_points entry's camera records of the shape ctx.shape: at the entry's `s`
+// (markers), else along the projected centre-line `count` points evenly spaced, both ends
+// included (default segments + 1), or for a sequence's frame at the middles of `count` equal
+// parts (MiddlesOfParts, default segments). Noise is drawn for every sample, visible or not, so
+// that the draws do not depend on which samples the camera sees; then samples behind the camera
+// or whose true or measured pixel is off the sensor are left out.
+struct PixelSamples {
+  std::vector<Eigen::Vector2d> uv;  // [px] as measured
+  std::vector<double> s;            // [m] per pixel, markers only
+  int total = 0;                    // samples before those off the sensor were left out
+};
+
+PixelSamples SamplePixels(const EntryContext& ctx, bool sequence_frame) {
   const Camera& camera = *ctx.camera;
   const bool with_s = !ctx.spec->s.empty();
   std::vector<double> s;
@@ -335,38 +358,131 @@ std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
     for (size_t i = 1; i < vertices.size(); ++i) {
       cum[i] = cum[i - 1] + (vertices[i] - vertices[i - 1]).norm();
     }
+    const int segments = ctx.experiment->scene.rod.segments;
     const int count =
-        ctx.spec->count > 0 ? ctx.spec->count : ctx.experiment->scene.rod.segments + 1;
-    for (const double t : EvenlySpaced(count, cum.back())) {
+        ctx.spec->count > 0 ? ctx.spec->count : sequence_frame ? segments : segments + 1;
+    for (const double t : sequence_frame ? MiddlesOfParts(count, cum.back())
+                                         : EvenlySpaced(count, cum.back())) {
       uv.push_back(AlongPolyline(vertices, cum, t));
     }
     in_front.assign(uv.size(), true);
   }
-  const int total = static_cast<int>(uv.size());
-
-  // Noise is drawn for every sample, visible or not, so that the draws do not depend on which
-  // samples the camera sees; then samples whose true or measured pixel is off the sensor go.
+  PixelSamples out;
+  out.total = static_cast<int>(uv.size());
   std::vector<Eigen::Vector2d> measured = uv;
   AddNoise(ctx, &measured);
-  std::vector<Eigen::Vector2d> kept;
-  std::vector<double> kept_s;
-  for (int k = 0; k < total; ++k) {
+  for (int k = 0; k < out.total; ++k) {
     if (!in_front[k] || !camera.InImage(uv[k]) || !camera.InImage(measured[k])) continue;
-    kept.push_back(measured[k]);
-    if (with_s) kept_s.push_back(s[k]);
+    out.uv.push_back(measured[k]);
+    if (with_s) out.s.push_back(s[k]);
   }
-  if (kept.empty()) {
-    ctx.Fail("camera " + ctx.camera_label + " sees nothing of the rod in case " + ctx.CaseName() +
-             " (every sample projects outside its " + std::to_string(camera.K.width) + "x" +
-             std::to_string(camera.K.height) + " image)");
-  }
+  return out;
+}
+
+[[noreturn]] void FailSeesNothing(const EntryContext& ctx) {
+  const Camera& camera = *ctx.camera;
+  ctx.Fail("camera " + ctx.camera_label + " sees nothing of the rod in case " + ctx.CaseName() +
+           " (every sample projects outside its " + std::to_string(camera.K.width) + "x" +
+           std::to_string(camera.K.height) + " image)");
+}
+
+std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
+                             std::string* report) {
+  const Camera& camera = *ctx.camera;
+  PixelSamples samples = SamplePixels(ctx, /*sequence_frame=*/false);
+  if (samples.uv.empty()) FailSeesNothing(ctx);
   // Tracking mistakes land anywhere on the sensor.
   const int outliers = ReplaceOutliers(
       ctx, Eigen::Vector2d(-0.5, -0.5),
-      Eigen::Vector2d(camera.K.width - 0.5, camera.K.height - 0.5), &kept);
-  *report = Summary(ctx, file, static_cast<int>(kept.size()), outliers,
-                    total - static_cast<int>(kept.size()));
-  return FormatImagePointsCsv(kept, with_s ? &kept_s : nullptr);
+      Eigen::Vector2d(camera.K.width - 0.5, camera.K.height - 0.5), &samples.uv);
+  *report = Summary(ctx, file, static_cast<int>(samples.uv.size()), outliers,
+                    samples.total - static_cast<int>(samples.uv.size()));
+  return FormatImagePointsCsv(samples.uv, ctx.spec->s.empty() ? nullptr : &samples.s);
+}
+
+// A points3d or image_points sequence of a moving case (docs/formats.md, "Observation
+// sequences"): the case run from its initial state, and at every sample time (SequenceTimes) the
+// samples of the shape then — points3d at the middles of `count` (default segments) equal parts
+// of [0, L] in s, image_points as SamplePixels (pixels off the sensor left out) — with Gaussian
+// noise of the entry's sigma and a fraction `drop` of the samples written empty (not seen). Rows
+// time-major; a frame column with the entry's frame_rate, else t.
+std::string SynthShapeSequence(const EntryContext& ctx, const std::string& file,
+                               std::string* report) {
+  const Scene& scene = ctx.experiment->scene;
+  const std::vector<double> t = SequenceTimes(*ctx.spec, *scene.dynamics);
+  const bool pixels = ctx.spec->type == "image_points";
+  const bool with_s = pixels && !ctx.spec->s.empty();
+  const int count = ctx.spec->count > 0 ? ctx.spec->count : scene.rod.segments;
+  const std::vector<double> s_points = MiddlesOfParts(count, scene.rod.length);
+  const size_t per_frame = with_s ? ctx.spec->s.size() : static_cast<size_t>(count);
+  if (per_frame * t.size() > static_cast<size_t>(kMaxCsvRows))
+    ctx.Fail(std::to_string(per_frame * t.size()) + " samples (samples x times), above the limit "
+             "of " + std::to_string(kMaxCsvRows) + " rows (lower frame_rate or count)");
+  CaseShape shape{ctx.shape->name, {}, {}};
+  CaseSamples run;
+  try {
+    // Every vertex, so that the shape at each time is the static entry's.
+    shape.s = CaseVertexArcLengths(scene, ctx.case_index);
+    run = SampleCaseDynamics(scene, ctx.case_index, ctx.options->statics, shape.s, t, {});
+  } catch (const std::exception& e) {
+    ctx.Fail("case " + ctx.CaseName() + ": " + e.what());
+  }
+  if (!run.ok) ctx.Fail("case " + ctx.CaseName() + " does not run: " + run.reason);
+  // Per frame, its samples' values: x, y, z [m] or u, v [px] (and s for pixel markers).
+  std::vector<std::vector<Eigen::Vector3d>> values(t.size());
+  std::vector<std::vector<double>> s_of(t.size());
+  int total = 0, written = 0;
+  for (size_t k = 0; k < t.size(); ++k) {
+    shape.x = run.x[k];
+    EntryContext frame = ctx;
+    frame.shape = &shape;
+    frame.when = " at t = " + FormatDouble(t[k]) + " s";
+    if (pixels) {
+      const PixelSamples samples = SamplePixels(frame, /*sequence_frame=*/true);
+      total += samples.total;
+      for (const Eigen::Vector2d& uv : samples.uv) values[k].emplace_back(uv.x(), uv.y(), 0.0);
+      s_of[k] = samples.s;
+    } else {
+      std::vector<Eigen::Vector3d> p;
+      for (const double sk : s_points) p.push_back(PointAtArcLength(shape, sk));
+      AddNoise(frame, &p);
+      total += static_cast<int>(p.size());
+      values[k] = std::move(p);
+    }
+    written += static_cast<int>(values[k].size());
+  }
+  if (written == 0) FailSeesNothing(ctx);
+  std::vector<char> dropped(written, 0);
+  int drops = 0;
+  if (ctx.options->add_noise)
+    for (const int i : ChooseOutliers(ctx.spec->drop, written, ctx.random)) {
+      dropped[i] = 1;
+      ++drops;
+    }
+  const bool by_frame = ctx.spec->frame_rate > 0.0;
+  std::string out = by_frame ? "frame" : "t";
+  out += with_s ? ",s" : "";
+  out += pixels ? ",u,v\n" : ",x,y,z\n";
+  int i = 0;
+  for (size_t k = 0; k < t.size(); ++k)
+    for (size_t m = 0; m < values[k].size(); ++m, ++i) {
+      out += by_frame ? std::to_string(k) : FormatDouble(t[k]);
+      if (with_s) out += "," + FormatDouble(s_of[k][m]);
+      const Eigen::Vector3d& v = values[k][m];
+      if (dropped[i])
+        out += pixels ? ",,\n" : ",,,\n";
+      else if (pixels)
+        out += "," + FormatDouble(v.x()) + "," + FormatDouble(v.y()) + "\n";
+      else
+        out += "," + FormatDouble(v.x()) + "," + FormatDouble(v.y()) + "," + FormatDouble(v.z()) +
+               "\n";
+    }
+  *report = "case " + ctx.shape->name + ": " + file + ": " + ctx.spec->type + " sequence, " +
+            std::to_string(written) + " samples over " + std::to_string(t.size()) + " times";
+  if (drops > 0) *report += ", " + std::to_string(drops) + " samples dropped";
+  if (total > written)
+    *report += ", " + std::to_string(total - written) + " outside the image left out";
+  return out;
 }
 
 std::string SynthImage(const EntryContext& ctx, const std::string& file, std::string* report) {
@@ -858,10 +974,12 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
       EntryContext ctx{&ex,  &options, &bundle.truth[c], &solutions[c],
                        &spec, spec.camera.empty() ? nullptr : &cameras.at(CameraKey(spec)),
                        EntryKey(static_cast<int>(c), static_cast<int>(o)),
-                       spec.camera, &random, static_cast<int>(c)};
+                       spec.camera, &random, static_cast<int>(c), ""};
       std::string report, contents;
       if (spec.type == "markers3d" && ex.scene.dynamics) {
         contents = SynthSequence(ctx, file, &report);
+      } else if ((spec.type == "points3d" || spec.type == "image_points") && ex.scene.dynamics) {
+        contents = SynthShapeSequence(ctx, file, &report);
       } else if (spec.type == "markers3d" || spec.type == "points3d") {
         contents = Synth3d(ctx, file, &report);
       } else if (spec.type == "image_points") {

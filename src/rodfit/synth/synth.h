@@ -87,6 +87,14 @@ struct SynthBundle {
 /// describes (fx.. the force the tissue exerts on the instrument [N]).
 /// surface_points: x,y,z of `count` (default: section nodes) points on the case's deformed poke
 /// ring, evenly spaced in angle about the section's centre, in the world (noise on x, y, z).
+/// In a moving scene (a dynamics: block) the truth is each case's initial equilibrium, and
+/// markers3d, points3d and image_points entries are sequences (docs/formats.md, "Observation
+/// sequences"): the case run from its initial state and, at every 1 / frame_rate (a `frame`
+/// column) or every written frame (a `t` column), the samples above of the shape at that time
+/// (closest-point samples, points3d and image_points without s, at the middles of `count`,
+/// default segments, equal parts of the rod or its image instead: away from vertices and ends),
+/// with a fraction `drop` of them written empty (not seen); pixels off the sensor are left out
+/// (a camera that sees nothing at any time is an error).
 /// grasp_force also throws InputError for a case without a grasp, an entry whose s grasps
 /// another vertex than the case's grasp.s, and a step whose grasp does not converge.
 /// Throws InputError (naming the experiment file, the entry's line and key) for a case that does
