@@ -19,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "rodfit/io/csv.h"
+#include "rodfit/io/errors.h"
 #include "rodfit/io/image_observations.h"
 #include "rodfit/report/svg_plot.h"
 #include "rodfit/version.h"
@@ -512,6 +513,17 @@ class Builder {
 
   void Cases() {
     page_.html << "<section id=\"cases\">\n<h2>Cases</h2>\n";
+    if (e_.scene.dynamics) {
+      // A moving experiment has no static fit cases: its cases are seen through sequences.
+      for (size_t c = 0; c < e_.cases.size(); ++c) {
+        page_.html << "<h3 class=\"case\" id=\"case-" << c << "\">Case <code>"
+                   << Escape(e_.scene.cases[c].name) << "</code></h3>\n<div class=\"figures\">\n";
+        SequenceViews(c);
+        page_.html << "</div>\n";
+      }
+      page_.html << "</section>\n";
+      return;
+    }
     if (!shapes_ok_)
       page_.html << "<p class=\"warn\">Some cases could not be evaluated at the fitted "
                     "parameters: their shapes are not shown.</p>\n";
@@ -866,6 +878,151 @@ class Builder {
                      (aligned ? "" : " Axes: the world's " + std::string(AxisName(ia)) + " and " +
                                          AxisName(ib) + " projected on the section's plane, "
                                          "which the rod's tangent tilts."));
+  }
+
+  // A sequence entry's recorded samples as the reader numbers them (the rows seen, in the
+  // file's order): time, arc length (NaN without s), and the measured coordinates.
+  struct SequenceSample {
+    double t = 0.0, s = NAN;
+    Eigen::Vector3d value = Eigen::Vector3d::Constant(NAN);
+  };
+  static std::vector<SequenceSample> SequenceSamples(const ObservationSpec& spec) {
+    const CsvTable table = CsvTable::Read(spec.file);
+    const bool by_time = table.HasColumn("t");
+    const std::vector<double> key = table.Column(by_time ? "t" : "frame");
+    const bool pixels = spec.type == "image_points";
+    const std::vector<std::string> cols = pixels ? std::vector<std::string>{"u", "v"}
+                                                 : std::vector<std::string>{"x", "y", "z"};
+    std::vector<std::vector<std::string>> text;
+    for (const std::string& col : cols) text.push_back(table.TextColumn(col));
+    const std::vector<double> arc = table.HasColumn("s") ? table.Column("s") : std::vector<double>();
+    std::vector<SequenceSample> out;
+    for (int r = 0; r < table.num_rows(); ++r) {
+      SequenceSample sample;
+      bool seen = true;
+      for (size_t i = 0; i < cols.size(); ++i) seen = seen && ParseDouble(text[i][r], &sample.value[i]);
+      if (!seen) continue;  // empty or nan: not seen (the reader refuses anything else)
+      if (pixels) sample.value[2] = 0.0;
+      sample.t = by_time ? key[r] : key[r] / spec.frame_rate;
+      if (!arc.empty()) sample.s = arc[r];
+      out.push_back(sample);
+    }
+    return out;
+  }
+
+  // Per sequence entry of a moving case: the recorded and fitted trajectories of its markers
+  // (entries with s: the coordinate that moves most, per marker) and every sample's misfit in
+  // sigmas over time.
+  void SequenceViews(size_t c) {
+    const std::string& case_name = e_.scene.cases[c].name;
+    for (const ObservationSpec& spec : e_.cases[c].observations) {
+      const std::string label = EntryLabel(spec);
+      std::vector<const MeasurementResidual*> errors;  // by sample number
+      for (const MeasurementResidual& mr : r_.measurement_residuals) {
+        if (mr.case_name != case_name || mr.observation != label || mr.measurement < 0) continue;
+        if (static_cast<size_t>(mr.measurement) >= errors.size()) errors.resize(mr.measurement + 1, nullptr);
+        errors[mr.measurement] = &mr;
+      }
+      if (errors.empty()) continue;
+      std::vector<SequenceSample> samples;
+      try {
+        samples = SequenceSamples(spec);
+      } catch (const InputError&) {
+        continue;  // the file changed since the fit read it: nothing to draw from
+      }
+      if (samples.size() != errors.size()) continue;
+      const bool pixels = spec.type == "image_points";
+      const std::string unit = pixels ? "px" : "mm";
+      const double scale = pixels ? 1.0 : 1e3;
+      const std::string attrs = " data-case=\"" + Escape(case_name) + "\" data-entry=\"" + Escape(label) + "\"";
+      if (std::isfinite(samples.front().s)) {
+        // The coordinate with the largest range over the sequence.
+        const int dims = pixels ? 2 : 3;
+        int axis = 0;
+        double widest = -1.0;
+        for (int a = 0; a < dims; ++a) {
+          double lo = INFINITY, hi = -INFINITY;
+          for (const SequenceSample& sm : samples) lo = std::min(lo, sm.value[a]), hi = std::max(hi, sm.value[a]);
+          if (hi - lo > widest) widest = hi - lo, axis = a;
+        }
+        std::map<double, std::vector<size_t>> by_marker;
+        for (size_t k = 0; k < samples.size(); ++k) by_marker[samples[k].s].push_back(k);
+        // At most 8 markers, spread along the rod, so that the lines stay apart.
+        std::vector<double> shown;
+        for (const auto& [arc, list] : by_marker) shown.push_back(arc);
+        if (shown.size() > 8) {
+          std::vector<double> spread;
+          for (int i = 0; i < 8; ++i) spread.push_back(shown[i * (shown.size() - 1) / 7]);
+          shown = spread;
+        }
+        svg::Figure f;
+        const char* const axis_name = pixels ? (axis == 0 ? "u" : "v") : AxisName(axis);
+        f.title = case_name + ": " + axis_name + " of the markers, " + FileName(spec.file);
+        f.width = 660;
+        f.height = 400;
+        f.x.label = "t [s]";
+        f.y.label = std::string(axis_name) + " [" + unit + "]";
+        for (size_t i = 0; i < shown.size(); ++i) {
+          svg::Series recorded, fitted;
+          recorded.label = "s = " + ArcLabel(shown[i]);
+          recorded.colour = fitted.colour = Colour(i);
+          recorded.line = false;
+          recorded.marker = svg::Marker::kCircle;
+          recorded.hollow = true;
+          recorded.marker_size = 3;
+          fitted.line_width = 1.4;
+          for (size_t k : by_marker[shown[i]]) {
+            const MeasurementResidual* mr = errors[k];
+            recorded.x.push_back(samples[k].t);
+            recorded.y.push_back(scale * samples[k].value[axis]);
+            fitted.x.push_back(samples[k].t);
+            fitted.y.push_back(mr ? scale * (samples[k].value[axis] + mr->error[axis]) : NAN);
+          }
+          f.series.push_back(recorded);
+          f.series.push_back(fitted);
+        }
+        page_.Figure(f, "sequence-trajectories", "sequence_" + case_name + "_" + Stem(spec.file), attrs,
+                     "Entry <code>" + Escape(FileName(spec.file)) + "</code>: each marker's " +
+                         axis_name + " (the coordinate that moves most) as recorded (circles) and "
+                         "along the fitted trajectory (lines)" +
+                         (by_marker.size() > shown.size() ? ", 8 of the " + std::to_string(by_marker.size()) + " markers" : std::string()) +
+                         ".");
+      }
+      svg::Figure f;
+      f.title = case_name + ": misfit over time, " + FileName(spec.file);
+      f.width = 660;
+      f.height = 360;
+      f.x.label = "t [s]";
+      f.y.label = "|model − measured| [σ]";
+      svg::Series each, rms;
+      each.label = "each sample";
+      each.line = false;
+      each.marker = svg::Marker::kCircle;
+      each.marker_size = 2.5;
+      each.colour = "#7f7f7f";
+      rms.label = "RMS per time";
+      rms.colour = "#d62728";
+      std::map<double, std::pair<double, int>> per_time;  // sum of squares, count
+      for (size_t k = 0; k < samples.size(); ++k) {
+        if (!errors[k]) continue;
+        const double norm = errors[k]->error.norm() / errors[k]->sigma;
+        each.x.push_back(samples[k].t);
+        each.y.push_back(norm);
+        auto& acc = per_time[samples[k].t];
+        acc.first += norm * norm;
+        ++acc.second;
+      }
+      for (const auto& [t, acc] : per_time) {
+        rms.x.push_back(t);
+        rms.y.push_back(std::sqrt(acc.first / acc.second));
+      }
+      f.series = {each, rms};
+      page_.Figure(f, "sequence-misfit", "sequence_misfit_" + case_name + "_" + Stem(spec.file), attrs,
+                   "Entry <code>" + Escape(FileName(spec.file)) + "</code>: every recorded "
+                   "sample's misfit at the fitted values in units of its sigma, and their RMS at "
+                   "each time (about 1 when the model explains the motion to its noise; a rise "
+                   "over time is a prediction drifting away).");
+    }
   }
 
   // Per force entry of the case: force versus time (haptic logs) and the force residuals.
