@@ -430,6 +430,9 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
     summary.reason = "non-finite energy at the predictor";
     return summary;
   }
+  // The frames of q and delta_ = Delta(q0, q) are computed once per state: the energy at the
+  // predictor and each accepted line-search trial leave them for the next iteration.
+  bool frames_current = true, delta_current = !has_moments;
   bool converged = false;
   // After the first Newton step the matrix a M + c C + K changes little within a step (the mass
   // term dominates it at a step that resolves the motion): later iterations reuse its factor
@@ -438,7 +441,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
   bool chord = false;
   double previous_gnorm = std::numeric_limits<double>::infinity();
   for (int it = 0; it < options_.max_newton_iterations && !converged; ++it) {
-    ComputeRodFrames(model_, q, &scratch_->frames);
+    if (!frames_current) ComputeRodFrames(model_, q, &scratch_->frames);
+    frames_current = true;
     if (chord) {
       AssembleGradient(model_, q, EnergyTerms(), &g_, &scratch_->frames);
     } else {
@@ -468,7 +472,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
       floor_tol = 64.0 * std::numeric_limits<double>::epsilon() *
                   model_.material().stretch_stiffness * max_weight;
     }
-    Delta(q0, q, &delta_);
+    if (!delta_current) Delta(q0, q, &delta_);
+    delta_current = true;
     delta0_ = delta_ - z_;
     // Into kept scratch: a step allocates nothing once the stepper has taken one (the runtime's
     // haptic loop relies on it).
@@ -530,6 +535,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
       if (!ApplyStep(model_, q, step_, alpha, &trial_)) continue;
       if (has_moments) {  // no potential: the full (capped) step
         accepted = true;
+        frames_current = delta_current = false;
         break;
       }
       ComputeRodFrames(model_, trial_, &scratch_->trial_frames);
@@ -538,6 +544,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
       if (phi(trial_, scratch_->trial_frames, &e_trial) && e_trial <= energy + 1e-4 * alpha * slope + noise) {
         energy = e_trial;
         accepted = true;
+        // phi has left delta_ = Delta(q0, trial_), and trial_frames are trial_'s.
+        std::swap(scratch_->frames, scratch_->trial_frames);
         break;
       }
     }
@@ -566,7 +574,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, DynamicSta
                      " Newton iterations (reduce time_step)";
     return summary;
   }
-  Delta(q0, q, &delta_);
+  if (!delta_current) Delta(q0, q, &delta_);
   if (midpoint) {
     // q_{n+1} = 2 q_m - q_n (the midpoint's state carried on by the same increment), v_{n+1} =
     // 2 v_m - v_n with v_m = 2 d / dt.
