@@ -270,7 +270,11 @@ struct Runtime::Impl {
   }
   StepReport StepQuasiStatic(Clock::time_point start);
   // Newton from `state` until converged, `max_iterations` or the time budget from `start`.
-  StepStatus Newton(Clock::time_point start, int max_iterations, StepReport* report);
+  // `predicted`: the state is this tick's prediction from the kept factor (within the linear
+  // response of the equilibrium), so its first Newton step is taken whole and checked by the
+  // residual after it, like a chord step.
+  StepStatus Newton(Clock::time_point start, int max_iterations, bool predicted,
+                    StepReport* report);
   StepReport StepDynamic();
 };
 
@@ -583,14 +587,14 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
       state = trial;
     }
   }
-  StepStatus status = Newton(start, options.max_iterations, &report);
+  StepStatus status = Newton(start, options.max_iterations, predicted_start, &report);
   bool retried = false;
   if (status == StepStatus::kNotConverged && predicted_start) {
     retried = true;
     // The prediction led Newton astray (a move too large for the linear response): again from
     // the grasped vertex moved alone, with the iterations left.
     if (MoveGrasp(last_good, target, &state))
-      status = Newton(start, options.max_iterations - report.iterations, &report);
+      status = Newton(start, options.max_iterations - report.iterations, false, &report);
     else
       status = StepStatus::kNotConverged;
   }
@@ -610,7 +614,8 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   return report;
 }
 
-StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, StepReport* report) {
+StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, bool predicted,
+                                 StepReport* report) {
   const RodModel& m = *model;
   const double budget = options.time_budget;
   const std::vector<char>& held = held_rows;
@@ -621,7 +626,11 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
   // step, and a step then costs a gradient and a back-substitution instead of an assembly of
   // the Hessian and its factorisation. Convergence is decided by the same residual test as a
   // Newton iteration's, so the answer is to the same tolerance.
-  bool chord = factor_near_state && factor.valid();
+  // A tick that starts from a prediction starts with a Newton iteration instead: the Hessian at
+  // the prediction converges it in one step (the kept factor, a tick old, only gains ~300x per
+  // step there: a stiff edge near the tool turns by ~l/20 per tick), and its factor, made at a
+  // state within ~1e-6 N of the equilibrium, serves the next tick's prediction.
+  bool chord = factor_near_state && factor.valid() && !predicted;
   frames_current = false;  // the caller has moved the state
   double previous_residual = std::numeric_limits<double>::infinity();
   // The Hessian at `state` with its gradient, in place of the gradient alone.
@@ -703,6 +712,19 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     if (!factored) return StepStatus::kNotConverged;
     step = -g;
     factor.SolveInPlace(step);
+    if (predicted && it == 0 && shift == 0.0 && MaxTangentTurn(m, state, step) <= kMaxTurnPerStep &&
+        ApplyStep(m, state, step, 1.0, &trial)) {
+      // The prediction is within the linear response of the equilibrium, and the Hessian there
+      // is positive definite: the whole Newton step, checked (and undone if it raised the
+      // residual) at the next check as a chord step is, which spares the line search's two
+      // energies. That check's gradient is the one a converged tick needs for its reaction.
+      std::swap(moved, state);
+      std::swap(state, trial);
+      correction += step;
+      ++report->iterations;
+      chord = true;
+      continue;
+    }
     double alpha = 1.0;
     const double turn = MaxTangentTurn(m, state, step);
     if (turn > kMaxTurnPerStep) alpha = kMaxTurnPerStep / turn;
