@@ -657,7 +657,8 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, bo
       reaction_current = true;
       // A Hessian assembled for this check is factored too: the next tick's predictor reads
       // the kept Hessian's columns and solves with the kept factor, which must be of one matrix.
-      if (!chord) {
+      // (A poke predicts nothing: its chord steps do as well on the older factor.)
+      if (!chord && options.tool == ToolKind::kGrasp) {
         PrepareKept();
         FactorKept(0.0);
       }
