@@ -42,6 +42,12 @@ constexpr double kChordContraction = 0.25;
 // A chord step that cut the residual by less than this is followed by a Newton iteration, which
 // renews the kept factor.
 constexpr double kChordRefresh = 1e-3;
+// Moves that differ by less than this fraction of the move count as a steady drag, whose
+// predictor correction is extrapolated from the two last ticks'.
+constexpr double kSteadyMove = 0.1;
+// A tick that took more iterations than this (a slack thread changing its sag, a snap) gives no
+// correction to the next: its steps measure more than the move's second-order part.
+constexpr int kSmoothTick = 3;
 
 // The tool's grasp held in the dynamic stepper's pose: every other held point at its target.
 class ToolDrive : public Drive {
@@ -111,6 +117,11 @@ struct Runtime::Impl {
   RodState state, last_good, trial, moved;
   RodFrames frames, trial_frames;
   VecX g, g_free, step, weights;
+  // The sum of this tick's steps after its prediction, and those of the two last converged ticks
+  // (with their grasp's moves): the predictor's second-order correction.
+  VecX correction, last_correction, older_correction;
+  Vec3 last_move = Vec3::Zero(), older_move = Vec3::Zero();
+  int corrections = 0;  // how many of the last ticks' corrections are kept (0..2)
   // The Hessian of the factor's state with the held rows left in (K_fh, the predictor's), and
   // the same with Dirichlet rows (what is factored).
   BandedSymmetric hessian_full, hessian;
@@ -246,9 +257,24 @@ struct Runtime::Impl {
       torque.setZero();
     }
   }
+  // The kept Hessian with its Dirichlet rows, ready to factor.
+  void PrepareKept() {
+    hessian = hessian_full;  // same size: a copy, no allocation
+    ApplyHeldRows(held_rows, nullptr, &hessian);
+  }
+  // Factors it with a diagonal shift; an unshifted factor may serve later chord steps and ticks.
+  bool FactorKept(double shift) {
+    const bool factored = factor.Factor(hessian, shift);
+    factor_near_state = factored && shift == 0.0;
+    return factored;
+  }
   StepReport StepQuasiStatic(Clock::time_point start);
   // Newton from `state` until converged, `max_iterations` or the time budget from `start`.
-  StepStatus Newton(Clock::time_point start, int max_iterations, StepReport* report);
+  // `predicted`: the state is this tick's prediction from the kept factor (within the linear
+  // response of the equilibrium), so its first Newton step is taken whole and checked by the
+  // residual after it, like a chord step.
+  StepStatus Newton(Clock::time_point start, int max_iterations, bool predicted,
+                    StepReport* report);
   StepReport StepDynamic();
 };
 
@@ -349,6 +375,9 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
   m.step = m.g;
   m.g_free = m.g;
+  m.correction = VecX::Zero(m.g.size());
+  m.last_correction = m.correction;
+  m.older_correction = m.correction;
   if (options.mode == RuntimeMode::kDynamic) {
     int held_index = -1;
     for (size_t k = 0; k < model.held().size(); ++k)
@@ -437,6 +466,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     // ahead, and trying the whole way again would lose the next one too.
     move_scale = std::max(move_scale * 0.25, kMinMoveScale);
     factor_near_state = false;  // the factor may belong to a state far from last_good
+    corrections = 0;
     report.status = status;
     return report;
   };
@@ -445,6 +475,9 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   reaction_current = false;
   frames_current = false;
   bool predicted_start = false;
+  Vec3 move = Vec3::Zero();  // the grasp's move this tick [m]
+  bool turned = false;       // an oriented grasp turned this tick
+  correction.setZero();
   const bool finite_tool =
       tool.allFinite() && tool_force.allFinite() && tool_rotation.allFinite();
   if (!finite_tool) return give_up(StepStatus::kNotConverged);
@@ -476,6 +509,8 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
       d_norm = max_move;
     }
     target = state.x.col(v) + d;
+    move = d;
+    turned = turn.angle() > 0.0;
     bool predicted = false;
     if (factor_near_state && factor.valid() && (d_norm > 0.0 || turn.angle() > 0.0)) {
       // K_fh d from the kept Hessian's columns of the grasped vertex (held rows left in), the
@@ -500,6 +535,19 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
       for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(v) + c, d[c]);
       ApplyHeldRows(held_rows, &step, nullptr);
       factor.SolveInPlace(step);
+      if (corrections >= 1 && turn.angle() == 0.0) {
+        // The linear response misses the move's second-order part, which along a steady drag
+        // changes little from one tick to the next: the last ticks measured it (the sum of
+        // their steps after the prediction), scaled here as a quadratic in the move along the
+        // last one, and extrapolated from the two last ticks when the moves are steady. This
+        // tick's correction counts from the linear prediction, like theirs.
+        const double s = d.dot(last_move) / last_move.squaredNorm();
+        correction = (s * s) * last_correction;
+        if (corrections >= 2 && (d - last_move).norm() <= kSteadyMove * d_norm &&
+            (last_move - older_move).norm() <= kSteadyMove * d_norm)
+          correction += (s * s) * (last_correction - older_correction);
+        step += correction;
+      }
       // The whole predicted motion, the grasp's own move included, goes through one edge-wise
       // retraction from the last equilibrium, which changes every edge's length by its linear
       // part only. (Moving the free vertices first and then the grasped vertex would pin it at
@@ -539,22 +587,35 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
       state = trial;
     }
   }
-  StepStatus status = Newton(start, options.max_iterations, &report);
+  StepStatus status = Newton(start, options.max_iterations, predicted_start, &report);
+  bool retried = false;
   if (status == StepStatus::kNotConverged && predicted_start) {
+    retried = true;
     // The prediction led Newton astray (a move too large for the linear response): again from
     // the grasped vertex moved alone, with the iterations left.
     if (MoveGrasp(last_good, target, &state))
-      status = Newton(start, options.max_iterations - report.iterations, &report);
+      status = Newton(start, options.max_iterations - report.iterations, false, &report);
     else
       status = StepStatus::kNotConverged;
   }
   if (status != StepStatus::kConverged) return give_up(status);
+  if (predicted_start && !retried && !turned && report.iterations <= kSmoothTick) {
+    // This tick's correction becomes the last, the last the older (swaps: no copies).
+    std::swap(older_correction, last_correction);
+    std::swap(last_correction, correction);
+    older_move = last_move;
+    last_move = move;
+    corrections = std::min(2, corrections + 1);
+  } else {
+    corrections = 0;
+  }
   move_scale = std::min(1.0, 2.0 * move_scale);
   report.status = StepStatus::kConverged;
   return report;
 }
 
-StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, StepReport* report) {
+StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, bool predicted,
+                                 StepReport* report) {
   const RodModel& m = *model;
   const double budget = options.time_budget;
   const std::vector<char>& held = held_rows;
@@ -565,9 +626,19 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
   // step, and a step then costs a gradient and a back-substitution instead of an assembly of
   // the Hessian and its factorisation. Convergence is decided by the same residual test as a
   // Newton iteration's, so the answer is to the same tolerance.
-  bool chord = factor_near_state && factor.valid();
+  // A tick that starts from a prediction starts with a Newton iteration instead: the Hessian at
+  // the prediction converges it in one step (the kept factor, a tick old, only gains ~300x per
+  // step there: a stiff edge near the tool turns by ~l/20 per tick), and its factor, made at a
+  // state within ~1e-6 N of the equilibrium, serves the next tick's prediction.
+  bool chord = factor_near_state && factor.valid() && !predicted;
   frames_current = false;  // the caller has moved the state
   double previous_residual = std::numeric_limits<double>::infinity();
+  // The Hessian at `state` with its gradient, in place of the gradient alone.
+  auto assemble_hessian = [&]() {
+    AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
+    ApplyHeldRows(held, &g, nullptr);
+    AddPokeGradient(&g);
+  };
   for (int it = 0;; ++it) {
     if (!frames_current) ComputeRodFrames(m, state, &frames);
     frames_current = false;
@@ -584,6 +655,13 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     if (!std::isfinite(report->residual)) return StepStatus::kNotConverged;
     if (report->residual <= force_tolerance) {
       reaction_current = true;
+      // A Hessian assembled for this check is factored too: the next tick's predictor reads
+      // the kept Hessian's columns and solves with the kept factor, which must be of one matrix.
+      // (A poke predicts nothing: its chord steps do as well on the older factor.)
+      if (!chord && options.tool == ToolKind::kGrasp) {
+        PrepareKept();
+        FactorKept(0.0);
+      }
       break;
     }
     if (it >= max_iterations) return StepStatus::kNotConverged;
@@ -595,12 +673,11 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
       chord = false;
       if (report->residual > previous_residual) {
         std::swap(state, moved);
+        correction -= step;
         --report->iterations;
         ComputeRodFrames(m, state, &frames);
       }
-      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
-      ApplyHeldRows(held, &g, nullptr);
-      AddPokeGradient(&g);
+      assemble_hessian();
       report->residual = Residual(g);
     }
     const bool refresh = chord && report->residual > kChordRefresh * previous_residual;
@@ -614,6 +691,7 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
           ApplyStep(m, state, step, 1.0, &trial)) {
         std::swap(moved, state);  // kept to undo the step
         std::swap(state, trial);
+        correction += step;
         ++report->iterations;
         // A factor that contracts only slowly is renewed on the next iteration, so that the
         // next ticks start from a fresh one (their predictor is made with it too).
@@ -621,24 +699,33 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
         continue;
       }
       chord = false;
-      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
-      ApplyHeldRows(held, &g, nullptr);
-      AddPokeGradient(&g);
+      assemble_hessian();
     }
-    hessian = hessian_full;  // same size: a copy, no allocation
-    ApplyHeldRows(held, nullptr, &hessian);
     // Factor, shifting the diagonal tenfold at a time while the Hessian is indefinite (the
     // state a tool's move leads to often is, before Newton has carried the move into the rod).
     double shift = 0.0;
     bool factored = false;
+    PrepareKept();
     for (int k = 0; k < 16 && !factored; ++k) {
-      factored = factor.Factor(hessian, shift);
+      factored = FactorKept(shift);
       if (!factored) shift = shift == 0.0 ? shift_base : 10.0 * shift;
     }
-    factor_near_state = factored && shift == 0.0;
     if (!factored) return StepStatus::kNotConverged;
     step = -g;
     factor.SolveInPlace(step);
+    if (predicted && it == 0 && shift == 0.0 && MaxTangentTurn(m, state, step) <= kMaxTurnPerStep &&
+        ApplyStep(m, state, step, 1.0, &trial)) {
+      // The prediction is within the linear response of the equilibrium, and the Hessian there
+      // is positive definite: the whole Newton step, checked (and undone if it raised the
+      // residual) at the next check as a chord step is, which spares the line search's two
+      // energies. That check's gradient is the one a converged tick needs for its reaction.
+      std::swap(moved, state);
+      std::swap(state, trial);
+      correction += step;
+      ++report->iterations;
+      chord = true;
+      continue;
+    }
     double alpha = 1.0;
     const double turn = MaxTangentTurn(m, state, step);
     if (turn > kMaxTurnPerStep) alpha = kMaxTurnPerStep / turn;
@@ -659,6 +746,7 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, St
     std::swap(state, trial);
     std::swap(frames, trial_frames);  // the new state's, computed by the line search
     frames_current = true;
+    correction += alpha * step;
     ++report->iterations;
     // A full, unshifted Newton step below the step tolerance: Newton converges quadratically
     // here, so the state after it is far closer than the step (the statics solver's second

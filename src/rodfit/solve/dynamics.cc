@@ -517,8 +517,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   };
   // The inertia and damping forces of the step at `state`, added to *g: grad Phi = grad Pi - f
   // + a M (d - y) + c C (d - z).
-  auto AddStepForces = [&](const RodState& state, VecX* g) {
-    Delta(q0, state, &delta_);
+  auto AddStepForces = [&](const RodState& state, VecX* g, bool delta_known) {
+    if (!delta_known) Delta(q0, state, &delta_);  // else delta_ holds Delta(q0, state)
     delta0_ = delta_ - z_;
     // Into kept scratch: a step allocates nothing once the stepper has taken one (the runtime's
     // haptic loop relies on it).
@@ -542,6 +542,9 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
     summary.reason = "non-finite energy at the predictor";
     return summary;
   }
+  // The frames of q and delta_ = Delta(q0, q) are computed once per state: the energy at the
+  // predictor and each accepted line-search trial leave them for the next iteration.
+  bool frames_current = true, delta_current = !has_moments;
   bool converged = false;
   // After the first Newton step the matrix a M + c C + K changes little within a step (the mass
   // term dominates it at a step that resolves the motion): later iterations reuse its factor
@@ -550,7 +553,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   bool chord = false;
   double previous_gnorm = std::numeric_limits<double>::infinity();
   for (int it = 0; it < options_.max_newton_iterations && !converged; ++it) {
-    ComputeRodFrames(model_, q, &scratch_->frames);
+    if (!frames_current) ComputeRodFrames(model_, q, &scratch_->frames);
+    frames_current = true;
     if (chord) {
       AssembleGradient(model_, q, EnergyTerms(), &g_, &scratch_->frames);
     } else {
@@ -570,7 +574,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
       floor_tol = 64.0 * std::numeric_limits<double>::epsilon() *
                   model_.material().stretch_stiffness * max_weight;
     }
-    AddStepForces(q, &g_);
+    AddStepForces(q, &g_, delta_current);
+    delta_current = true;
     if (!chord) {
       for (int k = 0; k < N; ++k) scratch_->hessian.At(k, k) += a * mass_[k] + c * drag_[k];
       if (internal_damping_) scratch_->hessian.band() += c * C.band();
@@ -621,6 +626,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
       if (!ApplyStep(model_, q, step_, alpha, &trial_)) continue;
       if (has_moments) {  // no potential: the full (capped) step
         accepted = true;
+        frames_current = delta_current = false;
         break;
       }
       ComputeRodFrames(model_, trial_, &scratch_->trial_frames);
@@ -630,6 +636,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
       if (e_trial <= energy + 1e-4 * alpha * slope + noise) {
         energy = e_trial;
         accepted = true;
+        // phi has left delta_ = Delta(q0, trial_), and trial_frames are trial_'s.
+        std::swap(scratch_->frames, scratch_->trial_frames);
         break;
       }
       // Near the solution Phi stops being a faithful merit of the step's equations: its
@@ -644,11 +652,12 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
       if (ls == 0 && !shifted && (turn <= 1e-3 || -slope <= 1e3 * noise)) {
         AssembleGradient(model_, trial_, EnergyTerms(), &g_trial_, &scratch_->trial_frames);
         AddLoads(trial_, scratch_->trial_frames, &g_trial_);
-        AddStepForces(trial_, &g_trial_);
+        AddStepForces(trial_, &g_trial_, /*delta_known=*/true);  // phi left Delta(q0, trial_)
         ApplyHeldRows(held_, &g_trial_, nullptr);
         if (WeightedNorm(g_trial_) < gnorm) {
           energy = e_trial;
           accepted = true;
+          std::swap(scratch_->frames, scratch_->trial_frames);
           break;
         }
       }
@@ -678,7 +687,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
                      " Newton iterations (reduce time_step)";
     return summary;
   }
-  Delta(q0, q, &delta_);
+  if (!delta_current) Delta(q0, q, &delta_);
   if (midpoint) {
     // q_{n+1} = 2 q_m - q_n (the midpoint's state carried on by the same increment), v_{n+1} =
     // 2 v_m - v_n with v_m = 2 d / dt.
