@@ -428,11 +428,12 @@ TEST(CentrelineTest, EmptyOrClutteredImagesGiveClearErrors) {
 
 // ------------------------------------------------------------- region of interest and mask
 
-// Arc length along `truth` to the first point at least `radius` from `centre` (where the thread
-// leaves a disc around its end).
-double ArcLengthLeaving(const Polyline& truth, const Vec2& centre, double radius) {
+// Arc length along `truth` to its first point outside `box` (where the thread leaves a clamp).
+double ArcLengthLeaving(const Polyline& truth, const cv::Rect& box) {
   double s = 0;
-  for (size_t i = 1; i < truth.size() && (truth[i - 1] - centre).norm() < radius; ++i)
+  for (size_t i = 1; i < truth.size() && box.contains(cv::Point(int(std::lround(truth[i - 1].x())),
+                                                                  int(std::lround(truth[i - 1].y()))));
+       ++i)
     s += (truth[i] - truth[i - 1]).norm();
   return s;
 }
@@ -475,48 +476,52 @@ TEST(CentrelineRegionTest, ClutterOutsideTheRoiIsIgnored) {
   EXPECT_EQ(cv::countNonZero(r.mask(cv::Rect(0, 860, 1280, 164))), 0);
 }
 
-// Clamps holding both ends: dark discs the thread runs into. A mask that excludes them cuts the
-// thread where it leaves each disc, and those cut ends are treated as ends at the image border.
+// Clamps holding both ends: dark jaws (60 x 140 px) the thread runs into. A mask that excludes
+// them (and 10 px round them) cuts the thread where it leaves each, and those cut ends are treated
+// as ends at the image border.
 TEST(CentrelineRegionTest, AMaskCutsTheThreadLikeTheImageBorder) {
   const Polyline truth = SCurve(300, 980);
-  const double clamp_radius = 30, excluded_radius = 40;  // [px]
   cv::Mat grey;
   cv::cvtColor(Render(truth, 2.0, 1.0, 4.0, 6), grey, cv::COLOR_BGR2GRAY);
   cv::Mat1b mask(grey.size(), uchar(255));
+  std::vector<cv::Rect> excluded;
   for (const Vec2& end : {truth.front(), truth.back()}) {
     const cv::Point c(int(std::lround(end.x())), int(std::lround(end.y())));
-    cv::circle(grey, c, int(clamp_radius), cv::Scalar::all(60), cv::FILLED);
-    cv::circle(mask, c, int(excluded_radius), cv::Scalar::all(0), cv::FILLED);
+    grey(cv::Rect(c.x - 30, c.y - 70, 60, 140)).setTo(60);
+    excluded.emplace_back(c.x - 40, c.y - 80, 80, 160);
+    mask(excluded.back()).setTo(0);
   }
   const cv::Mat before = grey.clone();
   CentrelineOptions o;
   o.image_name = "clamps.png";
 
-  // Without the mask each clamp is a blob at an end of the thread: its skeleton is a few spurs
-  // in the disc, so the centre-line is carried into the clamps, off the thread.
+  // Without the mask each clamp is a blob at an end of the thread: the cross-sections there are
+  // dropped as too wide, but the jaws' area counts as thread, so the half-width that scales
+  // pruning, the crossing merge distance and the cross-section reach is four times too large.
   const CentrelineResult unmasked = ExtractCentreline(grey, o);
-  const Comparison c_unmasked = Compare(truth, unmasked.uv);
-  EXPECT_GT(c_unmasked.max_dist, 2.0) << unmasked.BriefReport();
 
   o.mask = mask;
   const CentrelineResult r = ExtractCentreline(grey, o);
   EXPECT_EQ(cv::countNonZero(grey != before), 0) << "the caller's image was changed";
   EXPECT_EQ(r.num_pieces, 1) << r.BriefReport();
+  EXPECT_NEAR(r.mean_half_width_px, 2.0, 0.5);
+  EXPECT_GT(unmasked.mean_half_width_px, 4 * 2.0) << unmasked.BriefReport();
+  // Both ends are on the mask's border: the tie goes to the smaller u, the truth's first point.
   EXPECT_EQ(r.start_choice, StartChoice::kNearestBorder);
   const Comparison cmp = Compare(truth, r.uv);
   EXPECT_TRUE(cmp.ok) << cmp.failure;
   EXPECT_LE(cmp.max_dist, 1.0);
-  // Both ends where the thread leaves the excluded discs (as at the image border, the end is
+  // Both ends where the thread leaves the excluded boxes (as at the image border, the end is
   // the last whole cross-section inside, up to a half-width and the sampling step short).
-  const double s_in = ArcLengthLeaving(truth, truth.front(), excluded_radius);
+  const double s_in = ArcLengthLeaving(truth, excluded[0]);
   const Polyline reversed(truth.rbegin(), truth.rend());
-  const double s_out = cmp.length - ArcLengthLeaving(reversed, truth.back(), excluded_radius);
+  const double s_out = cmp.length - ArcLengthLeaving(reversed, excluded[1]);
   EXPECT_NEAR(cmp.s_first, s_in, 3.0);
   EXPECT_NEAR(cmp.s_last, s_out, 3.0);
-  std::printf("[ mask ] clamps masked: max %.3f rms %.3f px, ends %.2f / %.2f px from the discs\n",
+  std::printf("[ mask ] clamps masked: max %.3f rms %.3f px, ends %.2f / %.2f px from the mask\n",
               cmp.max_dist, cmp.rms_dist, cmp.s_first - s_in, s_out - cmp.s_last);
 
-  // The clean image, its ends cut at the same discs, for the same accuracy.
+  // The clean image, its ends cut at the same boxes, for the same accuracy.
   cv::Mat clean_grey;
   cv::cvtColor(Render(truth, 2.0, 1.0, 4.0, 6), clean_grey, cv::COLOR_BGR2GRAY);
   const Comparison c_clean = Compare(truth, ExtractCentreline(clean_grey, o).uv);

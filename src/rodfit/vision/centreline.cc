@@ -103,9 +103,9 @@ Region MakeRegion(const cv::Mat& image, const CentrelineOptions& o) {
   }
   region.area = cv::countNonZero(region.allowed);
   if (region.area == 0) {
-    Fail(o, std::string("the ") + (o.roi && !o.mask.empty() ? "roi and mask leave"
-                                   : o.roi ? "roi leaves" : "mask leaves") +
-                " no pixel to search (the mask is zero" + (o.roi ? " inside the roi)" : ")"));
+    // A roi alone is never empty here (checked above): the mask is zero where it looks.
+    Fail(o, o.roi ? "the roi and mask leave no pixel to search (the mask is zero inside the roi)"
+                  : "the mask leaves no pixel to search (it is zero everywhere)");
   }
   // Distances to the nearest excluded pixel; the zero padding makes the image border one too,
   // so that a single look-up serves both.
