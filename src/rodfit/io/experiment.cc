@@ -402,7 +402,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
                                         "s",        "count", "outliers", "blur",
                                         "noise",    "max_speed", "point", "sigma_moment",
                                         "unit",     "force_unit", "device_frame", "force_on",
-                                        "camera_index", "frame_rate", "drop"};
+                                        "camera_index", "frame_rate", "drop", "roi", "mask"};
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
