@@ -1,6 +1,7 @@
 // `rodfit extract IMAGE... -o CSV`: the centre-line of a thread in one image (pixels) or in two
 // images of calibrated cameras (triangulated points) (docs/cli.md, "extract"). In the commands
 // module: it decodes images and reads camera files through OpenCV.
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -11,6 +12,7 @@
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
+#include <opencv2/core.hpp>
 
 #include "cli_common.h"
 #include "commands.h"
@@ -37,6 +39,37 @@ bool ParsePixel(const std::string& text, Eigen::Vector2d* uv) {
   return true;
 }
 
+// "X0,Y0,X1,Y1" -> the pixel rectangle with corners (X0, Y0) inclusive and (X1, Y1) exclusive;
+// an empty `why` when it is not four integers with X0 < X1 and Y0 < Y1.
+bool ParseRoi(const std::string& text, cv::Rect* roi, std::string* why) {
+  std::vector<long long> corner;
+  size_t from = 0;
+  while (corner.size() < 5) {
+    const size_t comma = text.find(',', from);
+    const std::string field = text.substr(from, comma == std::string::npos ? comma : comma - from);
+    double value = 0.0;
+    if (!rodfit::ParseDouble(field, &value) || value != std::floor(value) ||
+        std::abs(value) > rodfit::kMaxImageSidePx) {
+      *why = "is not X0,Y0,X1,Y1 (four integer pixel corners)";
+      return false;
+    }
+    corner.push_back(static_cast<long long>(value));
+    if (comma == std::string::npos) break;
+    from = comma + 1;
+  }
+  if (corner.size() != 4) {
+    *why = "is not X0,Y0,X1,Y1 (four integer pixel corners)";
+    return false;
+  }
+  if (corner[2] <= corner[0] || corner[3] <= corner[1]) {
+    *why = "is empty (X1 must exceed X0 and Y1 exceed Y0; X1, Y1 are exclusive)";
+    return false;
+  }
+  *roi = cv::Rect(static_cast<int>(corner[0]), static_cast<int>(corner[1]),
+                  static_cast<int>(corner[2] - corner[0]), static_cast<int>(corner[3] - corner[1]));
+  return true;
+}
+
 }  // namespace
 
 int RunExtract(int argc, char** argv) {
@@ -44,7 +77,7 @@ int RunExtract(int argc, char** argv) {
       "Extract the ordered centre-line of a thread from a camera image (writes u,v), or from two "
       "images of two calibrated cameras (writes triangulated x,y,z).",
       "rodfit extract");
-  std::vector<std::string> images, camera_paths, starts, overlays;
+  std::vector<std::string> images, camera_paths, starts, overlays, rois, masks;
   std::string stereo_path, output_path;
   app.add_option("images", images, "one image, or two images of two cameras")
       ->required()
@@ -56,6 +89,9 @@ int RunExtract(int argc, char** argv) {
   app.add_option("--overlay", overlays, "image with the centre-line drawn, one per image");
   app.add_option("--start", starts, "U,V: start the centre-line at the end nearest this pixel, "
                                     "one per image");
+  app.add_option("--roi", rois, "X0,Y0,X1,Y1: seek the thread in these pixel columns X0..X1-1 "
+                                "and rows Y0..Y1-1 only, one per image");
+  app.add_option("--mask", masks, "grey image, non-zero where the thread may be, one per image");
   if (const int status = Parse(app, argc, argv); status >= 0) return status;
 
   const size_t n = images.size();
@@ -68,6 +104,7 @@ int RunExtract(int argc, char** argv) {
   for (const std::string& image : images) inputs.emplace_back(image, "an input image");
   for (const std::string& camera : camera_paths) inputs.emplace_back(camera, "a camera file");
   if (!stereo_path.empty()) inputs.emplace_back(stereo_path, "the stereo file");
+  for (const std::string& mask : masks) inputs.emplace_back(mask, "a mask");
   rodfit::RefuseOverwritingInput(output_path, inputs);
   for (const std::string& overlay : overlays) rodfit::RefuseOverwritingInput(overlay, inputs);
 
@@ -84,6 +121,13 @@ int RunExtract(int argc, char** argv) {
   if (!overlays.empty() && overlays.size() != n) {
     return fail("give one --overlay per image, or none");
   }
+  if (!rois.empty() && rois.size() != n) return fail("give one --roi per image, or none");
+  if (!masks.empty() && masks.size() != n) return fail("give one --mask per image, or none");
+  std::vector<cv::Rect> roi_rects(rois.size());
+  for (size_t k = 0; k < rois.size(); ++k) {
+    std::string why;
+    if (!ParseRoi(rois[k], &roi_rects[k], &why)) return fail("--roi '" + rois[k] + "' " + why);
+  }
 
   std::vector<rodfit::CentrelineResult> lines;
   for (size_t k = 0; k < n; ++k) {
@@ -93,6 +137,8 @@ int RunExtract(int argc, char** argv) {
       if (!ParsePixel(starts[k], &hint)) return fail("--start '" + starts[k] + "' is not U,V");
       options.start_hint = hint;
     }
+    if (!rois.empty()) options.roi = roi_rects[k];
+    if (!masks.empty()) options.mask = rodfit::ReadMaskFile(masks[k], cameras[k]);
     lines.push_back(rodfit::ExtractCentrelineFromFile(images[k], cameras[k], options));
   }
   std::string csv;

@@ -2,7 +2,8 @@
 // with camera images, extract the centre-line from an image (within a pixel of the projected
 // truth in truth.json) or from two (triangulated onto the true centre-line), the same seed giving
 // the same bytes; and bad inputs (missing image, malformed camera file, a camera looking away
-// from the thread) exiting non-zero with one line on stderr and no output file.
+// from the thread) exiting non-zero with one line on stderr and no output file; clutter kept out
+// by --roi and --mask.
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "../io/temp_dir.h"
@@ -155,6 +157,88 @@ TEST_F(SynthExtractCliTest, ExtractFindsTheProjectedTruth) {
   const CsvTable hinted = CsvTable::Read(csv);
   EXPECT_LT((Eigen::Vector2d(hinted.Column("u")[0], hinted.Column("v")[0]) - truth_uv[0]).norm(),
             3.0);
+}
+
+// A photograph's clutter (a dark band, as a table edge) away from the thread breaks the
+// extraction; --roi or --mask keeps it out and the points are back on the projected truth.
+TEST_F(SynthExtractCliTest, ExtractWithRoiOrMaskIgnoresClutter) {
+  const std::string out = dir_.File("out");
+  ASSERT_EQ(Rodfit("synth " + Q(WriteExperiment()) + " -o " + Q(out) + " --seed 3").status, 0);
+  const Camera camera = LoadCamera(out + "/cam_front.yaml");
+  std::vector<Eigen::Vector2d> truth_uv;
+  for (const Eigen::Vector3d& x : Truth(out)) {
+    Eigen::Vector2d uv;
+    ASSERT_TRUE(Project(camera, x, &uv));
+    truth_uv.push_back(uv);
+  }
+  Eigen::Vector2d lo = truth_uv[0], hi = truth_uv[0];
+  for (const Eigen::Vector2d& p : truth_uv) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const int top = hi.y() + 160 < 1024 ? int(hi.y()) + 60 : int(lo.y()) - 160;
+  ASSERT_GE(top, 0) << "no room for the band";
+  cv::Mat image = cv::imread(out + "/front.png", cv::IMREAD_UNCHANGED);
+  image(cv::Rect(0, top, image.cols, 100)).setTo(cv::Scalar::all(90));
+  const std::string cluttered = dir_.File("cluttered.png"), csv = dir_.File("points.csv");
+  ASSERT_TRUE(cv::imwrite(cluttered, image));
+  const std::string base = "extract " + Q(cluttered) + " --camera " + Q(out + "/cam_front.yaml") +
+                           " -o " + Q(csv);
+
+  RunResult run = Rodfit(base);
+  ExpectOneLineError(run, cluttered + ": centre-line extraction: 2 disjoint pieces");
+  EXPECT_FALSE(fs::exists(csv));
+
+  auto expect_on_truth = [&]() {
+    const CsvTable table = CsvTable::Read(csv);
+    const std::vector<double> u = table.Column("u"), v = table.Column("v");
+    ASSERT_GT(u.size(), 500u);
+    double worst = 0;
+    for (size_t k = 0; k < u.size(); ++k)
+      worst = std::max(worst, DistanceToPolyline<2>(Eigen::Vector2d(u[k], v[k]), truth_uv));
+    EXPECT_LT(worst, 1.0);
+  };
+  const std::string roi = std::to_string(std::max(0, int(lo.x()) - 40)) + "," +
+                          std::to_string(std::max(0, int(lo.y()) - 40)) + "," +
+                          std::to_string(std::min(1280, int(hi.x()) + 40)) + "," +
+                          std::to_string(std::min(1024, int(hi.y()) + 40));
+  run = Rodfit(base + " --roi " + roi);
+  ASSERT_EQ(run.status, 0) << run.err;
+  expect_on_truth();
+
+  fs::remove(csv);
+  cv::Mat mask(image.rows, image.cols, CV_8UC1, cv::Scalar(255));
+  mask(cv::Rect(0, top - 5, image.cols, 110)).setTo(0);
+  const std::string mask_file = dir_.File("mask.png");
+  ASSERT_TRUE(cv::imwrite(mask_file, mask));
+  run = Rodfit(base + " --mask " + Q(mask_file));
+  ASSERT_EQ(run.status, 0) << run.err;
+  expect_on_truth();
+
+  // Mistakes: one line naming the option (or the mask, or the image), no output.
+  fs::remove(csv);
+  run = Rodfit(base + " --roi 1,2,3");
+  ExpectOneLineError(run, "--roi '1,2,3' is not X0,Y0,X1,Y1 (four integer pixel corners)");
+  run = Rodfit(base + " --roi 0,0,10.5,10");
+  ExpectOneLineError(run, "--roi '0,0,10.5,10' is not X0,Y0,X1,Y1");
+  run = Rodfit(base + " --roi 10,10,5,20");
+  ExpectOneLineError(run, "--roi '10,10,5,20' is empty (X1 must exceed X0");
+  run = Rodfit(base + " --roi 0,0,2000,100");
+  ExpectOneLineError(run, "roi [0, 2000) x [0, 100) is not inside the 1280x1024 px image");
+  run = Rodfit(base + " --roi 0,0,10,10 --roi 0,0,20,20");
+  ExpectOneLineError(run, "give one --roi per image, or none");
+  run = Rodfit(base + " --mask " + Q(dir_.File("nomask.png")));
+  ExpectOneLineError(run, dir_.File("nomask.png") + ": cannot read the image");
+  run = Rodfit(base + " --mask " + Q(cluttered));
+  ExpectOneLineError(run, cluttered + ": a mask must be a single-channel (grey) image");
+  EXPECT_FALSE(fs::exists(csv));
+  // The mask is an input: no output may overwrite it.
+  run = Rodfit("extract " + Q(cluttered) + " --camera " + Q(out + "/cam_front.yaml") + " -o " +
+               Q(csv) + " --mask " + Q(mask_file) + " --overlay " + Q(mask_file));
+  ExpectOneLineError(run, "is a mask (" + mask_file + "), an input of this run");
+  EXPECT_FALSE(fs::exists(csv));
+  const cv::Mat kept = cv::imread(mask_file, cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(cv::countNonZero(kept != mask), 0);
 }
 
 TEST_F(SynthExtractCliTest, StereoExtractTriangulatesTheTruth) {

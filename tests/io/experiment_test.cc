@@ -3,12 +3,14 @@
 // right values, with paths resolved against the YAML file's folder.
 #include "rodfit/io/experiment.h"
 
+#include <array>
 #include <string>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "rodfit/io/errors.h"
+#include "rodfit/io/output_dir.h"
 #include "temp_dir.h"
 
 namespace rodfit {
@@ -251,6 +253,43 @@ TEST_F(ExperimentTest, ImageBlurAndNoiseAreForImagesOnly) {
               "cases[0].observations[0].blur");  // markers3d: no image to blur
   ExpectError(With("sigma: 3.0e-4}", "sigma: 3.0e-4, noise: 1}"), 20,
               "cases[0].observations[0].noise");
+}
+
+TEST_F(ExperimentTest, ImageRoiAndMaskAreReadAndChecked) {
+  const std::string markers = "{type: markers3d, file: flat.csv, sigma: 3.0e-4";
+  const std::string images = "{type: images, file: a.png, camera: c.yaml, sigma: 1";
+  const Experiment ex = LoadExperiment(dir_.Write(
+      "exp/scene.yaml", With(markers, images + ", roi: [10, 20, 610, 420], mask: masks/a.png")));
+  const ObservationSpec& obs = ex.cases[0].observations[0];
+  ASSERT_TRUE(obs.roi.has_value());
+  EXPECT_EQ(*obs.roi, (std::array<int, 4>{10, 20, 610, 420}));
+  EXPECT_EQ(obs.mask, dir_.File("exp/masks/a.png"));  // relative to the YAML file
+  // The mask is an input: nothing of the run may overwrite it.
+  bool listed = false;
+  for (const auto& [path, what] : ExperimentInputs(ex, false))
+    listed |= path == obs.mask && what == "the mask of cases[0].observations[0]";
+  EXPECT_TRUE(listed);
+  const Experiment plain = LoadExperiment(dir_.Write("scene.yaml", With(markers, images)));
+  EXPECT_FALSE(plain.cases[0].observations[0].roi.has_value());
+  EXPECT_TRUE(plain.cases[0].observations[0].mask.empty());
+
+  const std::string key = "cases[0].observations[0].roi";
+  EXPECT_THAT(Error(With(markers, images + ", roi: [10, 20, 610]")),
+              HasSubstr(key + ": expected [x0, y0, x1, y1] (4 pixel corners), got 3 values"));
+  EXPECT_THAT(Error(With(markers, images + ", roi: 10")),
+              HasSubstr(key + ": expected [x0, y0, x1, y1]"));
+  ExpectError(With(markers, images + ", roi: [10, 20, 610.5, 420]"), 20, key + "[2]");
+  ExpectError(With(markers, images + ", roi: [-1, 20, 610, 420]"), 20, key + "[0]");
+  ExpectError(With(markers, images + ", roi: [10, 20, 99999, 420]"), 20, key + "[2]");
+  EXPECT_THAT(Error(With(markers, images + ", roi: [610, 20, 610, 420]")),
+              HasSubstr(key + "[2]: x1 must exceed x0 (610)"));
+  EXPECT_THAT(Error(With(markers, images + ", roi: [10, 420, 610, 20]")),
+              HasSubstr(key + "[3]: y1 must exceed y0 (420)"));
+  ExpectError(With(markers, images + ", mask: \"\""), 20, "cases[0].observations[0].mask");
+  // Only an images entry is extracted from an image.
+  ExpectError(With("sigma: 3.0e-4}", "sigma: 3.0e-4, roi: [0, 0, 10, 10]}"), 20, key);
+  ExpectError(With("sigma: 3.0e-4}", "sigma: 3.0e-4, mask: m.png}"), 20,
+              "cases[0].observations[0].mask");
 }
 
 TEST_F(ExperimentTest, FitBlockIsValidated) {

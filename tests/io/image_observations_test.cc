@@ -5,6 +5,7 @@
 #include "rodfit/io/image_observations.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -13,6 +14,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
@@ -121,6 +123,92 @@ TEST_F(ImageObservationsTest, TwoViewsTriangulateToTheTrueCentreline) {
   // From the clamp to the tip, covering the thread.
   EXPECT_LT((points.front() - truth_.front()).norm(), 2e-3);
   EXPECT_LT((points.back() - truth_.back()).norm(), 2e-3);
+}
+
+// A lab photograph's clutter (a dark band, as a table edge or an instrument) away from the
+// thread: the entry's roi or mask keeps it out, and the points are as good as on the clean image.
+TEST_F(ImageObservationsTest, ClutterIsKeptOutByTheEntrysRoiOrMask) {
+  const std::vector<Eigen::Vector2d> truth = Projected(front_);
+  Eigen::Vector2d lo = truth.front(), hi = truth.front();
+  for (const Eigen::Vector2d& p : truth) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  // A 100 px band across the image, 60 px clear of the thread (below it, or above if no room).
+  const int top = hi.y() + 160 < front_.K.height ? int(hi.y()) + 60 : int(lo.y()) - 160;
+  ASSERT_GE(top, 0) << "no room for the band";
+  ObservationSpec spec = ex_.cases[0].observations[0];
+  cv::Mat image = ReadImageFile(spec.file);
+  cv::rectangle(image, cv::Rect(0, top, image.cols, 100), cv::Scalar::all(90), cv::FILLED);
+  spec.file = dir_.File("out/cluttered.png");
+  WriteImageFile(spec.file, image);
+
+  auto worst_distance = [&](const std::vector<Eigen::Vector2d>& uv) {
+    double worst = 0.0;
+    for (const Eigen::Vector2d& p : uv) worst = std::max(worst, DistanceToPolyline<2>(p, truth));
+    return worst;
+  };
+  // Without a region the band is segmented too: a second piece that cannot be linked.
+  try {
+    ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+    ADD_FAILURE() << "no error";
+  } catch (const CentrelineError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(spec.file + ": centre-line extraction: 2 disjoint pieces"));
+  }
+
+  const int margin = 40;  // [px] around the thread, less than the band's clearance
+  spec.roi = std::array<int, 4>{std::max(0, int(lo.x()) - margin), std::max(0, int(lo.y()) - margin),
+                                std::min(front_.K.width, int(hi.x()) + margin),
+                                std::min(front_.K.height, int(hi.y()) + margin)};
+  const std::vector<Eigen::Vector2d> with_roi =
+      ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+  const std::vector<Eigen::Vector2d> clean =
+      ImagePointsFromImage(ex_.cases[0].observations[0], front_, ex_.scene.cases[0]);
+  ASSERT_GT(with_roi.size(), 500u);
+  EXPECT_LT(worst_distance(with_roi), 1.0);
+  EXPECT_LE(worst_distance(with_roi), worst_distance(clean) + 0.05);
+  EXPECT_LT((with_roi.front() - truth.front()).norm(), 3.0);  // from the clamped end
+  EXPECT_LT((with_roi.back() - truth.back()).norm(), 3.0);
+
+  spec.roi.reset();
+  cv::Mat1b mask(image.size(), uchar(255));
+  mask(cv::Rect(0, top - 5, image.cols, 110)).setTo(0);
+  spec.mask = dir_.File("out/mask.png");
+  WriteImageFile(spec.mask, mask);
+  const std::vector<Eigen::Vector2d> with_mask =
+      ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+  ASSERT_GT(with_mask.size(), 500u);
+  EXPECT_LT(worst_distance(with_mask), 1.0);
+  EXPECT_LT((with_mask.front() - truth.front()).norm(), 3.0);
+  EXPECT_LT((with_mask.back() - truth.back()).norm(), 3.0);
+
+  // A mask in colour, or of another size than the camera's, is named.
+  WriteImageFile(spec.mask, cv::Mat(image.size(), CV_8UC3, cv::Scalar::all(255)));
+  try {
+    ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(spec.mask + ": a mask must be a single-channel (grey) image, "
+                                                "this one has 3 channels"));
+  }
+  WriteImageFile(spec.mask, cv::Mat1b(100, 200, uchar(255)));
+  try {
+    ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(),
+                HasSubstr(spec.mask + ": the mask is 200x100 px but camera front is 1280x1024"));
+  }
+  // A roi past the image: the extraction names the image and the roi.
+  spec.mask.clear();
+  spec.roi = std::array<int, 4>{0, 0, 2000, 100};
+  try {
+    ImagePointsFromImage(spec, front_, ex_.scene.cases[0]);
+    ADD_FAILURE() << "no error";
+  } catch (const CentrelineError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(spec.file + ": centre-line extraction: roi [0, 2000) x "
+                                                "[0, 100) is not inside the 1280x1024 px image"));
+  }
 }
 
 TEST_F(ImageObservationsTest, BadImagesAreOneLineErrors) {

@@ -5,6 +5,7 @@
 #include "rodfit/synth/synth.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -327,6 +328,24 @@ TEST_F(SynthTest, OutputDirectoryIsSelfContainedAndLoads) {
   // The moved copy still reads: nothing in it points outside the folder.
   fs::rename(dir, dir_.File("moved"));
   EXPECT_NO_THROW(MakeSynthBundle(LoadExperiment(dir_.File("moved/experiment.yaml"))));
+}
+
+TEST_F(SynthTest, AnImageEntrysRoiAndMaskAreKeptAndTheMaskCopied) {
+  dir_.Write("exp/masks/front.png", "mask bytes, copied as they are");
+  const Experiment ex = Load("      - {type: images, file: img/sag.png, camera: " + kCameraFront +
+                             ", sigma: 0.5, roi: [100, 50, 1200, 1000], mask: masks/front.png}\n");
+  Run(ex, "out");
+  const std::string dir = dir_.File("out");
+  const Experiment back = LoadExperiment(dir + "/experiment.yaml");
+  const ObservationSpec& b = back.cases[0].observations[0];
+  ASSERT_TRUE(b.roi.has_value());
+  EXPECT_EQ(*b.roi, (std::array<int, 4>{100, 50, 1200, 1000}));
+  EXPECT_EQ(b.mask, dir + "/masks/front.png");
+  EXPECT_EQ(ReadText(b.mask), "mask bytes, copied as they are");
+  // A mask that is not there is named (synth copies it).
+  const Experiment missing = Load("      - {type: images, file: img/sag.png, camera: " +
+                                  kCameraFront + ", sigma: 0.5, mask: masks/none.png}\n");
+  EXPECT_THAT(SynthError(missing), HasSubstr("masks/none.png"));
 }
 
 TEST_F(SynthTest, PixelsOffTheSensorAreDropped) {

@@ -3,7 +3,8 @@
 // blurred with noise (fixed seeds). Every extracted point must lie within 1 px of the truth, in
 // order along it (no arc-length jump bigger than the spatial step, so nothing is skipped or
 // scrambled) and cover it end to end. Also: border crossing, a bridged gap, crossings,
-// self-touching threads, colour segmentation, failures with clear errors, and the overlay.
+// self-touching threads, colour segmentation, failures with clear errors, the overlay, and a
+// region of interest or mask that excludes clutter (a table edge, clamps).
 #include "rodfit/vision/centreline.h"
 
 #include <cmath>
@@ -423,6 +424,159 @@ TEST(CentrelineTest, EmptyOrClutteredImagesGiveClearErrors) {
   CentrelineOptions bad;
   bad.max_gap = -1;
   EXPECT_THROW(ExtractCentreline(Render(Arc(), 2.0, 0, 0), bad), std::invalid_argument);
+}
+
+// ------------------------------------------------------------- region of interest and mask
+
+// Arc length along `truth` to its first point outside `box` (where the thread leaves a clamp).
+double ArcLengthLeaving(const Polyline& truth, const cv::Rect& box) {
+  double s = 0;
+  for (size_t i = 1; i < truth.size() && box.contains(cv::Point(int(std::lround(truth[i - 1].x())),
+                                                                  int(std::lround(truth[i - 1].y()))));
+       ++i)
+    s += (truth[i] - truth[i - 1]).norm();
+  return s;
+}
+
+// A lab photograph's table edge: a dark band across the bottom of the image, darker than the
+// background but lighter than the thread. Otsu then separates the light table from everything
+// dark, so the band is segmented with the thread.
+TEST(CentrelineRegionTest, ClutterOutsideTheRoiIsIgnored) {
+  const Polyline truth = SCurve(300, 980);
+  const cv::Mat clean = Render(truth, 2.0, 1.0, 4.0, 5);
+  CentrelineOptions o;
+  o.start_hint = truth.front();
+  o.image_name = "lab.png";
+  const CentrelineResult r_clean = ExtractCentreline(clean, o);
+  const Comparison c_clean = Compare(truth, r_clean.uv);
+  EXPECT_FOLLOWS(c_clean, 3.0);
+
+  cv::Mat cluttered = clean.clone();
+  cv::rectangle(cluttered, cv::Point(0, 880), cv::Point(1279, 1023), cv::Scalar::all(90),
+                cv::FILLED);
+  // Without a region the band is taken as thread: a second piece that cannot be linked.
+  try {
+    ExtractCentreline(cluttered, o);
+    ADD_FAILURE() << "expected a CentrelineError";
+  } catch (const CentrelineError& e) {
+    EXPECT_NE(std::string(e.what()).find("disjoint pieces"), std::string::npos) << e.what();
+  }
+
+  o.roi = cv::Rect(0, 0, 1280, 860);  // the rows above the band
+  const CentrelineResult r = ExtractCentreline(cluttered, o);
+  const Comparison cmp = Compare(truth, r.uv);
+  EXPECT_FOLLOWS(cmp, 3.0);
+  EXPECT_EQ(r.num_pieces, 1) << r.BriefReport();
+  // The same accuracy as on the clean image: the band is out of the threshold's statistics.
+  EXPECT_NEAR(r.threshold, r_clean.threshold, 2.0);
+  EXPECT_LE(cmp.rms_dist, c_clean.rms_dist + 0.02);
+  std::printf("[ roi ] clean max %.3f rms %.3f px; band outside the roi max %.3f rms %.3f px\n",
+              c_clean.max_dist, c_clean.rms_dist, cmp.max_dist, cmp.rms_dist);
+  // The mask is the segmentation: nothing of the band.
+  EXPECT_EQ(cv::countNonZero(r.mask(cv::Rect(0, 860, 1280, 164))), 0);
+}
+
+// Clamps holding both ends: dark jaws (60 x 140 px) the thread runs into. A mask that excludes
+// them (and 10 px round them) cuts the thread where it leaves each, and those cut ends are treated
+// as ends at the image border.
+TEST(CentrelineRegionTest, AMaskCutsTheThreadLikeTheImageBorder) {
+  const Polyline truth = SCurve(300, 980);
+  cv::Mat grey;
+  cv::cvtColor(Render(truth, 2.0, 1.0, 4.0, 6), grey, cv::COLOR_BGR2GRAY);
+  cv::Mat1b mask(grey.size(), uchar(255));
+  std::vector<cv::Rect> excluded;
+  for (const Vec2& end : {truth.front(), truth.back()}) {
+    const cv::Point c(int(std::lround(end.x())), int(std::lround(end.y())));
+    grey(cv::Rect(c.x - 30, c.y - 70, 60, 140)).setTo(60);
+    excluded.emplace_back(c.x - 40, c.y - 80, 80, 160);
+    mask(excluded.back()).setTo(0);
+  }
+  const cv::Mat before = grey.clone();
+  CentrelineOptions o;
+  o.image_name = "clamps.png";
+
+  // Without the mask each clamp is a blob at an end of the thread: the cross-sections there are
+  // dropped as too wide, but the jaws' area counts as thread, so the half-width that scales
+  // pruning, the crossing merge distance and the cross-section reach is four times too large.
+  const CentrelineResult unmasked = ExtractCentreline(grey, o);
+
+  o.mask = mask;
+  const CentrelineResult r = ExtractCentreline(grey, o);
+  EXPECT_EQ(cv::countNonZero(grey != before), 0) << "the caller's image was changed";
+  EXPECT_EQ(r.num_pieces, 1) << r.BriefReport();
+  EXPECT_NEAR(r.mean_half_width_px, 2.0, 0.5);
+  EXPECT_GT(unmasked.mean_half_width_px, 4 * 2.0) << unmasked.BriefReport();
+  // Both ends are on the mask's border: the tie goes to the smaller u, the truth's first point.
+  EXPECT_EQ(r.start_choice, StartChoice::kNearestBorder);
+  const Comparison cmp = Compare(truth, r.uv);
+  EXPECT_TRUE(cmp.ok) << cmp.failure;
+  EXPECT_LE(cmp.max_dist, 1.0);
+  // Both ends where the thread leaves the excluded boxes (as at the image border, the end is
+  // the last whole cross-section inside, up to a half-width and the sampling step short).
+  const double s_in = ArcLengthLeaving(truth, excluded[0]);
+  const Polyline reversed(truth.rbegin(), truth.rend());
+  const double s_out = cmp.length - ArcLengthLeaving(reversed, excluded[1]);
+  EXPECT_NEAR(cmp.s_first, s_in, 3.0);
+  EXPECT_NEAR(cmp.s_last, s_out, 3.0);
+  std::printf("[ mask ] clamps masked: max %.3f rms %.3f px, ends %.2f / %.2f px from the mask\n",
+              cmp.max_dist, cmp.rms_dist, cmp.s_first - s_in, s_out - cmp.s_last);
+
+  // The clean image, its ends cut at the same boxes, for the same accuracy.
+  cv::Mat clean_grey;
+  cv::cvtColor(Render(truth, 2.0, 1.0, 4.0, 6), clean_grey, cv::COLOR_BGR2GRAY);
+  const Comparison c_clean = Compare(truth, ExtractCentreline(clean_grey, o).uv);
+  EXPECT_LE(cmp.rms_dist, c_clean.rms_dist + 0.02);
+
+  // A thread end cut by the mask is not linked across a gap: with a band of the mask cleared
+  // across the middle the two halves stay apart (as two pieces leaving the image would).
+  const Vec2 mid = truth[300];
+  cv::rectangle(o.mask, cv::Point(int(mid.x()) - 3, 0), cv::Point(int(mid.x()) + 3, 1023),
+                cv::Scalar::all(0), cv::FILLED);
+  EXPECT_THROW(ExtractCentreline(grey, o), CentrelineError);
+}
+
+TEST(CentrelineRegionTest, RegionsThatDoNotFitTheImageAreErrors) {
+  const cv::Mat img = Render(Arc(), 2.0, 0, 0);
+  auto message = [&](const CentrelineOptions& o) -> std::string {
+    try {
+      ExtractCentreline(img, o);
+    } catch (const CentrelineError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  CentrelineOptions o;
+  o.image_name = "left.png";
+  o.roi = cv::Rect(1200, 0, 100, 100);  // past the right border (1280 px)
+  std::string what = message(o);
+  EXPECT_NE(what.find("left.png"), std::string::npos) << what;
+  EXPECT_NE(what.find("roi [1200, 1300) x [0, 100) is not inside the 1280x1024"),
+            std::string::npos) << what;
+  EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  o.roi = cv::Rect(-1, 0, 10, 10);
+  EXPECT_NE(message(o).find("is not inside"), std::string::npos) << message(o);
+  o.roi = cv::Rect(10, 10, 0, 5);
+  what = message(o);
+  EXPECT_NE(what.find("roi [10, 10) x [10, 15) is empty"), std::string::npos) << what;
+
+  o.roi.reset();
+  o.mask = cv::Mat1b(100, 100, uchar(255));
+  what = message(o);
+  EXPECT_NE(what.find("left.png"), std::string::npos) << what;
+  EXPECT_NE(what.find("the mask is 100x100 px but the image is 1280x1024 px"), std::string::npos)
+      << what;
+  o.mask = cv::Mat(img.size(), CV_8UC3, cv::Scalar::all(255));
+  EXPECT_NE(message(o).find("the mask has 3 channels"), std::string::npos) << message(o);
+  o.mask = cv::Mat1b(img.size(), uchar(0));
+  EXPECT_NE(message(o).find("mask leaves no pixel"), std::string::npos) << message(o);
+  // A roi where the mask is zero leaves nothing either.
+  o.mask = cv::Mat1b(img.size(), uchar(255));
+  o.mask(cv::Rect(0, 0, 200, 200)).setTo(0);
+  o.roi = cv::Rect(0, 0, 100, 100);
+  EXPECT_NE(message(o).find("roi and mask leave no pixel"), std::string::npos) << message(o);
+  // A roi that holds no thread: nothing segmented, as for an empty image.
+  o.mask.release();
+  EXPECT_NE(message(o).find("nothing segmented"), std::string::npos) << message(o);
 }
 
 TEST(CentrelineTest, OverlayDrawsBothPolylines) {

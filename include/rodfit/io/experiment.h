@@ -5,6 +5,7 @@
 // never a failure deep inside a solve.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -51,7 +52,7 @@ struct ParameterSpec {
 ///                 s | count, frame_rate [Hz], drop (no outliers)
 ///   points3d:     file, sigma [m],  count, outliers
 ///   image_points: file, sigma [px], camera, s | count, outliers
-///   images:       file, sigma [px], camera, blur, noise
+///   images:       file, sigma [px], camera, blur, noise, roi [px], mask
 ///   grasp_force:  file (haptic log t,tool_x,tool_y,tool_z,fx,fy,fz), sigma [N], s (the grasped
 ///                 arc length, one value), max_speed [m/s], count (fit: quasi-static samples
 ///                 used; synth: the steps of the synthesized drag)
@@ -78,6 +79,12 @@ struct ObservationSpec {
   double max_speed = 1e-3;
   double blur = 0.0;      ///< [px] `images`: Gaussian blur sigma of synthesized images, >= 0
   double noise = 0.0;     ///< [grey levels] `images`: pixel noise sigma of synthesized images
+  /// [px] `images`: the extraction's region of interest, corners x0, y0 (inclusive) and x1, y1
+  /// (exclusive), 0 <= x0 < x1, 0 <= y0 < y1 (CentrelineOptions::roi).
+  std::optional<std::array<int, 4>> roi;
+  /// `images`: a mask image (non-zero = may hold thread; CentrelineOptions::mask), resolved
+  /// against the YAML's folder; empty = none.
+  std::string mask;
   /// [Hz] a sequence's frames (an entry of a moving scene): reading, the rate of a `frame`
   /// column; synth, the sampling rate (0: not given; synth then samples every written frame of
   /// the dynamics).

@@ -379,13 +379,30 @@ void ReadDeviceConvention(const Reader& r, const Entries& m, ObservationSpec* o)
   }
 }
 
+// An `images` entry's `roi: [x0, y0, x1, y1]` (docs/formats.md, "Observation entries"): pixel
+// corners, x1 and y1 exclusive. Whether it fits the image is known only when the image is read
+// (the extraction names the image then).
+std::array<int, 4> ReadRoi(const Reader& r, const Field& f) {
+  if (!f.node.IsSequence() || f.node.size() != 4) {
+    r.Fail(f, "expected [x0, y0, x1, y1] (4 pixel corners)" +
+                  (f.node.IsSequence() ? ", got " + std::to_string(f.node.size()) + " values"
+                                       : std::string()));
+  }
+  const std::vector<Field> items = r.Sequence(f);
+  std::array<int, 4> roi{};
+  for (int k = 0; k < 4; ++k) roi[k] = r.IntegerIn(items[k], 0, kMaxImageSidePx);
+  if (roi[2] <= roi[0]) r.Fail(items[2], "x1 must exceed x0 (" + std::to_string(roi[0]) + ")");
+  if (roi[3] <= roi[1]) r.Fail(items[3], "y1 must exceed y0 (" + std::to_string(roi[1]) + ")");
+  return roi;
+}
+
 ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex,
                                 bool case_has_poke, const std::vector<std::string>& case_points) {
   const std::vector<std::string> all = {"type",     "file",  "camera", "sigma",
                                         "s",        "count", "outliers", "blur",
                                         "noise",    "max_speed", "point", "sigma_moment",
                                         "unit",     "force_unit", "device_frame", "force_on",
-                                        "camera_index", "frame_rate", "drop"};
+                                        "camera_index", "frame_rate", "drop", "roi", "mask"};
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
@@ -418,7 +435,7 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   if (o.type != "images") allowed.push_back("count");
   if (o.type != "images" && !force && !surface && !moving) allowed.push_back("outliers");
   if (moving) allowed.insert(allowed.end(), {"frame_rate", "drop"});
-  if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise"});
+  if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise", "roi", "mask"});
   if (force) allowed.insert(allowed.end(),
                             {"max_speed", "unit", "force_unit", "device_frame", "force_on"});
   const bool reaction = o.type == "reaction";
@@ -493,6 +510,8 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   }
   if (const Field* blur = Reader::Find(m, "blur")) o.blur = r.InRange(*blur, 0.0, kMaxBlurPx);
   if (const Field* noise = Reader::Find(m, "noise")) o.noise = r.InRange(*noise, 0.0, kMaxNoiseGrey);
+  if (const Field* roi = Reader::Find(m, "roi")) o.roi = ReadRoi(r, *roi);
+  if (const Field* mask = Reader::Find(m, "mask")) o.mask = r.Path(*mask, ex.directory);
   return o;
 }
 

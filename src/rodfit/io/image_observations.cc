@@ -2,6 +2,7 @@
 #include "rodfit/io/image_observations.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -125,6 +126,21 @@ void WriteImageFile(const std::string& path, const cv::Mat& image) {
   WriteFileAtomically(path, EncodeImage(path, image));
 }
 
+cv::Mat ReadMaskFile(const std::string& path, const Camera& camera) {
+  const cv::Mat mask = ReadImageFile(path);
+  if (mask.channels() != 1) {
+    throw InputError(path, 0, "", "a mask must be a single-channel (grey) image, this one has " +
+                                      std::to_string(mask.channels()) + " channels");
+  }
+  if (mask.cols != camera.K.width || mask.rows != camera.K.height) {
+    throw InputError(path, 0, "",
+                     "the mask is " + std::to_string(mask.cols) + "x" +
+                         std::to_string(mask.rows) + " px but camera " + camera.name + " is " +
+                         std::to_string(camera.K.width) + "x" + std::to_string(camera.K.height));
+  }
+  return mask;
+}
+
 CentrelineResult ExtractCentrelineFromFile(const std::string& path, const Camera& camera,
                                            CentrelineOptions options) {
   const cv::Mat image = ReadImageFile(path);
@@ -148,6 +164,11 @@ std::vector<Eigen::Vector2d> ImagePointsFromImage(const ObservationSpec& spec,
   CentrelineOptions o = options;
   Eigen::Vector2d clamp_uv;
   if (Project(camera, load_case.clamp.position, &clamp_uv)) o.start_hint = clamp_uv;
+  if (spec.roi) {
+    const std::array<int, 4>& c = *spec.roi;
+    o.roi = cv::Rect(c[0], c[1], c[2] - c[0], c[3] - c[1]);
+  }
+  if (!spec.mask.empty()) o.mask = ReadMaskFile(spec.mask, camera);
   CentrelineResult extracted = ExtractCentrelineFromFile(spec.file, camera, o);
   std::vector<Eigen::Vector2d> uv = extracted.uv;
   if (result) *result = std::move(extracted);

@@ -37,6 +37,11 @@ std::string EncodeImage(const std::string& path, const cv::Mat& image);
 /// EncodeImage, then WriteFileAtomically. Throws InputError.
 void WriteImageFile(const std::string& path, const cv::Mat& image);
 
+/// Reads the mask image `path` for CentrelineOptions::mask (non-zero = may hold thread). Throws
+/// InputError naming `path` when it cannot be read (ReadImageFile), has more than one channel or
+/// not the size of `camera`'s images.
+cv::Mat ReadMaskFile(const std::string& path, const Camera& camera);
+
 /// ExtractCentreline on the image file `path` taken by `camera`. The image must have the camera's
 /// size (InputError otherwise); options.image_name defaults to `path`. Throws InputError or
 /// CentrelineError (one line, naming the image) when nothing can be extracted.
@@ -45,7 +50,8 @@ CentrelineResult ExtractCentrelineFromFile(const std::string& path, const Camera
 
 /// The `image_points` (u, v, without s) of an `images` entry of `load_case`: its centre-line
 /// ordered from the end nearest the projected clamp position (when the clamp projects; else
-/// options.start_hint or the border rule of ExtractCentreline). `result`, if given, receives the
+/// options.start_hint or the border rule of ExtractCentreline), searched inside the entry's
+/// `roi` and `mask` when it has them. `result`, if given, receives the
 /// whole extraction (mask, widths, report) for overlays.
 std::vector<Eigen::Vector2d> ImagePointsFromImage(const ObservationSpec& spec,
                                                   const Camera& camera,

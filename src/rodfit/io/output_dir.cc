@@ -57,6 +57,9 @@ std::vector<InputFile> ExperimentInputs(const Experiment& experiment, bool with_
         inputs.emplace_back(observations[o].file, "the data file of " + entry);
       if (!observations[o].camera.empty())
         inputs.emplace_back(observations[o].camera, "the camera of " + entry);
+      // A mask is an input even to synth, which writes the images but never their masks.
+      if (!observations[o].mask.empty())
+        inputs.emplace_back(observations[o].mask, "the mask of " + entry);
     }
     if (c < experiment.scene.cases.size() &&
         experiment.scene.cases[c].start.kind == StartShape::Kind::kPoints)

@@ -875,6 +875,7 @@ std::string EmitExperimentYaml(const std::string& yaml_text, const Experiment& e
       YAML::Node entry = observations[o];
       entry["file"] = map_path(specs[o].file);
       if (!specs[o].camera.empty()) entry["camera"] = map_path(specs[o].camera);
+      if (!specs[o].mask.empty()) entry["mask"] = map_path(specs[o].mask);
     }
   }
   YAML::Emitter out;
@@ -1002,7 +1003,17 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
   for (const std::string& camera : camera_order) {
     bundle.files.emplace_back(rel(camera), ReadBytes(camera, "the camera file"));
   }
-  // Start shapes are copied too, so DIR/experiment.yaml is self-contained.
+  // Masks and start shapes are copied too, so DIR/experiment.yaml is self-contained.
+  std::set<std::string> masks;
+  for (size_t c = 0; c < ex.cases.size(); ++c) {
+    for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
+      const ObservationSpec& spec = ex.cases[c].observations[o];
+      if (spec.mask.empty() || !masks.insert(spec.mask).second) continue;
+      const std::string key = EntryKey(static_cast<int>(c), static_cast<int>(o)) + ".mask";
+      claim(rel(spec.mask), "mask " + spec.mask, spec.line, key);
+      bundle.files.emplace_back(rel(spec.mask), ReadBytes(spec.mask, "the mask"));
+    }
+  }
   std::set<std::string> starts;
   for (size_t c = 0; c < ex.scene.cases.size(); ++c) {
     const StartShape& start = ex.scene.cases[c].start;

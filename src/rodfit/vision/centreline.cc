@@ -40,6 +40,83 @@ double MedianPositive(const std::vector<double>& values, double fallback) {
   return v[v.size() / 2];
 }
 
+// Where the thread may be: the image, or its pixels inside options.roi and options.mask. The
+// region's boundary is treated like the image's border wherever that matters.
+struct Region {
+  cv::Size size;
+  cv::Mat1b allowed;  // 255 = may hold thread; empty = the whole image
+  cv::Mat1f dist;     // [px] from each allowed pixel to the nearest excluded one; empty likewise
+  int area = 0;       // [px] allowed pixels
+
+  bool Allows(int x, int y) const { return allowed.empty() || allowed(y, x) != 0; }
+
+  // [px] from p (a pixel position) to the nearest border: 0 on the outermost pixels of the
+  // image, and on the allowed pixels next to an excluded one.
+  double BorderDistance(const Vec2& p) const {
+    double d = std::min({p.x(), p.y(), size.width - 1 - p.x(), size.height - 1 - p.y()});
+    if (!dist.empty()) {
+      const int x = std::clamp(static_cast<int>(std::lround(p.x())), 0, size.width - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(p.y())), 0, size.height - 1);
+      d = std::min(d, std::max(0.0, dist(y, x) - 1.0));
+    }
+    return d;
+  }
+};
+
+std::string RoiText(const cv::Rect& r) {
+  std::ostringstream out;
+  out << "[" << r.x << ", " << r.x + r.width << ") x [" << r.y << ", " << r.y + r.height << ")";
+  return out.str();
+}
+
+// Checks options.roi and options.mask against the image and builds the region they leave.
+Region MakeRegion(const cv::Mat& image, const CentrelineOptions& o) {
+  Region region;
+  region.size = image.size();
+  region.area = static_cast<int>(image.total());
+  const std::string size = std::to_string(image.cols) + "x" + std::to_string(image.rows);
+  if (o.roi) {
+    const cv::Rect& r = *o.roi;
+    if (r.width <= 0 || r.height <= 0)
+      Fail(o, "roi " + RoiText(r) + " is empty (x1 must exceed x0 and y1 y0)");
+    if (r.x < 0 || r.y < 0 || r.x + r.width > image.cols || r.y + r.height > image.rows)
+      Fail(o, "roi " + RoiText(r) + " is not inside the " + size + " px image");
+  }
+  if (!o.mask.empty()) {
+    if (o.mask.channels() != 1) {
+      Fail(o, "the mask has " + std::to_string(o.mask.channels()) +
+                  " channels (it must be a single-channel image)");
+    }
+    if (o.mask.size() != image.size()) {
+      Fail(o, "the mask is " + std::to_string(o.mask.cols) + "x" + std::to_string(o.mask.rows) +
+                  " px but the image is " + size + " px");
+    }
+  }
+  if (!o.roi && o.mask.empty()) return region;
+  region.allowed = cv::Mat1b(image.size(), uchar(0));
+  if (o.roi) region.allowed(*o.roi).setTo(255);
+  else region.allowed.setTo(255);
+  if (!o.mask.empty()) {
+    cv::Mat1b nonzero;
+    cv::compare(o.mask, 0, nonzero, cv::CMP_NE);
+    region.allowed &= nonzero;
+  }
+  region.area = cv::countNonZero(region.allowed);
+  if (region.area == 0) {
+    // A roi alone is never empty here (checked above): the mask is zero where it looks.
+    Fail(o, o.roi ? "the roi and mask leave no pixel to search (the mask is zero inside the roi)"
+                  : "the mask leaves no pixel to search (it is zero everywhere)");
+  }
+  // Distances to the nearest excluded pixel; the zero padding makes the image border one too,
+  // so that a single look-up serves both.
+  cv::Mat1b padded;
+  cv::copyMakeBorder(region.allowed, padded, 1, 1, 1, 1, cv::BORDER_CONSTANT, 0);
+  cv::Mat1f dist;
+  cv::distanceTransform(padded, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  region.dist = dist(cv::Rect(1, 1, image.cols, image.rows)).clone();
+  return region;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Segmentation
 
@@ -84,13 +161,42 @@ int MedianGrey(const cv::Mat1b& grey, const cv::Mat1b& where, std::array<double,
   return 255;
 }
 
+// Otsu's threshold on a grey-level histogram: the last level of the darker class that maximises
+// the between-class variance w0 w1 (m0 - m1)^2 (the first maximum on ties, as cv::threshold).
+// Computed here rather than by cv::threshold so that it sees the region's pixels only.
+int OtsuLevel(const std::array<double, 256>& hist) {
+  double n = 0, sum = 0;
+  for (int l = 0; l < 256; ++l) {
+    n += hist[l];
+    sum += l * hist[l];
+  }
+  double w0 = 0, sum0 = 0, best = 0;
+  int level = 0;
+  for (int l = 0; l < 255; ++l) {
+    w0 += hist[l];
+    sum0 += l * hist[l];
+    const double w1 = n - w0;
+    if (w0 <= 0 || w1 <= 0) continue;
+    const double gap = sum0 / w0 - (sum - sum0) / w1;
+    const double between = w0 * w1 * gap * gap;
+    if (between > best) {
+      best = between;
+      level = l;
+    }
+  }
+  return level;
+}
+
 struct Segmented {
   cv::Mat1b mask;         // 0/255
   cv::Mat1b grey;         // for the sub-pixel weights (threshold modes)
   double threshold = 0;
 };
 
-Segmented Segment(const cv::Mat& image, const CentrelineOptions& o) {
+// Pixels outside the region are background: they are left out of every statistic, filled with
+// the region's median grey before the pre-blur (so clutter there does not bleed in) and cleared
+// in the mask.
+Segmented Segment(const cv::Mat& image, const Region& region, const CentrelineOptions& o) {
   Segmented s;
   if (o.segmentation == Segmentation::kColourRange) {
     cv::Mat hsv;
@@ -104,9 +210,15 @@ Segmented Segment(const cv::Mat& image, const CentrelineOptions& o) {
       cv::inRange(hsv, cv::Scalar(0, o.hsv_lo[1], o.hsv_lo[2]), o.hsv_hi, b);
       s.mask = a | b;
     }
+    if (!region.allowed.empty()) s.mask &= region.allowed;
     return s;
   }
   s.grey = ToGrey(image);
+  if (!region.allowed.empty()) {
+    const int fill = MedianGrey(s.grey, region.allowed, nullptr);
+    s.grey = s.grey.clone();  // may share the caller's pixels
+    s.grey.setTo(fill, region.allowed == 0);
+  }
   cv::Mat1b smooth = s.grey;
   if (o.pre_blur_sigma > 0) cv::GaussianBlur(s.grey, smooth, cv::Size(0, 0), o.pre_blur_sigma);
   const bool dark = o.segmentation == Segmentation::kDarkOnLight;
@@ -116,32 +228,32 @@ Segmented Segment(const cv::Mat& image, const CentrelineOptions& o) {
     // Otsu alone splits the background's noise when the thread covers a tiny fraction of the
     // image; keep the threshold outside the background's noise band (robust sigma from MAD).
     std::array<double, 256> hist;
-    const int median = MedianGrey(smooth, cv::Mat1b(), &hist);
+    const int median = MedianGrey(smooth, region.allowed, &hist);
     std::array<double, 256> dev{};
     for (int l = 0; l < 256; ++l) dev[std::abs(l - median)] += hist[l];
     double acc = 0, mad = 0;
     for (int l = 0; l < 256; ++l) {
       acc += dev[l];
-      if (acc >= 0.5 * smooth.total()) { mad = l; break; }
+      if (acc >= 0.5 * region.area) { mad = l; break; }
     }
     const double band = std::max(4.0 * 1.4826 * mad, static_cast<double>(o.min_contrast));
-    cv::Mat1b scratch;
-    const double otsu = cv::threshold(smooth, scratch, 0, 255,
-                                      (dark ? cv::THRESH_BINARY_INV : cv::THRESH_BINARY) |
-                                          cv::THRESH_OTSU);
+    const double otsu = OtsuLevel(hist);
     s.threshold = dark ? std::min(otsu, median - band) : std::max(otsu, median + band);
   }
   if (dark) s.mask = smooth <= s.threshold;
   else s.mask = smooth > s.threshold;
+  if (!region.allowed.empty()) s.mask &= region.allowed;
   return s;
 }
 
-// Closing, component filter and pin-hole filling.
-void CleanMask(const CentrelineOptions& o, cv::Mat1b* mask) {
+// Closing, component filter and pin-hole filling; neither closing nor filling may reach out of
+// the region.
+void CleanMask(const CentrelineOptions& o, const Region& region, cv::Mat1b* mask) {
   if (o.closing_radius > 0) {
     const int k = 2 * o.closing_radius + 1;
     cv::morphologyEx(*mask, *mask, cv::MORPH_CLOSE,
                      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
+    if (!region.allowed.empty()) *mask &= region.allowed;
   }
   cv::Mat1i labels;
   cv::Mat stats, centroids;
@@ -168,6 +280,7 @@ void CleanMask(const CentrelineOptions& o, cv::Mat1b* mask) {
     const int* l = labels.ptr<int>(y);
     for (int x = 0; x < mask->cols; ++x) m[x] |= fill[l[x]] ? 255 : 0;
   }
+  if (!region.allowed.empty()) *mask &= region.allowed;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -506,7 +619,7 @@ struct End {
   Vec2 pos = Vec2::Zero();
   Vec2 dir = Vec2::Zero();  // unit, pointing out of the piece; zero when too short to tell
   int junction = -1;        // node id, or -1 for a free end
-  bool border = false;      // free end at the image border: the thread leaves the image
+  bool border = false;      // free end at the image's (or region's) border: the thread leaves
 };
 struct Piece {
   std::vector<Vec2> pts;
@@ -562,11 +675,20 @@ void Matchings(const std::vector<const End*>& ends, std::vector<int>* open,
 // Sub-pixel refinement
 
 // Foreground weight in [0, 1]: intensity contrast against the background, or the mask.
+// A sample is inside when every pixel its bilinear interpolation reads is in the image and in
+// the region: the region's boundary cuts a cross-section as the image border does.
 struct Weights {
   cv::Mat1b src;
+  const Region* region = nullptr;
   double zero = 0, one = 255;  // grey levels of weight 0 and 1
   bool Inside(const Eigen::Vector2d& q) const {
-    return q.x() >= 0 && q.y() >= 0 && q.x() <= src.cols - 1 && q.y() <= src.rows - 1;
+    if (!(q.x() >= 0 && q.y() >= 0 && q.x() <= src.cols - 1 && q.y() <= src.rows - 1))
+      return false;
+    if (region == nullptr || region->allowed.empty()) return true;
+    const int x0 = static_cast<int>(q.x()), y0 = static_cast<int>(q.y());
+    const int x1 = static_cast<int>(std::ceil(q.x())), y1 = static_cast<int>(std::ceil(q.y()));
+    return region->Allows(x0, y0) && region->Allows(x1, y0) && region->Allows(x0, y1) &&
+           region->Allows(x1, y1);
   }
   double At(double x, double y) const {
     x = std::clamp(x, 0.0, src.cols - 1.0);
@@ -594,9 +716,9 @@ std::vector<Vec2> Tangents(const std::vector<Vec2>& p) {
 
 // Moves each point to the weight centroid of the contiguous run across its normal and measures
 // the run's width at weight 0.5 (the local half-width). Returns which points to keep: a point
-// whose run is cut by the image border, is lopsided or much wider than the median run (it runs
-// into another strand at a crossing, where the thread touches itself or in a cusp), or where
-// the path turns back on itself (a cusp's tip) has no trustworthy centroid.
+// whose run is cut by the image border (or the region's), is lopsided or much wider than the
+// median run (it runs into another strand at a crossing, where the thread touches itself or in
+// a cusp), or where the path turns back on itself (a cusp's tip) has no trustworthy centroid.
 std::vector<char> Refine(const Weights& w, double reach, std::vector<Vec2>* pts,
                          std::vector<double>* half) {
   constexpr double kStep = 0.25, kFloor = 0.1;
@@ -660,8 +782,8 @@ std::vector<char> Refine(const Weights& w, double reach, std::vector<Vec2>* pts,
 // leaves the skeleton's end anywhere inside the cap, so: fit a parabola in arc length to the
 // points a little before the cap (2 hw + 1 to 2 hw + 1 + max(6, 3 hw) px from the end), where
 // the cross-section is whole; march along it to where the weight falls to 0.5 and step back by
-// the half-width there (the cap's centre), or stop at the image border; drop the points beyond
-// that, or extend the last point out to it.
+// the half-width there (the cap's centre), or stop at the image's (or region's) border; drop the
+// points beyond that, or extend the last point out to it.
 void FitEnd(const Weights& w, double hw, bool back, std::vector<Vec2>* pts,
             std::vector<double>* half) {
   const int n = static_cast<int>(pts->size());
@@ -762,14 +884,15 @@ void Resample(double spacing, std::vector<Vec2>* pts, std::vector<double>* half)
 // The stages of ExtractCentreline
 
 // Segmentation with its sanity checks and clean-up; throws when nothing usable is left.
-Segmented SegmentThread(const cv::Mat& image, const CentrelineOptions& o) {
-  Segmented seg = Segment(image, o);
-  const double fraction = cv::countNonZero(seg.mask) / static_cast<double>(seg.mask.total());
+Segmented SegmentThread(const cv::Mat& image, const Region& region, const CentrelineOptions& o) {
+  Segmented seg = Segment(image, region, o);
+  const double fraction = cv::countNonZero(seg.mask) / static_cast<double>(region.area);
   if (fraction > o.max_foreground_fraction) {
-    Fail(o, "segmentation covers " + std::to_string(std::lround(100 * fraction)) +
-                "% of the image, not a thread (wrong mode or threshold?)");
+    Fail(o, "segmentation covers " + std::to_string(std::lround(100 * fraction)) + "% of the " +
+                (region.allowed.empty() ? "image" : "region (roi, mask)") +
+                ", not a thread (wrong mode or threshold?)");
   }
-  CleanMask(o, &seg.mask);
+  CleanMask(o, region, &seg.mask);
   if (cv::countNonZero(seg.mask) == 0) {
     Fail(o, "nothing segmented (threshold " + std::to_string(std::lround(seg.threshold)) +
                 ", min_component_area " + std::to_string(o.min_component_area) + " px)");
@@ -780,11 +903,9 @@ Segmented SegmentThread(const cv::Mat& image, const CentrelineOptions& o) {
 // Every live branch as a piece in image coordinates, trimmed by hw + 1.5 px where it enters a
 // junction (the skeleton bends towards the junction there); components thinned to a dot are
 // pieces of one point.
-std::vector<Piece> MakePieces(const Graph& graph, double hw, cv::Size size) {
+std::vector<Piece> MakePieces(const Graph& graph, double hw, const Region& region) {
   const Vec2 one(1, 1);  // the padding
-  auto border_dist = [&](const Vec2& p) {
-    return std::min({p.x(), p.y(), size.width - 1 - p.x(), size.height - 1 - p.y()});
-  };
+  auto border_dist = [&](const Vec2& p) { return region.BorderDistance(p); };
   std::vector<Piece> pieces;
   for (const Branch& b : graph.branches) {
     if (!b.alive) continue;
@@ -922,13 +1043,13 @@ std::vector<Chain> MakeChains(const std::vector<Piece>& pieces, const std::vecto
 
 // Picks the start end (nearest the hint, else nearest the border), then links chains end to
 // end across gaps: from the current last end, the nearest free end within max_gap whose gap
-// both ends turn into by at most max_link_turn_deg; never across an end on the image border.
+// both ends turn into by at most max_link_turn_deg; never across an end on the image border or
+// the region's (the thread leaves the view there).
 // Returns the ordered points.
 std::vector<Vec2> LinkChains(const std::vector<Chain>& chains, const std::vector<Piece>& pieces,
-                             cv::Size size, const CentrelineOptions& o, CentrelineResult* result) {
-  auto border_dist = [&](const Vec2& p) {
-    return std::min({p.x(), p.y(), size.width - 1 - p.x(), size.height - 1 - p.y()});
-  };
+                             const Region& region, const CentrelineOptions& o,
+                             CentrelineResult* result) {
+  auto border_dist = [&](const Vec2& p) { return region.BorderDistance(p); };
   const int nc = static_cast<int>(chains.size());
   int start_chain = 0, start_side = 0;
   double best = std::numeric_limits<double>::infinity();
@@ -1008,11 +1129,15 @@ std::vector<Vec2> LinkChains(const std::vector<Chain>& chains, const std::vector
 
 // Weights for the sub-pixel stage: grey contrast between the background's median and the
 // skeleton's median, or the mask in colour mode or without usable contrast.
-Weights MakeWeights(const Segmented& seg, const cv::Mat1b& skel, const CentrelineOptions& o) {
+Weights MakeWeights(const Segmented& seg, const cv::Mat1b& skel, const Region& region,
+                    const CentrelineOptions& o) {
   Weights weights;
+  weights.region = &region;
   if (!seg.grey.empty()) {
     const cv::Mat1b on_skeleton = skel(cv::Rect(1, 1, seg.grey.cols, seg.grey.rows));
-    const double bg = MedianGrey(seg.grey, seg.mask == 0, nullptr);
+    cv::Mat1b background = seg.mask == 0;
+    if (!region.allowed.empty()) background &= region.allowed;
+    const double bg = MedianGrey(seg.grey, background, nullptr);
     const double fg = MedianGrey(seg.grey, on_skeleton, nullptr);
     if (std::abs(bg - fg) >= 0.5 * o.min_contrast) {
       weights.src = seg.grey;
@@ -1064,8 +1189,9 @@ CentrelineResult ExtractCentreline(const cv::Mat& image, const CentrelineOptions
       (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
     Fail(o, "unsupported image type (need 8- or 16-bit, 1, 3 or 4 channels)");
 
+  const Region region = MakeRegion(image, o);
   CentrelineResult result;
-  const Segmented seg = SegmentThread(image, o);
+  const Segmented seg = SegmentThread(image, region, o);
   result.threshold = seg.threshold;
   result.mask = seg.mask;
 
@@ -1085,14 +1211,14 @@ CentrelineResult ExtractCentreline(const cv::Mat& image, const CentrelineOptions
   }
   result.num_pieces_dropped = static_cast<int>(graph.cycles.size());
 
-  const std::vector<Piece> pieces = MakePieces(graph, hw, image.size());
+  const std::vector<Piece> pieces = MakePieces(graph, hw, region);
   const std::vector<int> partner =
       PairAtJunctions(graph, pieces, o, &result.num_crossings_resolved);
   const std::vector<Chain> chains = MakeChains(pieces, partner, o, &result.num_pieces_dropped);
   if (chains.empty()) Fail(o, "the thread has no visible ends (only closed loops)");
-  std::vector<Vec2> pts = LinkChains(chains, pieces, image.size(), o, &result);
+  std::vector<Vec2> pts = LinkChains(chains, pieces, region, o, &result);
 
-  const Weights weights = MakeWeights(seg, skel, o);
+  const Weights weights = MakeWeights(seg, skel, region, o);
   std::vector<double> half(pts.size(), 0.0);
   if (o.subpixel) {
     const std::vector<char> keep = Refine(weights, std::min(40.0, 3 * hw + 3), &pts, &half);

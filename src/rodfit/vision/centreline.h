@@ -9,7 +9,10 @@
 // direction-consistent end first) -> move every point to the intensity centroid across the
 // local normal, dropping points whose cross-section runs into another strand or the image
 // border -> put both ends at the centres of the thread's caps (or on the border) -> optional
-// uniform resampling. It never returns a scrambled order: what it cannot order unambiguously is
+// uniform resampling. A region of interest and a mask (CentrelineOptions::roi, ::mask) confine
+// the search: pixels outside are background for the segmentation and its statistics, and their
+// boundary is a border like the image's (an end cut there is not linked across, a cross-section
+// reaching it is dropped, an end is fitted up to it). It never returns a scrambled order: what it cannot order unambiguously is
 // a CentrelineError. Pixel centres are at integer coordinates (the OpenCV convention).
 #pragma once
 
@@ -44,7 +47,8 @@ struct CentrelineOptions {
   cv::Scalar hsv_lo{0, 0, 0};                     ///< OpenCV HSV: H in [0, 180), S, V in [0, 255]
   cv::Scalar hsv_hi{180, 255, 255};
   double pre_blur_sigma = 0.0;                    ///< [px] smoothing before thresholding only
-  double max_foreground_fraction = 0.5;           ///< more of the image than this = no thread
+  /// More of the image (of the region, with `roi` or `mask`) than this = no thread.
+  double max_foreground_fraction = 0.5;
   int min_component_area = 20;                    ///< [px] smaller blobs are clutter
   int max_hole_area = 16;                         ///< [px] background holes up to this are filled
   int closing_radius = 1;                         ///< [px] closes gaps of about 2 r px; 0 = off
@@ -61,9 +65,16 @@ struct CentrelineOptions {
   /// 0 = one point per skeleton pixel (minus those dropped as unreliable).
   double resample_spacing = 0.0;
   /// The start is the thread end nearest this pixel (e.g. the projected clamp); without a hint
-  /// it is the end nearest the image border (ties: the smaller u, then v).
+  /// it is the end nearest the image border, or the border of the region (`roi`, `mask`) where
+  /// that is nearer (ties: the smaller u, then v).
   std::optional<Eigen::Vector2d> start_hint;
   double max_start_distance = 0.0;                ///< [px] hint farther from every end = error
+  /// [px] The thread is sought inside this rectangle only: columns x .. x + width - 1, rows
+  /// y .. y + height - 1; it must be non-empty and inside the image (else CentrelineError).
+  std::optional<cv::Rect> roi;
+  /// Single-channel, the image's size (else CentrelineError); non-zero = may hold thread. Empty
+  /// = no mask. With `roi` both apply.
+  cv::Mat mask;
   std::string image_name;                         ///< named in error messages
   bool Check(std::string* why) const;
 };
@@ -89,7 +100,8 @@ struct CentrelineResult {
 /// Extracts the ordered centre-line of the single thread in `image` (CV_8U or CV_16U; 1, 3 (BGR)
 /// or 4 (BGRA) channels). Throws CentrelineError when nothing is segmented, when pieces cannot
 /// be linked within max_gap, when the skeleton branches or closes into a loop that cannot be
-/// ordered unambiguously, and std::invalid_argument for invalid options.
+/// ordered unambiguously, or when `roi` or `mask` does not fit the image, and
+/// std::invalid_argument for invalid options.
 CentrelineResult ExtractCentreline(const cv::Mat& image,
                                    const CentrelineOptions& options = CentrelineOptions());
 
