@@ -227,7 +227,7 @@ TEST_F(StartCsvTest, OnePoint) {
 }
 
 TEST_F(StartCsvTest, MissingColumn) {
-  ExpectStartFails("x,y\n0,0\n0.2,0\n", Csv() + ": z: missing column");
+  ExpectStartFails("x,y\n0,0\n0.2,0\n", Csv() + ": z: missing column (the header has x,y)");
 }
 
 TEST_F(StartCsvTest, RepeatedConsecutivePoints) {
