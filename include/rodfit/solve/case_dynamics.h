@@ -49,6 +49,24 @@ struct CaseTrajectory {
   double seconds = 0.0;               ///< wall time of the integration
 };
 
+/// The held points' reactions of a moving rod at the end of a step (docs/formats.md,
+/// `reactions.csv`): HeldReactions at the state `q`, with the clamp's balance that of the moving
+/// rod — less each free vertex's inertia and external drag m a + c v (a = (v - v_before) / dt,
+/// the step's change of rate; none when dt = 0) and plus the pose's dead loads over time (its
+/// tip force and moment, its point force). v and v_before are the model's free-dof rates. Left
+/// out: the edges' spin inertia (~r^2 / L^2 of the inertia kept) and the internal damping's
+/// forces on held vertices.
+std::vector<HeldReaction> MovingReactions(const RodModel& model, const RodState& q, const VecX& v,
+                                          const VecX& v_before, double dt, const HeldPose& pose);
+
+/// Derivatives of MovingReactions along parameter directions: for each held point (same order)
+/// a 6 x m matrix, rows d force and d moment, given the state's sensitivities dq, dv and
+/// dv_before (num_free_dofs x m, DynamicSensitivity's layout). Moment loads are not supported.
+std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> MovingReactionDerivatives(
+    const RodModel& model, const RodState& q, const VecX& v, const VecX& v_before, double dt,
+    const HeldPose& pose, const Eigen::MatrixXd& dq, const Eigen::MatrixXd& dv,
+    const Eigen::MatrixXd& dv_before, const std::vector<ParameterDirection>& directions);
+
 /// The case's state at t = 0 (see InitialMotion); throws std::runtime_error when the initial
 /// equilibrium does not converge.
 DynamicState InitialDynamicState(const Scene& scene, int index, const StaticsOptions& statics,
@@ -72,6 +90,11 @@ struct CaseSamples {
   /// Per time, 3 points x directions: d x / d log p (rows 3 m .. 3 m + 2 point m's
   /// coordinates); empty without directions.
   std::vector<Eigen::MatrixXd> dx;
+  /// With reactions asked for: per time, every held point's reaction of the whole rod
+  /// (MovingReactions, linear between the steps around it), and with directions their
+  /// derivatives (per time, per point, 6 x directions).
+  std::vector<std::vector<HeldReaction>> reactions;
+  std::vector<std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>>> d_reactions;
   int steps = 0;
   double seconds = 0.0;               ///< wall time of the integration
 };
@@ -81,11 +104,13 @@ struct CaseSamples {
 /// of `s` (linear between the vertices around it, in the reference arc length) at each time of
 /// `t` (linear between the steps around it, exact on a step). With `directions`, also their
 /// forward sensitivities through the implicit steps (docs/solvers.md, "Sensitivities in time";
-/// backward_euler and bdf2 only: another integrator stops with the reason). Throws
+/// backward_euler and bdf2 only: another integrator stops with the reason); with
+/// `with_reactions`, the held points' reactions (and their derivatives) at each time. Throws
 /// std::invalid_argument for `t` not ascending within [0, dynamics.duration] or `s` outside
 /// [0, L]; std::runtime_error when the initial equilibrium does not converge.
 CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
                                const std::vector<double>& s, const std::vector<double>& t,
-                               const std::vector<ParameterDirection>& directions);
+                               const std::vector<ParameterDirection>& directions,
+                               bool with_reactions = false);
 
 }  // namespace rodfit

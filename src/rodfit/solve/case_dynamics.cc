@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "rodfit/solve/case_solve.h"
+#include "rodfit/solve/rod_energy.h"
 
 namespace rodfit {
 namespace {
@@ -69,6 +70,26 @@ LoadCase HalfDrives(const RodModel& half, const LoadCase& load_case) {
   out.drives.clear();
   out.drives.push_back(*clamp);
   return out;
+}
+
+// A free-dof vector's rows of vertex i (zero for the clamped vertex 0, which has none).
+Vec3 VertexRows(const VecX& v, int i) {
+  return i == 0 ? Vec3::Zero() : Vec3(v.segment<3>(RodModel::VertexDof(i)));
+}
+Vec3 VertexRows(const Eigen::MatrixXd& d, int i, int c) {
+  return i == 0 ? Vec3::Zero() : Vec3(d.block<3, 1>(RodModel::VertexDof(i), c));
+}
+
+// The length [m] of vertex i's cell of drag, as the stepper takes it (its mass over the density).
+double DragCell(const RodModel& model, int i) {
+  return model.vertex_mass(i) / model.rod().linear_density;
+}
+
+// The force m a + c v [N] the moving free vertex i needs beyond the static balance (the clamp
+// supplies it), at the step's end.
+Vec3 InertiaAndDrag(const RodModel& model, int i, const VecX& v, const VecX& v_before, double dt) {
+  return model.vertex_mass(i) * (VertexRows(v, i) - VertexRows(v_before, i)) / dt +
+         model.material().damping * DragCell(model, i) * VertexRows(v, i);
 }
 
 }  // namespace
@@ -143,6 +164,89 @@ void CaseDrive::PoseAt(const RodModel& model, double t, HeldPose* pose) const {
     pose->tip_force = Interpolate(*tip_load_, 0, t);
     if (!tip_load_->b.empty()) pose->tip_moment = Interpolate(*tip_load_, 1, t);
   }
+}
+
+std::vector<HeldReaction> MovingReactions(const RodModel& model, const RodState& q, const VecX& v,
+                                          const VecX& v_before, double dt, const HeldPose& pose) {
+  std::vector<HeldReaction> out = HeldReactions(model, q);
+  const int n = model.num_edges();
+  const Vec3 x0 = q.x.col(0);
+  // The clamp takes what the rest leaves: the pose's dead loads act on the rod (the clamp
+  // holds them), the rod's inertia and drag do not reach it.
+  Vec3 force = pose.tip_force, moment = (q.x.col(n) - x0).cross(pose.tip_force) + pose.tip_moment;
+  if (pose.point_vertex >= 0) {
+    const Vec3 at = (1.0 - pose.point_weight) * q.x.col(pose.point_vertex) +
+                    pose.point_weight * q.x.col(pose.point_vertex + 1);
+    force += pose.point_force;
+    moment += (at - x0).cross(pose.point_force);
+  }
+  if (dt > 0.0)
+    for (int i = 1; i <= n; ++i) {
+      if (model.held_at_vertex(i) >= 0) continue;  // a held vertex's inertia is its driver's
+      const Vec3 f = InertiaAndDrag(model, i, v, v_before, dt);
+      force -= f;
+      moment -= (q.x.col(i) - x0).cross(f);
+    }
+  out[0].force += force;
+  out[0].moment += moment;
+  return out;
+}
+
+std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> MovingReactionDerivatives(
+    const RodModel& model, const RodState& q, const VecX& v, const VecX& v_before, double dt,
+    const HeldPose& pose, const Eigen::MatrixXd& dq, const Eigen::MatrixXd& dv,
+    const Eigen::MatrixXd& dv_before, const std::vector<ParameterDirection>& directions) {
+  const int n = model.num_edges(), m = static_cast<int>(directions.size());
+  // d r / d log p at fixed q of the unconstrained balance r = dPi/dq - Q: the stiffness terms'
+  // gradients (U is linear in each) and the weights' (linear in the density).
+  Eigen::MatrixXd dr = Eigen::MatrixXd::Zero(model.num_free_dofs(), m);
+  VecX g;
+  for (int c = 0; c < m; ++c) {
+    const ParameterDirection& d = directions[c];
+    EnergyTerms terms = EnergyTerms::Only(-1);
+    terms.bend1 = d.bend1, terms.bend2 = d.bend2, terms.twist = d.twist, terms.stretch = d.stretch;
+    terms.hold = false;
+    AssembleGradient(model, q, terms, &g);
+    dr.col(c) = g;
+    if (d.density != 0.0)
+      for (int i = 1; i <= n; ++i)
+        dr.block<3, 1>(RodModel::VertexDof(i), c) -= d.density * model.vertex_weight(i);
+  }
+  std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> out =
+      HeldReactionDerivatives(model, q, dq, dr, std::vector<std::vector<int>>(m));
+  const Vec3 x0 = q.x.col(0);
+  for (int c = 0; c < m; ++c) {
+    const ParameterDirection& d = directions[c];
+    Vec3 dforce = Vec3::Zero(), dmoment = VertexRows(dq, n, c).cross(pose.tip_force);
+    if (pose.point_vertex >= 0)
+      dmoment += ((1.0 - pose.point_weight) * VertexRows(dq, pose.point_vertex, c) +
+                  pose.point_weight * VertexRows(dq, pose.point_vertex + 1, c))
+                     .cross(pose.point_force);
+    // The weights the clamp's balance sums over every vertex (HeldReactions).
+    if (d.density != 0.0)
+      for (int i = 0; i <= n; ++i) {
+        const Vec3 dw = d.density * model.vertex_weight(i);
+        dforce += dw;
+        dmoment += (q.x.col(i) - x0).cross(dw);
+      }
+    if (dt > 0.0)
+      for (int i = 1; i <= n; ++i) {
+        if (model.held_at_vertex(i) >= 0) continue;
+        const double cell = DragCell(model, i);
+        const double c_drag = model.material().damping;
+        const Vec3 f = InertiaAndDrag(model, i, v, v_before, dt);
+        const Vec3 df =
+            model.vertex_mass(i) *
+                (d.density * (VertexRows(v, i) - VertexRows(v_before, i)) +
+                 VertexRows(dv, i, c) - VertexRows(dv_before, i, c)) / dt +
+            c_drag * cell * (d.drag * VertexRows(v, i) + VertexRows(dv, i, c));
+        dforce -= df;
+        dmoment -= VertexRows(dq, i, c).cross(f) + (q.x.col(i) - x0).cross(df);
+      }
+    out[0].block<3, 1>(0, c) += dforce;
+    out[0].block<3, 1>(3, c) += dmoment;
+  }
+  return out;
 }
 
 DynamicState InitialDynamicState(const Scene& scene, int index, const StaticsOptions& statics,
@@ -228,30 +332,25 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
     const Vec3 w = v.segment<3>(RodModel::VertexDof(written.num_edges() - j));
     return w - 2.0 * w.dot(nrm) * nrm;
   };
+  // The written rod's rates from the stepper's (a mirrored vertex moves as the mirror image of
+  // its half's; only the vertices' rows are read).
+  auto written_rates = [&](const VecX& v) -> VecX {
+    if (!whole) return v;
+    VecX w = VecX::Zero(written.num_free_dofs());
+    for (int j = 1; j <= written.num_edges(); ++j)
+      if (written.held_at_vertex(j) < 0) w.segment<3>(RodModel::VertexDof(j)) = velocity(v, j);
+    return w;
+  };
+  HeldPose pose;
   auto record = [&](double dt) {
     TrajectoryFrame f;
     f.t = s.t;
     const RodState shown = whole ? MirroredState(model, s.q, *whole) : s.q;
     f.x = shown.x;
-    f.reactions = HeldReactions(written, shown);
-    // The clamp at s = 0 balances the moving rod: less its inertia and drag forces m a + c v
-    // (a from the last step's change of velocity), and their moments about x_0. (The spin
-    // inertia of the edges, ~r^2 / L^2 of these, is left out.)
-    if (!f.reactions.empty() && dt > 0.0) {
-      const Material& material = written.material();
-      Vec3 force = Vec3::Zero(), moment = Vec3::Zero();
-      for (int i = 1; i <= written.num_edges(); ++i) {
-        if (written.held_at_vertex(i) >= 0) continue;
-        const double cell = written.vertex_mass(i) / scene.rod.linear_density;
-        const Vec3 vi = velocity(s.v, i);
-        const Vec3 fi = written.vertex_mass(i) * (vi - velocity(v_before, i)) / dt +
-                        material.damping * cell * vi;
-        force += fi;
-        moment += (shown.x.col(i) - shown.x.col(0)).cross(fi);
-      }
-      f.reactions[0].force -= force;
-      f.reactions[0].moment -= moment;
-    }
+    // A symmetric case has no tip loads (HalfDrives): the default pose's are zero.
+    pose.held.assign(model.held().size(), Vec3::Zero());
+    if (!whole) drive.PoseAt(model, s.t, &pose);
+    f.reactions = MovingReactions(written, shown, written_rates(s.v), written_rates(v_before), dt, pose);
     out.frames.push_back(std::move(f));
   };
   record(0.0);
@@ -277,13 +376,14 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
 
 CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
                                const std::vector<double>& s, const std::vector<double>& t,
-                               const std::vector<ParameterDirection>& directions) {
+                               const std::vector<ParameterDirection>& directions,
+                               bool with_reactions) {
   if (scene.cases[index].symmetry) {
     // As the static fit does, a symmetric case is sampled on the whole rod: its markers lie on
     // both halves, and the sensitivities are those of the whole rod's steps.
     Scene whole = scene;
     whole.cases[index].symmetry.reset();
-    return SampleCaseDynamics(whole, index, statics, s, t, directions);
+    return SampleCaseDynamics(whole, index, statics, s, t, directions, with_reactions);
   }
   const DynamicsSpec& spec = *scene.dynamics;
   for (size_t k = 0; k < t.size(); ++k)
@@ -340,19 +440,60 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
     }
   };
   points();
+  // The held points' reactions at the state (and their derivatives), computed at the end of a
+  // step only when a sample time lies within the step after it or the one before.
+  using Reaction6 = Eigen::Matrix<double, 6, Eigen::Dynamic>;
+  std::vector<HeldReaction> r_now, r_before;
+  std::vector<Reaction6> dr_now, dr_before;
+  VecX v_step_start = state.v;
+  Eigen::MatrixXd dv_step_start = ds.dv;
+  HeldPose pose;
+  auto reactions = [&](double step) {
+    pose.held.assign(model.held().size(), Vec3::Zero());
+    drive.PoseAt(model, state.t, &pose);
+    r_now = MovingReactions(model, state.q, state.v, v_step_start, step, pose);
+    if (np > 0)
+      dr_now = MovingReactionDerivatives(model, state.q, state.v, v_step_start, step, pose, ds.dq,
+                                         ds.dv, dv_step_start, directions);
+  };
+  auto lerp_reactions = [&](double w) {
+    std::vector<HeldReaction> r = r_now;
+    for (size_t k = 0; k < r.size(); ++k) {
+      r[k].position = (1.0 - w) * r_before[k].position + w * r_now[k].position;
+      r[k].force = (1.0 - w) * r_before[k].force + w * r_now[k].force;
+      r[k].moment = (1.0 - w) * r_before[k].moment + w * r_now[k].moment;
+    }
+    out.reactions.push_back(std::move(r));
+    if (np == 0) return;
+    std::vector<Reaction6> d(dr_now.size());
+    for (size_t k = 0; k < d.size(); ++k) d[k] = (1.0 - w) * dr_before[k] + w * dr_now[k];
+    out.d_reactions.push_back(std::move(d));
+  };
+  const double dt = spec.time_step;
+  auto reactions_needed = [&](size_t next) {
+    return with_reactions && next < t.size() && t[next] <= state.t + dt * (1.0 + 1e-9);
+  };
   size_t next = 0;
   out.x.reserve(t.size());
+  if (reactions_needed(0)) reactions(0.0);
   // Samples at t = 0 are the initial state itself.
   for (; next < t.size() && t[next] <= 0.0; ++next) {
     out.x.push_back(x_now);
     if (np > 0) out.dx.push_back(d_now);
+    if (with_reactions) {
+      r_before = r_now, dr_before = dr_now;
+      lerp_reactions(1.0);
+    }
   }
   const auto t0 = std::chrono::steady_clock::now();
-  const double dt = spec.time_step;
   while (next < t.size()) {
     const double t_before = state.t;
     x_before = x_now;
     d_before = d_now;
+    r_before.swap(r_now);
+    dr_before.swap(dr_now);
+    v_step_start = state.v;
+    if (np > 0) dv_step_start = ds.dv;
     const DynamicState before = state;
     const DynamicsStepSummary r = stepper.Step(drive, &state);
     if (!r.ok) {
@@ -368,11 +509,13 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
       }
     }
     points();
+    if (reactions_needed(next)) reactions(state.t - t_before);
     // Every sample time up to this step's end (within round-off of the step count).
     for (; next < t.size() && t[next] <= state.t + 1e-9 * dt; ++next) {
       const double w = std::clamp((t[next] - t_before) / (state.t - t_before), 0.0, 1.0);
       out.x.push_back((1.0 - w) * x_before + w * x_now);
       if (np > 0) out.dx.push_back((1.0 - w) * d_before + w * d_now);
+      if (with_reactions) lerp_reactions(w);
     }
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
