@@ -99,14 +99,32 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
                           const std::vector<std::string>& names, const RolloutOptions& options,
                           const StaticsOptions& statics, const MotionFitOptions& fit_options);
 
+/// One reading of a load cell at a held point of a moving case: a frame of a `reaction`
+/// sequence (docs/formats.md, "Observation sequences"). The force [N] — and at a clamp
+/// optionally the moment [N m] about the held point — the rod exerts on the holder, as
+/// reactions.csv (solve/case_dynamics.h, MovingReactions).
+struct ReactionReading {
+  std::string point;          ///< HeldReaction::point on the case's whole rod ("clamp", "end_pin", ...)
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  double sigma = 0.0;         ///< [N] of each force component
+  bool has_moment = false;
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+  double sigma_moment = 0.0;  ///< [N m] of each moment component
+  /// The force, and the moment apart: 3 residuals each.
+  int num_measurements() const { return has_moment ? 2 : 1; }
+};
+
 /// An observation entry of a moving case over time (docs/formats.md, "Observation sequences"):
 /// at each of its frames, the static model of what was seen then (observe/observations.h:
 /// markers3d, points3d, image_points with or without s) on the vertices of the case's whole rod
-/// (CaseVertexArcLengths). Every frame's model is of one type, unit and sigma.
+/// (CaseVertexArcLengths), or a load cell's reading at one of its held points. Every frame's
+/// model is of one type, unit and sigma (a reading's: of one point, sigma and sigma_moment).
 struct ObservationSequence {
   struct Frame {
     double t = 0.0;                                  ///< [s]
-    std::shared_ptr<const Observation> observation;  ///< what was seen at t
+    /// What was seen at t; or, for a `reaction` sequence, null and `reading` set.
+    std::shared_ptr<const Observation> observation;
+    std::shared_ptr<const ReactionReading> reading;
     /// Per measurement of `observation`: its index among the entry's samples (the report lists
     /// the samples in that order, e.g. the file's rows that were seen). Empty in every frame:
     /// the frames' measurements in turn.
@@ -115,8 +133,11 @@ struct ObservationSequence {
   int case_index = 0;         ///< into Scene::cases
   std::vector<Frame> frames;  ///< t ascending, each within [0, dynamics.duration]
 
-  /// The measurements of all frames (the entry's recorded samples).
+  /// The measurements of all frames (the entry's recorded samples; a reading's force and
+  /// moment count as two).
   int num_samples() const;
+  /// A `reaction` sequence (its frames hold readings).
+  bool is_reaction() const { return !frames.empty() && frames.front().reading != nullptr; }
 };
 
 /// The rest arc lengths [m] of the vertices a sequence of case `index` is observed on: those of
@@ -146,7 +167,8 @@ SequenceEvaluation EvaluateSequenceResiduals(const Scene& scene,
 
 /// The errors of a sequence fit at one parameter value, for reports: per sequence, per sample
 /// (ObservationSequence::Frame::sample), model minus measured in the entry's unit ([m]; [px]
-/// with the third component 0), NaN where the run or the frame's model failed.
+/// with the third component 0; a reading's force [N], then its moment [N m]), NaN where the run
+/// or the frame's model failed.
 struct SequenceResiduals {
   bool ok = false;
   std::string reason;
@@ -157,14 +179,16 @@ struct SequenceResiduals {
 /// observation sequences of its cases by the least-squares fit above on the residuals of
 /// EvaluateSequenceResiduals: the predictions the open-loop trajectory of each case from its
 /// initial state (solve/case_dynamics.h), each case integrated once per evaluation with its
-/// exact sensitivities. options.method must be Levenberg–Marquardt; options.marker_sigma is
-/// unused (each frame's observation has its sigma). The residual variance counts the residuals
+/// exact sensitivities; a reaction sequence's readings against the run's held-point reactions
+/// (MovingReactions) and their derivatives. options.method must be Levenberg–Marquardt;
+/// options.marker_sigma is unused (each frame's observation or reading has its sigma). The residual variance counts the residuals
 /// that carry noise (a closest-point residual fewer, Observation::num_noise_residuals).
 /// error_start / error_fitted are the mean absolute residual components times their sigma
 /// (in the entries' units). Throws std::invalid_argument as FitMotion does, and for a sequence
-/// with no frames, a frame without an observation, with another case's vertex count, at a time
-/// outside the run or out of order, or with a sample index list that is not a numbering of the
-/// entry's samples.
+/// with no frames, a frame without an observation or reading (or with both), with another
+/// case's vertex count, at a time outside the run or out of order, a reading at a point the
+/// case does not hold (a moment other than a clamp's), readings of one sequence that differ in
+/// point or sigma, or with a sample index list that is not a numbering of the entry's samples.
 MotionFitResult FitSequences(const Scene& scene, const std::vector<ObservationSequence>& sequences,
                              const std::vector<std::string>& names, const StaticsOptions& statics,
                              const MotionFitOptions& fit_options);

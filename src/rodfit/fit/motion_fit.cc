@@ -467,14 +467,44 @@ struct SequencePlan {
     int case_index = 0;
     std::vector<double> s;  // [m] the case's vertex arc lengths
     std::vector<double> t;  // [s] ascending, distinct
+    bool reactions = false; // a reaction sequence reads the run's held points
   };
   struct FrameAt {
     int run = 0, time = 0, row = 0;
+    int point = -1;  // a reading's: its index among the run's HeldReactions
   };
   std::vector<Run> runs;
   std::vector<std::vector<FrameAt>> frames;  // per sequence, per frame
   int residuals = 0, noise_residuals = 0;
 };
+
+// A frame's rows, those that carry noise, and its measurements: its observation's, or a
+// reading's force (and moment), 3 rows each.
+int FrameRows(const ObservationSequence::Frame& f) {
+  return f.observation ? f.observation->num_residuals() : 3 * f.reading->num_measurements();
+}
+int FrameNoiseRows(const ObservationSequence::Frame& f) {
+  return f.observation ? f.observation->num_noise_residuals() : FrameRows(f);
+}
+int FrameMeasurements(const ObservationSequence::Frame& f) {
+  return f.observation ? f.observation->num_measurements() : f.reading->num_measurements();
+}
+// The sigma of a frame's measurement k (in its unit).
+double FrameSigma(const ObservationSequence::Frame& f, int k) {
+  if (f.observation) return f.observation->sigma();
+  return k == 0 ? f.reading->sigma : f.reading->sigma_moment;
+}
+
+// The held points of case `index` as the sequences' runs see them (the whole rod, the held
+// points where their paths start): HeldReaction::point of each, in HeldReactions' order.
+std::vector<std::string> CaseHeldPoints(const Scene& scene, int index) {
+  LoadCase whole = CaseAtStart(scene.cases.at(index));
+  whole.symmetry.reset();
+  const RodModel model(scene.rod, scene.material, scene.gravity, whole, scene.springs);
+  std::vector<std::string> points = {"clamp"};
+  for (const HeldVertex& h : model.held()) points.push_back(h.Label());
+  return points;
+}
 
 // The sequences' checks (a moving scene, cases and frames that exist, times within the run,
 // one observation type and sigma per sequence, sample numbers that number the samples) and
@@ -494,23 +524,48 @@ SequencePlan PlanSequences(const Scene& scene, const std::vector<ObservationSequ
       run = static_cast<int>(plan.runs.size());
       plan.runs.push_back({seq.case_index, CaseVertexArcLengths(scene, seq.case_index), {}});
     }
-    const Observation* first = seq.frames.front().observation.get();
+    const ObservationSequence::Frame& first_frame = seq.frames.front();
+    const Observation* first = first_frame.observation.get();
+    const ReactionReading* first_reading = first_frame.reading.get();
     const bool numbered = !seq.frames.front().sample.empty();
     std::vector<char> numbered_once(seq.num_samples() > 0 ? seq.num_samples() : 0, 0);
+    if (first_reading) {
+      plan.runs[run].reactions = true;
+      const std::vector<std::string> points = CaseHeldPoints(scene, seq.case_index);
+      if (std::find(points.begin(), points.end(), first_reading->point) == points.end())
+        throw std::invalid_argument("a reaction sequence's case holds no '" + first_reading->point +
+                                    "'");
+    }
     for (size_t f = 0; f < seq.frames.size(); ++f) {
       const ObservationSequence::Frame& frame = seq.frames[f];
       const Observation* obs = frame.observation.get();
-      if (!obs) throw std::invalid_argument("a frame of an observation sequence has no observation");
-      if (obs->num_vertices() != static_cast<int>(plan.runs[run].s.size()))
-        throw std::invalid_argument("a frame's observation is not on the case's " +
-                                    std::to_string(plan.runs[run].s.size()) + " vertices");
-      if (std::string(obs->type()) != first->type() || obs->sigma() != first->sigma())
-        throw std::invalid_argument("the frames of an observation sequence differ in type or sigma");
+      const ReactionReading* reading = frame.reading.get();
+      if ((obs == nullptr) == (reading == nullptr))
+        throw std::invalid_argument("a frame of an observation sequence must hold an observation "
+                                    "or a reading (one of them)");
+      if ((first == nullptr) != (obs == nullptr))
+        throw std::invalid_argument("the frames of an observation sequence differ in type");
+      if (reading) {
+        if (reading->point != first_reading->point || reading->sigma != first_reading->sigma ||
+            reading->has_moment != first_reading->has_moment ||
+            reading->sigma_moment != first_reading->sigma_moment)
+          throw std::invalid_argument("the readings of a reaction sequence differ in point or sigma");
+        if (!(reading->sigma > 0.0) || (reading->has_moment && !(reading->sigma_moment > 0.0)))
+          throw std::invalid_argument("a reading's sigma (and sigma_moment) must be > 0");
+        if (reading->has_moment && reading->point != "clamp" && reading->point != "end_clamp")
+          throw std::invalid_argument("a moment is read only at a clamp, not at " + reading->point);
+      } else {
+        if (obs->num_vertices() != static_cast<int>(plan.runs[run].s.size()))
+          throw std::invalid_argument("a frame's observation is not on the case's " +
+                                      std::to_string(plan.runs[run].s.size()) + " vertices");
+        if (std::string(obs->type()) != first->type() || obs->sigma() != first->sigma())
+          throw std::invalid_argument("the frames of an observation sequence differ in type or sigma");
+      }
       if (!(frame.t >= 0.0 && frame.t <= duration * (1.0 + 1e-12)) ||
           (f > 0 && !(frame.t >= seq.frames[f - 1].t)))
         throw std::invalid_argument("frame times must ascend within [0, dynamics.duration]");
       if (numbered != !frame.sample.empty() ||
-          (numbered && static_cast<int>(frame.sample.size()) != obs->num_measurements()))
+          (numbered && static_cast<int>(frame.sample.size()) != FrameMeasurements(frame)))
         throw std::invalid_argument("a frame's sample numbers must be given per measurement, in "
                                     "every frame or in none");
       for (const int k : frame.sample) {
@@ -530,12 +585,18 @@ SequencePlan PlanSequences(const Scene& scene, const std::vector<ObservationSequ
     plan.frames.emplace_back();
     const int run = run_of[seq.case_index];
     const std::vector<double>& times = plan.runs[run].t;
+    int point = -1;
+    if (seq.is_reaction()) {
+      const std::vector<std::string> points = CaseHeldPoints(scene, seq.case_index);
+      point = static_cast<int>(std::find(points.begin(), points.end(), seq.frames[0].reading->point) -
+                               points.begin());
+    }
     for (const ObservationSequence::Frame& frame : seq.frames) {
       const int time = static_cast<int>(std::lower_bound(times.begin(), times.end(), frame.t) -
                                         times.begin());
-      plan.frames.back().push_back({run, time, plan.residuals});
-      plan.residuals += frame.observation->num_residuals();
-      plan.noise_residuals += frame.observation->num_noise_residuals();
+      plan.frames.back().push_back({run, time, plan.residuals, point});
+      plan.residuals += FrameRows(frame);
+      plan.noise_residuals += FrameNoiseRows(frame);
     }
   }
   return plan;
@@ -561,7 +622,8 @@ bool SequencesAt(const Scene& s, const SequencePlan& plan,
     const SequencePlan::Run& run = plan.runs[k];
     const std::string& name = s.cases[run.case_index].name;
     try {
-      runs[k] = SampleCaseDynamics(s, run.case_index, statics, run.s, run.t, directions);
+      runs[k] = SampleCaseDynamics(s, run.case_index, statics, run.s, run.t, directions,
+                                   run.reactions);
     } catch (const std::runtime_error& e) {
       fail(name + ": " + e.what());
       continue;
@@ -576,6 +638,20 @@ bool SequencesAt(const Scene& s, const SequencePlan& plan,
       const CaseSamples& run = runs[at.run];
       if (at.time >= static_cast<int>(run.x.size())) continue;  // the run stopped before it
       const ObservationSequence::Frame& frame = sequences[q].frames[f];
+      if (frame.reading) {
+        // The reaction at the held point at the frame's time, and its derivatives.
+        const ReactionReading& reading = *frame.reading;
+        const HeldReaction& model = run.reactions[at.time][at.point];
+        r->segment<3>(at.row) = (model.force - reading.force) / reading.sigma;
+        if (J) J->middleRows<3>(at.row) = run.d_reactions[at.time][at.point].topRows<3>() / reading.sigma;
+        if (reading.has_moment) {
+          r->segment<3>(at.row + 3) = (model.moment - reading.moment) / reading.sigma_moment;
+          if (J)
+            J->middleRows<3>(at.row + 3) =
+                run.d_reactions[at.time][at.point].bottomRows<3>() / reading.sigma_moment;
+        }
+        continue;
+      }
       const Observation& obs = *frame.observation;
       if (!obs.Evaluate(run.x[at.time], &rf, J ? &jf : nullptr)) {
         char when[48];
@@ -599,9 +675,12 @@ bool SequencesForward(const Scene& s, Ctx* c) {
   double sum_abs = 0.0;
   for (size_t q = 0; q < c->sequences->size(); ++q)
     for (size_t f = 0; f < (*c->sequences)[q].frames.size(); ++f) {
-      const Observation& obs = *(*c->sequences)[q].frames[f].observation;
-      sum_abs += obs.sigma() *
-                 c->cached_r.segment(c->plan->frames[q][f].row, obs.num_residuals()).lpNorm<1>();
+      const ObservationSequence::Frame& frame = (*c->sequences)[q].frames[f];
+      const int measurements = FrameMeasurements(frame);
+      const int dim = FrameRows(frame) / measurements;
+      for (int k = 0; k < measurements; ++k)
+        sum_abs += FrameSigma(frame, k) *
+                   c->cached_r.segment(c->plan->frames[q][f].row + dim * k, dim).lpNorm<1>();
     }
   c->cached_mae = sum_abs / static_cast<double>(c->residuals);
   return true;
@@ -618,7 +697,7 @@ void CheckIntegrator(const Scene& scene) {
 int ObservationSequence::num_samples() const {
   int n = 0;
   for (const Frame& frame : frames)
-    if (frame.observation) n += frame.observation->num_measurements();
+    if (frame.observation || frame.reading) n += FrameMeasurements(frame);
   return n;
 }
 
@@ -686,14 +765,14 @@ SequenceResiduals EvaluateSequences(const Scene& scene,
     out.error.emplace_back(seq.num_samples(), Eigen::Vector3d::Constant(NAN));
     int next = 0;  // the sample of a measurement when the frames give no numbers
     for (const ObservationSequence::Frame& frame : seq.frames) {
-      const Observation& obs = *frame.observation;
-      const int dim = obs.num_residuals() / obs.num_measurements();
-      for (int k = 0; k < obs.num_measurements(); ++k, ++next) {
+      const int measurements = FrameMeasurements(frame);
+      const int dim = FrameRows(frame) / measurements;
+      for (int k = 0; k < measurements; ++k, ++next) {
         Eigen::Vector3d e = Eigen::Vector3d::Zero();
-        e.head(dim) = obs.sigma() * at.residuals.segment(row + dim * k, dim);
+        e.head(dim) = FrameSigma(frame, k) * at.residuals.segment(row + dim * k, dim);
         out.error.back()[frame.sample.empty() ? next : frame.sample[k]] = e;
       }
-      row += obs.num_residuals();
+      row += FrameRows(frame);
     }
   }
   return out;

@@ -1,0 +1,171 @@
+// Force logs over time in a motion fit (fit/motion_fit.h, ReactionReading): a load cell at the
+// clamp of a suture swinging down under its weight reads the force and moment the rod exerts on
+// it. The residuals' Jacobian equals central differences of the residuals; and with its markers
+// the log identifies the linear density besides the bending stiffness and the drag (markers
+// alone see only their ratios: gravity moves every mass alike), each recovered within 3 of its
+// standard deviations.
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "rodfit/fit/motion_fit.h"
+#include "rodfit/solve/case_dynamics.h"
+#include "fit/swing_fixture.h"
+
+namespace rodfit {
+namespace {
+
+using testing::Swing;
+
+std::vector<double> Times() {
+  std::vector<double> t;
+  for (int k = 0; k <= 25; ++k) t.push_back(0.01 * k);
+  return t;
+}
+
+// The clamp's readings every 10 ms with Gaussian noise of sigma [N] and sigma_moment [N m] per
+// component (none when add_noise is false).
+ObservationSequence ClampLog(const Scene& truth, double sigma, double sigma_moment, unsigned seed,
+                             bool add_noise = true) {
+  const std::vector<double> t = Times();
+  const CaseSamples run = SampleCaseDynamics(truth, 0, StaticsOptions(), {0.1}, t, {}, true);
+  EXPECT_TRUE(run.ok) << run.reason;
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  ObservationSequence seq;
+  for (size_t k = 0; k < run.reactions.size(); ++k) {
+    auto reading = std::make_shared<ReactionReading>();
+    reading->point = "clamp";
+    reading->sigma = sigma;
+    reading->sigma_moment = sigma_moment;
+    reading->has_moment = true;
+    const HeldReaction& clamp = run.reactions[k][0];
+    const double on = add_noise ? 1.0 : 0.0;
+    reading->force = clamp.force + on * sigma * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    reading->moment =
+        clamp.moment + on * sigma_moment * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    ObservationSequence::Frame frame;
+    frame.t = t[k];
+    frame.reading = reading;
+    seq.frames.push_back(frame);
+  }
+  return seq;
+}
+
+// Markers at 4 arc lengths every 10 ms with Gaussian noise of sigma [m] per coordinate.
+ObservationSequence Markers(const Scene& truth, double sigma, unsigned seed) {
+  const std::vector<double> s = {0.05, 0.1, 0.15, 0.2}, t = Times();
+  const CaseSamples run = SampleCaseDynamics(truth, 0, StaticsOptions(), s, t, {});
+  EXPECT_TRUE(run.ok) << run.reason;
+  const std::vector<double> arc = CaseVertexArcLengths(truth, 0);
+  std::mt19937 rng(seed + 1000);
+  std::normal_distribution<double> gauss(0.0, sigma);
+  ObservationSequence seq;
+  for (size_t k = 0; k < run.x.size(); ++k) {
+    std::vector<Marker3d> seen;
+    for (size_t m = 0; m < s.size(); ++m)
+      seen.push_back({s[m], run.x[k].col(m) + Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng))});
+    ObservationSequence::Frame frame;
+    frame.t = t[k];
+    frame.observation = std::make_shared<Markers3dObservation>(arc, seen, sigma);
+    seq.frames.push_back(frame);
+  }
+  return seq;
+}
+
+TEST(ReactionSequence, JacobianEqualsCentralDifferences) {
+  const Scene truth = Swing();
+  const ObservationSequence log = ClampLog(truth, 1e-6, 1e-7, 1);
+  const std::vector<std::string> names = {"bend_stiffness", "damping", "linear_density"};
+  StaticsOptions statics;
+  const SequenceEvaluation at = EvaluateSequenceResiduals(truth, {log}, names, statics);
+  ASSERT_TRUE(at.ok) << at.reason;
+  ASSERT_EQ(at.residuals.size(), 6 * static_cast<int>(log.frames.size()));
+  EXPECT_EQ(at.noise_residuals, at.residuals.size());
+  const double h = 1e-4;
+  for (size_t j = 0; j < names.size(); ++j) {
+    Scene plus = truth, minus = truth;
+    SetMotionParameter(names[j], MotionParameter(names[j], truth) * std::exp(h), &plus);
+    SetMotionParameter(names[j], MotionParameter(names[j], truth) * std::exp(-h), &minus);
+    const SequenceEvaluation p = EvaluateSequenceResiduals(plus, {log}, {}, statics);
+    const SequenceEvaluation m = EvaluateSequenceResiduals(minus, {log}, {}, statics);
+    ASSERT_TRUE(p.ok && m.ok);
+    const Eigen::VectorXd fd = (p.residuals - m.residuals) / (2.0 * h);
+    const Eigen::VectorXd d = at.jacobian.col(static_cast<int>(j));
+    EXPECT_LT((d - fd).norm(), 1e-5 * d.norm()) << names[j];
+  }
+}
+
+TEST(ReactionSequence, ZeroAtTheTruthAndTheErrorsInNewtonsAndNewtonMetres) {
+  const Scene truth = Swing();
+  const ObservationSequence log = ClampLog(truth, 1e-6, 1e-7, 1, /*add_noise=*/false);
+  EXPECT_EQ(log.num_samples(), 2 * static_cast<int>(log.frames.size()));
+  const SequenceResiduals r = EvaluateSequences(truth, {log}, StaticsOptions());
+  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_EQ(static_cast<int>(r.error[0].size()), log.num_samples());
+  for (const Eigen::Vector3d& e : r.error[0]) EXPECT_LT(e.norm(), 1e-15);
+  // Another density: the force errors are the weights' and inertias' difference [N].
+  Scene heavier = truth;
+  heavier.rod.linear_density *= 1.1;
+  const SequenceResiduals off = EvaluateSequences(heavier, {log}, StaticsOptions());
+  ASSERT_TRUE(off.ok);
+  // At t = 0 the rod is at rest: its clamp carries 10 % more weight (0.1 m g L), and a moment
+  // 10 % more (the straight rod's weight at L / 2).
+  const double weight = truth.rod.linear_density * truth.rod.length * 9.81;
+  EXPECT_NEAR(off.error[0][0].norm(), 0.1 * weight, 1e-9 * weight);
+  EXPECT_NEAR(off.error[0][1].norm(), 0.1 * weight * 0.5 * truth.rod.length, 1e-9 * weight);
+}
+
+TEST(ReactionSequence, ForcesAndMarkersIdentifyTheDensityWithCredibleStd) {
+  const Scene truth = Swing();
+  const std::vector<std::string> names = {"bend_stiffness", "damping", "linear_density"};
+  const double true_values[3] = {truth.material.bend_stiffness, truth.material.damping,
+                                 truth.rod.linear_density};
+  Scene start = truth;
+  start.material.bend_stiffness *= 3.0;
+  start.material.damping /= 3.0;
+  start.rod.linear_density *= 2.0;
+  // 1 % of the suture's weight (1.1e-4 N) per component; the moment's the same at L / 2.
+  const double sigma = 1e-6, sigma_moment = 1e-7;
+  double sum_z2 = 0.0;
+  int estimates = 0;
+  for (unsigned seed : {1u, 2u, 3u}) {
+    const std::vector<ObservationSequence> data = {Markers(truth, 1e-3, seed),
+                                                   ClampLog(truth, sigma, sigma_moment, seed)};
+    const MotionFitResult r = FitSequences(start, data, names, StaticsOptions(), MotionFitOptions());
+    ASSERT_TRUE(r.converged) << r.message;
+    EXPECT_NEAR(r.residual_variance, 1.0, 0.3);
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_TRUE(r.identifiable[k]) << names[k] << ": " << r.reason[k];
+      const double z = (r.values[k] - true_values[k]) / r.std[k];
+      std::printf("seed %u  %-15s truth %.4g  fitted %.4g +- %.2g  (%+.2f std)  %.2f s\n", seed,
+                  names[k].c_str(), true_values[k], r.values[k], r.std[k], z, r.seconds);
+      EXPECT_LT(std::abs(z), 3.0) << names[k];
+      EXPECT_LT(r.std[k], 0.1 * true_values[k]) << names[k];
+      sum_z2 += z * z;
+      ++estimates;
+    }
+  }
+  // chi-square(9) / 9 lies below 2.4 with probability 0.99.
+  EXPECT_LT(sum_z2 / estimates, 2.4);
+}
+
+TEST(ReactionSequence, RefusesAReadingAtAPointTheCaseDoesNotHold) {
+  const Scene truth = Swing();
+  ObservationSequence log = ClampLog(truth, 1e-6, 1e-7, 1);
+  auto at_pin = std::make_shared<ReactionReading>(*log.frames[0].reading);
+  at_pin->point = "end_pin";
+  for (auto& frame : log.frames) frame.reading = at_pin;
+  EXPECT_THROW(EvaluateSequenceResiduals(truth, {log}, {}, StaticsOptions()), std::invalid_argument);
+  ObservationSequence mixed = ClampLog(truth, 1e-6, 1e-7, 1);
+  auto other_sigma = std::make_shared<ReactionReading>(*mixed.frames[1].reading);
+  other_sigma->sigma = 2e-6;
+  mixed.frames[1].reading = other_sigma;
+  EXPECT_THROW(EvaluateSequenceResiduals(truth, {mixed}, {}, StaticsOptions()), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace rodfit
