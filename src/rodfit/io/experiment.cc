@@ -416,9 +416,10 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
   // A moving scene is observed over time: its centre-line entries are sequences, one static
   // observation per frame (the types its fit reads, docs/formats.md, "Observation sequences").
   const bool moving = ex.scene.dynamics.has_value();
-  if (moving && o.type != "markers3d" && o.type != "points3d" && o.type != "image_points")
-    r.Fail(type, "a moving scene (dynamics:) is observed by markers3d, points3d and image_points "
-                 "sequences only, not " + o.type);
+  if (moving && o.type != "markers3d" && o.type != "points3d" && o.type != "image_points" &&
+      o.type != "reaction")
+    r.Fail(type, "a moving scene (dynamics:) is observed by markers3d, points3d, image_points and "
+                 "reaction sequences only, not " + o.type);
   for (const char* key : {"frame_rate", "drop"})
     if (const Field* k = Reader::Find(m, key); k && !moving)
       r.Fail(k->key_line, k->key, "only for a sequence (a scene with a dynamics: block)");
@@ -440,7 +441,10 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
                             {"max_speed", "unit", "force_unit", "device_frame", "force_on"});
   const bool reaction = o.type == "reaction";
   if (reaction) {
-    allowed = {"type", "file", "sigma", "point", "sigma_moment", "count"};
+    // Over time a log's readings are its rows (synth: every written frame, or frame_rate).
+    allowed = {"type", "file", "sigma", "point", "sigma_moment"};
+    if (moving) allowed.insert(allowed.end(), {"frame_rate", "drop"});
+    else allowed.push_back("count");
   }
   for (const auto& [name, field] : m) {
     if (!Contains(allowed, name)) {
@@ -466,6 +470,11 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
     }
     if (const Field* count = Reader::Find(m, "count")) {
       o.count = r.IntegerIn(*count, 1, kMaxSamples);
+    }
+    if (const Field* rate = Reader::Find(m, "frame_rate")) o.frame_rate = r.Positive(*rate);
+    if (const Field* drop = Reader::Find(m, "drop")) {
+      o.drop = r.Number(*drop);
+      if (o.drop < 0.0 || o.drop >= 1.0) r.Fail(*drop, "must be in [0, 1), got " + Show(o.drop));
     }
     return o;
   }

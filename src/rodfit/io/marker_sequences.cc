@@ -168,6 +168,85 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
   return seq;
 }
 
+// A `reaction` entry's file as a sequence: a load cell's log `t,fx,fy,fz[,mx,my,mz]` (or
+// `frame,...` with the entry's frame_rate), one reading per row and time; a row whose fields
+// are all missing is a reading not taken.
+ObservationSequence ReadReactionSequence(const Experiment& ex, int case_index,
+                                         const ObservationSpec& spec) {
+  const double duration = ex.scene.dynamics->duration;
+  const CsvTable table = CsvTable::Read(spec.file);
+  const std::string& file = spec.file;
+  if (table.num_rows() < 1) throw InputError(file, 0, "", "no rows");
+  const bool by_time = table.HasColumn("t");
+  if (!by_time && !table.HasColumn("frame"))
+    throw InputError(file, 1, "t", "a reaction sequence needs a t column (or frame with the "
+                                   "entry's frame_rate)");
+  if (!by_time && !(spec.frame_rate > 0.0))
+    throw InputError(file, 1, "frame", "a frame column needs frame_rate [Hz] in the entry (" +
+                                           ex.path + " line " + std::to_string(spec.line) + ")");
+  const bool moments = table.HasColumn("mx") || table.HasColumn("my") || table.HasColumn("mz");
+  if (moments && !(spec.sigma_moment > 0.0))
+    throw InputError(file, 1, "mx", "moment columns need sigma_moment in the entry (" + ex.path +
+                                        " line " + std::to_string(spec.line) + ")");
+  std::vector<std::string> columns = {"fx", "fy", "fz"};
+  if (moments) columns.insert(columns.end(), {"mx", "my", "mz"});
+  const std::vector<double> key = table.Column(by_time ? "t" : "frame");
+  std::vector<std::vector<std::string>> text;
+  for (const std::string& column : columns) text.push_back(table.TextColumn(column));
+  std::map<double, int> line_of_time;
+  std::map<double, std::shared_ptr<ReactionReading>> by_t;
+  for (int r = 0; r < table.num_rows(); ++r) {
+    double t = key[r];
+    if (!by_time) {
+      if (t != std::round(t) || t < 0.0)
+        throw InputError(file, table.line(r), "frame", "must be an integer >= 0");
+      t /= spec.frame_rate;
+    }
+    if (t < 0.0 || t > duration * (1.0 + 1e-12))
+      throw InputError(file, table.line(r), by_time ? "t" : "frame",
+                       "the reading's time " + Short(t) + " s lies outside the run [0, " +
+                           Short(duration) + "] s (dynamics.duration)");
+    if (const auto [it, fresh] = line_of_time.emplace(t, table.line(r)); !fresh)
+      throw InputError(file, table.line(r), by_time ? "t" : "frame",
+                       "a reading at this time is given twice (also line " +
+                           std::to_string(it->second) + ")");
+    if (static_cast<int>(line_of_time.size()) > kMaxSequenceTimes)
+      throw InputError(file, table.line(r), by_time ? "t" : "frame",
+                       "more than " + std::to_string(kMaxSequenceTimes) + " sample times");
+    double value[6] = {0, 0, 0, 0, 0, 0};
+    int given = 0;
+    for (size_t a = 0; a < columns.size(); ++a)
+      given += int(ReadCoordinate(table, r, columns[a], text[a][r], &value[a]));
+    if (given == 0) continue;  // not taken
+    if (given < static_cast<int>(columns.size()))
+      throw InputError(file, table.line(r), columns[0],
+                       moments ? "fx, fy, fz, mx, my and mz must be all given or all missing (a "
+                                 "reading not taken)"
+                               : "fx, fy and fz must be all given or all missing (a reading not "
+                                 "taken)");
+    auto reading = std::make_shared<ReactionReading>();
+    reading->point = spec.point;
+    reading->sigma = spec.sigma;
+    reading->force = Eigen::Vector3d(value[0], value[1], value[2]);
+    if (moments) {
+      reading->has_moment = true;
+      reading->sigma_moment = spec.sigma_moment;
+      reading->moment = Eigen::Vector3d(value[3], value[4], value[5]);
+    }
+    by_t.emplace(t, std::move(reading));
+  }
+  if (by_t.empty()) throw InputError(file, 0, "", "no reading (every row is missing)");
+  ObservationSequence seq;
+  seq.case_index = case_index;
+  for (auto& [t, reading] : by_t) {
+    ObservationSequence::Frame frame;
+    frame.t = t;
+    frame.reading = std::move(reading);
+    seq.frames.push_back(std::move(frame));
+  }
+  return seq;
+}
+
 }  // namespace
 
 SequenceInput BuildSequenceInput(const Experiment& experiment) {
@@ -185,6 +264,13 @@ SequenceInput BuildSequenceInput(const Experiment& experiment) {
                        "cases[" + std::to_string(c) + "]", e.what());
     }
     for (const ObservationSpec& spec : experiment.cases[c].observations) {
+      const std::string label =
+          spec.type + " " + std::filesystem::path(spec.file).filename().string();
+      if (spec.type == "reaction") {
+        input.sequences.push_back(ReadReactionSequence(experiment, static_cast<int>(c), spec));
+        input.labels.push_back(label);
+        continue;
+      }
       // The experiment reader admits no other type in a moving scene.
       if (spec.type != "markers3d" && spec.type != "points3d" && spec.type != "image_points")
         continue;
@@ -196,8 +282,7 @@ SequenceInput BuildSequenceInput(const Experiment& experiment) {
         camera = &it->second;
       }
       input.sequences.push_back(ReadSequence(experiment, static_cast<int>(c), spec, arc, camera));
-      input.labels.push_back(spec.type + " " +
-                             std::filesystem::path(spec.file).filename().string());
+      input.labels.push_back(label);
     }
   }
   if (input.sequences.empty())
@@ -278,11 +363,40 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
                             std::sqrt(motion.covariance_log(i, i) * motion.covariance_log(j, j));
   for (size_t q = 0; q < input.sequences.size(); ++q) {
     const ObservationSequence& seq = input.sequences[q];
-    const Observation& model = *seq.frames.front().observation;
     ObservationFit o;
     o.case_index = seq.case_index;
     o.case_name = experiment.scene.cases[seq.case_index].name;
     o.label = input.labels[q];
+    if (seq.is_reaction()) {
+      // Readings: the forces' RMS [N] and the moments' apart [N m], each sample's error in
+      // residuals.csv numbered by reading (per unit, as a static reaction entry's).
+      const ReactionReading& first = *seq.frames.front().reading;
+      const int per = first.num_measurements();
+      o.type = "reaction";
+      o.unit = "N";
+      o.num_measurements = seq.num_samples() / per;
+      double sum_force = 0.0, sum_moment = 0.0;
+      if (q < residuals.error.size())
+        for (size_t k = 0; k < residuals.error[q].size(); ++k) {
+          const bool moment = per == 2 && k % 2 == 1;
+          const Eigen::Vector3d& e = residuals.error[q][k];
+          (moment ? sum_moment : sum_force) += e.squaredNorm();
+          MeasurementResidual mr;
+          mr.case_index = seq.case_index;
+          mr.case_name = o.case_name;
+          mr.observation = o.label;
+          mr.unit = moment ? "N m" : "N";
+          mr.measurement = static_cast<int>(k) / per;
+          mr.error = e;
+          mr.sigma = moment ? first.sigma_moment : first.sigma;
+          r.measurement_residuals.push_back(mr);
+        }
+      o.rms = std::sqrt(sum_force / std::max(1, o.num_measurements));
+      if (per == 2) o.rms_moment = std::sqrt(sum_moment / std::max(1, o.num_measurements));
+      r.observations.push_back(o);
+      continue;
+    }
+    const Observation& model = *seq.frames.front().observation;
     o.type = model.type();
     o.unit = model.unit();
     o.num_measurements = seq.num_samples();

@@ -917,6 +917,10 @@ class Builder {
     const std::string& case_name = e_.scene.cases[c].name;
     for (const ObservationSpec& spec : e_.cases[c].observations) {
       const std::string label = EntryLabel(spec);
+      if (spec.type == "reaction") {
+        ReactionSequenceViews(c, spec, label);
+        continue;
+      }
       std::vector<const MeasurementResidual*> errors;  // by sample number
       for (const MeasurementResidual& mr : r_.measurement_residuals) {
         if (mr.case_name != case_name || mr.observation != label || mr.measurement < 0) continue;
@@ -1023,6 +1027,96 @@ class Builder {
                    "each time (about 1 when the model explains the motion to its noise; a rise "
                    "over time is a prediction drifting away).");
     }
+  }
+
+  // A moving case's load cell log: the force components as recorded and along the fitted
+  // trajectory over time, and each reading's misfit in sigmas (force and moment apart).
+  void ReactionSequenceViews(size_t c, const ObservationSpec& spec, const std::string& label) {
+    const std::string& case_name = e_.scene.cases[c].name;
+    // The readings taken, in time order (as the reader numbers them).
+    std::map<double, Vec3> recorded;
+    try {
+      const CsvTable table = CsvTable::Read(spec.file);
+      const bool by_time = table.HasColumn("t");
+      const std::vector<double> key = table.Column(by_time ? "t" : "frame");
+      std::vector<std::vector<std::string>> text;
+      for (const char* col : {"fx", "fy", "fz"}) text.push_back(table.TextColumn(col));
+      for (int r = 0; r < table.num_rows(); ++r) {
+        Vec3 f;
+        bool taken = true;
+        for (int i = 0; i < 3; ++i) taken = taken && ParseDouble(text[i][r], &f[i]);
+        if (taken) recorded[by_time ? key[r] : key[r] / spec.frame_rate] = f;
+      }
+    } catch (const InputError&) {
+      return;  // the file changed since the fit read it: nothing to draw from
+    }
+    std::vector<const MeasurementResidual*> force(recorded.size(), nullptr), moment = force;
+    for (const MeasurementResidual& mr : r_.measurement_residuals) {
+      if (mr.case_name != case_name || mr.observation != label || mr.measurement < 0 ||
+          static_cast<size_t>(mr.measurement) >= recorded.size())
+        continue;
+      (mr.unit == "N m" ? moment : force)[mr.measurement] = &mr;
+    }
+    if (std::none_of(force.begin(), force.end(), [](const auto* p) { return p != nullptr; })) return;
+    const std::string attrs = " data-case="" + Escape(case_name) + "" data-entry="" + Escape(label) + """;
+    svg::Figure f;
+    f.title = case_name + ": force on the " + spec.point + ", " + FileName(spec.file);
+    f.width = 660;
+    f.height = 400;
+    f.x.label = "t [s]";
+    f.y.label = "force [mN]";
+    for (int a = 0; a < 3; ++a) {
+      svg::Series rec, fit;
+      rec.label = std::string("f") + AxisName(a);
+      rec.colour = fit.colour = Colour(a);
+      rec.line = false;
+      rec.marker = svg::Marker::kCircle;
+      rec.hollow = true;
+      rec.marker_size = 3;
+      fit.line_width = 1.4;
+      size_t k = 0;
+      for (const auto& [t, value] : recorded) {
+        rec.x.push_back(t);
+        rec.y.push_back(1e3 * value[a]);
+        fit.x.push_back(t);
+        fit.y.push_back(force[k] ? 1e3 * (value[a] + force[k]->error[a]) : NAN);
+        ++k;
+      }
+      f.series.push_back(rec);
+      f.series.push_back(fit);
+    }
+    page_.Figure(f, "sequence-trajectories", "sequence_" + case_name + "_" + Stem(spec.file), attrs,
+                 "Entry <code>" + Escape(FileName(spec.file)) + "</code>: the force the rod exerts "
+                 "on the " + Escape(spec.point) + ", as read (circles) and along the fitted "
+                 "trajectory (lines).");
+    svg::Figure m;
+    m.title = case_name + ": misfit over time, " + FileName(spec.file);
+    m.width = 660;
+    m.height = 360;
+    m.x.label = "t [s]";
+    m.y.label = "|model − measured| [σ]";
+    for (int part = 0; part < 2; ++part) {
+      const std::vector<const MeasurementResidual*>& list = part == 0 ? force : moment;
+      svg::Series each;
+      each.label = part == 0 ? "force" : "moment";
+      each.line = false;
+      each.marker = svg::Marker::kCircle;
+      each.marker_size = 2.5;
+      each.colour = part == 0 ? "#7f7f7f" : "#d62728";
+      size_t k = 0;
+      for (const auto& [t, value] : recorded) {
+        if (list[k]) {
+          each.x.push_back(t);
+          each.y.push_back(list[k]->error.norm() / list[k]->sigma);
+        }
+        ++k;
+      }
+      if (!each.x.empty()) m.series.push_back(each);
+    }
+    page_.Figure(m, "sequence-misfit", "sequence_misfit_" + case_name + "_" + Stem(spec.file), attrs,
+                 "Entry <code>" + Escape(FileName(spec.file)) + "</code>: each reading's misfit at "
+                 "the fitted values in units of its sigma (about 1 when the model explains the "
+                 "forces to their noise).");
   }
 
   // Per force entry of the case: force versus time (haptic logs) and the force residuals.

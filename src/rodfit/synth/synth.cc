@@ -684,6 +684,64 @@ std::string SynthReaction(const EntryContext& ctx, const std::string& file, std:
   return out;
 }
 
+// A `reaction` sequence of a moving case (docs/formats.md, "Observation sequences"): the case
+// run from its initial state, the force (and with sigma_moment the moment) the rod exerts on the
+// entry's held point at every sample time (MovingReactions) with Gaussian noise of sigma (and
+// sigma_moment), a fraction `drop` of the readings written empty (not taken). Columns
+// frame,fx,fy,fz[,mx,my,mz] with the entry's frame_rate, else t,....
+std::string SynthReactionSequence(const EntryContext& ctx, const std::string& file,
+                                  std::string* report) {
+  const Scene& scene = ctx.experiment->scene;
+  const ObservationSpec& spec = *ctx.spec;
+  const std::vector<double> t = SequenceTimes(spec, *scene.dynamics);
+  if (t.size() > static_cast<size_t>(kMaxCsvRows))
+    ctx.Fail(std::to_string(t.size()) + " readings, above the limit of " +
+             std::to_string(kMaxCsvRows) + " rows (lower frame_rate)");
+  CaseSamples run;
+  try {
+    run = SampleCaseDynamics(scene, ctx.case_index, ctx.options->statics, {}, t, {}, true);
+  } catch (const std::exception& e) {
+    ctx.Fail("case " + ctx.CaseName() + ": " + e.what());
+  }
+  if (!run.ok) ctx.Fail("case " + ctx.CaseName() + " does not run: " + run.reason);
+  const bool moment = spec.sigma_moment > 0;
+  std::vector<char> dropped(t.size(), 0);
+  int drops = 0;
+  if (ctx.options->add_noise)
+    for (const int i : ChooseOutliers(spec.drop, static_cast<int>(t.size()), ctx.random)) {
+      dropped[i] = 1;
+      ++drops;
+    }
+  const bool by_frame = spec.frame_rate > 0.0;
+  std::string out = std::string(by_frame ? "frame" : "t") +
+                    (moment ? ",fx,fy,fz,mx,my,mz\n" : ",fx,fy,fz\n");
+  for (size_t k = 0; k < t.size(); ++k) {
+    const HeldReaction* found = nullptr;
+    for (const HeldReaction& r : run.reactions[k])
+      if (r.point == spec.point) found = &r;
+    if (!found) ctx.Fail("case " + ctx.CaseName() + " holds no " + spec.point);
+    // Noise is drawn for every reading, taken or not, so the draws do not depend on the drops.
+    Eigen::Vector3d f = found->force, m = found->moment;
+    if (ctx.options->add_noise) {
+      for (int d = 0; d < 3; ++d) f(d) += spec.sigma * ctx.random->Normal();
+      if (moment)
+        for (int d = 0; d < 3; ++d) m(d) += spec.sigma_moment * ctx.random->Normal();
+    }
+    out += by_frame ? std::to_string(k) : FormatDouble(t[k]);
+    if (dropped[k]) {
+      out += moment ? ",,,,,,\n" : ",,,\n";
+      continue;
+    }
+    out += "," + FormatDouble(f.x()) + "," + FormatDouble(f.y()) + "," + FormatDouble(f.z());
+    if (moment) out += "," + FormatDouble(m.x()) + "," + FormatDouble(m.y()) + "," + FormatDouble(m.z());
+    out += "\n";
+  }
+  *report = "case " + ctx.shape->name + ": " + file + ": reaction sequence at " + spec.point +
+            ", " + std::to_string(t.size()) + " times";
+  if (drops > 0) *report += ", " + std::to_string(drops) + " readings dropped";
+  return out;
+}
+
 // `surface_points`: the case's poke solved on its equilibrium, and `count` (default the section's
 // nodes) points on the deformed ring at angles 2 pi (k + 1/2) / count about the section's centre
 // (where the ray from the centre crosses the ring's polygon, in the section's plane), mapped to
@@ -981,6 +1039,8 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
         contents = SynthSequence(ctx, file, &report);
       } else if ((spec.type == "points3d" || spec.type == "image_points") && ex.scene.dynamics) {
         contents = SynthShapeSequence(ctx, file, &report);
+      } else if (spec.type == "reaction" && ex.scene.dynamics) {
+        contents = SynthReactionSequence(ctx, file, &report);
       } else if (spec.type == "markers3d" || spec.type == "points3d") {
         contents = Synth3d(ctx, file, &report);
       } else if (spec.type == "image_points") {
