@@ -285,7 +285,7 @@ void BM_FitPixelSequences(benchmark::State& st) {
     seq.frames.push_back({t[k],
                           std::make_shared<ImageCurveObservation>(static_cast<int>(arc.size()),
                                                                   camera, pixels, 0.5),
-                          {}});
+                          nullptr, {}});
   }
   const std::vector<std::string> names = FittedNames(experiment);
   const MotionFitOptions options = SequenceFitOptionsOf(experiment, names);

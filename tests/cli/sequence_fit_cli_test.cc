@@ -194,5 +194,113 @@ TEST(SequenceFitCli, PixelsOfOneCameraRecoverBendingStiffnessAndDrag) {
                         std::to_string(seen) + ","));
 }
 
+// A clamp force log beside the markers (docs/formats.md, "Observation sequences"): synth writes the
+// swing's clamp force and moment at 200 Hz, and the fit takes the rod's linear density as a
+// parameter (parameters.linear_density) with the stiffness and the drag. The markers alone leave
+// the density free (their motion is the same for a rod with mass, stiffness and drag all scaled);
+// the force log fixes the scale. All three come back within 3 std, the profile's rod carries the
+// fitted density, and `simulate --profile` on a scene that leaves the density out uses it.
+TEST(SequenceFitCli, AClampForceLogDeterminesTheLinearDensity) {
+  TempDir dir;
+  const std::string markers = "frame_rate: 100, drop: 0.1}";
+  const std::string reaction =
+      "\n      - {type: reaction, file: clamp_force.csv, sigma: 2.0e-6, sigma_moment: 2.0e-7, "
+      "point: clamp, frame_rate: 200, drop: 0.02}";
+  dir.Write("protocol.yaml",
+            Replace(ReadText(kExample + "protocol.yaml"), markers, markers + reaction));
+  const RunResult synth = test::RunRodfit(dir, "synth " + Quote(dir.File("protocol.yaml")) +
+                                                   " -o " + Quote(dir.File("data")) + " --seed 5");
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  const std::string log = ReadText(dir.File("data/clamp_force.csv"));
+  EXPECT_EQ(log.rfind("frame,fx,fy,fz,mx,my,mz\n", 0), 0u);
+  EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1 + 51);  // 0.25 s at 200 Hz, frames 0-50
+
+  std::string experiment = ReadText(kExample + "experiment.yaml");
+  experiment = Replace(experiment, "  linear_density: 5.6e-5    # [kg/m], weighed\n", "");
+  experiment = Replace(experiment,
+                       "  damping:           {value: 6.7e-5, fit: true}    # [N s/m^2]\n",
+                       "  damping:           {value: 6.7e-5, fit: true}    # [N s/m^2]\n"
+                       "  linear_density:    {value: 4.0e-5, fit: true}    # [kg/m]\n");
+  experiment = Replace(experiment, "frame_rate: 100}",
+                       "frame_rate: 100}\n      - {type: reaction, file: clamp_force.csv, "
+                       "sigma: 2.0e-6, sigma_moment: 2.0e-7, point: clamp, frame_rate: 200}");
+  dir.Write("data/experiment.yaml", experiment);
+  const RunResult fit = test::RunRodfit(
+      dir, "fit " + Quote(dir.File("data/experiment.yaml")) + " -o " +
+               Quote(dir.File("profile.json")) + " --report " + Quote(dir.File("report")));
+  ASSERT_EQ(fit.status, 0) << fit.err;
+  const json profile = json::parse(ReadText(dir.File("profile.json")));
+  const json truth = json::parse(ReadText(dir.File("data/truth.json")));
+  EXPECT_EQ(truth["parameters"]["linear_density"].get<double>(), 5.6e-5);
+  for (const char* name : {"bend_stiffness", "damping", "linear_density"}) {
+    const json& p = profile["parameters"][name];
+    ASSERT_TRUE(p["fitted"].get<bool>()) << name;
+    ASSERT_TRUE(p["identifiable"].get<bool>()) << name;
+    const double value = p["value"], std = p["std"], t = truth["parameters"][name];
+    std::printf("%-15s truth %.4g  fitted %.4g +- %.2g  (%+.2f std)\n", name, t, value, std,
+                (value - t) / std);
+    EXPECT_LT(std::abs(value - t), 3.0 * std) << name << " " << value << " +- " << std;
+    EXPECT_LT(std, 0.02 * t) << name;
+  }
+  EXPECT_EQ(profile["parameters"]["linear_density"]["unit"], "kg/m");
+  EXPECT_EQ(profile["rod"]["linear_density"], profile["parameters"]["linear_density"]["value"]);
+  const json& rms = profile["fit"]["rms"];
+  ASSERT_EQ(rms.size(), 2u);
+  EXPECT_EQ(rms[1]["observation"], "reaction clamp_force.csv");
+  EXPECT_EQ(rms[1]["unit"], "N");
+  EXPECT_THAT(ReadText(dir.File("report/residuals.csv")),
+              HasSubstr("reaction clamp_force.csv,N m,"));
+
+  // The profile supplies the rod's density to a scene that leaves it out: the same motion as the
+  // scene given that density in full.
+  std::string scene = experiment;
+  scene = scene.substr(0, scene.find("parameters:")) + scene.substr(scene.find("gravity:"));
+  dir.Write("data/scene.yaml", scene);
+  const RunResult from_profile = test::RunRodfit(
+      dir, "simulate " + Quote(dir.File("data/scene.yaml")) + " --profile " +
+               Quote(dir.File("profile.json")) + " -o " + Quote(dir.File("sim_profile")));
+  ASSERT_EQ(from_profile.status, 0) << from_profile.err;
+  dir.Write("data/scene_density.yaml",
+            Replace(scene, "radius: 1.25e-4           # [m]\n",
+                    "radius: 1.25e-4           # [m]\n  linear_density: " +
+                        profile["rod"]["linear_density"].dump() + "\n"));
+  const RunResult given = test::RunRodfit(
+      dir, "simulate " + Quote(dir.File("data/scene_density.yaml")) + " --profile " +
+               Quote(dir.File("profile.json")) + " -o " + Quote(dir.File("sim_given")));
+  ASSERT_EQ(given.status, 0) << given.err;
+  EXPECT_EQ(ReadText(dir.File("sim_profile/trajectory.csv")),
+            ReadText(dir.File("sim_given/trajectory.csv")));
+  // A scene whose density differs from the profile's is refused, naming the key.
+  dir.Write("data/scene_other.yaml",
+            Replace(scene, "radius: 1.25e-4           # [m]\n",
+                    "radius: 1.25e-4           # [m]\n  linear_density: 5.0e-5\n"));
+  const RunResult other = test::RunRodfit(
+      dir, "simulate " + Quote(dir.File("data/scene_other.yaml")) + " --profile " +
+               Quote(dir.File("profile.json")) + " -o " + Quote(dir.File("sim_other")));
+  EXPECT_EQ(other.status, 1);
+  EXPECT_THAT(other.err, HasSubstr("rod.linear_density:"));
+  EXPECT_FALSE(fs::exists(dir.File("sim_other/trajectory.csv")));
+
+  // The density given twice, or as a parameter of a scene that does not move: one line each.
+  auto fails = [&](const std::string& yaml, const std::string& where) {
+    dir.Write("data/bad.yaml", yaml);
+    const RunResult run = test::RunRodfit(
+        dir, "fit " + Quote(dir.File("data/bad.yaml")) + " -o " + Quote(dir.File("bad.json")));
+    EXPECT_EQ(run.status, 1) << run.err;
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+    EXPECT_THAT(run.err, HasSubstr(where));
+    EXPECT_FALSE(fs::exists(dir.File("bad.json")));
+  };
+  fails(Replace(experiment, "radius: 1.25e-4           # [m]\n",
+                "radius: 1.25e-4           # [m]\n  linear_density: 5.6e-5\n"),
+        dir.File("data/bad.yaml") + ":10: rod.linear_density: given twice");
+  std::string still = experiment.substr(0, experiment.find("dynamics:")) +
+                      experiment.substr(experiment.find("cases:"));
+  still = Replace(still, "  damping:           {value: 6.7e-5, fit: true}    # [N s/m^2]\n", "");
+  still = still.substr(0, still.find("    initial:"));
+  fails(still,
+        dir.File("data/bad.yaml") + ":14: parameters.linear_density: only in a moving scene");
+}
+
 }  // namespace
 }  // namespace rodfit

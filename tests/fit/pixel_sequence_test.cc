@@ -71,7 +71,7 @@ ObservationSequence Observe(const Scene& truth, Kind kind, double sigma, unsigne
       frame = std::make_shared<ImageCurveObservation>(nv, camera, pixels, sigma);
     else
       frame = std::make_shared<Points3dObservation>(nv, points, sigma);
-    seq.frames.push_back({t[k], frame, {}});
+    seq.frames.push_back({t[k], frame, nullptr, {}});
   }
   return seq;
 }

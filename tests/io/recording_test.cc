@@ -106,7 +106,9 @@ TEST(Recording, WideFormIsTheLongFormOneRowPerFrame) {
     ASSERT_EQ(b.frames[k].cols(), 4);
     for (int m = 0; m < 4; ++m) {
       EXPECT_EQ(b.frames[k].col(m).allFinite(), a.frames[k].col(m).allFinite());
-      if (a.frames[k].col(m).allFinite()) EXPECT_EQ(b.frames[k].col(m), a.frames[k].col(m));
+      if (a.frames[k].col(m).allFinite()) {
+        EXPECT_EQ(b.frames[k].col(m), a.frames[k].col(m));
+      }
     }
   }
   // A marker without its z, a frame given twice and a bad number, each at its line and column.

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <sstream>
 #include <string>
 
@@ -165,6 +166,46 @@ TEST(ProfileReader, UndeterminedParameterNeedsAnOverride) {
               HasSubstr("parameters.bend_stiffness_2.value (--set bend_stiffness_2): must be > 0"));
   options.overrides = {{"bend_stifness", 1.0}};
   EXPECT_THAT(ErrorOf(ReadJson(ProfilePath("suture.json")), options), HasSubstr("parameters.bend_stifness: --set names"));
+}
+
+// A moving fit may list the rod's linear density it fitted (docs/formats.md, profile
+// "parameters"): the row sets the rebuilt rod's masses, must agree with rod.linear_density, is
+// positive and in kg/m, and --set replaces both.
+TEST(ProfileReader, AFittedLinearDensitySetsTheRod) {
+  json doc = ReadJson(ProfilePath("suture.json"));
+  const double density = doc["rod"]["linear_density"].get<double>();
+  doc["parameters"]["linear_density"] = {{"value", density}, {"std", 0.01 * density},
+                                         {"unit", "kg/m"},   {"fitted", true},
+                                         {"identifiable", true}};
+  EXPECT_EQ(ParseProfile(doc.dump(), "p.json").scene.rod.linear_density, density);
+  ProfileReadOptions options;
+  options.overrides["linear_density"] = 2.0 * density;
+  const Profile set = ParseProfile(doc.dump(), "p.json", options);
+  EXPECT_EQ(set.scene.rod.linear_density, 2.0 * density);
+  json wrong = doc;
+  wrong["parameters"]["linear_density"]["value"] = 1.5 * density;
+  EXPECT_THAT(ErrorOf(wrong), HasSubstr("p.json: parameters.linear_density.value: disagrees with "
+                                        "rod.linear_density"));
+  wrong = doc;
+  wrong["parameters"]["linear_density"]["unit"] = "kg/m^3";
+  EXPECT_THAT(ErrorOf(wrong), HasSubstr("parameters.linear_density.unit: must be \"kg/m\""));
+  wrong = doc;
+  wrong["parameters"]["linear_density"]["value"] = 0.0;
+  wrong["rod"]["linear_density"] = 0.0;
+  EXPECT_THAT(ErrorOf(wrong), HasSubstr("parameters.linear_density.value: must be > 0"));
+  // A scene read for a profile (parameters optional) may leave its density out: the profile's.
+  const Profile p = ParseProfile(doc.dump(), "p.json");
+  Scene scene = p.scene;
+  scene.rod.linear_density = std::numeric_limits<double>::quiet_NaN();
+  UseProfileMaterial(p, &scene);
+  EXPECT_EQ(scene.rod.linear_density, density);
+  scene.rod.linear_density = 0.5 * density;
+  try {
+    UseProfileMaterial(p, &scene);
+    ADD_FAILURE() << "a scene with another density was accepted";
+  } catch (const ProfileError& e) {
+    EXPECT_THAT(std::string(e.what()), HasSubstr("rod.linear_density:"));
+  }
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include <Eigen/Geometry>  // cross product
@@ -233,7 +234,10 @@ class Reader {
   std::string file_;
 };
 
-RodSpec ReadRod(const Reader& r, const Field& f) {
+// With `density_elsewhere` (parameters.linear_density is given) the rod's linear_density must be
+// left out: one value, the parameter's. With `density_optional` (a profile supplies the
+// material) it may be left out and is NaN until the profile's rod fills it.
+RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool density_optional) {
   const Entries m = r.Map(f, {"length", "segments", "radius", "linear_density", "rest_curvature",
                               "vertex_s"});
   RodSpec rod;
@@ -264,7 +268,14 @@ RodSpec ReadRod(const Reader& r, const Field& f) {
     rod.segments = r.IntegerIn(segments, 2, kMaxSegments);
   }
   rod.radius = r.Positive(r.Require(m, f, "radius"));
-  rod.linear_density = r.NonNegative(r.Require(m, f, "linear_density"));
+  if (density_elsewhere) {
+    if (const Field* d = Reader::Find(m, "linear_density"))
+      r.Fail(*d, "given twice: here and as parameters.linear_density (keep one)");
+  } else if (const Field* d = Reader::Find(m, "linear_density"); d || !density_optional) {
+    rod.linear_density = r.NonNegative(d ? *d : r.Require(m, f, "linear_density"));
+  } else {
+    rod.linear_density = std::numeric_limits<double>::quiet_NaN();
+  }
   if (const Field* k = Reader::Find(m, "rest_curvature")) rod.rest_curvature = r.Vector3(*k);
   return rod;
 }
@@ -305,8 +316,14 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
   std::vector<std::string> allowed;
   for (const MaterialParameterInfo& row : MaterialParameters()) allowed.push_back(row.name);
   allowed.insert(allowed.end(), zone_parameters.begin(), zone_parameters.end());
+  allowed.push_back("linear_density");  // a moving scene's, fitted to motion and forces
   const Entries m = r.Map(f, allowed);
   for (const auto& [name, field] : m) ex->parameters[name] = ReadParameter(r, field, name);
+  if (const Field* density = Reader::Find(m, "linear_density")) {
+    // The rod's, not the material's: it sets the masses and weights.
+    const Entries spec = r.Map(*density, {"value", "fit", "min", "max"});
+    ex->scene.rod.linear_density = r.Positive(r.Require(spec, *density, "value"));
+  }
   for (const std::string& name : zone_parameters) r.Require(m, f, name);
   const bool section = ex->scene.section.has_value();
   for (const MaterialParameterInfo& row : MaterialParameters()) {
@@ -315,6 +332,7 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
     if (row.required) r.Require(m, f, row.name);
   }
   for (const auto& [name, spec] : ex->parameters) {
+    if (name == "linear_density") continue;
     const MaterialParameterInfo* row = FindMaterialParameter(name);
     if (row && row->needs_section && !section) continue;
     AssignMaterialParameter(name, spec.value, &ex->scene.material);
@@ -1183,19 +1201,28 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   const Entries m = r.Map(
       top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit", "solver",
             "dynamics"});
-  ex.scene.rod = ReadRod(r, r.Require(m, top, "rod"));
+  const Field* params = Reader::Find(m, "parameters");
+  const bool density_in_parameters =
+      params && params->node.IsMap() && params->node["linear_density"].IsDefined();
+  ex.scene.rod =
+      ReadRod(r, r.Require(m, top, "rod"), density_in_parameters, parameters_optional);
   if (const Field* section = Reader::Find(m, "section")) ex.scene.section = ReadSection(r, *section);
   std::vector<std::string> zone_parameters;
   if (const Field* springs = Reader::Find(m, "springs")) {
     zone_parameters = ReadSprings(r, *springs, &ex);
   }
   // With a profile supplying the material (`simulate --profile`) the block may be left out.
-  if (const Field* params = Reader::Find(m, "parameters"); params || !parameters_optional)
+  if (params || !parameters_optional)
     ReadParameters(r, params ? *params : r.Require(m, top, "parameters"), &ex, zone_parameters);
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
   if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
   if (const Field* dynamics = Reader::Find(m, "dynamics")) ex.scene.dynamics = ReadDynamics(r, *dynamics);
+  if (const auto it = ex.parameters.find("linear_density");
+      it != ex.parameters.end() && !ex.scene.dynamics)
+    r.Fail(it->second.line, "parameters.linear_density",
+           "only in a moving scene (a dynamics: block), where motion and forces determine it; "
+           "elsewhere give rod.linear_density");
   for (const auto& [name, p] : ex.parameters)
     if (p.fit && IsDampingParameter(name) && !ex.scene.dynamics)
       r.Fail(p.fit_line, "parameters." + name + ".fit",

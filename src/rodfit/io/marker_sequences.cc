@@ -297,6 +297,10 @@ std::vector<std::string> FittedNames(const Experiment& experiment) {
     const auto it = experiment.parameters.find(row.name);
     if (it != experiment.parameters.end() && it->second.fit) names.push_back(row.name);
   }
+  // The rod's linear density (a moving experiment's), after the material's.
+  if (const auto it = experiment.parameters.find("linear_density");
+      it != experiment.parameters.end() && it->second.fit)
+    names.push_back("linear_density");
   return names;
 }
 
@@ -334,6 +338,7 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
   for (const MaterialParameterInfo& row : MaterialParameters())
     if (row.kind == ParameterKind::kDamping && experiment.parameters.count(row.name))
       listed.push_back(row.name);
+  if (experiment.parameters.count("linear_density")) listed.push_back("linear_density");
   for (const std::string& name : listed) {
     ParameterEstimate est;
     est.name = name;

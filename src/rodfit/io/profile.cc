@@ -49,8 +49,9 @@ nlohmann::json DerivedJson(const Material& m, const RodSpec& rod,
                            const std::set<std::string>& undetermined) {
   using nlohmann::json;
   json derived;
-  derived["mass_density"] =
-      rod.radius > 0.0 ? json(rod.linear_density / (M_PI * rod.radius * rod.radius)) : json(nullptr);
+  derived["mass_density"] = rod.radius > 0.0 && !undetermined.count("linear_density")
+                                ? json(rod.linear_density / (M_PI * rod.radius * rod.radius))
+                                : json(nullptr);
   for (const MaterialParameterInfo& row : MaterialParameters()) {
     if (row.kind != ParameterKind::kRodStiffness) continue;
     const std::string name = row.name;
@@ -101,7 +102,12 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   p["version"] = kProfileVersion;
   p["rodfit_version"] = RODFIT_VERSION;
   const Scene& scene = e.scene;
-  const RodSpec& rod = scene.rod;
+  // The rod as fitted: a moving experiment may fit its linear density (a parameter the data do
+  // not determine keeps its start here, and its row says it is not a measurement).
+  RodSpec rod = scene.rod;
+  for (const ParameterEstimate& est : r.parameters)
+    if (est.name == "linear_density" && (!est.fitted || est.identifiable))
+      rod.linear_density = est.value;
   p["rod"] = {{"length", rod.length},
               {"segments", rod.segments},
               {"radius", rod.radius},
@@ -146,7 +152,9 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
     }
     params[est.name] = q;
     listed.insert(est.name);
-    if (determined) {
+    if (est.name == "linear_density") {
+      if (!determined) undetermined.insert(est.name);  // the rod's: set above
+    } else if (determined) {
       // A tied row (bend_stiffness_2 absent) is listed at its row's value but stays tied.
       const MaterialParameterInfo* row = FindMaterialParameter(est.name);
       if (!row || !row->tied_to || MaterialParameterValue(scene.material, est.name) || est.fitted)

@@ -43,7 +43,9 @@ const MaterialParameterInfo* FindMaterialParameter(const std::string& name) {
 
 const char* MaterialParameterUnit(const std::string& name) {
   const MaterialParameterInfo* row = FindMaterialParameter(name);
-  return row ? row->unit : "N/m^2";
+  if (row) return row->unit;
+  // The rod's mass per length: a moving experiment's fitted parameter besides the material's.
+  return name == "linear_density" ? "kg/m" : "N/m^2";
 }
 
 std::optional<double> MaterialParameterValue(const Material& material, const std::string& name) {

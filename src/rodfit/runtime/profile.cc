@@ -261,7 +261,7 @@ ProfileParameter ReadParameter(const Reader& r, const json& v, const std::string
   }
   if (const json* s = r.Find(v, "std"); s && !s->is_null())
     p.std = r.NonNegative(*s, key + ".std");
-  const bool positive = row ? row->positive : false;
+  const bool positive = row ? row->positive : name == "linear_density";
   auto check = [&](double x, const std::string& where) {
     if (!std::isfinite(x)) r.Fail(where, "must be finite");
     if (positive && !(x > 0.0)) r.Fail(where, "must be > 0 (is " + Show(x) + ")");
@@ -374,7 +374,8 @@ Profile ParseProfile(const std::string& text, const std::string& path,
     const std::string& name = item.key();
     const MaterialParameterInfo* row = FindMaterialParameter(name);
     // Version 1 wrote zone parameters without their zones: read them as spring stiffnesses.
-    if (!row && !zone_parameters.count(name) && out.version >= 2)
+    // A moving fit lists the rod's linear density it fitted (as rod.linear_density).
+    if (!row && !zone_parameters.count(name) && out.version >= 2 && name != "linear_density")
       r.Fail("parameters." + name, "unknown parameter (neither in the parameter table nor a "
                                    "spring zone's parameter)");
     if (row && row->needs_section && !scene.section) continue;  // no ring without a section
@@ -394,6 +395,15 @@ Profile ParseProfile(const std::string& text, const std::string& path,
   for (const ProfileParameter& p : out.parameters) {
     // An isotropic B2 stays tied, so that the rod model sees exactly what the fit's did.
     if (!p.tied_to.empty()) continue;
+    if (p.name == "linear_density") {
+      // The row is the rod's mass per length: --set on it sets the rod's; as written it must
+      // agree with rod.linear_density.
+      if (!p.overridden && p.value != scene.rod.linear_density)
+        r.Fail("parameters.linear_density.value",
+               "disagrees with rod.linear_density (" + Show(scene.rod.linear_density) + ")");
+      scene.rod.linear_density = p.value;
+      continue;
+    }
     AssignMaterialParameter(p.name, p.value, &scene.material);
   }
   if (scene.section && !(scene.rod.radius > 0.0))
@@ -430,7 +440,9 @@ void UseProfileMaterial(const Profile& profile, Scene* scene) {
   if (a.length != b.length) differ("rod.length", a.length, b.length);
   if (a.segments != b.segments) differ("rod.segments", a.segments, b.segments);
   if (a.radius != b.radius) differ("rod.radius", a.radius, b.radius);
-  if (a.linear_density != b.linear_density)
+  // A scene run with a profile may leave its rod's density out: the profile's is used.
+  if (std::isnan(b.linear_density)) scene->rod.linear_density = a.linear_density;
+  else if (a.linear_density != b.linear_density)
     differ("rod.linear_density", a.linear_density, b.linear_density);
   for (const SpringZone& zone : scene->springs)
     if (!zone.parameter.empty() && !profile.Find(zone.parameter))

@@ -949,10 +949,14 @@ std::string FormatTruthJson(const Experiment& experiment, const std::vector<Case
   std::string out = "{\n  \"format\": \"rodfit-truth\",\n  \"version\": 1,\n"
                     "  \"rodfit_version\": \"" RODFIT_VERSION "\",\n  \"seed\": " +
                     std::to_string(seed) + ",\n  \"parameters\": {";
+  std::map<std::string, double> values;
+  for (const auto& [name, spec] : experiment.parameters) values[name] = spec.value;
+  // A moving scene's rod density is a parameter its fit may estimate: listed with the rest.
+  if (experiment.scene.dynamics) values["linear_density"] = experiment.scene.rod.linear_density;
   bool first = true;
-  for (const auto& [name, spec] : experiment.parameters) {
+  for (const auto& [name, value] : values) {
     out += std::string(first ? "" : ",") + "\n    " + nlohmann::json(name).dump() + ": " +
-           FormatDouble(spec.value);
+           FormatDouble(value);
     first = false;
   }
   out += "\n  },\n  \"cases\": [";

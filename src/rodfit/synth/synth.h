@@ -126,7 +126,8 @@ std::string EmitExperimentYaml(const std::string& yaml_text, const Experiment& e
                                const std::function<std::string(const std::string&)>& map_path);
 
 /// The truth.json text: {"format": "rodfit-truth", "version": 1, "seed": N, "parameters":
-/// {name: value}, "cases": [{"name": ..., "vertices": [[x, y, z], ...]}]}.
+/// {name: value} (a moving scene's with its rod's linear_density), "cases": [{"name": ...,
+/// "vertices": [[x, y, z], ...]}]}.
 std::string FormatTruthJson(const Experiment& experiment, const std::vector<CaseShape>& truth,
                             std::uint32_t seed);
 
