@@ -194,36 +194,25 @@ TEST(SequenceFitCli, PixelsOfOneCameraRecoverBendingStiffnessAndDrag) {
                         std::to_string(seen) + ","));
 }
 
-// A clamp force log beside the markers (docs/formats.md, "Observation sequences"): synth writes the
-// swing's clamp force and moment at 200 Hz, and the fit takes the rod's linear density as a
-// parameter (parameters.linear_density) with the stiffness and the drag. The markers alone leave
-// the density free (their motion is the same for a rod with mass, stiffness and drag all scaled);
-// the force log fixes the scale. All three come back within 3 std, the profile's rod carries the
-// fitted density, and `simulate --profile` on a scene that leaves the density out uses it.
+// A clamp force log beside the markers (docs/formats.md, "Observation sequences"; the bundled
+// data/suture_swing_fit/experiment_density.yaml on a new draw): synth writes the swing's clamp
+// force and moment at 200 Hz, and the fit takes the rod's linear density as a parameter
+// (parameters.linear_density) with the stiffness and the drag. The markers alone leave the
+// density free (their motion is the same for a rod with mass, stiffness and drag all scaled:
+// all three are then reported not identifiable); the force log fixes the scale. All three come
+// back within 3 std, the profile's rod carries the fitted density, and `simulate --profile` on a
+// scene that leaves the density out uses it.
 TEST(SequenceFitCli, AClampForceLogDeterminesTheLinearDensity) {
   TempDir dir;
-  const std::string markers = "frame_rate: 100, drop: 0.1}";
-  const std::string reaction =
-      "\n      - {type: reaction, file: clamp_force.csv, sigma: 2.0e-6, sigma_moment: 2.0e-7, "
-      "point: clamp, frame_rate: 200, drop: 0.02}";
-  dir.Write("protocol.yaml",
-            Replace(ReadText(kExample + "protocol.yaml"), markers, markers + reaction));
-  const RunResult synth = test::RunRodfit(dir, "synth " + Quote(dir.File("protocol.yaml")) +
-                                                   " -o " + Quote(dir.File("data")) + " --seed 5");
+  const RunResult synth = test::RunRodfit(
+      dir, "synth " + Quote(kExample + "protocol.yaml") + " -o " + Quote(dir.File("data")) +
+               " --seed 5");
   ASSERT_EQ(synth.status, 0) << synth.err;
   const std::string log = ReadText(dir.File("data/clamp_force.csv"));
   EXPECT_EQ(log.rfind("frame,fx,fy,fz,mx,my,mz\n", 0), 0u);
   EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1 + 51);  // 0.25 s at 200 Hz, frames 0-50
 
-  std::string experiment = ReadText(kExample + "experiment.yaml");
-  experiment = Replace(experiment, "  linear_density: 5.6e-5    # [kg/m], weighed\n", "");
-  experiment = Replace(experiment,
-                       "  damping:           {value: 6.7e-5, fit: true}    # [N s/m^2]\n",
-                       "  damping:           {value: 6.7e-5, fit: true}    # [N s/m^2]\n"
-                       "  linear_density:    {value: 4.0e-5, fit: true}    # [kg/m]\n");
-  experiment = Replace(experiment, "frame_rate: 100}",
-                       "frame_rate: 100}\n      - {type: reaction, file: clamp_force.csv, "
-                       "sigma: 2.0e-6, sigma_moment: 2.0e-7, point: clamp, frame_rate: 200}");
+  const std::string experiment = ReadText(kExample + "experiment_density.yaml");
   dir.Write("data/experiment.yaml", experiment);
   const RunResult fit = test::RunRodfit(
       dir, "fit " + Quote(dir.File("data/experiment.yaml")) + " -o " +
@@ -250,6 +239,17 @@ TEST(SequenceFitCli, AClampForceLogDeterminesTheLinearDensity) {
   EXPECT_EQ(rms[1]["unit"], "N");
   EXPECT_THAT(ReadText(dir.File("report/residuals.csv")),
               HasSubstr("reaction clamp_force.csv,N m,"));
+
+  // Without the force log the three move together: none is identifiable (exit 4).
+  std::string markers_only = experiment.substr(0, experiment.find("      - {type: reaction"));
+  dir.Write("data/markers_only.yaml", markers_only);
+  const RunResult free_scale = test::RunRodfit(
+      dir, "fit " + Quote(dir.File("data/markers_only.yaml")) + " -o " +
+               Quote(dir.File("markers_only.json")));
+  EXPECT_EQ(free_scale.status, 4) << free_scale.err;
+  const json scale_free = json::parse(ReadText(dir.File("markers_only.json")));
+  for (const char* name : {"bend_stiffness", "damping", "linear_density"})
+    EXPECT_FALSE(scale_free["parameters"][name]["identifiable"].get<bool>()) << name;
 
   // The profile supplies the rod's density to a scene that leaves it out: the same motion as the
   // scene given that density in full.
@@ -293,13 +293,13 @@ TEST(SequenceFitCli, AClampForceLogDeterminesTheLinearDensity) {
   };
   fails(Replace(experiment, "radius: 1.25e-4           # [m]\n",
                 "radius: 1.25e-4           # [m]\n  linear_density: 5.6e-5\n"),
-        dir.File("data/bad.yaml") + ":10: rod.linear_density: given twice");
+        dir.File("data/bad.yaml") + ":13: rod.linear_density: given twice");
   std::string still = experiment.substr(0, experiment.find("dynamics:")) +
                       experiment.substr(experiment.find("cases:"));
   still = Replace(still, "  damping:           {value: 6.7e-5, fit: true}    # [N s/m^2]\n", "");
   still = still.substr(0, still.find("    initial:"));
   fails(still,
-        dir.File("data/bad.yaml") + ":14: parameters.linear_density: only in a moving scene");
+        dir.File("data/bad.yaml") + ":17: parameters.linear_density: only in a moving scene");
 }
 
 }  // namespace
