@@ -2,8 +2,9 @@
 // fitted bowel segment of data/profiles/bowel_drag.json grasped at 2/3 of its length and dragged
 // along a horizontal circle (1 cm radius, one turn per 1000 ticks: 6 cm/s at 1 kHz), quasi-static
 // and dynamic (BDF2, 1 ms), and the poked bowel of data/profiles/bowel_poke.json pushed with a
-// force that rises and falls, each tick followed by the tube mesh with the section's dent read
-// into the loop's buffer (Runtime::Mesh(TubeMesh*): no allocation, the ring warm-started).
+// force that rises and falls, quasi-static and dynamic, each tick followed by the tube mesh with
+// the section's dent read into the loop's buffer (Runtime::Mesh(TubeMesh*): no allocation, the
+// ring warm-started).
 // Setup (loading, the first equilibrium, sizing the mesh buffer) is outside the timed loop; the
 // time is per tick.
 #include <cmath>
@@ -51,22 +52,29 @@ BENCHMARK(BM_Drag)
 void BM_PokeWithMesh(benchmark::State& state) {
   const int segments = static_cast<int>(state.range(0));
   rodfit::RuntimeOptions options;
+  options.mode = state.range(1) ? rodfit::RuntimeMode::kDynamic : rodfit::RuntimeMode::kQuasiStatic;
   options.tool = rodfit::ToolKind::kPoke;
   options.tool_s = 0.075;
   rodfit::Runtime rt(Bowel("bowel_poke.json", segments), options);
   rodfit::TubeMesh mesh;
   rt.Mesh(&mesh);
-  long tick = 0, missed = 0;
+  long tick = 0, missed = 0, iterations = 0;
   for (auto _ : state) {
     const double phase = 2.0 * M_PI * static_cast<double>(++tick) / 1000.0;
     rt.SetToolForce(rodfit::Vec3(0.0, 0.0, -0.015 * (1.0 - std::cos(phase))));
-    if (!rt.Step().ok()) ++missed;
+    const rodfit::StepReport r = rt.Step();
+    if (!r.ok()) ++missed;
+    iterations += r.iterations;
     rt.Mesh(&mesh);
     benchmark::DoNotOptimize(mesh.vertices.data());
   }
   state.counters["missed"] = static_cast<double>(missed);
+  state.counters["iterations"] = static_cast<double>(iterations) / static_cast<double>(tick);
+  state.SetLabel(state.range(1) ? "dynamic" : "quasi-static");
 }
-BENCHMARK(BM_PokeWithMesh)->Arg(50)->Arg(100)->Arg(200)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PokeWithMesh)
+    ->ArgsProduct({{50, 100, 200}, {0, 1}})
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

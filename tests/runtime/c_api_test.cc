@@ -140,4 +140,58 @@ TEST(CApi, OrientedGraspMatchesTheCppRuntime) {
   rodfit_destroy(rt);
 }
 
+// A dynamic poke through C: mode and tool selected by the options, the same shape, force and
+// dented mesh as the C++ runtime tick for tick.
+TEST(CApi, DynamicPokeMatchesTheCppRuntime) {
+  const std::string bowel = std::string(RODFIT_SOURCE_DIR) + "/data/profiles/bowel_poke.json";
+  rodfit_options options;
+  rodfit_default_options(&options);
+  options.mode = RODFIT_MODE_DYNAMIC;
+  options.tool = RODFIT_TOOL_POKE;
+  options.tool_s = 0.075;
+  rodfit_runtime* rt = nullptr;
+  char error[256];
+  ASSERT_EQ(rodfit_create(bowel.c_str(), &options, nullptr, nullptr, 0, &rt, error, sizeof(error)),
+            RODFIT_OK)
+      << error;
+  rodfit::RuntimeOptions cpp_options;
+  cpp_options.mode = rodfit::RuntimeMode::kDynamic;
+  cpp_options.tool = rodfit::ToolKind::kPoke;
+  cpp_options.tool_s = 0.075;
+  rodfit::Runtime cpp(rodfit::LoadProfile(bowel), cpp_options);
+  for (int k = 1; k <= 20; ++k) {
+    const double push[3] = {0.0, -1e-3 * k, -5e-4 * k};
+    ASSERT_EQ(rodfit_set_tool_force(rt, push), RODFIT_OK);
+    cpp.SetToolForce(rodfit::Vec3(push[0], push[1], push[2]));
+    ASSERT_EQ(rodfit_step(rt, nullptr), RODFIT_OK) << rodfit_last_error(rt);
+    ASSERT_TRUE(cpp.Step().ok());
+  }
+  const int n = rodfit_num_vertices(rt);
+  std::vector<double> shape(3 * n);
+  ASSERT_EQ(rodfit_get_shape(rt, shape.data(), shape.size()), RODFIT_OK);
+  for (int i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(shape[3 * i + c], cpp.Shape()(c, i));
+  EXPECT_GT((cpp.Shape() - rodfit::Runtime(rodfit::LoadProfile(bowel), cpp_options).Shape())
+                .cwiseAbs()
+                .maxCoeff(),
+            0.0);  // the push moved the rod
+  double force[3];
+  ASSERT_EQ(rodfit_get_tool_force(rt, force, nullptr), RODFIT_OK);
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(force[c], cpp.ToolForce()[c]);
+  EXPECT_EQ(force[1], 2e-2);  // minus the last push
+  int nv = 0, nt = 0;
+  ASSERT_EQ(rodfit_get_mesh(rt, &nv, &nt, nullptr, 0, nullptr, 0), RODFIT_OK);
+  std::vector<double> vertices(3 * nv);
+  std::vector<int> triangles(3 * nt);
+  ASSERT_EQ(rodfit_get_mesh(rt, &nv, &nt, vertices.data(), vertices.size(), triangles.data(),
+                            triangles.size()),
+            RODFIT_OK);
+  rodfit::TubeMesh mesh;
+  cpp.Mesh(&mesh);
+  ASSERT_EQ(mesh.num_vertices(), nv);
+  for (int i = 0; i < nv; ++i)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(vertices[3 * i + c], mesh.vertices(c, i));
+  rodfit_destroy(rt);
+}
+
 }  // namespace

@@ -1,8 +1,8 @@
 // A tick does not allocate: this test program interposes malloc and its family (glibc resolves
 // them to the executable's definitions first; operator new and Eigen's dynamic matrices both
 // allocate through malloc) and counts calls while a flag is up, around ticks of every kind — a
-// drag (quasi-static, with and without the held orientation, and dynamic) and a poke — each
-// read back as a haptic loop does: Step(), the shape, the tool's force and torque, and the tube
+// drag (quasi-static, with and without the held orientation, and dynamic) and a poke
+// (quasi-static and dynamic) — each read back as a haptic loop does: Step(), the shape, the tool's force and torque, and the tube
 // mesh with the poke's dent into a kept buffer (Runtime::Mesh(TubeMesh*)). Every other test of
 // the program runs with the flag down.
 #include <atomic>
@@ -149,7 +149,8 @@ INSTANTIATE_TEST_SUITE_P(
                       Mode{"bowel_drag.json", RuntimeMode::kQuasiStatic, ToolKind::kGrasp, 0.1,
                            true},
                       Mode{"bowel_drag.json", RuntimeMode::kDynamic, ToolKind::kGrasp, 0.1},
-                      Mode{"bowel_poke.json", RuntimeMode::kQuasiStatic, ToolKind::kPoke, 0.075}),
+                      Mode{"bowel_poke.json", RuntimeMode::kQuasiStatic, ToolKind::kPoke, 0.075},
+                      Mode{"bowel_poke.json", RuntimeMode::kDynamic, ToolKind::kPoke, 0.075}),
     ModeName);
 
 }  // namespace

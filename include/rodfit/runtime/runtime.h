@@ -41,7 +41,9 @@ enum class ToolKind {
   /// holds the material point at tool_s at the tool's position (free to turn, or with
   /// RuntimeOptions::hold_orientation the edge ending there held at the tool's orientation)
   kGrasp,
-  kPoke,   ///< pushes the tissue there with a force (quasi-static only); dents the section
+  /// pushes the tissue there with a dead force (in dynamic mode the stepper's point force,
+  /// shared by the two vertices around tool_s); dents the section
+  kPoke,
 };
 
 struct RuntimeOptions {
@@ -121,12 +123,16 @@ class Runtime {
   /// Centre-line, column per vertex [m] (the current state).
   const Mat3X& Shape() const;
   /// Force [N] and torque [N m] the rod exerts on the tool. The torque is about the grasped
-  /// point, -dPi*/d(tool rotation); zero unless the grasp holds the orientation.
+  /// point, -dPi*/d(tool rotation); zero unless the grasp holds the orientation. A poke is
+  /// force-controlled: the force is minus the last good step's tool force, in both modes (in
+  /// dynamic mode the rod's elastic push-back equals it only once the rod has settled; until
+  /// then the difference accelerates the rod).
   Vec3 ToolForce() const;
   Vec3 ToolTorque() const;
   /// Where the tool is: the grasped point, or the poked point of the centre-line [m].
   Vec3 ToolPosition() const;
-  /// Potential energy of the rod at the current state, the tool's work included [J].
+  /// Potential energy of the rod at the current state, the tool's work included (a poke's
+  /// -f . x(tool_s), in both modes) [J].
   double Energy() const;
   /// Kinetic energy [J] (dynamic mode; 0 in quasi-static mode).
   double KineticEnergy() const;

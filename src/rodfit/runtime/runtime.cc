@@ -49,18 +49,30 @@ constexpr double kSteadyMove = 0.1;
 // correction to the next: its steps measure more than the move's second-order part.
 constexpr int kSmoothTick = 3;
 
-// The tool's grasp held in the dynamic stepper's pose: every other held point at its target.
+// The tool in the dynamic stepper's pose: a grasp holds its point at the tool's position (every
+// other held point at its target); a poke is a dead point force shared by the two vertices
+// around the tool's arc length, as the quasi-static poke's (Impl::AddPokeGradient).
 class ToolDrive : public Drive {
  public:
   ToolDrive(int held_index, const Vec3* tool) : held_index_(held_index), tool_(tool) {}
+  ToolDrive(int point_vertex, double point_weight, const Vec3* force)
+      : point_vertex_(point_vertex), point_weight_(point_weight), force_(force) {}
   void PoseAt(const RodModel& model, double t, HeldPose* pose) const override {
     Drive::PoseAt(model, t, pose);
     if (held_index_ >= 0) pose->held[held_index_] = *tool_;
+    if (force_) {
+      pose->point_force = *force_;
+      pose->point_vertex = point_vertex_;
+      pose->point_weight = point_weight_;
+    }
   }
 
  private:
-  int held_index_;
-  const Vec3* tool_;
+  int held_index_ = -1;
+  const Vec3* tool_ = nullptr;
+  int point_vertex_ = -1;
+  double point_weight_ = 0.0;
+  const Vec3* force_ = nullptr;  // poke: the tool's force [N], read at each step
 };
 
 // The vertices around arc length s and their linear weights (a point force's share).
@@ -84,8 +96,6 @@ bool RuntimeOptions::Check(std::string* why) const {
   if (!(max_tool_move > 0.0)) return *why = "max_tool_move must be > 0", false;
   if (dynamic_newton_iterations < 1) return *why = "dynamic_newton_iterations must be >= 1", false;
   if (mesh_ring_vertices < 3) return *why = "mesh_ring_vertices must be >= 3", false;
-  if (tool == ToolKind::kPoke && mode == RuntimeMode::kDynamic)
-    return *why = "a poke is quasi-static only (the dynamic stepper has no point loads)", false;
   if (hold_orientation && (tool != ToolKind::kGrasp || mode != RuntimeMode::kQuasiStatic))
     return *why = "hold_orientation is for a quasi-static grasp only", false;
   return true;
@@ -382,20 +392,27 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     int held_index = -1;
     for (size_t k = 0; k < model.held().size(); ++k)
       if (model.held()[k].kind == HeldVertex::Kind::kGrasp) held_index = static_cast<int>(k);
-    m.drive = std::make_unique<ToolDrive>(held_index, &m.tool);
+    m.drive = options.tool == ToolKind::kPoke
+                  ? std::make_unique<ToolDrive>(m.tool_vertex, m.poke_weight, &m.tool_force)
+                  : std::make_unique<ToolDrive>(held_index, &m.tool);
     DynamicsOptions dyn;
     dyn.time_step = options.time_step;
     dyn.integrator = Integrator::kBdf2;
     dyn.max_newton_iterations = options.dynamic_newton_iterations;
     m.stepper = std::make_unique<DynamicsStepper>(model, dyn);
     m.dynamic = m.stepper->AtRest(m.state);
-    // A throwaway step with the tool nudged sizes every buffer of the stepper (a step at rest
-    // converges before it factors anything); the rod is then put back at rest.
+    // A throwaway step with the tool nudged (a grasp moved by 1e-6 L, a poke pushing with 1e-6
+    // of the load scale) sizes every buffer of the stepper (a step at rest converges before it
+    // factors anything); the rod is then put back at rest.
     m.dynamic_good = m.dynamic;
     const Vec3 home = m.tool;
-    m.tool += Vec3::Constant(1e-6 * model.length());
+    if (options.tool == ToolKind::kPoke)
+      m.tool_force = Vec3::Constant(1e-6 * model.force_scale());
+    else
+      m.tool += Vec3::Constant(1e-6 * model.length());
     const DynamicsStepSummary warm = m.stepper->Step(*m.drive, &m.dynamic);
     m.tool = home;
+    m.tool_force.setZero();
     if (!warm.ok) throw std::runtime_error("the first dynamic step failed: " + warm.reason);
     // Back at rest, the history's buffers kept at their size (BDF2 starts with a backward
     // Euler step without history).
@@ -769,7 +786,7 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, bo
 StepReport Runtime::Impl::StepDynamic() {
   StepReport report;
   dynamic_good = dynamic;  // same sizes: no allocation
-  if (!tool.allFinite()) {
+  if (!tool.allFinite() || !tool_force.allFinite()) {
     report.status = StepStatus::kNotConverged;
     return report;
   }
@@ -803,7 +820,7 @@ Vec3 Runtime::ToolPosition() const {
 
 double Runtime::Energy() const {
   if (impl_->options.mode == RuntimeMode::kDynamic)
-    return impl_->stepper->PotentialEnergy(impl_->dynamic.q);
+    return impl_->stepper->PotentialEnergy(impl_->dynamic.q) - impl_->PokeWork(impl_->dynamic.q);
   return impl_->Energy(impl_->state);
 }
 
