@@ -937,7 +937,7 @@ void AddMovingYamlCases(Command command, const std::string& file, std::vector<Ca
   const std::string damping_value = fit ? "damping: {value: 1.0e-4" : "damping: {value: 2.0e-4";
   for (const char* v : {"-1", ".nan", ".inf", "1e308", "0", "abc"})
     set(std::string("damping ") + v, damping_value, std::string("damping: {value: ") + v);
-  set("damping fit with value 0", damping_value, "damping: {fit: true, value: 0");
+  if (!fit) set("damping fit with value 0", damping_value, "damping: {fit: true, value: 0");
   set("stretch_damping 1e308", "  " + damping_value,
       "  stretch_damping: {value: 1e308}\n  " + damping_value);
   // initial:
@@ -984,7 +984,7 @@ void AddMovingYamlCases(Command command, const std::string& file, std::vector<Ca
   for (const char* v : {"0", "-2.0e-7", ".nan", "1e308", "1e-308", "abc"})
     set(std::string("sigma_moment ") + v, "sigma_moment: 2.0e-7", std::string("sigma_moment: ") + v);
   set("missing sigma_moment", ", sigma_moment: 2.0e-7", "");
-  for (const char* v : {"tip", "end_clamp", "end_pin", "pins[0]", "grasp", "42", "[clamp]",
+  for (const char* v : {"tip", "end_clamp", "end_pin", "\"pins[0]\"", "grasp", "42", "[clamp]",
                         "\"\"", "Clamp"})
     set(std::string("point ") + v, "point: clamp", std::string("point: ") + v);
   set("missing point", "point: clamp, ", "");
@@ -1003,7 +1003,9 @@ void AddMovingYamlCases(Command command, const std::string& file, std::vector<Ca
   set("sequence file a directory", "file: load.csv", "file: .");
   set("sequence file missing", "file: load.csv", "file: nowhere.csv");
   set("sequence file /dev/zero", "file: load.csv", "file: /dev/zero");
-  set("no observations", "    observations:\n", "    observations: []\n");
+  add("no observations", EditFile(file, [](std::string t) {
+        return t.substr(0, t.find("    observations:\n")) + "    observations: []\n";
+      }));
   if (command == Command::kMovingSynth) {
     set("markers s beyond the rod", "s: [0.1, 0.2]", "s: [0.1, 0.3]");
     set("markers s empty", "s: [0.1, 0.2]", "s: []");
