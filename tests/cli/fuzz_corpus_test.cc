@@ -2,7 +2,9 @@
 // unknown keys, wrong types, NaN/inf/1e308, huge counts, truncated rows, binary garbage, deep
 // nesting, aliases, directories and FIFOs as files, unwritable outputs — for every file kind
 // (experiment / scene YAML, CSV observations, start-shape CSV, camera files, images), and on a
-// bounded byte-flip fuzz of every file kind (a fixed seed). Each run is judged as a user would:
+// bounded byte-flip fuzz of every file kind (a fixed seed). A moving experiment (a dynamics:
+// block; a markers3d sequence and the clamp's load-cell log with moments; the rod's linear
+// density and the damping fitted) gets the same treatment of its keys and sequence files. Each run is judged as a user would:
 // no signal, no hang past the time limit, on failure exactly one line of at most kMaxLineChars
 // on stderr with a non-zero exit, and nothing left behind in the run's folder (a failed run leaves
 // it as it was; a successful one adds its outputs and no temporary files). The tallies are
