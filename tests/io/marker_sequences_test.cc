@@ -277,6 +277,16 @@ TEST_F(PixelSequencesTest, ReadsPixelMarkersPerFrame) {
   EXPECT_EQ(seq.frames[1].sample, (std::vector<int>{2}));
 }
 
+// Found by the fuzz corpus, as SamplesBeyondWhatAResidualHoldsAreRefused: pixels with a sigma
+// so small that no residual can be squared.
+TEST_F(PixelSequencesTest, PixelsBeyondWhatAResidualHoldsAreRefused) {
+  ExpectCsvError("frame,s,u,v\n0,0.2,806,512\n", 2, "u",
+                 Entry("{type: image_points, file: seq.csv, camera: cam.yaml, sigma: 1e-300, "
+                       "frame_rate: 100}"));
+  ExpectCsvError("t,u,v\n0,806,512\n", 2, "u",
+                 Entry("{type: image_points, file: seq.csv, camera: cam.yaml, sigma: 1e-300}"));
+}
+
 TEST_F(PixelSequencesTest, ReadsCentreLinePixelsAndPoints) {
   std::string label;
   // Without s: closest-point pixels, several per frame; a t column.

@@ -149,6 +149,12 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
                               : "x, y and z must be all given or all missing (a sample not seen)");
     if (pixels) {
       CheckOnSensor(table, r, q.value.head<2>(), *camera, spec.camera);
+      const double reach = q.value.head<2>().norm() + camera->K.width + camera->K.height;
+      if (!(reach / spec.sigma <= kMaxSigmas))
+        throw InputError(file, table.line(r), "u",
+                         "the pixel and the image lie more than " + Short(kMaxSigmas) +
+                             " sigma apart (sigma " + Short(spec.sigma) + " px, " +
+                             EntryAt(ex, spec) + "): too many for a residual (is sigma right?)");
     } else if (!((q.value - clamp).norm() <= 100.0 * length)) {
       throw InputError(file, table.line(r), "x",
                        "the point lies more than 100 rod lengths from the clamp: not on the rod "
