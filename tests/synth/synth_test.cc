@@ -552,7 +552,8 @@ TEST_F(SynthTest, MovingSceneWritesPixelAndPointSequences) {
 // and 1e308 overflowed the count (a header-only file, written as a success); an entry's file
 // naming a folder failed naming no entry.
 TEST_F(SynthTest, AMovingEntrysSampleTimesAreCountedBeforeTheyAreListed) {
-  auto moving = [&](const std::string& entry) {
+  auto moving = [&](const std::string& entry,
+                    const std::string& dynamics = "{time_step: 2.5e-3, duration: 0.05}") {
     return LoadExperiment(dir_.Write(
         "exp/swing.yaml",
         "rod: {length: 0.2, segments: 10, radius: 1.25e-4, linear_density: 5.6e-5}\n"
@@ -560,7 +561,7 @@ TEST_F(SynthTest, AMovingEntrysSampleTimesAreCountedBeforeTheyAreListed) {
         "  bend_stiffness: {value: 9.6e-7}\n"
         "  twist_stiffness: {value: 8.0e-7}\n"
         "  stretch_stiffness: {value: 245}\n"
-        "dynamics: {time_step: 2.5e-3, duration: 0.05, integrator: bdf2}\n"
+        "dynamics: " + dynamics + "\n"
         "cases:\n"
         "  - name: swing\n"
         "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"
@@ -583,6 +584,11 @@ TEST_F(SynthTest, AMovingEntrysSampleTimesAreCountedBeforeTheyAreListed) {
                                 "frame_rate: 1e12}")),
               HasSubstr("5e+10 sample times (dynamics.duration x frame_rate), above the limit of "
                         "1000000 rows"));
+  // Without frame_rate every written step: 1e6 steps of 1e-4 s are 1e6 + 1 times.
+  EXPECT_THAT(SynthError(moving("{type: reaction, file: r.csv, point: clamp, sigma: 1.0e-6}",
+                                "{time_step: 1.0e-4, duration: 100}")),
+              HasSubstr("1000001 sample times (every written step of the dynamics), above the "
+                        "limit of 1000000 rows (give frame_rate, or raise dynamics.output_every)"));
   // 2.1e7 Hz above (1.05e6 times over 0.05 s); 1e-308 Hz samples t = 0 alone.
   Run(moving("{type: reaction, file: r.csv, point: clamp, sigma: 1.0e-6, frame_rate: 1e-308}"),
       "one");

@@ -1219,7 +1219,8 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
   if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
-  if (const Field* dynamics = Reader::Find(m, "dynamics")) ex.scene.dynamics = ReadDynamics(r, *dynamics, &ex.integrator_line);
+  if (const Field* dynamics = Reader::Find(m, "dynamics"))
+    ex.scene.dynamics = ReadDynamics(r, *dynamics, &ex.integrator_line);
   if (const auto it = ex.parameters.find("linear_density");
       it != ex.parameters.end() && !ex.scene.dynamics)
     r.Fail(it->second.line, "parameters.linear_density",

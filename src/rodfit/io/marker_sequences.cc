@@ -163,9 +163,8 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
       // Within reach of the rod, but sigma is so small that no residual can be formed.
       throw InputError(file, table.line(r), "x",
                        "the point and the rod lie more than " + Short(kMaxSigmas) +
-                           " sigma apart (sigma " +
-                           Short(spec.sigma) + " m, " + EntryAt(ex, spec) +
-                           "): too many for a residual (is sigma right?)");
+                           " sigma apart (sigma " + Short(spec.sigma) + " m, " +
+                           EntryAt(ex, spec) + "): too many for a residual (is sigma right?)");
     }
     by_t[q.t].push_back(static_cast<int>(samples.size()));
     samples.push_back(q);

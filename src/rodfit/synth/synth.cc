@@ -281,8 +281,13 @@ std::vector<double> SequenceTimes(const EntryContext& ctx) {
   // Round-off of the ratio must not lose the last frame.
   const double last = std::floor(dynamics.duration / interval * (1.0 + 1e-12));
   if (!(last < static_cast<double>(kMaxCsvRows)))
-    ctx.Fail(Show(last + 1.0) + " sample times (dynamics.duration x frame_rate), above the limit "
-             "of " + std::to_string(kMaxCsvRows) + " rows (lower frame_rate)");
+    ctx.Fail(Show(last + 1.0) +
+             (spec.frame_rate > 0.0
+                  ? " sample times (dynamics.duration x frame_rate), above the limit of " +
+                        std::to_string(kMaxCsvRows) + " rows (lower frame_rate)"
+                  : " sample times (every written step of the dynamics), above the limit of " +
+                        std::to_string(kMaxCsvRows) + " rows (give frame_rate, or raise "
+                        "dynamics.output_every)"));
   const long frames = static_cast<long>(last);
   std::vector<double> t;
   for (long k = 0; k <= frames; ++k) t.push_back(k * interval);
