@@ -2,7 +2,9 @@
 // unknown keys, wrong types, NaN/inf/1e308, huge counts, truncated rows, binary garbage, deep
 // nesting, aliases, directories and FIFOs as files, unwritable outputs — for every file kind
 // (experiment / scene YAML, CSV observations, start-shape CSV, camera files, images), and on a
-// bounded byte-flip fuzz of every file kind (a fixed seed). Each run is judged as a user would:
+// bounded byte-flip fuzz of every file kind (a fixed seed). A moving experiment (a dynamics:
+// block; a markers3d sequence and the clamp's load-cell log with moments; the rod's linear
+// density and the damping fitted) gets the same treatment of its keys and sequence files. Each run is judged as a user would:
 // no signal, no hang past the time limit, on failure exactly one line of at most kMaxLineChars
 // on stderr with a non-zero exit, and nothing left behind in the run's folder (a failed run leaves
 // it as it was; a successful one adds its outputs and no temporary files). The tallies are
@@ -10,7 +12,8 @@
 //
 // RODFIT_FUZZ_CLI names another rodfit binary to run the same corpus on (scripts/test.sh runs it
 // on the address + undefined-behaviour sanitizer build); RODFIT_FUZZ_TIMEOUT sets the time limit
-// of one run in seconds (default 30).
+// of one run in seconds (default 30); RODFIT_FUZZ_PRINT=1 prints every case's verdict and message
+// (to read whether each message names the file, line and key).
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/stat.h>
@@ -130,10 +133,68 @@ const char* const kStartCsv =
     "# a bowed start shape\n"
     "x,y,z\n0,0,0\n0.05,0,-0.002\n0.1,0.001,-0.006\n0.15,0.002,-0.012\n0.2,0.003,-0.02\n";
 
+// A moving experiment (a dynamics: block, observed by sequences): a 10-segment thread released
+// straight, swinging for 0.05 s in 20 bdf2 steps, its rod's linear density a parameter. synth
+// writes a markers3d sequence (a frame column, 200 Hz) and the clamp's load-cell log (a t column
+// at every step, with moments); fit fits the damping and the density to both.
+std::string MovingHead(const std::string& parameters_extra) {
+  return "rod: {length: 0.2, segments: 10, radius: 1.25e-4}\n"
+         "parameters:\n"
+         "  bend_stiffness: {value: 9.6e-7}\n"
+         "  twist_stiffness: {value: 8.0e-7}\n"
+         "  stretch_stiffness: {value: 245}\n" +
+         parameters_extra +
+         "gravity: [0, 0, -9.81]\n"
+         "dynamics:\n"
+         "  time_step: 2.5e-3\n"
+         "  duration: 0.05\n"
+         "  integrator: bdf2\n"
+         "cases:\n"
+         "  - name: swing\n"
+         "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"
+         "    initial: {shape: start}\n";
+}
+
+// synth: the truth, and the two sequences the fit reads.
+std::string MovingSynthYaml() {
+  return MovingHead("  damping: {value: 2.0e-4}\n"
+                    "  linear_density: {value: 5.6e-5}\n") +
+         "    observations:\n"
+         "      - {type: markers3d, file: swing.csv, sigma: 1.0e-3, s: [0.1, 0.2], "
+         "frame_rate: 200, drop: 0.1}\n"
+         "      - {type: reaction, file: load.csv, point: clamp, sigma: 2.0e-6, "
+         "sigma_moment: 2.0e-7, drop: 0.05}\n";
+}
+
+// fit: the damping and the rod's density from the markers and the clamp's log.
+std::string MovingFitYaml() {
+  return MovingHead("  damping: {value: 1.0e-4, fit: true}\n"
+                    "  linear_density: {value: 4.0e-5, fit: true}\n") +
+         "    observations:\n"
+         "      - {type: markers3d, file: swing.csv, sigma: 1.0e-3, frame_rate: 200}\n"
+         "      - {type: reaction, file: load.csv, point: clamp, sigma: 2.0e-6, "
+         "sigma_moment: 2.0e-7}\n";
+}
+
+// simulate: the swing without observations.
+std::string MovingSceneYaml() {
+  return MovingHead("  damping: {value: 2.0e-4}\n"
+                    "  linear_density: {value: 5.6e-5}\n");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Running one case.
 
-enum class Command { kSimulate, kFit, kFitReport, kSynth, kExtract };
+enum class Command {
+  kSimulate, kFit, kFitReport, kSynth, kExtract,
+  // the same commands on the moving experiment's files
+  kMovingSimulate, kMovingFit, kMovingFitReport, kMovingSynth
+};
+
+bool IsFit(Command c) {
+  return c == Command::kFit || c == Command::kFitReport || c == Command::kMovingFit ||
+         c == Command::kMovingFitReport;
+}
 
 const char* Name(Command c) {
   switch (c) {
@@ -142,6 +203,10 @@ const char* Name(Command c) {
     case Command::kFitReport: return "fit --report";
     case Command::kSynth: return "synth";
     case Command::kExtract: return "extract";
+    case Command::kMovingSimulate: return "simulate (moving)";
+    case Command::kMovingFit: return "fit (moving)";
+    case Command::kMovingFitReport: return "fit --report (moving)";
+    case Command::kMovingSynth: return "synth (moving)";
   }
   return "";
 }
@@ -160,6 +225,12 @@ std::vector<std::string> Arguments(Command c, const std::vector<std::string>& ex
       a = {"extract", "front.png", "--camera", "cam.yaml", "-o", "out/points.csv", "--overlay",
            "out/overlay.png"};
       break;
+    case Command::kMovingSimulate: a = {"simulate", "move_scene.yaml", "-o", "out"}; break;
+    case Command::kMovingFit: a = {"fit", "move.yaml", "-o", "out/profile.json", "-q"}; break;
+    case Command::kMovingFitReport:
+      a = {"fit", "move.yaml", "-o", "profile.json", "--report", "report", "-q"};
+      break;
+    case Command::kMovingSynth: a = {"synth", "move_synth.yaml", "-o", "out", "--seed", "7"}; break;
   }
   for (const std::string& e : extra) a.push_back(e);
   return a;
@@ -203,6 +274,7 @@ std::set<std::string> Listing(const std::string& root) {
 struct Outcome {
   Verdict verdict = Verdict::kCrash;
   std::string detail;  // for a failure message: status, stderr
+  double seconds = 0.0;  // the run's wall time (RODFIT_FUZZ_PRINT shows it)
 };
 
 // fork + exec in `dir` with stdout and stderr to files outside it; polls for the end, killing
@@ -253,6 +325,7 @@ Outcome RunCase(const Case& c, const std::string& dir, const std::string& logs) 
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
+  o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const std::string err = ReadText(err_file);
   const std::set<std::string> after = Listing(dir);
   const int status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
@@ -269,8 +342,7 @@ Outcome RunCase(const Case& c, const std::string& dir, const std::string& logs) 
   }
   // Success: 0, or the fit's 4 (profile written, a parameter not determined) and 5 (profile
   // written, residuals far beyond the stated noise).
-  const bool fit = c.command == Command::kFit || c.command == Command::kFitReport;
-  const bool success = status == 0 || ((status == 4 || status == 5) && fit);
+  const bool success = status == 0 || ((status == 4 || status == 5) && IsFit(c.command));
   std::vector<std::string> added, removed;
   for (const std::string& p : after)
     if (!before.count(p)) added.push_back(p);
@@ -334,6 +406,19 @@ class FuzzCorpusTest : public ::testing::Test {
     fs::remove(b.File("stdout.txt"));
     fs::remove(b.File("stderr.txt"));
     b.Write("experiment.yaml", FitYaml());
+    // The moving experiment's sequences, made once from its truth.
+    b.Write("move_synth.yaml", MovingSynthYaml());
+    b.Write("move_scene.yaml", MovingSceneYaml());
+    const test::RunResult moving = test::RunRodfit(
+        b, "synth " + test::Quote(b.File("move_synth.yaml")) + " -o " +
+               test::Quote(b.File("made")) + " --seed 3");
+    ASSERT_EQ(moving.status, 0) << moving.err;
+    for (const char* f : {"swing.csv", "load.csv"})
+      fs::copy_file(b.File(std::string("made/") + f), b.File(f));
+    fs::remove_all(b.File("made"));
+    fs::remove(b.File("stdout.txt"));
+    fs::remove(b.File("stderr.txt"));
+    b.Write("move.yaml", MovingFitYaml());
   }
   static void TearDownTestSuite() {
     delete base_;
@@ -360,7 +445,12 @@ class FuzzCorpusTest : public ::testing::Test {
     worker();
     helper.join();
     std::map<Verdict, int> tally;
+    const char* print = std::getenv("RODFIT_FUZZ_PRINT");
     for (size_t k = 0; k < cases.size(); ++k) {
+      if (print && *print == '1')
+        std::printf("[%s] %.3f s %s (%s): %s\n", Name(outcomes[k].verdict), outcomes[k].seconds,
+                    cases[k].name.c_str(), Name(cases[k].command),
+                    outcomes[k].detail.substr(0, 400).c_str());
       ++tally[outcomes[k].verdict];
       const Verdict v = outcomes[k].verdict;
       if (v != Verdict::kCleanError && v != Verdict::kSuccess)
@@ -423,6 +513,15 @@ std::function<void(const std::string&)> MakeFifo(const std::string& name) {
   return [=](const std::string& dir) {
     fs::remove(dir + "/" + name);
     ::mkfifo((dir + "/" + name).c_str(), 0644);
+  };
+}
+
+// Two mutations, one after the other.
+std::function<void(const std::string&)> Both(std::function<void(const std::string&)> a,
+                                             std::function<void(const std::string&)> b) {
+  return [=](const std::string& dir) {
+    a(dir);
+    b(dir);
   };
 }
 
@@ -551,8 +650,9 @@ void AddYamlCases(Command command, const std::string& file, std::vector<Case>* c
 }
 
 // The hostile corpus of a CSV input read by `command`.
+// `first` is the first column's value in the rows it writes (a frame must be an integer).
 void AddCsvCases(Command command, const std::string& file, const std::string& header,
-                 std::vector<Case>* cases) {
+                 std::vector<Case>* cases, const std::string& first = "0.1") {
   const std::string c = std::string(Name(command)) + " " + file + ": ";
   auto add = [&](const std::string& name, std::function<void(const std::string&)> m) {
     cases->push_back({c + name, command, std::move(m), {}});
@@ -567,11 +667,11 @@ void AddCsvCases(Command command, const std::string& file, const std::string& he
   add("empty file", WriteFile(file, ""));
   add("header only", rows(""));
   add("missing column", WriteFile(file, "a,b\n1,2\n"));
-  add("NaN", rows(row("0.1", "nan")));
-  add("inf", rows(row("0.1", "inf")));
-  add("1e308", rows(row("0.1", "1e308")));
+  add("NaN", rows(row(first, "nan")));
+  add("inf", rows(row(first, "inf")));
+  add("1e308", rows(row(first, "1e308")));
   add("-1e308 in the first column", rows(row("-1e308", "0.1")));
-  add("a word", rows(row("0.1", "abc")));
+  add("a word", rows(row(first, "abc")));
   add("truncated row", EditFile(file, [](std::string t) { return t + "0.1\n"; }));
   add("extra field", EditFile(file, [n](std::string t) {
         std::string r = "0.1";
@@ -759,6 +859,333 @@ void AddLimitCases(std::vector<Case>* cases) {
       }));
 }
 
+// The hostile corpus of a moving experiment's YAML (the command's own file): the dynamics:
+// block, the rod's density as a parameter, the damping, and (fit, synth) the sequence entries.
+// The YAML reader's handling of the file as a whole is AddYamlCases'; these are the keys.
+//
+// The keys are read by one reader for every command: fit runs every case, synth and simulate
+// only those whose outcome may depend on the command (values accepted, runs that fail, what synth
+// writes) and their own, which keeps the corpus quick under the sanitizers.
+void AddMovingYamlCases(Command command, const std::string& file, std::vector<Case>* cases) {
+  static const std::set<std::string> kDependsOnCommand = {
+      "truncated in the dynamics", "missing dynamics", "time_step 1e-12", "time_step \"2.5e-3\"",
+      "duration 0", "duration 1e6", "duration 1e-300", "duration 0.051", "duration 2.5e-3",
+      "integrator explicit", "integrator implicit", "integrator midpoint",
+      "integrator backward_euler", "output_every 4", "max_halvings 0", "explicit with substep",
+      "missing linear_density", "linear_density in the rod too",
+      "linear_density in the rod instead", "linear_density value 1e308",
+      "linear_density value 1e-300", "linear_density min 1e-308 max 1e308",
+      "linear_density fit with value 0", "damping 0", "damping 1e308", "damping fit with value 0",
+      "stretch_damping 1e308", "initial {shape: equilibrium}", "initial {shape: sideways}",
+      "initial {shape: start, velocity: zero}",
+      // the entries, as synth writes them
+      "markers3d without frame_rate", "frame_rate 1e308", "frame_rate 1e-308", "frame_rate 1e9",
+      "frame_rate 1e12", "frame_rate 2.5", "reaction frame_rate 1e308",
+      "reaction frame_rate 1e-308", "reaction frame_rate 400", "drop 0.999999", "drop 1",
+      "markers sigma 1e308", "markers sigma 1e-308", "reaction sigma 1e308",
+      "reaction sigma 1e-308", "sigma_moment 1e308", "sigma_moment 1e-308",
+      "missing sigma_moment", "point end_clamp", "reaction twice", "markers as points3d",
+      "sequence file a directory", "sequence file missing", "sequence file /dev/zero",
+      "no observations"};
+  const bool all = command == Command::kMovingFit;
+  const std::string c = std::string(Name(command)) + " " + file + ": ";
+  // A case of this command alone.
+  auto add_own = [&](const std::string& name, std::function<void(const std::string&)> m) {
+    cases->push_back({c + name, command, std::move(m), {}});
+  };
+  auto add = [&](const std::string& name, std::function<void(const std::string&)> m) {
+    if (all || kDependsOnCommand.count(name)) add_own(name, std::move(m));
+  };
+  auto set = [&](const std::string& name, const std::string& from, const std::string& to) {
+    add(name, Replace(file, from, to));
+  };
+  const std::string dynamics =
+      "dynamics:\n  time_step: 2.5e-3\n  duration: 0.05\n  integrator: bdf2\n";
+  add("truncated in the dynamics", EditFile(file, [](std::string t) {
+        return t.substr(0, t.find("  duration:") + 12);
+      }));
+  add("garbage after the document", EditFile(file, [](std::string t) {
+        return t + Garbage(512, 13);
+      }));
+  // dynamics:
+  set("missing dynamics", dynamics, "");
+  set("dynamics a scalar", dynamics, "dynamics: 5\n");
+  set("dynamics a list", dynamics, "dynamics: [2.5e-3, 0.05]\n");
+  set("dynamics empty", dynamics, "dynamics: {}\n");
+  set("dynamics twice", dynamics, dynamics + dynamics);
+  set("unknown dynamics key", "  integrator: bdf2\n", "  integrator: bdf2\n  colour: red\n");
+  set("time_step twice", "  integrator: bdf2\n", "  integrator: bdf2\n  time_step: 1.0e-3\n");
+  set("missing time_step", "  time_step: 2.5e-3\n", "");
+  set("missing duration", "  duration: 0.05\n", "");
+  for (const char* v : {"0", "-2.5e-3", ".nan", ".inf", "1e308", "1e-308", "abc", "[1, 2]",
+                        "{a: 1}", "1e-12", "11", "\"2.5e-3\"", "~"})
+    set(std::string("time_step ") + v, "time_step: 2.5e-3", std::string("time_step: ") + v);
+  for (const char* v : {"0", "-0.05", ".nan", ".inf", "-.inf", "1e308", "1e6", "abc", "[0.05]",
+                        "1e-300", "0.051", "2.5e-3"})
+    set(std::string("duration ") + v, "duration: 0.05", std::string("duration: ") + v);
+  for (const char* v : {"rk4", "42", "[bdf2]", "explicit", "implicit", "midpoint",
+                        "backward_euler", "\"\"", "BDF2"})
+    set(std::string("integrator ") + v, "integrator: bdf2", std::string("integrator: ") + v);
+  for (const char* v : {"0", "-1", "3.5", "1000000000", "99999999999999999999", "abc", "4"})
+    set(std::string("output_every ") + v, "  integrator: bdf2\n",
+        std::string("  integrator: bdf2\n  output_every: ") + v + "\n");
+  for (const char* v : {"true", "maybe", "1"})
+    set(std::string("substep ") + v, "  integrator: bdf2\n",
+        std::string("  integrator: bdf2\n  substep: ") + v + "\n");
+  for (const char* v : {"-1", "21", "2147483648", "0", "abc", "2.5"})
+    set(std::string("max_halvings ") + v, "  integrator: bdf2\n",
+        std::string("  integrator: bdf2\n  max_halvings: ") + v + "\n");
+  set("explicit with max_halvings", "  integrator: bdf2\n",
+      "  integrator: explicit\n  max_halvings: 2\n");
+  set("explicit with substep", "  integrator: bdf2\n", "  integrator: explicit\n  substep: true\n");
+  // parameters.linear_density (then the rod gives none) and the damping.
+  const bool fit = IsFit(command);
+  const std::string density = fit ? "  linear_density: {value: 4.0e-5, fit: true}\n"
+                                   : "  linear_density: {value: 5.6e-5}\n";
+  const std::string density_value = fit ? "linear_density: {value: 4.0e-5"
+                                         : "linear_density: {value: 5.6e-5";
+  set("missing linear_density", density, "");
+  set("linear_density in the rod too", "radius: 1.25e-4}",
+      "radius: 1.25e-4, linear_density: 5.6e-5}");
+  add("linear_density in the rod instead",
+      Both(Replace(file, "radius: 1.25e-4}", "radius: 1.25e-4, linear_density: 5.6e-5}"),
+           Replace(file, density, "")));
+  set("linear_density a number", density, "  linear_density: 5.6e-5\n");
+  set("linear_density a list", density, "  linear_density: [5.6e-5]\n");
+  set("linear_density empty", density, "  linear_density: {}\n");
+  set("linear_density unknown key", density_value, density_value + ", unit: g/m");
+  set("linear_density twice", density, density + density);
+  for (const char* v : {"0", "-5.6e-5", ".nan", ".inf", "1e308", "1e-300", "abc", "[1]"})
+    set(std::string("linear_density value ") + v, density_value,
+        std::string("linear_density: {value: ") + v);
+  set("linear_density fit maybe", density, "  linear_density: {value: 4.0e-5, fit: maybe}\n");
+  set("linear_density fit with value 0", density, "  linear_density: {value: 0, fit: true}\n");
+  set("linear_density min above max", density,
+      "  linear_density: {value: 4.0e-5, fit: true, min: 1.0e-4, max: 1.0e-5}\n");
+  set("linear_density below min", density,
+      "  linear_density: {value: 4.0e-5, fit: true, min: 5.0e-5}\n");
+  set("linear_density min 1e-308 max 1e308", density,
+      "  linear_density: {value: 4.0e-5, fit: true, min: 1e-308, max: 1e308}\n");
+  set("linear_density min .nan", density,
+      "  linear_density: {value: 4.0e-5, fit: true, min: .nan}\n");
+  const std::string damping_value = fit ? "damping: {value: 1.0e-4" : "damping: {value: 2.0e-4";
+  for (const char* v : {"-1", ".nan", ".inf", "1e308", "0", "abc"})
+    set(std::string("damping ") + v, damping_value, std::string("damping: {value: ") + v);
+  if (!fit) set("damping fit with value 0", damping_value, "damping: {fit: true, value: 0");
+  set("stretch_damping 1e308", "  " + damping_value,
+      "  stretch_damping: {value: 1e308}\n  " + damping_value);
+  // initial:
+  for (const char* v : {"{shape: sideways}", "{shape: equilibrium}", "5", "{velocity: fast}",
+                        "{shape: start, velocity: zero}", "{frames: [a.csv]}",
+                        "{frame_interval: 0.01}"})
+    set(std::string("initial ") + v, "initial: {shape: start}", std::string("initial: ") + v);
+  if (command == Command::kMovingSimulate) {
+    // The starting velocity from a file: hostile values in it.
+    auto velocity = [&](const std::string& name, const std::string& csv) {
+      add_own("initial velocity " + name,
+        Both(WriteFile("vel.csv", csv), Replace(file, "initial: {shape: start}",
+                                                "initial: {shape: start, velocity: vel.csv}")));
+    };
+    velocity("given", "s,vx,vy,vz\n0,0,0,0\n0.2,0,0,-1\n");
+    velocity("1e308", "s,vx,vy,vz\n0,0,0,0\n0.2,0,0,-1e308\n");
+    velocity("1e6", "s,vx,vy,vz\n0,0,0,0\n0.2,0,0,-1e6\n");
+    velocity("s decreasing", "s,vx,vy,vz\n0.2,0,0,0\n0,0,0,-1\n");
+    velocity("s outside the rod", "s,vx,vy,vz\n-5,0,0,0\n50,0,0,-1\n");
+    velocity("one row", "s,vx,vy,vz\n0.1,0,0,-1\n");
+    velocity("header only", "s,vx,vy,vz\n");
+    velocity("missing column", "s,vx,vy\n0,0,0\n0.2,0,0\n");
+    velocity("a word", "s,vx,vy,vz\n0,0,0,0\n0.2,0,abc,-1\n");
+    return;
+  }
+  // The sequence entries (fit, synth).
+  set("markers3d without frame_rate", ", frame_rate: 200", "");
+  for (const char* v : {"0", "-200", ".nan", ".inf", "1e308", "1e-308", "1e9", "1e12", "abc",
+                        "[200]", "2.5"})
+    set(std::string("frame_rate ") + v, "frame_rate: 200", std::string("frame_rate: ") + v);
+  for (const char* v : {"1e308", "1e-308", "400"})
+    set(std::string("reaction frame_rate ") + v, "point: clamp",
+        std::string("point: clamp, frame_rate: ") + v);
+  for (const char* v : {"1", "-0.1", ".nan", "0.999999", "abc"}) {
+    if (command == Command::kMovingSynth)
+      set(std::string("drop ") + v, "drop: 0.1", std::string("drop: ") + v);
+    else
+      set(std::string("drop ") + v, "sigma: 1.0e-3", std::string("sigma: 1.0e-3, drop: ") + v);
+  }
+  for (const char* v : {"0", "-1", ".nan", "1e308", "1e-308", "abc"})
+    set(std::string("markers sigma ") + v, "sigma: 1.0e-3", std::string("sigma: ") + v);
+  for (const char* v : {"0", ".nan", ".inf", "1e308", "1e-308", "abc"})
+    set(std::string("reaction sigma ") + v, "sigma: 2.0e-6", std::string("sigma: ") + v);
+  for (const char* v : {"0", "-2.0e-7", ".nan", "1e308", "1e-308", "abc"})
+    set(std::string("sigma_moment ") + v, "sigma_moment: 2.0e-7", std::string("sigma_moment: ") + v);
+  set("missing sigma_moment", ", sigma_moment: 2.0e-7", "");
+  for (const char* v : {"tip", "end_clamp", "end_pin", "\"pins[0]\"", "grasp", "42", "[clamp]",
+                        "\"\"", "Clamp"})
+    set(std::string("point ") + v, "point: clamp", std::string("point: ") + v);
+  set("missing point", "point: clamp, ", "");
+  set("reaction count", "point: clamp", "point: clamp, count: 5");
+  set("markers outliers", "sigma: 1.0e-3", "sigma: 1.0e-3, outliers: 0.1");
+  set("markers as images", "type: markers3d, file: swing.csv",
+      "type: images, camera: cam.yaml, file: swing.csv");
+  set("markers as points3d", "type: markers3d", "type: points3d");
+  set("markers as grasp_force", "type: markers3d", "type: grasp_force");
+  set("reaction as markers3d", "type: reaction", "type: markers3d");
+  set("markers as reaction", "type: markers3d, file: swing.csv",
+      "type: reaction, point: clamp, file: swing.csv");
+  set("reaction twice", "      - {type: reaction",
+      "      - {type: reaction, file: load.csv, point: clamp, sigma: 2.0e-6, "
+      "sigma_moment: 2.0e-7}\n      - {type: reaction");
+  set("sequence file a directory", "file: load.csv", "file: .");
+  set("sequence file missing", "file: load.csv", "file: nowhere.csv");
+  set("sequence file /dev/zero", "file: load.csv", "file: /dev/zero");
+  add("no observations", EditFile(file, [](std::string t) {
+        return t.substr(0, t.find("    observations:\n")) + "    observations: []\n";
+      }));
+  if (command == Command::kMovingSynth) {
+    auto own = [&](const std::string& name, const std::string& from, const std::string& to) {
+      add_own(name, Replace(file, from, to));
+    };
+    own("markers s beyond the rod", "s: [0.1, 0.2]", "s: [0.1, 0.3]");
+    own("markers s empty", "s: [0.1, 0.2]", "s: []");
+    own("markers s NaN", "s: [0.1, 0.2]", "s: [.nan]");
+    own("markers count 100000", "s: [0.1, 0.2]", "count: 100000");
+    own("markers count 100000 at 1 kHz", "s: [0.1, 0.2], frame_rate: 200",
+        "count: 100000, frame_rate: 1000");
+    own("reaction 1e6 readings", "point: clamp", "point: clamp, frame_rate: 2e7");
+  }
+}
+
+// A number with every digit (std::to_string keeps 6 decimals: distinct times would collide).
+std::string Digits(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.17g", v);
+  return buffer;
+}
+
+// The hostile corpus particular to a sequence's CSV (docs/formats.md, "Observation sequences"):
+// times and frames outside the run, samples given twice, half-missing samples, too many times.
+void AddSequenceCsvCases(Command command, std::vector<Case>* cases) {
+  auto add = [&](const std::string& name, std::function<void(const std::string&)> m) {
+    cases->push_back({std::string(Name(command)) + " " + name, command, std::move(m), {}});
+  };
+  const std::string markers = "frame,s,x,y,z\n";
+  const std::string loads = "t,fx,fy,fz,mx,my,mz\n";
+  // After the file's first data row, one more row.
+  auto after_first = [](const std::string& file, const std::string& row) {
+    return EditFile(file, [row](std::string t) {
+      const size_t line = t.find('\n', t.find('\n') + 1);
+      return t.substr(0, line + 1) + row + t.substr(line + 1);
+    });
+  };
+  auto first_row = [](const std::string& t) {
+    const size_t a = t.find('\n') + 1;
+    return t.substr(a, t.find('\n', a) + 1 - a);
+  };
+  for (const char* f : {"2.5", "-1", "11", "1e308", "1e3", "-0", "0x1", "1e0"})
+    add(std::string("swing.csv: frame ") + f,
+        after_first("swing.csv", std::string(f) + ",0.1,0.1,0,-0.001\n"));
+  for (const char* v : {"0.3", "-0.1", "1e-320"})
+    add(std::string("swing.csv: s ") + v,
+        after_first("swing.csv", std::string("1,") + v + ",0.1,0,-0.001\n"));
+  add("swing.csv: a sample twice", EditFile("swing.csv", [first_row](std::string t) {
+        return t + first_row(t);
+      }));
+  add("swing.csv: x missing only", after_first("swing.csv", "1,0.15,,0,-0.001\n"));
+  add("swing.csv: z nan only", after_first("swing.csv", "1,0.15,0.15,0,nan\n"));
+  add("swing.csv: every sample missing", EditFile("swing.csv", [](std::string t) {
+        std::string out = t.substr(0, t.find('\n') + 1);
+        for (int k = 0; k <= 10; ++k) out += std::to_string(k) + ",0.1,,,\n";
+        return out;
+      }));
+  add("swing.csv: a point 1e308 away", after_first("swing.csv", "1,0.15,1e308,0,0\n"));
+  add("swing.csv: a point 1 km away", after_first("swing.csv", "1,0.15,1000,0,0\n"));
+  add("swing.csv: t instead of frame", Replace("swing.csv", "frame,", "t,"));
+  add("swing.csv: t and frame", Replace("swing.csv", "frame,", "t,frame,"));
+  add("swing.csv: no time column", Replace("swing.csv", "frame,", "time,"));
+  add("swing.csv: columns reordered", EditFile("swing.csv", [](std::string t) {
+        // s first: the reader goes by the header.
+        std::string out;
+        size_t at = 0;
+        while (at < t.size()) {
+          const size_t end = t.find('\n', at);
+          const std::string line = t.substr(at, end - at);
+          const size_t comma = line.find(',');
+          const size_t second = line.find(',', comma + 1);
+          out += line.substr(comma + 1, second - comma - 1) + "," + line.substr(0, comma) +
+                 line.substr(second) + "\n";
+          at = end + 1;
+        }
+        return out;
+      }));
+  add("swing.csv: a column twice", Replace("swing.csv", "frame,s,x,y,z\n", "frame,s,x,y,z,x\n"));
+  add("swing.csv: 100001 times", WriteFile("swing.csv", [&] {
+        std::string t = "t,s,x,y,z\n";
+        for (int k = 0; k <= 100000; ++k)
+          t += Digits(0.05 * k / 100000.0) + ",0.2,0.2,0,0\n";
+        return t;
+      }()));
+  add("swing.csv: 1000001 rows", WriteFile("swing.csv", [&] {
+        std::string t = markers;
+        t.reserve(20 * 1000002);
+        for (int k = 0; k <= 1000000; ++k) t += "1,0.2,0.2,0,0\n";
+        return t;
+      }()));
+  // The clamp's log.
+  for (const char* v : {"-0.01", "0.051", "1e308", "-0", "1e-320"})
+    add(std::string("load.csv: t ") + v, after_first("load.csv", std::string(v) + ",0,0,0,0,0,0\n"));
+  add("load.csv: a time twice", EditFile("load.csv", [first_row](std::string t) {
+        return t + first_row(t);
+      }));
+  add("load.csv: force 1e308", after_first("load.csv", "0.001,1e308,0,0,0,0,0\n"));
+  add("load.csv: force -1e308 everywhere", EditFile("load.csv", [](std::string t) {
+        std::string out = t.substr(0, t.find('\n') + 1);
+        for (int k = 0; k <= 20; ++k) out += std::to_string(k * 2.5e-3) + ",-1e308,0,0,0,0,0\n";
+        return out;
+      }));
+  add("load.csv: force 1e150", after_first("load.csv", "0.001,1e150,1e150,1e150,0,0,0\n"));
+  add("load.csv: moment 1e308", after_first("load.csv", "0.001,0,0,0,0,1e308,0\n"));
+  add("load.csv: moment missing only", after_first("load.csv", "0.001,0,0,0,,,\n"));
+  add("load.csv: fy nan only", after_first("load.csv", "0.001,0,nan,0,0,0,0\n"));
+  add("load.csv: every reading missing", EditFile("load.csv", [](std::string t) {
+        std::string out = t.substr(0, t.find('\n') + 1);
+        for (int k = 0; k <= 20; ++k) out += std::to_string(k * 2.5e-3) + ",,,,,,\n";
+        return out;
+      }));
+  add("load.csv: mx only", EditFile("load.csv", [](std::string t) {
+        std::string out;
+        size_t at = 0;
+        while (at < t.size()) {  // every row cut after its fifth field
+          const size_t end = t.find('\n', at);
+          const std::string line = t.substr(at, end - at);
+          size_t cut = 0;
+          for (int k = 0; k < 5; ++k) cut = line.find(',', cut) + 1;
+          out += line.substr(0, cut - 1) + "\n";
+          at = end + 1;
+        }
+        return out;
+      }));
+  add("load.csv: no moments", EditFile("load.csv", [](std::string t) {
+        std::string out;
+        size_t at = 0;
+        while (at < t.size()) {
+          const size_t end = t.find('\n', at);
+          const std::string line = t.substr(at, end - at);
+          size_t cut = 0;
+          for (int k = 0; k < 4; ++k) cut = line.find(',', cut) + 1;
+          out += line.substr(0, cut - 1) + "\n";
+          at = end + 1;
+        }
+        return out;
+      }));
+  add("load.csv: frame without frame_rate", Replace("load.csv", "t,fx", "frame,fx"));
+  add("load.csv: no time column", Replace("load.csv", "t,fx", "time,fx"));
+  add("load.csv: 100001 times", WriteFile("load.csv", [&] {
+        std::string t = loads;
+        for (int k = 0; k <= 100000; ++k)
+          t += Digits(0.05 * k / 100000.0) + ",0,0,-1e-4,0,1e-5,0\n";
+        return t;
+      }()));
+}
+
 // ---------------------------------------------------------------------------------------------
 
 TEST_F(FuzzCorpusTest, HostileInputsGiveOneLineAndLeaveNothingBehind) {
@@ -786,6 +1213,28 @@ TEST_F(FuzzCorpusTest, HostileInputsGiveOneLineAndLeaveNothingBehind) {
   EXPECT_GE(tally.count(Verdict::kSuccess) ? tally.at(Verdict::kSuccess) : 0, 5);
 }
 
+// One byte-flip mutation of `original` and what it did: 1-8 bytes set to random values, or a
+// random cut, or a random stretch duplicated.
+std::pair<std::string, std::string> Flip(const std::string& original, std::mt19937* rng_) {
+  std::mt19937& rng = *rng_;
+  std::string text = original;
+  const std::uint32_t how = rng() % 10;
+  std::string what;
+  if (how < 7) {
+    const int flips = 1 + static_cast<int>(rng() % 8);
+    for (int i = 0; i < flips; ++i) text[rng() % text.size()] = static_cast<char>(rng() & 0xff);
+    what = std::to_string(flips) + " bytes set";
+  } else if (how < 9) {
+    text.resize(rng() % text.size());
+    what = "cut at " + std::to_string(text.size());
+  } else {
+    const size_t at = rng() % text.size(), n = 1 + rng() % std::min<size_t>(64, text.size() - at);
+    text.insert(at, text.substr(at, n));
+    what = std::to_string(n) + " bytes repeated at " + std::to_string(at);
+  }
+  return {text, what};
+}
+
 // Byte flips: for every file kind, mutations from one seed (raw mt19937 output, the same on
 // every standard library): 1-8 bytes set to random values, or a random cut, or a random
 // stretch duplicated.
@@ -803,27 +1252,58 @@ TEST_F(FuzzCorpusTest, ByteFlipsOfEveryFileKind) {
     const std::string original = ReadText(base_->File(file));
     ASSERT_FALSE(original.empty()) << file;
     for (int k = 0; k < kPerKind; ++k) {
-      std::string text = original;
-      const std::uint32_t how = rng() % 10;
-      std::string what;
-      if (how < 7) {
-        const int flips = 1 + static_cast<int>(rng() % 8);
-        for (int i = 0; i < flips; ++i) text[rng() % text.size()] = static_cast<char>(rng() & 0xff);
-        what = std::to_string(flips) + " bytes set";
-      } else if (how < 9) {
-        text.resize(rng() % text.size());
-        what = "cut at " + std::to_string(text.size());
-      } else {
-        const size_t at = rng() % text.size(), n = 1 + rng() % std::min<size_t>(64, text.size() - at);
-        text.insert(at, text.substr(at, n));
-        what = std::to_string(n) + " bytes repeated at " + std::to_string(at);
-      }
+      const auto [text, what] = Flip(original, &rng);
       cases.push_back({std::string(Name(command)) + " " + file + " #" + std::to_string(k) + ": " +
                            what,
                        command, WriteFile(file, text), {}});
     }
   }
   const std::map<Verdict, int> tally = RunAll(cases, "byte flips");
+  EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
+  EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
+  EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);
+}
+
+// The moving experiment (a dynamics: block, observation sequences, the rod's density fitted):
+// its keys and its sequence files, as the static corpus treats the static ones.
+TEST_F(FuzzCorpusTest, HostileSequencesGiveOneLineAndLeaveNothingBehind) {
+  std::vector<Case> cases;
+  AddMovingYamlCases(Command::kMovingFit, "move.yaml", &cases);
+  AddMovingYamlCases(Command::kMovingSynth, "move_synth.yaml", &cases);
+  AddMovingYamlCases(Command::kMovingSimulate, "move_scene.yaml", &cases);
+  AddCsvCases(Command::kMovingFit, "swing.csv", "frame,s,x,y,z", &cases, "1");
+  AddCsvCases(Command::kMovingFitReport, "load.csv", "t,fx,fy,fz,mx,my,mz", &cases, "0.01");
+  AddSequenceCsvCases(Command::kMovingFit, &cases);
+  for (Command command : {Command::kMovingSimulate, Command::kMovingFit,
+                          Command::kMovingFitReport, Command::kMovingSynth})
+    cases.push_back({std::string("unchanged ") + Name(command), command, Nothing(), {}});
+  const std::map<Verdict, int> tally = RunAll(cases, "sequence corpus");
+  EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
+  EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
+  EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);
+  EXPECT_GE(tally.count(Verdict::kSuccess) ? tally.at(Verdict::kSuccess) : 0, 4);
+}
+
+// Byte flips of the moving experiment's files, as ByteFlipsOfEveryFileKind (its own seed).
+TEST_F(FuzzCorpusTest, ByteFlipsOfSequenceFiles) {
+  constexpr int kPerKind = 20;
+  const std::vector<std::pair<std::string, Command>> kinds = {
+      {"move.yaml", Command::kMovingFit},       {"move_synth.yaml", Command::kMovingSynth},
+      {"move_scene.yaml", Command::kMovingSimulate}, {"swing.csv", Command::kMovingFit},
+      {"load.csv", Command::kMovingFitReport}};
+  std::mt19937 rng(16);
+  std::vector<Case> cases;
+  for (const auto& [file, command] : kinds) {
+    const std::string original = ReadText(base_->File(file));
+    ASSERT_FALSE(original.empty()) << file;
+    for (int k = 0; k < kPerKind; ++k) {
+      const auto [text, what] = Flip(original, &rng);
+      cases.push_back({std::string(Name(command)) + " " + file + " #" + std::to_string(k) + ": " +
+                           what,
+                       command, WriteFile(file, text), {}});
+    }
+  }
+  const std::map<Verdict, int> tally = RunAll(cases, "sequence byte flips");
   EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
   EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
   EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);

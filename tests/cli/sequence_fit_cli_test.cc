@@ -30,6 +30,11 @@ using test::RunResult;
 using test::TempDir;
 using ::testing::HasSubstr;
 
+// The 1-based line of the first occurrence of `what` in `text`.
+int LineOf(const std::string& text, const std::string& what) {
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + text.find(what), '\n'));
+}
+
 const std::string kExample = std::string(RODFIT_SOURCE_DIR) + "/data/suture_swing_fit/";
 
 // Synthesizes the protocol into `dir` and puts the fit's experiment (the starts) beside the data.
@@ -114,7 +119,9 @@ TEST(SequenceFitCli, BadInputIsOneLineAndWritesNothing) {
         dir.File("data/bad.csv") + ":3: frame:");
   // The midpoint integrator has no sensitivities.
   fails(Replace(experiment, "integrator: bdf2", "integrator: midpoint"), "",
-        "differentiates the bdf2 and backward_euler steps");
+        dir.File("data/bad.yaml") + ":" + std::to_string(LineOf(experiment, "integrator: bdf2")) +
+            ": dynamics.integrator: the motion fit differentiates the bdf2 and backward_euler "
+            "steps, not midpoint");
   // A fitted damping without motion.
   fails("rod: {length: 0.2, segments: 10, radius: 1.0e-4, linear_density: 5.0e-5}\n"
         "parameters:\n"

@@ -9,6 +9,7 @@
 #include <memory>
 #include <random>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "rodfit/fit/motion_fit.h"
@@ -165,6 +166,29 @@ TEST(ReactionSequence, RefusesAReadingAtAPointTheCaseDoesNotHold) {
   other_sigma->sigma = 2e-6;
   mixed.frames[1].reading = other_sigma;
   EXPECT_THROW(EvaluateSequenceResiduals(truth, {mixed}, {}, StaticsOptions()), std::invalid_argument);
+}
+
+// Found by the fuzz corpus (tests/cli/fuzz_corpus_test.cc): residuals too large to be squared
+// and summed (a sigma of 1e-300 N) made the fit fail "at the start values: " with no reason, or,
+// each residual finite but their sum of squares not, return a fit of NaN values whose parameters
+// "the observations do not depend on". The fit now fails saying why.
+TEST(ReactionSequence, ResidualsThatOverflowFailTheFitSayingWhy) {
+  const Scene truth = Swing();
+  // A residual of 1e309 (inf), and residuals of ~1e164 each, finite, whose squares are not.
+  for (const bool one_huge : {true, false}) {
+    ObservationSequence log = ClampLog(truth, 1e-6, 1e-7, 1);
+    for (size_t k = 0; k < log.frames.size(); ++k) {
+      auto reading = std::make_shared<ReactionReading>(*log.frames[k].reading);
+      if (one_huge && k == 3) reading->force.x() = 1e303;
+      if (!one_huge) reading->sigma = 1e-170;
+      log.frames[k].reading = reading;
+    }
+    const MotionFitResult r =
+        FitSequences(truth, {log}, {"linear_density"}, StaticsOptions(), MotionFitOptions());
+    EXPECT_FALSE(r.converged) << one_huge;
+    EXPECT_THAT(r.message, ::testing::HasSubstr("the residuals (model - measured) / sigma "
+                                                "overflow")) << one_huge;
+  }
 }
 
 }  // namespace

@@ -180,6 +180,50 @@ TEST_F(MarkerSequencesTest, BadSequenceFiles) {
   EXPECT_THAT(Error(kMoving, "t,s,x,y,z\n0,0.1,,,\n"), HasSubstr("no recorded sample"));
 }
 
+// Found by the fuzz corpus (tests/cli/fuzz_corpus_test.cc): a sample so many sigmas from the
+// model that its squared residual overflows made the fit fail with an empty reason, or write a
+// profile of nulls; the file's line and column are named instead.
+TEST_F(MarkerSequencesTest, SamplesBeyondWhatAResidualHoldsAreRefused) {
+  // A sigma of 1e-300 m: any point within reach of the rod is ~1e299 sigmas from it.
+  ExpectCsvError("t,s,x,y,z\n0,0.1,0.1,0,0\n", 2, "x", With("sigma: 5.0e-4", "sigma: 1e-300"));
+  const std::string log = With("{type: markers3d, file: seq.csv, sigma: 5.0e-4, s: [0.1, 0.2], "
+                               "frame_rate: 100, drop: 0.1}",
+                               "{type: reaction, file: seq.csv, point: clamp, sigma: 2.0e-6, "
+                               "sigma_moment: 2.0e-7}");
+  ExpectCsvError("t,fx,fy,fz,mx,my,mz\n0,0,0,-1e-4,0,1e-5,0\n0.01,0,1e308,0,0,0,0\n", 3, "fy",
+                 log);
+  ExpectCsvError("t,fx,fy,fz,mx,my,mz\n0,0,0,-1e-4,0,1e150,0\n", 2, "my", log);
+  ExpectCsvError("t,fx,fy,fz,mx,my,mz\n0,0,0,-1e-4,1e-9,0,0\n", 2, "mx",
+                 With("{type: markers3d, file: seq.csv, sigma: 5.0e-4, s: [0.1, 0.2], "
+                      "frame_rate: 100, drop: 0.1}",
+                      "{type: reaction, file: seq.csv, point: clamp, sigma: 2.0e-6, "
+                      "sigma_moment: 1e-300}"));
+  // The entry's line is named with its sigma.
+  EXPECT_THAT(Error(log, "t,fx,fy,fz,mx,my,mz\n0,1e308,0,0,0,0,0\n"),
+              HasSubstr("(sigma 2e-06, " + dir_.File("scene.yaml") + " line 13)"));
+  // Large but within the bound: read (the fit then reports the misfit).
+  dir_.Write("seq.csv", "t,fx,fy,fz,mx,my,mz\n0,1e20,0,0,0,0,0\n");
+  EXPECT_NO_THROW(BuildSequenceInput(LoadExperiment(dir_.Write("scene.yaml", log))));
+}
+
+// Found by the fuzz corpus: the fit of a scene integrated by midpoint or explicit steps (which
+// have no sensitivities) was refused without the line and key to change.
+TEST_F(MarkerSequencesTest, AnIntegratorTheFitCannotDifferentiateNamesItsLine) {
+  const std::string csv = "t,s,x,y,z\n0,0.1,0.1,0,0\n";
+  for (const char* integrator : {"midpoint", "explicit"})
+    EXPECT_THAT(Error(With("integrator: bdf2", std::string("integrator: ") + integrator), csv),
+                HasSubstr(dir_.File("scene.yaml") + ":7: dynamics.integrator: the motion fit "
+                          "differentiates the bdf2 and backward_euler steps, not " + integrator));
+  // In block style the integrator's own line.
+  const std::string block =
+      With("dynamics: {time_step: 1.0e-3, duration: 0.1, integrator: bdf2}\n",
+           "dynamics:\n  time_step: 1.0e-3\n  duration: 0.1\n  integrator: midpoint\n");
+  EXPECT_THAT(Error(block, csv), HasSubstr(":10: dynamics.integrator:"));
+  for (const char* integrator : {"bdf2", "backward_euler"})
+    EXPECT_NO_THROW(BuildSequenceInput(LoadExperiment(dir_.Write(
+        "scene.yaml", With("integrator: bdf2", std::string("integrator: ") + integrator)))));
+}
+
 
 // The same scene observed through a camera (tests/data/synth/cam_swing.yaml) and as 3-D points:
 // each a sequence of the static models of image_points (with and without s) and points3d.
@@ -231,6 +275,16 @@ TEST_F(PixelSequencesTest, ReadsPixelMarkersPerFrame) {
   EXPECT_EQ(first->markers()[0].s, 0.2);
   EXPECT_EQ(first->markers()[1].uv, Eigen::Vector2d(806, 512));
   EXPECT_EQ(seq.frames[1].sample, (std::vector<int>{2}));
+}
+
+// Found by the fuzz corpus, as SamplesBeyondWhatAResidualHoldsAreRefused: pixels with a sigma
+// so small that no residual can be squared.
+TEST_F(PixelSequencesTest, PixelsBeyondWhatAResidualHoldsAreRefused) {
+  ExpectCsvError("frame,s,u,v\n0,0.2,806,512\n", 2, "u",
+                 Entry("{type: image_points, file: seq.csv, camera: cam.yaml, sigma: 1e-300, "
+                       "frame_rate: 100}"));
+  ExpectCsvError("t,u,v\n0,806,512\n", 2, "u",
+                 Entry("{type: image_points, file: seq.csv, camera: cam.yaml, sigma: 1e-300}"));
 }
 
 TEST_F(PixelSequencesTest, ReadsCentreLinePixelsAndPoints) {

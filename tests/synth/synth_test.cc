@@ -547,5 +547,60 @@ TEST_F(SynthTest, MovingSceneWritesPixelAndPointSequences) {
   EXPECT_EQ(empty, 41u);  // round(0.25 * 164)
 }
 
+// Found by the fuzz corpus (tests/cli/fuzz_corpus_test.cc): a sequence's sample times were
+// listed before their number was checked, so frame_rate: 1e12 allocated until the machine ran out
+// and 1e308 overflowed the count (a header-only file, written as a success); an entry's file
+// naming a folder failed naming no entry.
+TEST_F(SynthTest, AMovingEntrysSampleTimesAreCountedBeforeTheyAreListed) {
+  auto moving = [&](const std::string& entry,
+                    const std::string& dynamics = "{time_step: 2.5e-3, duration: 0.05}") {
+    return LoadExperiment(dir_.Write(
+        "exp/swing.yaml",
+        "rod: {length: 0.2, segments: 10, radius: 1.25e-4, linear_density: 5.6e-5}\n"
+        "parameters:\n"
+        "  bend_stiffness: {value: 9.6e-7}\n"
+        "  twist_stiffness: {value: 8.0e-7}\n"
+        "  stretch_stiffness: {value: 245}\n"
+        "dynamics: " + dynamics + "\n"
+        "cases:\n"
+        "  - name: swing\n"
+        "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"
+        "    initial: {shape: start}\n"
+        "    observations:\n"
+        "      - " + entry + "\n"));
+  };
+  for (const char* rate : {"1e12", "1e308", "2.1e7"}) {
+    for (const std::string& entry :
+         {"{type: markers3d, file: m.csv, sigma: 1.0e-3, s: [0.2], frame_rate: " +
+              std::string(rate) + "}",
+          "{type: points3d, file: p.csv, sigma: 1.0e-3, count: 1, frame_rate: " +
+              std::string(rate) + "}",
+          "{type: reaction, file: r.csv, point: clamp, sigma: 1.0e-6, frame_rate: " +
+              std::string(rate) + "}"})
+      EXPECT_THAT(SynthError(moving(entry)),
+                  HasSubstr("swing.yaml:12: cases[0].observations[0]: ")) << entry;
+  }
+  EXPECT_THAT(SynthError(moving("{type: reaction, file: r.csv, point: clamp, sigma: 1.0e-6, "
+                                "frame_rate: 1e12}")),
+              HasSubstr("5e+10 sample times (dynamics.duration x frame_rate), above the limit of "
+                        "1000000 rows"));
+  // Without frame_rate every written step: 1e6 steps of 1e-4 s are 1e6 + 1 times.
+  EXPECT_THAT(SynthError(moving("{type: reaction, file: r.csv, point: clamp, sigma: 1.0e-6}",
+                                "{time_step: 1.0e-4, duration: 100}")),
+              HasSubstr("1000001 sample times (every written step of the dynamics), above the "
+                        "limit of 1000000 rows (give frame_rate, or raise dynamics.output_every)"));
+  // 2.1e7 Hz above (1.05e6 times over 0.05 s); 1e-308 Hz samples t = 0 alone.
+  Run(moving("{type: reaction, file: r.csv, point: clamp, sigma: 1.0e-6, frame_rate: 1e-308}"),
+      "one");
+  EXPECT_EQ(CsvTable::Read(dir_.File("one/r.csv")).num_rows(), 1);
+
+  for (const char* folder : {".", "..", "sub/"})
+    EXPECT_THAT(SynthError(moving("{type: reaction, file: " + std::string(folder) +
+                                  ", point: clamp, sigma: 1.0e-6}")),
+                HasSubstr("swing.yaml:12: cases[0].observations[0].file: names a folder, not a "
+                          "file to write"))
+        << folder;
+}
+
 }  // namespace
 }  // namespace rodfit

@@ -137,6 +137,9 @@ struct Experiment {
   std::map<std::string, ParameterSpec> parameters;
   std::vector<CaseSpec> cases;  ///< parallel to scene.cases
   FitSpec fit;
+  /// 1-based line of `dynamics.integrator` (of `dynamics:` when the key is absent), 0 without a
+  /// dynamics: block: where a fit that cannot use the integrator points.
+  int integrator_line = 0;
   /// The optional top-level `solver:` block (max_iterations, gradient_tolerance,
   /// step_tolerance, escape_saddles); defaults otherwise.
   StaticsOptions statics;

@@ -93,7 +93,18 @@ bool EvaluateWithSensitivities(const double* logp, Ctx* c) {
   const Scene s = SceneAt(*c->scene, *c->names, logp);
   ++c->evaluations;
   if (!c->forward(s, c)) return false;
-  c->cached_ok = c->cached_r.allFinite() && c->cached_J.allFinite();
+  // A residual that is not finite, or one too large to be squared and summed, is no cost Ceres
+  // can compare: said so (an empty reason would leave the message's end blank).
+  if (!c->cached_r.allFinite() || !std::isfinite(c->cached_r.squaredNorm())) {
+    c->last_failure = "the residuals (model - measured) / sigma overflow (a measurement far too "
+                      "large, or a sigma far too small)";
+    return false;
+  }
+  if (!c->cached_J.allFinite()) {
+    c->last_failure = "the residuals' derivatives are not finite";
+    return false;
+  }
+  c->cached_ok = true;
   return c->cached_ok;
 }
 

@@ -1065,7 +1065,7 @@ StaticsOptions ReadSolver(const Reader& r, const Field& f) {
 // Steps a run may take in all (duration / time_step): beyond it the run would take hours.
 constexpr double kMaxDynamicSteps = 1e8;
 
-DynamicsSpec ReadDynamics(const Reader& r, const Field& f) {
+DynamicsSpec ReadDynamics(const Reader& r, const Field& f, int* integrator_line) {
   const Entries m =
       r.Map(f, {"time_step", "duration", "integrator", "output_every", "substep", "max_halvings"});
   DynamicsSpec d;
@@ -1075,7 +1075,9 @@ DynamicsSpec ReadDynamics(const Reader& r, const Field& f) {
   if (d.duration / d.time_step > kMaxDynamicSteps)
     r.Fail(dt, "gives " + Show(d.duration / d.time_step) + " steps, above the limit of " +
                    Show(kMaxDynamicSteps));
+  *integrator_line = f.key_line;
   if (const Field* integrator = Reader::Find(m, "integrator")) {
+    *integrator_line = integrator->line;
     d.integrator = r.Text(*integrator);
     // `implicit`: the default implicit integrator (BDF2, docs/solvers.md, "Dynamics").
     if (d.integrator == "implicit") d.integrator = "bdf2";
@@ -1217,7 +1219,8 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
   if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
-  if (const Field* dynamics = Reader::Find(m, "dynamics")) ex.scene.dynamics = ReadDynamics(r, *dynamics);
+  if (const Field* dynamics = Reader::Find(m, "dynamics"))
+    ex.scene.dynamics = ReadDynamics(r, *dynamics, &ex.integrator_line);
   if (const auto it = ex.parameters.find("linear_density");
       it != ex.parameters.end() && !ex.scene.dynamics)
     r.Fail(it->second.line, "parameters.linear_density",

@@ -26,6 +26,16 @@ std::string Short(double v) {
   return buffer;
 }
 
+// A sample more than this many sigmas from anything the model can give leaves no residual
+// (model - measured) / sigma whose square sums over a file's rows in double precision (1e100^2 x
+// 1e6 rows stays finite): the units or the entry's sigma are wrong.
+constexpr double kMaxSigmas = 1e100;
+
+// Where an entry's message points back to: its YAML line.
+std::string EntryAt(const Experiment& ex, const ObservationSpec& spec) {
+  return ex.path + " line " + std::to_string(spec.line);
+}
+
 // A coordinate field: a number, or missing (empty, nan, NaN: the sample was not seen).
 bool ReadCoordinate(const CsvTable& table, int row, const std::string& column,
                     const std::string& text, double* value) {
@@ -139,10 +149,22 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
                               : "x, y and z must be all given or all missing (a sample not seen)");
     if (pixels) {
       CheckOnSensor(table, r, q.value.head<2>(), *camera, spec.camera);
+      const double reach = q.value.head<2>().norm() + camera->K.width + camera->K.height;
+      if (!(reach / spec.sigma <= kMaxSigmas))
+        throw InputError(file, table.line(r), "u",
+                         "the pixel and the image lie more than " + Short(kMaxSigmas) +
+                             " sigma apart (sigma " + Short(spec.sigma) + " px, " +
+                             EntryAt(ex, spec) + "): too many for a residual (is sigma right?)");
     } else if (!((q.value - clamp).norm() <= 100.0 * length)) {
       throw InputError(file, table.line(r), "x",
                        "the point lies more than 100 rod lengths from the clamp: not on the rod "
                        "(wrong units or frame?)");
+    } else if (!(((q.value - clamp).norm() + length) / spec.sigma <= kMaxSigmas)) {
+      // Within reach of the rod, but sigma is so small that no residual can be formed.
+      throw InputError(file, table.line(r), "x",
+                       "the point and the rod lie more than " + Short(kMaxSigmas) +
+                           " sigma apart (sigma " + Short(spec.sigma) + " m, " +
+                           EntryAt(ex, spec) + "): too many for a residual (is sigma right?)");
     }
     by_t[q.t].push_back(static_cast<int>(samples.size()));
     samples.push_back(q);
@@ -224,6 +246,18 @@ ObservationSequence ReadReactionSequence(const Experiment& ex, int case_index,
                                  "reading not taken)"
                                : "fx, fy and fz must be all given or all missing (a reading not "
                                  "taken)");
+    for (size_t a = 0; a < columns.size(); ++a) {
+      // A reading is compared with a finite model force (moment): its own size in sigmas bounds
+      // the residual.
+      const double sigma = a < 3 ? spec.sigma : spec.sigma_moment;
+      if (!(std::abs(value[a]) / sigma <= kMaxSigmas))
+        throw InputError(file, table.line(r), columns[a],
+                         Short(value[a]) + " is more than " + Short(kMaxSigmas) +
+                             " sigma (" + (a < 3 ? "sigma " : "sigma_moment ") + Short(sigma) +
+                             ", " + EntryAt(ex, spec) +
+                             ") from zero: too many for a residual (wrong units, or is sigma "
+                             "right?)");
+    }
     auto reading = std::make_shared<ReactionReading>();
     reading->point = spec.point;
     reading->sigma = spec.sigma;
@@ -253,6 +287,12 @@ SequenceInput BuildSequenceInput(const Experiment& experiment) {
   if (!experiment.scene.dynamics)
     throw InputError(experiment.path, 1, "dynamics",
                      "observation sequences need a dynamics: block");
+  // The fit differentiates the implicit steps it has sensitivities of (motion_fit.h).
+  const std::string& integrator = experiment.scene.dynamics->integrator;
+  if (integrator != "bdf2" && integrator != "backward_euler")
+    throw InputError(experiment.path, experiment.integrator_line, "dynamics.integrator",
+                     "the motion fit differentiates the bdf2 and backward_euler steps, not " +
+                         integrator + " (fit with bdf2; simulate may use " + integrator + ")");
   SequenceInput input;
   std::map<std::string, Camera> cameras;  // by CameraKey, each file read once
   for (size_t c = 0; c < experiment.cases.size(); ++c) {

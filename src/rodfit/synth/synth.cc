@@ -267,13 +267,28 @@ std::string Synth3d(const EntryContext& ctx, const std::string& file, std::strin
   return markers ? FormatMarkersCsv(s, p) : FormatPoints3dCsv(p);
 }
 
+std::string Show(double v);
+
 // The sample times of a sequence: every 1 / frame_rate, or every written frame of the
-// dynamics (output_every steps), from 0 to dynamics.duration.
-std::vector<double> SequenceTimes(const ObservationSpec& spec, const DynamicsSpec& dynamics) {
+// dynamics (output_every steps), from 0 to dynamics.duration. More times than a file may hold
+// rows is the entry's error, found before they are listed (a frame_rate of 1e12 Hz would ask for
+// 1e10 of them, and 1e308 Hz for more than a long counts).
+std::vector<double> SequenceTimes(const EntryContext& ctx) {
+  const ObservationSpec& spec = *ctx.spec;
+  const DynamicsSpec& dynamics = *ctx.experiment->scene.dynamics;
   const double interval =
       spec.frame_rate > 0.0 ? 1.0 / spec.frame_rate : dynamics.time_step * dynamics.output_every;
   // Round-off of the ratio must not lose the last frame.
-  const long frames = static_cast<long>(std::floor(dynamics.duration / interval * (1.0 + 1e-12)));
+  const double last = std::floor(dynamics.duration / interval * (1.0 + 1e-12));
+  if (!(last < static_cast<double>(kMaxCsvRows)))
+    ctx.Fail(Show(last + 1.0) +
+             (spec.frame_rate > 0.0
+                  ? " sample times (dynamics.duration x frame_rate), above the limit of " +
+                        std::to_string(kMaxCsvRows) + " rows (lower frame_rate)"
+                  : " sample times (every written step of the dynamics), above the limit of " +
+                        std::to_string(kMaxCsvRows) + " rows (give frame_rate, or raise "
+                        "dynamics.output_every)"));
+  const long frames = static_cast<long>(last);
   std::vector<double> t;
   for (long k = 0; k <= frames; ++k) t.push_back(k * interval);
   return t;
@@ -286,7 +301,7 @@ std::vector<double> SequenceTimes(const ObservationSpec& spec, const DynamicsSpe
 std::string SynthSequence(const EntryContext& ctx, const std::string& file, std::string* report) {
   const Scene& scene = ctx.experiment->scene;
   const std::vector<double> s = MarkerArcLengths(*ctx.spec, scene.rod);
-  const std::vector<double> t = SequenceTimes(*ctx.spec, *scene.dynamics);
+  const std::vector<double> t = SequenceTimes(ctx);
   const size_t n = s.size() * t.size();
   if (n > static_cast<size_t>(kMaxCsvRows))
     ctx.Fail(std::to_string(n) + " samples (markers x times), above the limit of " +
@@ -409,7 +424,7 @@ std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
 std::string SynthShapeSequence(const EntryContext& ctx, const std::string& file,
                                std::string* report) {
   const Scene& scene = ctx.experiment->scene;
-  const std::vector<double> t = SequenceTimes(*ctx.spec, *scene.dynamics);
+  const std::vector<double> t = SequenceTimes(ctx);
   const bool pixels = ctx.spec->type == "image_points";
   const bool with_s = pixels && !ctx.spec->s.empty();
   const int count = ctx.spec->count > 0 ? ctx.spec->count : scene.rod.segments;
@@ -693,7 +708,7 @@ std::string SynthReactionSequence(const EntryContext& ctx, const std::string& fi
                                   std::string* report) {
   const Scene& scene = ctx.experiment->scene;
   const ObservationSpec& spec = *ctx.spec;
-  const std::vector<double> t = SequenceTimes(spec, *scene.dynamics);
+  const std::vector<double> t = SequenceTimes(ctx);
   if (t.size() > static_cast<size_t>(kMaxCsvRows))
     ctx.Fail(std::to_string(t.size()) + " readings, above the limit of " +
              std::to_string(kMaxCsvRows) + " rows (lower frame_rate)");
@@ -997,6 +1012,10 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
   owner[kTruthFile] = "the truth";
   auto claim = [&](const std::string& rel, const std::string& who, int line,
                    const std::string& key) {
+    // A folder (`.`, `..`, `dir/`) names no file to write.
+    const std::string name = fs::path(rel).filename().string();
+    if (name.empty() || name == "." || name == "..")
+      throw InputError(ex.path, line, key, "names a folder, not a file to write");
     const auto [it, inserted] = owner.emplace(rel, who);
     if (!inserted && it->second != who) {
       throw InputError(ex.path, line, key, "writes " + rel + ", which " + it->second + " writes");
