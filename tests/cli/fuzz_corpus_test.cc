@@ -469,6 +469,12 @@ class FuzzCorpusTest : public ::testing::Test {
   static TempDir* base_;
 };
 
+// What every corpus must show: no run crashed, hung or left partial output.
+void ExpectNoCrashHangOrPartial(const std::map<Verdict, int>& tally) {
+  for (Verdict v : {Verdict::kCrash, Verdict::kHang, Verdict::kPartial})
+    EXPECT_EQ(tally.count(v) ? tally.at(v) : 0, 0) << Name(v);
+}
+
 TempDir* FuzzCorpusTest::base_ = nullptr;
 
 // Mutations of one file of the case folder.
@@ -1207,9 +1213,7 @@ TEST_F(FuzzCorpusTest, HostileInputsGiveOneLineAndLeaveNothingBehind) {
                           Command::kExtract})
     cases.push_back({std::string("unchanged ") + Name(command), command, Nothing(), {}});
   const std::map<Verdict, int> tally = RunAll(cases, "fuzz corpus");
-  EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
-  EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
-  EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);
+  ExpectNoCrashHangOrPartial(tally);
   EXPECT_GE(tally.count(Verdict::kSuccess) ? tally.at(Verdict::kSuccess) : 0, 5);
 }
 
@@ -1235,33 +1239,39 @@ std::pair<std::string, std::string> Flip(const std::string& original, std::mt199
   return {text, what};
 }
 
-// Byte flips: for every file kind, mutations from one seed (raw mt19937 output, the same on
-// every standard library): 1-8 bytes set to random values, or a random cut, or a random
-// stretch duplicated.
-TEST_F(FuzzCorpusTest, ByteFlipsOfEveryFileKind) {
-  constexpr int kPerKind = 30;
-  const std::vector<std::pair<std::string, Command>> kinds = {
-      {"scene.yaml", Command::kSimulate}, {"experiment.yaml", Command::kFit},
-      {"synth.yaml", Command::kSynth},    {"markers.csv", Command::kFit},
-      {"pixels.csv", Command::kFit},      {"start.csv", Command::kSimulate},
-      {"cam.yaml", Command::kFit},        {"cam.yaml", Command::kExtract},
-      {"front.png", Command::kExtract}};
-  std::mt19937 rng(15);
+// `per_kind` byte flips (Flip) of each file of `kinds` in the base folder, each run by its
+// command, from one seed.
+std::vector<Case> ByteFlipCases(const TempDir& base,
+                                const std::vector<std::pair<std::string, Command>>& kinds,
+                                int per_kind, unsigned seed) {
+  std::mt19937 rng(seed);
   std::vector<Case> cases;
   for (const auto& [file, command] : kinds) {
-    const std::string original = ReadText(base_->File(file));
-    ASSERT_FALSE(original.empty()) << file;
-    for (int k = 0; k < kPerKind; ++k) {
+    const std::string original = ReadText(base.File(file));
+    EXPECT_FALSE(original.empty()) << file;
+    if (original.empty()) continue;
+    for (int k = 0; k < per_kind; ++k) {
       const auto [text, what] = Flip(original, &rng);
       cases.push_back({std::string(Name(command)) + " " + file + " #" + std::to_string(k) + ": " +
                            what,
                        command, WriteFile(file, text), {}});
     }
   }
-  const std::map<Verdict, int> tally = RunAll(cases, "byte flips");
-  EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
-  EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
-  EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);
+  return cases;
+}
+
+// Byte flips: for every file kind, mutations from one seed (raw mt19937 output, the same on
+// every standard library): 1-8 bytes set to random values, or a random cut, or a random
+// stretch duplicated.
+TEST_F(FuzzCorpusTest, ByteFlipsOfEveryFileKind) {
+  const std::vector<std::pair<std::string, Command>> kinds = {
+      {"scene.yaml", Command::kSimulate}, {"experiment.yaml", Command::kFit},
+      {"synth.yaml", Command::kSynth},    {"markers.csv", Command::kFit},
+      {"pixels.csv", Command::kFit},      {"start.csv", Command::kSimulate},
+      {"cam.yaml", Command::kFit},        {"cam.yaml", Command::kExtract},
+      {"front.png", Command::kExtract}};
+  const std::vector<Case> cases = ByteFlipCases(*base_, kinds, /*per_kind=*/30, /*seed=*/15);
+  ExpectNoCrashHangOrPartial(RunAll(cases, "byte flips"));
 }
 
 // The moving experiment (a dynamics: block, observation sequences, the rod's density fitted):
@@ -1278,35 +1288,18 @@ TEST_F(FuzzCorpusTest, HostileSequencesGiveOneLineAndLeaveNothingBehind) {
                           Command::kMovingFitReport, Command::kMovingSynth})
     cases.push_back({std::string("unchanged ") + Name(command), command, Nothing(), {}});
   const std::map<Verdict, int> tally = RunAll(cases, "sequence corpus");
-  EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
-  EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
-  EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);
+  ExpectNoCrashHangOrPartial(tally);
   EXPECT_GE(tally.count(Verdict::kSuccess) ? tally.at(Verdict::kSuccess) : 0, 4);
 }
 
 // Byte flips of the moving experiment's files, as ByteFlipsOfEveryFileKind (its own seed).
 TEST_F(FuzzCorpusTest, ByteFlipsOfSequenceFiles) {
-  constexpr int kPerKind = 20;
   const std::vector<std::pair<std::string, Command>> kinds = {
       {"move.yaml", Command::kMovingFit},       {"move_synth.yaml", Command::kMovingSynth},
       {"move_scene.yaml", Command::kMovingSimulate}, {"swing.csv", Command::kMovingFit},
       {"load.csv", Command::kMovingFitReport}};
-  std::mt19937 rng(16);
-  std::vector<Case> cases;
-  for (const auto& [file, command] : kinds) {
-    const std::string original = ReadText(base_->File(file));
-    ASSERT_FALSE(original.empty()) << file;
-    for (int k = 0; k < kPerKind; ++k) {
-      const auto [text, what] = Flip(original, &rng);
-      cases.push_back({std::string(Name(command)) + " " + file + " #" + std::to_string(k) + ": " +
-                           what,
-                       command, WriteFile(file, text), {}});
-    }
-  }
-  const std::map<Verdict, int> tally = RunAll(cases, "sequence byte flips");
-  EXPECT_EQ(tally.count(Verdict::kCrash) ? tally.at(Verdict::kCrash) : 0, 0);
-  EXPECT_EQ(tally.count(Verdict::kHang) ? tally.at(Verdict::kHang) : 0, 0);
-  EXPECT_EQ(tally.count(Verdict::kPartial) ? tally.at(Verdict::kPartial) : 0, 0);
+  const std::vector<Case> cases = ByteFlipCases(*base_, kinds, /*per_kind=*/20, /*seed=*/16);
+  ExpectNoCrashHangOrPartial(RunAll(cases, "sequence byte flips"));
 }
 
 }  // namespace

@@ -37,6 +37,17 @@ int LineOf(const std::string& text, const std::string& what) {
 
 const std::string kExample = std::string(RODFIT_SOURCE_DIR) + "/data/suture_swing_fit/";
 
+// `rodfit fit DIR/data/bad.yaml` fails as bad input should: exit 1, one line containing `where`,
+// no profile written.
+void ExpectFitOfBadYamlFails(const TempDir& dir, const std::string& where) {
+  const RunResult run = test::RunRodfit(
+      dir, "fit " + Quote(dir.File("data/bad.yaml")) + " -o " + Quote(dir.File("bad.json")));
+  EXPECT_EQ(run.status, 1) << run.err;
+  EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+  EXPECT_THAT(run.err, HasSubstr(where));
+  EXPECT_FALSE(fs::exists(dir.File("bad.json")));
+}
+
 // Synthesizes the protocol into `dir` and puts the fit's experiment (the starts) beside the data.
 void Synthesize(const TempDir& dir, int seed) {
   const RunResult synth = test::RunRodfit(
@@ -103,12 +114,7 @@ TEST(SequenceFitCli, BadInputIsOneLineAndWritesNothing) {
   auto fails = [&](const std::string& yaml, const std::string& csv, const std::string& where) {
     dir.Write("data/bad.yaml", yaml);
     dir.Write("data/bad.csv", csv);
-    const RunResult run = test::RunRodfit(
-        dir, "fit " + Quote(dir.File("data/bad.yaml")) + " -o " + Quote(dir.File("bad.json")));
-    EXPECT_EQ(run.status, 1) << run.err;
-    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
-    EXPECT_THAT(run.err, HasSubstr(where));
-    EXPECT_FALSE(fs::exists(dir.File("bad.json")));
+    ExpectFitOfBadYamlFails(dir, where);
   };
   const std::string on_bad = Replace(experiment, "file: swing_markers.csv", "file: bad.csv");
   // A frame column without the entry's frame_rate.
@@ -291,12 +297,7 @@ TEST(SequenceFitCli, AClampForceLogDeterminesTheLinearDensity) {
   // The density given twice, or as a parameter of a scene that does not move: one line each.
   auto fails = [&](const std::string& yaml, const std::string& where) {
     dir.Write("data/bad.yaml", yaml);
-    const RunResult run = test::RunRodfit(
-        dir, "fit " + Quote(dir.File("data/bad.yaml")) + " -o " + Quote(dir.File("bad.json")));
-    EXPECT_EQ(run.status, 1) << run.err;
-    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
-    EXPECT_THAT(run.err, HasSubstr(where));
-    EXPECT_FALSE(fs::exists(dir.File("bad.json")));
+    ExpectFitOfBadYamlFails(dir, where);
   };
   fails(Replace(experiment, "radius: 1.25e-4           # [m]\n",
                 "radius: 1.25e-4           # [m]\n  linear_density: 5.6e-5\n"),
