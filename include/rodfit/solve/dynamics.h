@@ -232,7 +232,7 @@ class DynamicsStepper {
   // Scratch.
   HeldPose pose_, pose_mid_;
   RodState trial_, prev_;
-  VecX g_, g_trial_, step_, delta_, delta0_, force_, cv_, cd_, y_, z_;
+  VecX g_, g_trial_, step_, delta_, delta0_, force_, cv_, cd_, y_, z_, y_pred_;
   // The frames, the band matrices and their factor: internal types (dynamics.cc).
   struct Scratch;
   std::unique_ptr<Scratch> scratch_;
