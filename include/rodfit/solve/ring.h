@@ -59,7 +59,7 @@ class RingSolver {
   Eigen::Vector3d tau_ = Eigen::Vector3d::Zero();
   Eigen::MatrixXd Z_;           // explicit, for the sensitivities only
   RingLoad load_;
-  Eigen::VectorXd u_, grad_, gr_, p_, du_, u_try_, full_;
+  Eigen::VectorXd u_, grad_, grad_try_, gr_, p_, du_, u_try_, full_;
   Eigen::MatrixXd hess_, work_, hr_;
   Eigen::LLT<Eigen::MatrixXd> llt_;
 };
