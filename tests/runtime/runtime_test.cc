@@ -288,6 +288,33 @@ TEST(Runtime, TimeBudgetReturnsTheLastGoodState) {
   EXPECT_EQ(rt.Shape(), before);
 }
 
+// The dynamic step keeps the budget too: past it the tick gives up with the last good state
+// (rates and time included), and the same tick without a budget then converges.
+TEST(Runtime, DynamicTimeBudgetReturnsTheLastGoodState) {
+  const Profile p = Bundled("bowel_drag.json");
+  RuntimeOptions options;
+  options.tool_s = 0.1;
+  options.mode = RuntimeMode::kDynamic;
+  options.time_budget = 1e-12;  // below any Newton iteration's cost
+  Runtime rt(p, options);
+  const Mat3X before = rt.Shape();
+  const Vec3 force = rt.ToolForce();
+  rt.SetToolPosition(rt.ToolPosition() + Vec3(0.0, 1e-3, 0.0));
+  for (int tick = 0; tick < 3; ++tick) {
+    const StepReport r = rt.Step();
+    EXPECT_EQ(r.status, StepStatus::kTimeBudget);
+    EXPECT_EQ(rt.Shape(), before);
+    EXPECT_EQ(rt.ToolForce(), force);
+    EXPECT_EQ(rt.KineticEnergy(), 0.0);
+  }
+  options.time_budget = 0.0;
+  Runtime unlimited(p, options);
+  unlimited.SetToolPosition(unlimited.ToolPosition() + Vec3(0.0, 1e-3, 0.0));
+  const StepReport r = unlimited.Step();
+  EXPECT_EQ(r.status, StepStatus::kConverged);
+  EXPECT_GT(r.iterations, 1);  // so a budget checked before the second iteration could bite
+}
+
 // A poke: the force on the tool is the tissue pushing back, and the mesh carries the dent.
 TEST(Runtime, PokeDentsTheMesh) {
   const Profile p = Bundled("bowel_poke.json");

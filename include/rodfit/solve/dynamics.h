@@ -29,6 +29,7 @@
 #pragma once
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -70,6 +71,11 @@ struct DynamicsOptions {
   /// whose held points jump far in one step leaves Newton's basin); 0: the step fails. A
   /// halved step's sensitivities follow its substeps (StepSensitivity).
   int max_halvings = 0;
+  /// Implicit: the wall time [s] one Step() may take (0: no limit). Newton checks it before
+  /// each iteration after the first; a step past it fails with
+  /// DynamicsStepSummary::out_of_time, *s unchanged and not halved (the runtime's haptic loop
+  /// gives up such a tick rather than miss its deadline).
+  double time_budget = 0.0;
   /// Implicit: converged when the scaled residual (ScaledGradientNorm) is below this times the
   /// larger of the case's load scale and its inertial forces, or when a Newton step moves no
   /// vertex by more than step_tolerance L (and no twist angle by more than that in radians).
@@ -115,6 +121,10 @@ struct DynamicState {
   VecX last_step, last_v;
   bool has_history = false;
   double last_dt = 0.0;  ///< [s] the step of that history (BDF2 uses it only at the same step)
+  /// The rates v_n-2 of the BDF2 step before that one, at the same step: only where Newton
+  /// starts (a third-order extrapolation of the rates); the step's equations do not read it.
+  VecX older_v;
+  bool has_older = false;
 };
 
 /// A direction in the log of the constants the dynamics read (sensitivities): how much the log of
@@ -146,6 +156,7 @@ struct DynamicsStepSummary {
   int substeps = 1;           ///< substeps taken (explicit with substep; implicit halved)
   double residual = 0.0;      ///< implicit: scaled residual at exit [N]
   std::string reason;         ///< why a step failed
+  bool out_of_time = false;   ///< failed because DynamicsOptions::time_budget ran out
 };
 
 /// The sensitivities of an equilibrium q of the model (the start of a trajectory) along each
@@ -168,6 +179,8 @@ class DynamicsStepper {
 
   const RodModel& model() const { return model_; }
   const DynamicsOptions& options() const { return options_; }
+  /// Sets DynamicsOptions::time_budget [s] (>= 0) for the steps from now on.
+  void SetTimeBudget(double seconds) { options_.time_budget = seconds; }
 
   /// The state at rest in the initial shape `q` (velocities zero, t = 0).
   DynamicState AtRest(const RodState& q) const;
@@ -238,6 +251,8 @@ class DynamicsStepper {
   std::unique_ptr<Scratch> scratch_;
   bool force_valid_ = false;  // explicit: force_ holds -grad at s->q (cached between steps)
   double force_time_ = -1.0;
+  // When the Step() in progress runs out of DynamicsOptions::time_budget.
+  std::chrono::steady_clock::time_point deadline_;
   double stable_dt_ = 0.0;
   int steps_since_check_ = 0;
   // The last implicit step's substeps when it was halved (empty otherwise): their starts and

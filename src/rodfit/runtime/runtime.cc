@@ -422,7 +422,11 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     m.dynamic.has_history = false;
     m.dynamic.last_step.setZero();
     m.dynamic.last_v.setZero();
+    m.dynamic.has_older = false;
+    m.dynamic.older_v.setZero(m.dynamic.v.size());
     m.dynamic_good = m.dynamic;
+    // The ticks' wall-time budget (not the throwaway step's: it must not fail on a slow start).
+    m.stepper->SetTimeBudget(options.time_budget);
   }
   if (options.tool == ToolKind::kPoke && scene.section &&
       RingStiffness{mat.ring_bend_stiffness, mat.ring_stretch_stiffness}.Check(nullptr)) {
@@ -795,7 +799,7 @@ StepReport Runtime::Impl::StepDynamic() {
   report.residual = s.residual;
   if (!s.ok || !dynamic.q.x.allFinite() || !dynamic.v.allFinite()) {
     dynamic = dynamic_good;
-    report.status = StepStatus::kNotConverged;
+    report.status = s.out_of_time ? StepStatus::kTimeBudget : StepStatus::kNotConverged;
     return report;
   }
   report.status = StepStatus::kConverged;
