@@ -96,6 +96,43 @@ TEST(RodEnergy, FreshFramePathEqualsTheFullEnergyAtFreshStates) {
   }
 }
 
+// The runtime reads a held point's reaction from AssembleGradientRows: the rows it promises equal
+// AssembleGradient's to the last bit, at every window, with springs, a free end and an end
+// clamp (whose ghost stencil reaches the last vertex), held rows off as the reaction needs.
+TEST(RodEnergy, GradientRowsEqualTheWholeGradient) {
+  for (const bool end_clamp : {false, true}) {
+    Scene s = LoadedScene(12);
+    s.springs.push_back({0.2, 0.7, ""});
+    s.material.spring_stiffness = 40.0;
+    if (end_clamp) {
+      s.cases[0].tip_moment = Vec3::Zero();
+      s.cases[0].tip_force = Vec3::Zero();
+      s.cases[0].end_clamp = EndClamp{Vec3(0.9, 0.2, -0.1), Vec3(1, 0, 0.2), Vec3(0, 0, 1)};
+    }
+    const RodModel model = ModelOf(s);
+    std::mt19937 rng(5);
+    const RodState state = RandomState(model, &rng, 0.05);
+    EnergyTerms terms;
+    terms.hold = false;
+    VecX whole, rows;
+    AssembleGradient(model, state, terms, &whole);
+    RodFrames frames;
+    const int n = model.num_edges();
+    for (int first = 1; first <= n; ++first) {
+      for (int last = first; last <= std::min(n, first + 2); ++last) {
+        AssembleGradientRows(model, state, terms, first, last, &rows, &frames);
+        for (int v = first; v <= last; ++v)
+          for (int k = 0; k < 3; ++k)
+            EXPECT_EQ(rows[RodModel::VertexDof(v) + k], whole[RodModel::VertexDof(v) + k])
+                << "vertex " << v << " of rows " << first << ".." << last;
+        for (int j = std::max(first - 1, 0); j <= std::min(last, n - 1 + (end_clamp ? 1 : 0)); ++j)
+          EXPECT_EQ(rows[RodModel::TwistDof(j)], whole[RodModel::TwistDof(j)])
+              << "twist " << j << " of rows " << first << ".." << last;
+      }
+    }
+  }
+}
+
 TEST(RodEnergy, GradientAndHessianMatchCentralDifferences) {
   for (double amplitude : {1e-4, 0.05, 0.3}) {  // nearly straight to strongly bent
     const Scene s = LoadedScene(12);

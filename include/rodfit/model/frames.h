@@ -49,7 +49,7 @@ EIGEN_ALWAYS_INLINE Vec3T<T> ParallelTransport(const Vec3T<T>& a, const Vec3T<T>
   const T c = a.dot(b);
   const Vec3T<T> ut = CastVec<T>(u);
   const Vec3T<T> wu = w.cross(ut);
-  return ut + wu + w.cross(wu) / (Cst<T>(1.0) + c);
+  return ut + wu + w.cross(wu) * (Cst<T>(1.0) / (Cst<T>(1.0) + c));  // one division, not three
 }
 
 /// atan(z) for |z| <= 1/8 by its series to z^17 (the first term left out is below 2^-57 of
@@ -58,7 +58,7 @@ EIGEN_ALWAYS_INLINE Vec3T<T> ParallelTransport(const Vec3T<T>& a, const Vec3T<T>
 /// exact (the next term is below 2^-60 of the sum), evaluated in Estrin's order: the nested
 /// (Horner) form is a chain of dependent multiply-adds whose latency, not its instruction
 /// count, made the angle 15 % of a dynamic runtime tick's time.
-inline double SmallAtan(double z) {
+EIGEN_ALWAYS_INLINE double SmallAtan(double z) {
   const double w = z * z;
   if (w <= 1.0 / 4096) {
     const double w2 = w * w;
@@ -73,7 +73,7 @@ inline double SmallAtan(double z) {
 /// nearly all small; for doubles those below atan(1/8) = 0.124 rad skip std::atan2, which
 /// was 6 % of a dynamic runtime tick (two calls per edge for each of its four frame updates).
 template <typename T>
-T SignedAngle(const Vec3T<T>& p, const Vec3T<T>& q, const Vec3T<T>& n) {
+EIGEN_ALWAYS_INLINE T SignedAngle(const Vec3T<T>& p, const Vec3T<T>& q, const Vec3T<T>& n) {
   using std::atan2;
   const T y = p.cross(q).dot(n), x = p.dot(q);
   if constexpr (std::is_same_v<T, double>) {

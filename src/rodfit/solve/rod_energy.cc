@@ -151,20 +151,29 @@ void AddPositionStencilHessian(int i, const double H8[64], const Vec3& kb, doubl
 }  // namespace
 
 void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames) {
+  ComputeRodFrames(model, state, 0, model.num_edges() + (model.has_end_ghost() ? 1 : 0), frames);
+}
+
+void ComputeRodFrames(const RodModel& model, const RodState& state, int first, int last,
+                      RodFrames* frames) {
   const int n = model.num_edges();
   const bool ghost = model.has_end_ghost();
   frames->edges.resize(n + 1 + (ghost ? 1 : 0));
+  first = std::max(first, 0);
+  last = std::min(last, static_cast<int>(frames->edges.size()) - 1);
   frames->fresh = true;
-  RodFrames::Edge& clamp = frames->edges[0];
-  clamp.t = state.clamp_t;
-  clamp.d1 = state.clamp_d1;
-  clamp.d2 = clamp.t.cross(clamp.d1);
-  clamp.len = model.rest_edge_length(0);
-  for (int j = 0; j < n; ++j) {
+  if (first == 0) {
+    RodFrames::Edge& clamp = frames->edges[0];
+    clamp.t = state.clamp_t;
+    clamp.d1 = state.clamp_d1;
+    clamp.d2 = clamp.t.cross(clamp.d1);
+    clamp.len = model.rest_edge_length(0);
+  }
+  for (int j = std::max(first - 1, 0); j < std::min(last, n); ++j) {
     RodFrames::Edge& f = frames->edges[j + 1];
     const Vec3 e = state.e.col(j);
     f.len = std::sqrt(e.squaredNorm());
-    f.t = e / f.len;
+    f.t = e * (1.0 / f.len);
     const Vec3 t_old = state.ref_t.col(j), u_old = state.ref_u.col(j);
     frames->fresh = frames->fresh && (f.t - t_old).cwiseAbs().maxCoeff() <= 1e-13;
     // The transport linearised about the reference tangent, as in VertexGeometry<double, true>:
@@ -175,7 +184,7 @@ void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* f
     f.d1 = c * u + sn * v;
     f.d2 = -sn * u + c * v;
   }
-  if (ghost) {  // the end clamp's ghost edge: its frame is the state's, rotated by end_theta
+  if (ghost && last == n + 1) {  // the end clamp's ghost edge: the state's frame turned by end_theta
     RodFrames::Edge& g = frames->edges[n + 1];
     g.t = state.end_t;
     g.len = model.end_ghost_length();
@@ -349,10 +358,17 @@ namespace {
 
 // kPositions: the Hessian over the positions only, the twist eliminated
 // (AssemblePositionHessian); the gradient keeps the free-dof layout with its twist rows zeroed.
+// Rows of vertices first_vertex..last_vertex (AssembleGradientRows): only the terms that reach
+// them are summed, in the same order as for the whole rod. The whole rod by default.
 template <bool kHessian, bool kPositions = false>
 void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& terms,
-              VecX* gradient, BandedSymmetric* H, const RodFrames* frames) {
+              VecX* gradient, BandedSymmetric* H, const RodFrames* frames, int first_vertex = 0,
+              int last_vertex = std::numeric_limits<int>::max()) {
   const int n = model.num_edges(), nb = NumBendingVertices(model);
+  // Stencils first - 1..last + 1 and edges first - 1..last reach those vertices.
+  const int first_stencil = std::max(first_vertex - 1, 0);
+  const int end_stencil = last_vertex >= nb ? nb : std::min(nb, last_vertex + 2);
+  const int first_edge = first_stencil, end_edge = last_vertex >= n ? n : last_vertex + 1;
   gradient->setZero(model.num_free_dofs());
   // Row of free dof k in the Hessian being assembled.
   auto row = [](int k) { return kPositions ? PositionDof(k) : k; };
@@ -375,7 +391,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   const std::vector<RodFrames::Edge>& fr = rf.edges;
   const VertexStencilConstants stiffness = StencilStiffness(model, terms);
   const bool bend_twist = terms.AnyBendTwist();
-  for (int i = 0; i < nb; ++i) {
+  for (int i = first_stencil; i < end_stencil; ++i) {
     if (fresh) {
       c = stiffness;
       c.voronoi_length = model.voronoi_length(i);
@@ -453,7 +469,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   }
   if (!kHessian && EA != 0.0) {
     Vec3 g;
-    for (int j = 0; j < n; ++j) {
+    for (int j = first_edge; j < end_edge; ++j) {
       StretchGradientHessian(EA, model.rest_edge_length(j), state.e.col(j), &g, nullptr);
       if (j >= 1) gradient->segment<3>(RodModel::VertexDof(j)) -= g;
       gradient->segment<3>(RodModel::VertexDof(j + 1)) += g;
@@ -464,7 +480,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
       if (terms.spring_parameter && model.spring_zone(z).parameter != *terms.spring_parameter)
         continue;
       const double K = terms.springs * model.zone_stiffness(z);
-      for (int i = 1; i <= n; ++i) {
+      for (int i = std::max(1, first_vertex); i <= std::min(n, last_vertex); ++i) {
         const double k = K * model.zone_cell_length(z, i);
         if (k == 0.0) continue;
         const int d = RodModel::VertexDof(i);
@@ -474,7 +490,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
       }
     }
   }
-  if (model.symmetric() && terms.stretch != 0.0) {
+  if (model.symmetric() && terms.stretch != 0.0 && last_vertex >= n) {
     // The crossing edge's half stretch, a function of d = (c - x_n) . normal.
     double dE, d2E;
     CrossingStretch(model, state, terms.stretch, &dE, &d2E);
@@ -603,17 +619,27 @@ void AssembleHessian(const RodModel& model, const RodState& state, const EnergyT
   Assemble<true>(model, state, terms, gradient, hessian, frames);
 }
 
+void AssembleGradientRows(const RodModel& model, const RodState& state, const EnergyTerms& terms,
+                          int first_vertex, int last_vertex, VecX* gradient, RodFrames* frames) {
+  // Frames of the edges the stencils first - 1..last + 1 read (frames index: edge j is j + 1).
+  ComputeRodFrames(model, state, std::max(first_vertex - 1, 0), last_vertex + 2, frames);
+  Assemble<false>(model, state, terms, gradient, nullptr, frames, first_vertex, last_vertex);
+}
+
 bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState* out) {
   const int n = model.num_edges();
   for (int j = 0; j < n; ++j) {
+    // Reciprocals multiplied, not divided by: a division per component was a third of this
+    // function's time (it runs after every Newton step of the runtime's ticks).
     const Vec3 e = out->e.col(j);
     const double len = e.norm();
     if (!(len > 1e-9 * model.rest_edge_length(j))) return false;
-    const Vec3 t = e / len;
+    const Vec3 t = e * (1.0 / len);
     const Vec3 t_old = prev.ref_t.col(j);
     if (t.dot(t_old) < -0.99) return false;  // transport is singular at a full reversal
     Vec3 u = ParallelTransport<double, double>(t_old, t, Vec3(prev.ref_u.col(j)));
-    u = (u - u.dot(t) * t).normalized();  // remove round-off drift
+    u -= u.dot(t) * t;  // remove round-off drift
+    u *= 1.0 / u.norm();
     out->ref_u.col(j) = u;
     out->ref_t.col(j) = t;
   }

@@ -78,6 +78,10 @@ struct RodFrames {
   bool fresh = false;
 };
 void ComputeRodFrames(const RodModel& model, const RodState& state, RodFrames* frames);
+/// The frames of indices first..last only (0: the clamp's ghost, j + 1: edge j, n + 1: the end
+/// ghost); `fresh` then speaks for those alone. The others keep what they held.
+void ComputeRodFrames(const RodModel& model, const RodState& state, int first, int last,
+                      RodFrames* frames);
 
 /// Stretch of one edge, E = EA L0 / 2 (|e| / L0 - 1)^2: its gradient dE/de and (optionally)
 /// Hessian with respect to the edge vector e.
@@ -121,6 +125,14 @@ double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
 /// `frames`, if given, must be ComputeRodFrames of `state` (computed here otherwise).
 void AssembleGradient(const RodModel& model, const RodState& state, const EnergyTerms& terms,
                       VecX* gradient, const RodFrames* frames = nullptr);
+
+/// The rows of AssembleGradient for the positions of vertices first_vertex..last_vertex and
+/// the twists of edges first_vertex - 1..last_vertex, equal to it to the last bit (the same
+/// terms summed in the same order), from the stencils, edges and springs that reach them alone:
+/// a held point's reaction without the whole rod's gradient. The other rows of *gradient hold
+/// partial sums. *frames is scratch (the frames of the edges involved).
+void AssembleGradientRows(const RodModel& model, const RodState& state, const EnergyTerms& terms,
+                          int first_vertex, int last_vertex, VecX* gradient, RodFrames* frames);
 
 /// Gradient and banded Hessian of Pi over the free dofs.
 void AssembleHessian(const RodModel& model, const RodState& state, const EnergyTerms& terms,
