@@ -142,6 +142,42 @@ TEST_P(NoAllocation, InStep) {
   EXPECT_GE(g_allocations.load(), 1);
 }
 
+// Nor does a tick that fails: out of its time budget, or out of Newton iterations after a far
+// jump of the tool (a device glitch), in either mode — the haptic loop's worst ticks are the
+// ones that must not stall on the heap.
+TEST_P(NoAllocation, InFailedSteps) {
+  const Mode m = GetParam();
+  const Profile p = LoadProfile(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + m.profile);
+  for (const bool budget : {true, false}) {
+    RuntimeOptions options;
+    options.mode = m.mode;
+    options.tool = m.tool;
+    options.tool_s = m.s;
+    options.hold_orientation = m.hold_orientation;
+    options.max_iterations = 1;
+    options.dynamic_newton_iterations = 1;
+    if (budget) options.time_budget = 1e-12;  // below any Newton iteration's cost
+    Runtime rt(p, options);
+    const Vec3 home = rt.ToolPosition();
+    const double L = p.scene.rod.length;
+    int failed = 0;
+    const long count = AllocationsDuring(
+        [&](int k) {
+          const double sign = (k % 2) ? 1.0 : -1.0;
+          if (m.tool == ToolKind::kGrasp)
+            rt.SetToolPosition(home + 0.3 * L * Vec3(0.0, sign, 0.5));
+          else
+            rt.SetToolForce(Vec3(0.0, 0.0, sign * 50.0 * p.scene.material.ring_bend_stiffness /
+                                               (L * L) + sign * 0.5));
+          if (!rt.Step().ok()) ++failed;
+        },
+        20);
+    EXPECT_GT(failed, 0) << (budget ? "budget" : "iterations");
+    EXPECT_EQ(count, 0) << "malloc called " << count << " times in 20 failing ticks ("
+                        << (budget ? "budget" : "iterations") << ")";
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(
     Ticks, NoAllocation,
     ::testing::Values(Mode{"suture.json", RuntimeMode::kQuasiStatic, ToolKind::kGrasp, 0.2},

@@ -76,6 +76,10 @@ struct DynamicsOptions {
   /// DynamicsStepSummary::out_of_time, *s unchanged and not halved (the runtime's haptic loop
   /// gives up such a tick rather than miss its deadline).
   double time_budget = 0.0;
+  /// Implicit: a failed step says why in DynamicsStepSummary::reason. Its text is built on the
+  /// heap; the runtime's ticks, which must not allocate, turn it off and read ok and
+  /// out_of_time.
+  bool failure_reasons = true;
   /// Implicit: converged when the scaled residual (ScaledGradientNorm) is below this times the
   /// larger of the case's load scale and its inertial forces, or when a Newton step moves no
   /// vertex by more than step_tolerance L (and no twist angle by more than that in radians).
@@ -179,8 +183,12 @@ class DynamicsStepper {
 
   const RodModel& model() const { return model_; }
   const DynamicsOptions& options() const { return options_; }
-  /// Sets DynamicsOptions::time_budget [s] (>= 0) for the steps from now on.
-  void SetTimeBudget(double seconds) { options_.time_budget = seconds; }
+  /// Sets DynamicsOptions::time_budget [s] (>= 0) and max_newton_iterations (>= 1) for the
+  /// steps from now on (the runtime sizes its buffers by a first step without its tick's limits).
+  void SetNewtonLimits(int max_newton_iterations, double time_budget) {
+    options_.max_newton_iterations = std::max(max_newton_iterations, 1);
+    options_.time_budget = std::max(time_budget, 0.0);
+  }
 
   /// The state at rest in the initial shape `q` (velocities zero, t = 0).
   DynamicState AtRest(const RodState& q) const;

@@ -401,7 +401,9 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     DynamicsOptions dyn;
     dyn.time_step = options.time_step;
     dyn.integrator = Integrator::kBdf2;
-    dyn.max_newton_iterations = options.dynamic_newton_iterations;
+    dyn.failure_reasons = false;  // a failed tick says so by its status, without the heap
+    // The throwaway first step below may take the stepper's default iterations; the ticks then
+    // keep options' limits.
     m.stepper = std::make_unique<DynamicsStepper>(model, dyn);
     m.dynamic = m.stepper->AtRest(m.state);
     // A throwaway step with the tool nudged (a grasp moved by 1e-6 L, a poke pushing with 1e-6
@@ -416,7 +418,7 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     const DynamicsStepSummary warm = m.stepper->Step(*m.drive, &m.dynamic);
     m.tool = home;
     m.tool_force.setZero();
-    if (!warm.ok) throw std::runtime_error("the first dynamic step failed: " + warm.reason);
+    if (!warm.ok) throw std::runtime_error("the first dynamic step failed (reduce time_step)");
     // Back at rest, the history's buffers kept at their size (BDF2 starts with a backward
     // Euler step without history).
     m.dynamic.q = m.dynamic_good.q;
@@ -428,8 +430,8 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     m.dynamic.has_older = false;
     m.dynamic.older_v.setZero(m.dynamic.v.size());
     m.dynamic_good = m.dynamic;
-    // The ticks' wall-time budget (not the throwaway step's: it must not fail on a slow start).
-    m.stepper->SetTimeBudget(options.time_budget);
+    // The ticks' limits (not the throwaway step's: it must not fail on a slow start).
+    m.stepper->SetNewtonLimits(options.dynamic_newton_iterations, options.time_budget);
   }
   if (options.tool == ToolKind::kPoke && scene.section &&
       RingStiffness{mat.ring_bend_stiffness, mat.ring_stretch_stiffness}.Check(nullptr)) {

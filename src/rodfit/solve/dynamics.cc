@@ -152,6 +152,17 @@ DynamicsStepper::DynamicsStepper(const RodModel& model, const DynamicsOptions& o
   pose_mid_ = pose_;
   scratch_->damping.Resize(dofs, kRodBandwidth, 4);
   scratch_->damping.SetZero();
+  // Every scratch vector, state and frame list at its size now: a step then allocates nothing,
+  // whichever of its paths (line search, shifted factor, failure) it takes; the runtime's
+  // haptic ticks rely on it.
+  for (VecX* v : {&g_, &g_trial_, &step_, &delta_, &delta0_, &force_, &cv_, &cd_, &y_, &z_,
+                  &y_pred_})
+    v->setZero(dofs);
+  prev_ = model.StraightState();
+  trial_ = prev_;
+  ComputeRodFrames(model, prev_, &scratch_->frames);
+  scratch_->trial_frames = scratch_->frames;
+  scratch_->hessian.Resize(dofs, kRodBandwidth, 4);
 }
 
 DynamicsStepper::~DynamicsStepper() = default;
@@ -497,7 +508,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
     y_pred_ = y_;
   }
   if (!Advance(q0, y_pred_, *pose, &prev_)) {  // the predictor
-    summary.reason = "the predictor folds an edge back: time_step too large for this motion";
+    if (options_.failure_reasons)
+      summary.reason = "the predictor folds an edge back: time_step too large for this motion";
     return summary;
   }
   RodState& q = prev_;
@@ -619,7 +631,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
     const double gnorm = WeightedNorm(g_);
     summary.residual = gnorm;
     if (!std::isfinite(gnorm)) {
-      summary.reason = "non-finite residual in the implicit step";
+      if (options_.failure_reasons) summary.reason = "non-finite residual in the implicit step";
       return summary;
     }
     if (gnorm <= force_tol) {
@@ -659,7 +671,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
       double shift = 1e-10 * max_diagonal;
       while (!scratch_->factor.Factor(scratch_->hessian, shift) && shift < 1e3 * max_diagonal) shift *= 10.0;
       if (!scratch_->factor.valid()) {
-        summary.reason = "the step's Newton matrix cannot be made positive definite";
+        if (options_.failure_reasons)
+          summary.reason = "the step's Newton matrix cannot be made positive definite";
         return summary;
       }
       shifted = true;
@@ -683,7 +696,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
       if (!frames_current) ComputeRodFrames(model_, q, &scratch_->frames);
       frames_current = true;
       if (!phi(q, scratch_->frames, &energy)) {
-        summary.reason = "non-finite energy in the implicit step";
+        if (options_.failure_reasons) summary.reason = "non-finite energy in the implicit step";
         return summary;
       }
       energy_known = delta_current = true;
@@ -730,7 +743,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
       }
     }
     if (!accepted) {
-      summary.reason = "the implicit step's line search failed";
+      if (options_.failure_reasons) summary.reason = "the implicit step's line search failed";
       return summary;
     }
     if (!unchecked) std::swap(q, trial_);
@@ -749,7 +762,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
     }
   }
   if (!converged) {
-    summary.reason = "the implicit step did not converge in " +
+    if (options_.failure_reasons)
+      summary.reason = "the implicit step did not converge in " +
                      std::to_string(options_.max_newton_iterations) +
                      " Newton iterations (reduce time_step)";
     return summary;
@@ -759,7 +773,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
     // q_{n+1} = 2 q_m - q_n (the midpoint's state carried on by the same increment), v_{n+1} =
     // 2 v_m - v_n with v_m = 2 d / dt.
     if (!Advance(q, delta_, pose_, &trial_)) {
-      summary.reason = "the midpoint's extrapolation folds an edge back (reduce time_step)";
+      if (options_.failure_reasons)
+        summary.reason = "the midpoint's extrapolation folds an edge back (reduce time_step)";
       return summary;
     }
     for (int k = 0; k < N; ++k) s->v[k] = held_[k] ? 0.0 : 4.0 * delta_[k] / dt - s->v[k];
