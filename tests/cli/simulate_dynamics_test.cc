@@ -1,6 +1,7 @@
 // `simulate` on a moving scene (a `dynamics:` block): the files it writes, a driven point that
 // follows its path, and one-line errors for bad dynamics input (docs/formats.md, docs/cli.md).
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -282,6 +283,16 @@ TEST(SimulateDynamics, InitialFromTwoFramesIsShapeAndDifferenceVelocity) {
   const RunResult run = RunRodfit(dir, "simulate " + Quote(bad) + " -o " + Quote(dir.File("ob")));
   EXPECT_EQ(run.status, 1);
   EXPECT_THAT(run.err, HasSubstr("initial.frames: give frame_interval"));
+  // A velocity file whose arc lengths leave the rod (another rod's, or millimetres): one line
+  // naming the file, its row and the column, and nothing written.
+  dir.Write("v_off.csv", "s,vx,vy,vz\n0,0,0,0\n0.5,0,0.1,0\n1.5,0,0.2,0\n");
+  const std::string off =
+      dir.Write("off.yaml", Scene(dyn, "    initial: {shape: f0.csv, velocity: v_off.csv}\n"));
+  const RunResult off_run =
+      RunRodfit(dir, "simulate " + Quote(off) + " -o " + Quote(dir.File("ooff")));
+  EXPECT_EQ(off_run.status, 1);
+  EXPECT_THAT(off_run.err, HasSubstr("v_off.csv:4: s: must lie on the rod, in [0, 1] m"));
+  EXPECT_FALSE(std::filesystem::exists(dir.File("ooff")));
 }
 
 TEST(SimulateDynamics, BadVertexArcLengthsAreOneLineNamingTheKey) {

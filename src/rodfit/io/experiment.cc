@@ -862,8 +862,15 @@ void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, int inde
     c->initial.velocity_s = table.Column("s");
     const std::vector<double> x = table.Column("vx"), y = table.Column("vy"), z = table.Column("vz");
     c->initial.velocity.resize(3, table.num_rows());
+    const double L = ex.scene.rod.length;
     for (int k = 0; k < table.num_rows(); ++k) {
-      if (k > 0 && !(c->initial.velocity_s[k] > c->initial.velocity_s[k - 1]))
+      const double s = c->initial.velocity_s[k];
+      // An arc length off the rod is a file for another rod (or in other units): the
+      // interpolation would silently clamp it to an end.
+      if (!(s >= -1e-9 * L && s <= L * (1.0 + 1e-9)))
+        throw InputError(c->initial.file, table.line(k), "s",
+                         "must lie on the rod, in [0, " + Show(L) + "] m");
+      if (k > 0 && !(s > c->initial.velocity_s[k - 1]))
         throw InputError(c->initial.file, table.line(k), "s", "must increase from row to row");
       c->initial.velocity.col(k) = Vec3(x[k], y[k], z[k]);
     }
