@@ -165,6 +165,23 @@ TEST_F(MarkerSequencesTest, ReadsTimes) {
   EXPECT_EQ(seq.frames[1].sample, (std::vector<int>{0}));  // the file's first row is the later
 }
 
+// A t column read by an entry that also gives frame_rate: times that step by the rate are read
+// as they are (with jitter and a dropped frame); a log stamped in milliseconds is an error that
+// says so, naming the file's t column, instead of a run on times a thousand times too late.
+TEST_F(MarkerSequencesTest, TimesMustAgreeWithTheEntrysFrameRate) {
+  dir_.Write("seq.csv",
+             "t,s,x,y,z\n0,0.2,0.2,0,0\n0.0102,0.2,0.2,0,0\n0.0199,0.2,0.2,0,0\n"
+             "0.04,0.2,0.2,0,-0.001\n");
+  const Experiment ex = LoadExperiment(dir_.Write("scene.yaml", kMoving));
+  const ObservationSequence seq = BuildSequenceInput(ex).sequences.at(0);
+  ASSERT_EQ(seq.frames.size(), 4u);
+  EXPECT_EQ(seq.frames[3].t, 0.04);
+  const std::string ms = "t,s,x,y,z\n0,0.2,0.2,0,0\n10,0.2,0.2,0,0\n20,0.2,0.2,0,0\n";
+  ExpectCsvError(ms, 1, "t");
+  EXPECT_THAT(Error(kMoving, ms), HasSubstr("median 10 s, but frame_rate 100 Hz"));
+  EXPECT_THAT(Error(kMoving, ms), HasSubstr("t must be in seconds"));
+}
+
 TEST_F(MarkerSequencesTest, BadSequenceFiles) {
   const std::string no_rate = With("frame_rate: 100, ", "");
   ExpectCsvError("frame,s,x,y,z\n0,0.1,0.1,0,0\n", 1, "frame", no_rate);

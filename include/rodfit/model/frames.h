@@ -49,7 +49,7 @@ EIGEN_ALWAYS_INLINE Vec3T<T> ParallelTransport(const Vec3T<T>& a, const Vec3T<T>
   const T c = a.dot(b);
   const Vec3T<T> ut = CastVec<T>(u);
   const Vec3T<T> wu = w.cross(ut);
-  return ut + wu + w.cross(wu) * (Cst<T>(1.0) / (Cst<T>(1.0) + c));  // one division, not three
+  return ut + wu + w.cross(wu) / (Cst<T>(1.0) + c);
 }
 
 /// atan(z) for |z| <= 1/8 by its series to z^17 (the first term left out is below 2^-57 of

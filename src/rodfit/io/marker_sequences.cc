@@ -36,6 +36,28 @@ std::string EntryAt(const Experiment& ex, const ObservationSpec& spec) {
   return ex.path + " line " + std::to_string(spec.line);
 }
 
+// A file with a t column read by an entry that also gives frame_rate: the times are used as
+// they are, but their median step must agree with 1 / frame_rate within a factor of 2 either way
+// (room for jitter and up to half the frames dropped). A log stamped in milliseconds (or with
+// the wrong rate) then fails with the reason instead of running a thousand times slower.
+void CheckTimesAgainstRate(const Experiment& ex, const ObservationSpec& spec,
+                           const std::vector<double>& t) {
+  if (!(spec.frame_rate > 0.0)) return;
+  std::vector<double> times(t);
+  std::sort(times.begin(), times.end());
+  times.erase(std::unique(times.begin(), times.end()), times.end());
+  if (times.size() < 3) return;
+  std::vector<double> steps(times.size() - 1);
+  for (size_t k = 0; k + 1 < times.size(); ++k) steps[k] = times[k + 1] - times[k];
+  std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+  const double median = steps[steps.size() / 2], nominal = 1.0 / spec.frame_rate;
+  if (!(median >= 0.5 * nominal && median <= 2.0 * nominal))
+    throw InputError(spec.file, 1, "t",
+                     "its times step by a median " + Short(median) + " s, but frame_rate " +
+                         Short(spec.frame_rate) + " Hz (" + EntryAt(ex, spec) + ") says " +
+                         Short(nominal) + " s: t must be in seconds (or leave frame_rate out)");
+}
+
 // A coordinate field: a number, or missing (empty, nan, NaN: the sample was not seen).
 bool ReadCoordinate(const CsvTable& table, int row, const std::string& column,
                     const std::string& text, double* value) {
@@ -104,6 +126,7 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
   const std::vector<std::string> columns =
       pixels ? std::vector<std::string>{"u", "v"} : std::vector<std::string>{"x", "y", "z"};
   const std::vector<double> key = table.Column(by_time ? "t" : "frame");
+  if (by_time) CheckTimesAgainstRate(ex, spec, key);
   const std::vector<double> s = with_s ? table.Column("s") : std::vector<double>();
   std::vector<std::vector<std::string>> text;
   for (const std::string& column : columns) text.push_back(table.TextColumn(column));
@@ -213,6 +236,7 @@ ObservationSequence ReadReactionSequence(const Experiment& ex, int case_index,
   std::vector<std::string> columns = {"fx", "fy", "fz"};
   if (moments) columns.insert(columns.end(), {"mx", "my", "mz"});
   const std::vector<double> key = table.Column(by_time ? "t" : "frame");
+  if (by_time) CheckTimesAgainstRate(ex, spec, key);
   std::vector<std::vector<std::string>> text;
   for (const std::string& column : columns) text.push_back(table.TextColumn(column));
   std::map<double, int> line_of_time;

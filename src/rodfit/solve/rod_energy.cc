@@ -173,7 +173,7 @@ void ComputeRodFrames(const RodModel& model, const RodState& state, int first, i
     RodFrames::Edge& f = frames->edges[j + 1];
     const Vec3 e = state.e.col(j);
     f.len = std::sqrt(e.squaredNorm());
-    f.t = e * (1.0 / f.len);
+    f.t = e / f.len;
     const Vec3 t_old = state.ref_t.col(j), u_old = state.ref_u.col(j);
     frames->fresh = frames->fresh && (f.t - t_old).cwiseAbs().maxCoeff() <= 1e-13;
     // The transport linearised about the reference tangent, as in VertexGeometry<double, true>:
@@ -629,17 +629,14 @@ void AssembleGradientRows(const RodModel& model, const RodState& state, const En
 bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState* out) {
   const int n = model.num_edges();
   for (int j = 0; j < n; ++j) {
-    // Reciprocals multiplied, not divided by: a division per component was a third of this
-    // function's time (it runs after every Newton step of the runtime's ticks).
     const Vec3 e = out->e.col(j);
     const double len = e.norm();
     if (!(len > 1e-9 * model.rest_edge_length(j))) return false;
-    const Vec3 t = e * (1.0 / len);
+    const Vec3 t = e / len;
     const Vec3 t_old = prev.ref_t.col(j);
     if (t.dot(t_old) < -0.99) return false;  // transport is singular at a full reversal
     Vec3 u = ParallelTransport<double, double>(t_old, t, Vec3(prev.ref_u.col(j)));
-    u -= u.dot(t) * t;  // remove round-off drift
-    u *= 1.0 / u.norm();
+    u = (u - u.dot(t) * t).normalized();  // remove round-off drift
     out->ref_u.col(j) = u;
     out->ref_t.col(j) = t;
   }
