@@ -58,6 +58,8 @@ struct RuntimeOptions {
   /// twist by more than that in radians) [-]: the statics solver's step test.
   double step_tolerance = 1e-9;
   /// [s] wall time a step may take before it gives up (0: no limit; the iteration cap holds).
+  /// Checked before every Newton iteration after the first, in both modes; in dynamic mode the
+  /// tick after one lost to it runs without it, to catch up (docs/library.md, "Runtime").
   double time_budget = 0.0;
   /// Quasi-static grasp: the largest move of the grasped point in one tick, as a fraction of
   /// the shortest rest edge [-]. A tool that ran further ahead (a device glitch, a tick lost to
