@@ -764,8 +764,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   if (!converged) {
     if (options_.failure_reasons)
       summary.reason = "the implicit step did not converge in " +
-                     std::to_string(options_.max_newton_iterations) +
-                     " Newton iterations (reduce time_step)";
+                       std::to_string(options_.max_newton_iterations) +
+                       " Newton iterations (reduce time_step)";
     return summary;
   }
   if (!delta_current) Delta(q0, q, &delta_);

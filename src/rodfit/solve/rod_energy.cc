@@ -184,7 +184,8 @@ void ComputeRodFrames(const RodModel& model, const RodState& state, int first, i
     f.d1 = c * u + sn * v;
     f.d2 = -sn * u + c * v;
   }
-  if (ghost && last == n + 1) {  // the end clamp's ghost edge: the state's frame turned by end_theta
+  // The end clamp's ghost edge: its frame is the state's, turned by end_theta.
+  if (ghost && last == n + 1) {
     RodFrames::Edge& g = frames->edges[n + 1];
     g.t = state.end_t;
     g.len = model.end_ghost_length();
