@@ -4,6 +4,7 @@
 // energy of the undamped explicit integrator, the midpoint rule's order, the logarithmic
 // decrement of a damped mode, and the quasi-static limit (the statics solver).
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -414,36 +415,57 @@ TEST(Dynamics, SutureSwingImplicitAtOneMillisecondMatchesExplicit) {
 }
 
 // Where BDF2's Newton starts (the third-order extrapolation of the rates when the state carries
-// v_n-2, the second-order one without) changes the iterations, not the step's solution: the
-// suture's 100 ms fall under gravity agrees to the step's tolerance either way, and the
-// third-order start takes fewer iterations.
+// v_n-2, the second-order one without, and the last steps' corrections extrapolated on top) and
+// when it stops on its step sizes' contraction (converge_on_rate) change the iterations, not the
+// step's solution: the suture's 100 ms fall under gravity agrees to the step's tolerance either
+// way, and each further start takes fewer iterations.
 TEST(Dynamics, Bdf2StartDoesNotChangeTheTrajectory) {
   Suture suture(50);
   suture.material.damping = 1e-5;
   const RodModel model(suture.rod, suture.material, Vec3(0, 0, -9.81), suture.load_case);
-  auto run = [&](bool third_order, int* iterations) {
+  enum Start { kSecondOrder, kThirdOrder, kCorrected, kCorrectedOnRate };
+  auto run = [&](Start start, int* iterations) {
     DynamicsOptions options;
     options.integrator = Integrator::kBdf2;
     options.time_step = 1e-3;
+    options.extrapolate_corrections = start >= kCorrected;
+    options.converge_on_rate = start == kCorrectedOnRate;
     DynamicsStepper stepper(model, options);
     DynamicState s = stepper.AtRest(model.StraightState());
     *iterations = 0;
     for (int k = 0; k < 100; ++k) {
-      if (!third_order) s.has_older = false;
+      if (start == kSecondOrder) s.has_older = false;
       const DynamicsStepSummary r = stepper.Step(Drive(), &s);
       EXPECT_TRUE(r.ok) << r.reason;
       if (!r.ok) break;
       *iterations += r.newton_iterations;
-      if (k >= 2 && third_order) EXPECT_TRUE(s.has_older);
+      if (k >= 2 && start != kSecondOrder) {
+        EXPECT_TRUE(s.has_older);
+      }
+      // The corrections are recorded from the second third-order step on.
+      if (k >= 3 && start != kSecondOrder) {
+        EXPECT_EQ(s.num_corrections, 2);
+      }
     }
     return s.q.x;
   };
-  int third = 0, second = 0;
-  const Mat3X a = run(true, &third), b = run(false, &second);
+  int second = 0, third = 0, corrected = 0, on_rate = 0;
+  const Mat3X b = run(kSecondOrder, &second), a = run(kThirdOrder, &third);
+  const Mat3X c = run(kCorrected, &corrected), d = run(kCorrectedOnRate, &on_rate);
   EXPECT_GT(-a(2, model.num_edges()), 0.02);  // a large motion
   // The step's convergence test (residual 1e-9 of the forces) leaves ~1e-9 L in the positions.
-  EXPECT_LT((a - b).colwise().norm().maxCoeff(), 1e-8 * suture.rod.length);
+  for (const Mat3X* x : {&b, &c, &d})
+    EXPECT_LT((a - *x).colwise().norm().maxCoeff(), 1e-8 * suture.rod.length);
+  std::printf("[measured] suture fall, 100 steps: %d / %d / %d / %d Newton iterations (second-order "
+              "start / third-order / corrections extrapolated / and on rate), largest difference "
+              "%.1e / %.1e / %.1e L\n",
+              second, third, corrected, on_rate,
+              (a - b).colwise().norm().maxCoeff() / suture.rod.length,
+              (a - c).colwise().norm().maxCoeff() / suture.rod.length,
+              (a - d).colwise().norm().maxCoeff() / suture.rod.length);
   EXPECT_LT(third, second);
+  EXPECT_LT(corrected, third);
+  EXPECT_LE(on_rate, corrected);
 }
 
 // The implicit step's derivative check: backward Euler's state is the stationary point of its

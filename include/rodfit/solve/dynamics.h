@@ -80,6 +80,20 @@ struct DynamicsOptions {
   /// heap; the runtime's ticks, which must not allocate, turn it off and read ok and
   /// out_of_time.
   bool failure_reasons = true;
+  /// Implicit: a full step that follows another full step of the same Newton solve also ends
+  /// it when its size times their contraction (its size over the last's), the estimate of the
+  /// error left after it, is within step_tolerance: the Newton convergence test of CVODE and
+  /// IDA. The residual after that step is then not evaluated. Off by default: the stepper's
+  /// sensitivities difference converged states and want every step's residual checked; the
+  /// runtime's ticks turn it on (one gradient fewer per tick).
+  bool converge_on_rate = false;
+  /// Implicit, BDF2: Newton starts from the third-order predictor plus the last two steps'
+  /// corrections (DynamicState::last_correction, older_correction) extrapolated linearly, which
+  /// along a steady motion (a dragged rod) starts it much nearer the step's solution. Off by
+  /// default: a step then converges in fewer iterations but less far below its tolerance,
+  /// which differences of rollouts (central-difference checks of the sensitivities) see; the
+  /// runtime's ticks turn it on.
+  bool extrapolate_corrections = false;
   /// Implicit: converged when the scaled residual (ScaledGradientNorm) is below this times the
   /// larger of the case's load scale and its inertial forces, or when a Newton step moves no
   /// vertex by more than step_tolerance L (and no twist angle by more than that in radians).
@@ -129,6 +143,12 @@ struct DynamicState {
   /// starts (a third-order extrapolation of the rates); the step's equations do not read it.
   VecX older_v;
   bool has_older = false;
+  /// BDF2's Newton corrections, the converged increment minus the third-order predictor's, of
+  /// the last step (last_correction) and the one before (older_correction): num_corrections of
+  /// them are valid, from consecutive steps of the same length. Only where Newton starts
+  /// (DynamicsOptions::extrapolate_corrections); the step's equations do not read them.
+  VecX last_correction, older_correction;
+  int num_corrections = 0;
 };
 
 /// A direction in the log of the constants the dynamics read (sensitivities): how much the log of
@@ -253,7 +273,8 @@ class DynamicsStepper {
   // Scratch.
   HeldPose pose_, pose_mid_;
   RodState trial_, prev_;
-  VecX g_, g_trial_, step_, delta_, delta0_, force_, cv_, cd_, y_, z_, y_pred_;
+  // y_ab_: the third-order predictor's increment, without the extrapolated corrections.
+  VecX g_, g_trial_, step_, delta_, delta0_, force_, cv_, cd_, y_, z_, y_pred_, y_ab_;
   // The frames, the band matrices and their factor: internal types (dynamics.cc).
   struct Scratch;
   std::unique_ptr<Scratch> scratch_;
