@@ -15,6 +15,10 @@ std::string OneLine(std::string text) {
   return text;
 }
 
+std::string CasePlace(const std::string& file, int line, const std::string& name) {
+  return file + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": case " + name + ": ";
+}
+
 int Parse(CLI::App& app, int argc, char** argv) {
   try {
     app.parse(argc, argv);

@@ -100,7 +100,7 @@ int RunSimulate(int argc, char** argv) {
   solutions.reserve(scene.cases.size());
   for (size_t k = 0; k < scene.cases.size(); ++k) {
     const rodfit::LoadCase& load_case = scene.cases[k];
-    const std::string where = "case " + load_case.name + ": ";
+    const std::string where = CasePlace(scene_path, experiment.cases[k].line, load_case.name);
     rodfit::CaseSolution solution;
     try {
       solution = rodfit::SolveCase(scene, static_cast<int>(k),

@@ -7,6 +7,7 @@
 #include <iostream>
 #include <stdexcept>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
@@ -71,7 +72,8 @@ int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scen
     summary.push_back({load_case.name, trajectory.ok, trajectory.steps,
                        trajectory.newton_iterations, trajectory.stable_step, trajectory.reason});
     if (!trajectory.ok && first_failure.empty())
-      first_failure = "case " + load_case.name + ": " + trajectory.reason;
+      first_failure = CasePlace(scene_path, experiment.cases[k].line, load_case.name) +
+                      OneLine(trajectory.reason);
     rodfit::CaseMotion motion;
     motion.name = load_case.name;
     motion.s = trajectory.s;

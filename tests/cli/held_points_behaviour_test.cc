@@ -266,7 +266,8 @@ class BucklingTest : public HeldPointsBehaviourTest {
     const std::string cases = std::string("  - name: bent\n") + kClamp +
                               "    tip_force: [0, 0, -2.0e-5]\n" + "  - name: column\n" + kClamp +
                               column_case;
-    *run = Simulate(Scene(20, "[0, 0, 0]", cases, escape ? "" : "{escape_saddles: false}"));
+    const std::string yaml = Scene(20, "[0, 0, 0]", cases, escape ? "" : "{escape_saddles: false}");
+    *run = Simulate(yaml);
     EXPECT_EQ(run->status, 0) << run->err;
     const Summary summary = ReadSummary(Out("summary.csv"));
     EXPECT_EQ(summary.names, std::vector<std::string>({"bent", "column"}));
@@ -275,7 +276,11 @@ class BucklingTest : public HeldPointsBehaviourTest {
     if (escape) {
       EXPECT_EQ(run->err, "");
     } else {
-      EXPECT_THAT(run->err, StartsWith("rodfit simulate: warning: case column: "));
+      // Named by the case's entry in the file.
+      const int column_line = 1 + static_cast<int>(std::count(
+                                      yaml.begin(), yaml.begin() + yaml.find("- name: column"), '\n'));
+      EXPECT_THAT(run->err, StartsWith("rodfit simulate: warning: " + dir_.File("scene.yaml") +
+                                       ":" + std::to_string(column_line) + ": case column: "));
       EXPECT_THAT(run->err, HasSubstr("unstable"));
       EXPECT_EQ(std::count(run->err.begin(), run->err.end(), '\n'), 1) << run->err;
     }
@@ -344,16 +349,21 @@ TEST_F(HeldPointsBehaviourTest, KeepGoingWritesTheConvergedCasesAndExits3) {
                 "  - name: hang\n"
                 "    clamp: {position: [0, 0, 0], tangent: [0, 0, -1], normal: [1, 0, 0]}\n",
             "{max_iterations: 2}");
+  // The failure names the case's entry in the file, as an input error would.
+  const int sag_line =
+      1 + static_cast<int>(std::count(yaml.begin(), yaml.begin() + yaml.find("- name: sag"), '\n'));
+  const std::string failure = "rodfit simulate: " + dir_.File("scene.yaml") + ":" +
+                              std::to_string(sag_line) + ": case sag: no equilibrium found: ";
   // Without --keep-going: nothing written.
   RunResult run = Simulate(yaml);
   EXPECT_EQ(run.status, 1);
-  EXPECT_THAT(run.err, StartsWith("rodfit simulate: case sag: no equilibrium found: "));
+  EXPECT_THAT(run.err, StartsWith(failure));
   EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
   EXPECT_FALSE(fs::exists(Out()));
 
   run = Simulate(yaml, " --keep-going");
   EXPECT_EQ(run.status, 3) << run.err;
-  EXPECT_THAT(run.err, StartsWith("rodfit simulate: case sag: no equilibrium found: "));
+  EXPECT_THAT(run.err, StartsWith(failure));
   EXPECT_THAT(run.err, EndsWith(" (other cases written)\n"));
   EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
 

@@ -19,6 +19,7 @@ namespace rodfit::test {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::StartsWith;
 
 std::string Scene(const std::string& dynamics, const std::string& case_extra) {
   return "rod: {length: 1.0, segments: 20, radius: 0.0025, linear_density: 0.04}\n"
@@ -90,13 +91,17 @@ TEST(SimulateDynamics, DrivenEndPinFollowsItsPath) {
 
 TEST(SimulateDynamics, ExplicitAboveItsStableStepIsRefusedWithTheLimit) {
   TempDir dir;
-  const RunResult run = RunRodfit(
-      dir, "simulate " +
-               Quote(dir.Write("s.yaml", Scene("{time_step: 0.001, duration: 0.01, integrator: "
-                                               "explicit}",
-                                               ""))) +
-               " -o " + Quote(dir.File("o")));
+  const std::string text =
+      Scene("{time_step: 0.001, duration: 0.01, integrator: explicit}", "");
+  const std::string scene = dir.Write("s.yaml", text);
+  const RunResult run = RunRodfit(dir, "simulate " + Quote(scene) + " -o " + Quote(dir.File("o")));
   EXPECT_EQ(run.status, 1);
+  // Named by the case's entry in the file (file:line: case NAME:), as an input error would be.
+  const size_t entry = text.find("- name: ");
+  ASSERT_NE(entry, std::string::npos);
+  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + entry, '\n'));
+  EXPECT_THAT(run.err, StartsWith("rodfit simulate: " + scene + ":" + std::to_string(line) +
+                                  ": case "));
   EXPECT_THAT(run.err, HasSubstr("above the explicit integrator's stable step"));
   EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1);
   std::ifstream nothing(dir.File("o/trajectory.csv"));

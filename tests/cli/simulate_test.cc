@@ -130,13 +130,17 @@ TEST_F(CliTest, UnwritableOutputDirectory) {
 // times this thread's Euler load. Should a future solver find that equilibrium, pick a harder case.
 TEST_F(CliTest, UnconvergedCaseFailsWithoutOutput) {
   // One Newton iteration cannot reach the sagging shape from the straight rod.
-  const std::string scene =
-      dir_.Write("scene.yaml", With("gravity: [0, 0, -9.81]\n",
-                                    "gravity: [0, 0, -9.81]\nsolver: {max_iterations: 1}\n"));
+  const std::string text =
+      With("gravity: [0, 0, -9.81]\n", "gravity: [0, 0, -9.81]\nsolver: {max_iterations: 1}\n");
+  const std::string scene = dir_.Write("scene.yaml", text);
   const std::string out_dir = dir_.File("out");
   const RunResult run = Rodfit("simulate " + Quote(scene) + " -o " + Quote(out_dir));
   EXPECT_GT(run.status, 0);
-  EXPECT_THAT(run.err, StartsWith("rodfit simulate: case sag: no equilibrium found: "));
+  // Named by the case's entry in the file, as an input error would be.
+  const int sag_line =
+      1 + static_cast<int>(std::count(text.begin(), text.begin() + text.find("- name: sag"), '\n'));
+  EXPECT_THAT(run.err, StartsWith("rodfit simulate: " + scene + ":" + std::to_string(sag_line) +
+                                  ": case sag: no equilibrium found: "));
   EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
   EXPECT_FALSE(std::filesystem::exists(out_dir));
 }
