@@ -67,7 +67,9 @@ struct RuntimeOptions {
   /// jump cannot keep every later tick from converging. After a tick that did not converge the
   /// next ones move a quarter as far (down to 1/64), growing back twofold per converged tick.
   double max_tool_move = 0.25;
-  double time_step = 1e-3;          ///< [s] dynamic mode: the step of one tick
+  /// [s] dynamic mode: the step of one tick, a BDF2 step of DynamicsStepper to its default
+  /// tolerances, with DynamicsOptions::extrapolate_corrections and converge_on_rate on.
+  double time_step = 1e-3;
   int dynamic_newton_iterations = 25;  ///< dynamic mode: Newton iterations per step
   int mesh_ring_vertices = 16;      ///< Mesh(): vertices per ring of the tube (>= 3)
   /// Quasi-static grasp only: the tool also holds the orientation of the rod there — the edge
