@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <random>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -472,7 +473,8 @@ TEST(Dynamics, Bdf2StartDoesNotChangeTheTrajectory) {
 // The runtime's fast start and stop (extrapolate_corrections, converge_on_rate) on paths that
 // are anything but steady: the suture grasped at its tip is dragged round a circle and reversed
 // dead, held still and jerked by a tenth of an edge; sped up and slowed down; pulled along a
-// line with jerks every 10 ms; reversed three times. Every step converges, in no more
+// line with jerks every 10 ms; round the circle with a device's jitter (where the corrections
+// are never steady: no iterations are saved); reversed three times. Every step converges, in no more
 // iterations than the plain stepper's, and the trajectory is as near a tightly converged one
 // (residual 1e-12) as the plain stepper's: where the extrapolated corrections would point the
 // wrong way they are not used (without that guard the first path ended 14x further off).
@@ -489,6 +491,11 @@ TEST(Dynamics, FastStartAndStopFollowErraticDrags) {
   ASSERT_GE(grasp_index, 0);
   const double w = 2.0 * 3.141592653589793 * 5.0, r = 0.01;  // a 1 cm circle at 5 turns/s
   auto circle = [&](double u) { return Vec3(L - r + r * std::cos(w * u), r * std::sin(w * u), 0.0); };
+  // A haptic device's jitter: +-5 um per coordinate in the plane of the drag, new every step.
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> uniform(-5e-6, 5e-6);
+  std::vector<Vec3> jitter(101);
+  for (Vec3& j : jitter) j = Vec3(uniform(random), uniform(random), 0.0);
   // Time [s] -> the grasp's position.
   const std::vector<std::pair<const char*, std::function<Vec3(double)>>> paths = {
       {"reversed, stopped, jerked",
@@ -504,6 +511,11 @@ TEST(Dynamics, FastStartAndStopFollowErraticDrags) {
       {"line with jerks",
        [&](double t) {
          return Vec3(L, 0.2 * t, (static_cast<int>(t / 0.01) % 2 ? 0.05 : -0.05) * l);
+       }},
+      {"circle with 10 um jitter",
+       [&](double t) {
+         const size_t k = static_cast<size_t>(std::lround(t / 1e-3));
+         return Vec3(circle(t) + jitter[std::min(k, jitter.size() - 1)]);
        }},
       {"reversed three times",
        [&](double t) {
