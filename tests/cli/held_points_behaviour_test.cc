@@ -277,8 +277,8 @@ class BucklingTest : public HeldPointsBehaviourTest {
       EXPECT_EQ(run->err, "");
     } else {
       // Named by the case's entry in the file.
-      const int column_line = 1 + static_cast<int>(std::count(
-                                      yaml.begin(), yaml.begin() + yaml.find("- name: column"), '\n'));
+      const auto column_entry = yaml.begin() + yaml.find("- name: column");
+      const int column_line = 1 + static_cast<int>(std::count(yaml.begin(), column_entry, '\n'));
       EXPECT_THAT(run->err, StartsWith("rodfit simulate: warning: " + dir_.File("scene.yaml") +
                                        ":" + std::to_string(column_line) + ": case column: "));
       EXPECT_THAT(run->err, HasSubstr("unstable"));

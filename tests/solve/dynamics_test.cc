@@ -458,9 +458,9 @@ TEST(Dynamics, Bdf2StartDoesNotChangeTheTrajectory) {
   // The step's convergence test (residual 1e-9 of the forces) leaves ~1e-9 L in the positions.
   for (const Mat3X* x : {&b, &c, &d})
     EXPECT_LT((a - *x).colwise().norm().maxCoeff(), 1e-8 * suture.rod.length);
-  std::printf("[measured] suture fall, 100 steps: %d / %d / %d / %d Newton iterations (second-order "
-              "start / third-order / corrections extrapolated / and on rate), largest difference "
-              "%.1e / %.1e / %.1e L\n",
+  std::printf("[measured] suture fall, 100 steps: %d / %d / %d / %d Newton iterations "
+              "(second-order start / third-order / corrections extrapolated / and on rate), "
+              "largest difference %.1e / %.1e / %.1e L\n",
               second, third, corrected, on_rate,
               (a - b).colwise().norm().maxCoeff() / suture.rod.length,
               (a - c).colwise().norm().maxCoeff() / suture.rod.length,
@@ -474,10 +474,10 @@ TEST(Dynamics, Bdf2StartDoesNotChangeTheTrajectory) {
 // are anything but steady: the suture grasped at its tip is dragged round a circle and reversed
 // dead, held still and jerked by a tenth of an edge; sped up and slowed down; pulled along a
 // line with jerks every 10 ms; round the circle with a device's jitter (where the corrections
-// are never steady: no iterations are saved); reversed three times. Every step converges, in no more
-// iterations than the plain stepper's, and the trajectory is as near a tightly converged one
-// (residual 1e-12) as the plain stepper's: where the extrapolated corrections would point the
-// wrong way they are not used (without that guard the first path ended 14x further off).
+// are never steady); reversed three times. Every step converges, in no more iterations than the
+// plain stepper's, and the trajectory is as near a tightly converged one (residual 1e-12) as the
+// plain stepper's: where the extrapolated corrections would point the wrong way they are not
+// used (without that guard the first path ended 14x further off).
 TEST(Dynamics, FastStartAndStopFollowErraticDrags) {
   Suture suture(40);
   suture.material.damping = 1e-5;
@@ -490,7 +490,9 @@ TEST(Dynamics, FastStartAndStopFollowErraticDrags) {
     if (model.held()[k].kind == HeldVertex::Kind::kGrasp) grasp_index = static_cast<int>(k);
   ASSERT_GE(grasp_index, 0);
   const double w = 2.0 * 3.141592653589793 * 5.0, r = 0.01;  // a 1 cm circle at 5 turns/s
-  auto circle = [&](double u) { return Vec3(L - r + r * std::cos(w * u), r * std::sin(w * u), 0.0); };
+  auto circle = [&](double u) {
+    return Vec3(L - r + r * std::cos(w * u), r * std::sin(w * u), 0.0);
+  };
   // A haptic device's jitter: +-5 um per coordinate in the plane of the drag, new every step.
   std::mt19937 random(7);
   std::uniform_real_distribution<double> uniform(-5e-6, 5e-6);
@@ -512,7 +514,7 @@ TEST(Dynamics, FastStartAndStopFollowErraticDrags) {
        [&](double t) {
          return Vec3(L, 0.2 * t, (static_cast<int>(t / 0.01) % 2 ? 0.05 : -0.05) * l);
        }},
-      {"circle with 10 um jitter",
+      {"circle with +-5 um jitter",
        [&](double t) {
          const size_t k = static_cast<size_t>(std::lround(t / 1e-3));
          return Vec3(circle(t) + jitter[std::min(k, jitter.size() - 1)]);
@@ -524,7 +526,8 @@ TEST(Dynamics, FastStartAndStopFollowErraticDrags) {
   };
   class PathDrive : public Drive {
    public:
-    PathDrive(int index, std::function<Vec3(double)> path) : index_(index), path_(std::move(path)) {}
+    PathDrive(int index, std::function<Vec3(double)> path)
+        : index_(index), path_(std::move(path)) {}
     void PoseAt(const RodModel& m, double t, HeldPose* pose) const override {
       Drive::PoseAt(m, t, pose);
       pose->held[index_] = path_(t);

@@ -404,7 +404,7 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     dyn.integrator = Integrator::kBdf2;
     dyn.failure_reasons = false;  // a failed tick says so by its status, without the heap
     // A tick ends on its last step's contraction (one gradient fewer), and Newton starts from
-    // the drag's extrapolated corrections (half a solve fewer): together 15 % of a dynamic
+    // a steady drag's extrapolated corrections (0.3 solves fewer): together 10 % of a dynamic
     // drag tick's instructions.
     dyn.converge_on_rate = true;
     dyn.extrapolate_corrections = true;

@@ -793,7 +793,8 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
       if (options_.converge_on_rate && last_dx >= 0.0) {
         // Newton and chord iterates converge linearly at least: the error left after this
         // step is about its size times the contraction of the step sizes.
-        const double rate = std::max(dx / std::max(last_dx, kTiny), dth / std::max(last_dth, kTiny));
+        const double rate =
+            std::max(dx / std::max(last_dx, kTiny), dth / std::max(last_dth, kTiny));
         if (rate < 1.0 && dx * rate <= tol * L && dth * rate <= tol) converged = true;
       }
       last_dx = dx;
