@@ -88,11 +88,10 @@ struct DynamicsOptions {
   /// runtime's ticks turn it on (one gradient fewer per tick).
   bool converge_on_rate = false;
   /// Implicit, BDF2: Newton starts from the third-order predictor plus the last two steps'
-  /// corrections (DynamicState::last_correction, older_correction) extrapolated linearly, which
-  /// along a steady motion (a dragged rod) starts it much nearer the step's solution. Off by
-  /// default: a step then converges in fewer iterations but less far below its tolerance,
-  /// which differences of rollouts (central-difference checks of the sensitivities) see; the
-  /// runtime's ticks turn it on.
+  /// corrections (DynamicState::last_correction, older_correction) extrapolated linearly, while
+  /// they are steady, which along a steady motion (a dragged rod) starts it much nearer the
+  /// step's solution. Off by default (it pays along a steady motion only); the runtime's ticks
+  /// turn it on.
   bool extrapolate_corrections = false;
   /// Implicit: converged when the scaled residual (ScaledGradientNorm) is below this times the
   /// larger of the case's load scale and its inertial forces, or when a Newton step moves no
