@@ -56,9 +56,10 @@ Vec6 KbGradient(const ReducedGeometry& g, const Vec3d& D, const Vec3d& n_e, cons
 }
 
 /// Adds sym(J(dK)), the symmetric part of the Jacobian of KbGradient, for K = kb . D with
-/// dK = KbGradient(D). Every term is linear in the data (D, D_e, D_f, n_e, n_f, and dK, K with
-/// them), so one call adds any linear combination of bending measures, the coefficients folded
-/// into the data. DeE = E^T D_e, DfF = F^T D_f, kbDe = kb . D_e, kbDf = kb . D_f.
+/// dK = KbGradient(D), to the blocks of *J that VertexHessianFromFrames reads: the 2 x 2
+/// diagonal blocks whole and the blocks above them (the blocks below are their transposes).
+/// Every term is linear in the data (D, D_e, D_f, n_e, n_f, and dK, K with them), so one call
+/// adds any linear combination of bending measures, the coefficients folded into the data. DeE = E^T D_e, DfF = F^T D_f, kbDe = kb . D_e, kbDf = kb . D_f.
 void AddKbJacobian(const ReducedGeometry& g, const Vec3d& D, const Vec2& DeE, const Vec2& DfF,
                    double kbDe, double kbDf, const Vec3d& n_e, const Vec3d& n_f,
                    const Vec6& dK, double K, Mat6* J) {
@@ -76,7 +77,6 @@ void AddKbJacobian(const ReducedGeometry& g, const Vec3d& D, const Vec2& DeE, co
   X << g.d1e.dot(Dx1), g.d1e.dot(Dx2), g.d2e.dot(Dx1), g.d2e.dot(Dx2);
   const Mat2 ef = -ic * (2.0 * X + g.tfE * wfF.transpose() + K * g.C + weE * g.teF.transpose());
   J->block<2, 2>(0, 2) += ef;
-  J->block<2, 2>(2, 0) += ef.transpose();
   // (t, theta): (2 tf x n - (kb.n) tf) / chi and (2 n x te - (kb.n) te) / chi.
   for (int t = 0; t < 2; ++t) {
     const Vec3d& n = (t == 0) ? n_e : n_f;
@@ -84,9 +84,7 @@ void AddKbJacobian(const ReducedGeometry& g, const Vec3d& D, const Vec2& DeE, co
     const Vec2 e_col = ic * (2.0 * g.ToE(g.tf.cross(n)) - kn * g.tfE);
     const Vec2 f_col = ic * (2.0 * g.ToF(n.cross(g.te)) - kn * g.teF);
     J->block<2, 1>(0, 4 + t) += e_col;
-    J->block<1, 2>(4 + t, 0) += e_col.transpose();
     J->block<2, 1>(2, 4 + t) += f_col;
-    J->block<1, 2>(4 + t, 2) += f_col.transpose();
   }
   // (theta, theta): d n_e / d theta_e = -D_e for both bending directions.
   (*J)(4, 4) -= kbDe;
@@ -95,7 +93,8 @@ void AddKbJacobian(const ReducedGeometry& g, const Vec3d& D, const Vec2& DeE, co
 
 /// Adds coef * sym(J(dDelta)), dDelta = [kb/2, kb/2, -1, 1] (d m = kb . (dte + dtf) / 2):
 /// (te, te) -(kb tf^T + tf kb^T) / 4 chi, (tf, tf) -(kb te^T + te kb^T) / 4 chi,
-/// (te, tf) ([te]x + [tf]x) / 2 chi - (kb te^T + tf kb^T) / 4 chi.
+/// (te, tf) ([te]x + [tf]x) / 2 chi - (kb te^T + tf kb^T) / 4 chi (the blocks AddKbJacobian
+/// adds to).
 void AddTwistCurvature(const ReducedGeometry& g, double coef, Mat6* J) {
   const double c4 = 0.25 * coef * g.ic;
   J->block<2, 2>(0, 0) -= c4 * (g.kbE * g.tfE.transpose() + g.tfE * g.kbE.transpose());
@@ -106,7 +105,6 @@ void AddTwistCurvature(const ReducedGeometry& g, double coef, Mat6* J) {
   S << C(0, 1) - C(1, 0), -C(0, 0) - C(1, 1), C(0, 0) + C(1, 1), C(0, 1) - C(1, 0);
   const Mat2 ef = 2.0 * c4 * S - c4 * (g.kbE * g.teF.transpose() + g.tfE * g.kbF.transpose());
   J->block<2, 2>(0, 2) += ef;
-  J->block<2, 2>(2, 0) += ef.transpose();
 }
 
 }  // namespace
@@ -125,21 +123,21 @@ void VertexHessianEdges(const VertexStencilConstants& c, const double* q, double
 
 void VertexHessianFromFrames(const VertexStencilConstants& c, const StencilFrames& fr,
                              double delta, double* g8, double* H8) {
-  const double l = c.voronoi_length;
+  const double inv_l = 1.0 / c.voronoi_length;  // reciprocals: divisions are slow
   ReducedGeometry g;
   g.te = fr.te, g.tf = fr.tf;
   g.d1e = fr.d1e, g.d2e = fr.d2e, g.d1f = fr.d1f, g.d2f = fr.d2f;
   const double chi = 1.0 + g.te.dot(g.tf);
   g.ic = 1.0 / chi;
-  g.kb = 2.0 * g.te.cross(g.tf) * g.ic;
+  g.kb = (2.0 * g.ic) * g.te.cross(g.tf);
   g.kbE = g.ToE(g.kb), g.kbF = g.ToF(g.kb);
   g.tfE = g.ToE(g.tf), g.teF = g.ToF(g.te);
   g.C << g.d1e.dot(g.d1f), g.d1e.dot(g.d2f), g.d2e.dot(g.d1f), g.d2e.dot(g.d2f);
 
   const double K1 = g.kbE[0] + g.kbF[0], K2 = g.kbE[1] + g.kbF[1];
-  const double a1 = c.B1 * (K1 / (2.0 * l) - c.rest_curvature[0]);
-  const double a2 = c.B2 * (K2 / (2.0 * l) - c.rest_curvature[1]);
-  const double a3 = c.GJ * (delta / l - c.rest_curvature[2]);
+  const double a1 = c.B1 * (K1 * (0.5 * inv_l) - c.rest_curvature[0]);
+  const double a2 = c.B2 * (K2 * (0.5 * inv_l) - c.rest_curvature[1]);
+  const double a3 = c.GJ * (delta * inv_l - c.rest_curvature[2]);
 
   // Gradients of K1 = kb.(d1e + d1f) (n = d2) and K2 = kb.(d2e + d2f) (n = -d1), and of the
   // twist difference Delta: dDelta = [kb/2, kb/2, -1, 1].
@@ -161,8 +159,14 @@ void VertexHessianFromFrames(const VertexStencilConstants& c, const StencilFrame
   const Vec6 dK = c1 * dK1 + c2 * dK2;
   const double K = c1 * K1c + c2 * K2c;
   const double twist_coef = a3;
-  Mat6 J = (c.B1 / (4.0 * l)) * dK1 * dK1.transpose() + (c.B2 / (4.0 * l)) * dK2 * dK2.transpose() +
-           (c.GJ / l) * dDelta * dDelta.transpose();
+  // J is symmetric and read only in its 2 x 2 diagonal blocks and the blocks above them: those
+  // are summed (the Gauss–Newton part here, entry by entry), the blocks below are left zero.
+  const double w1 = c.B1 * (0.25 * inv_l), w2 = c.B2 * (0.25 * inv_l), w3 = c.GJ * inv_l;
+  Mat6 J = Mat6::Zero();
+  for (int col = 0; col < 6; ++col)
+    for (int row = 0; row <= (col | 1); ++row)
+      J(row, col) =
+          w1 * dK1[row] * dK1[col] + w2 * dK2[row] * dK2[col] + w3 * dDelta[row] * dDelta[col];
 
   AddKbJacobian(g, D, Dside, Dside, c1 * g.kbE[0] + c2 * g.kbE[1], c1 * g.kbF[0] + c2 * g.kbF[1],
                 c1 * g.d2e - c2 * g.d1e, c1 * g.d2f - c2 * g.d1f, dK, K, &J);

@@ -153,7 +153,12 @@ bool BandedCholesky::FactorBlocks(const BandedSymmetric& A, double diagonal_shif
       BlockB B;
       for (int c = 0; c < kB; ++c) B.col(c) = a.col(j0 + c).template segment<kB>(d - c);
       for (int K = std::max(0, I - q); K < J; ++K) B.noalias() -= L(I, K) * L(J, K).transpose();
-      blocks[J * stride + (I - J)].noalias() = B * inv.transpose();
+      // B inv^T with inv lower triangular: column c sums B's columns 0..c only.
+      BlockB& LIJ = blocks[J * stride + (I - J)];
+      for (int c = 0; c < kB; ++c) {
+        LIJ.col(c) = B.col(0) * inv(c, 0);
+        for (int k = 1; k <= c; ++k) LIJ.col(c) += B.col(k) * inv(c, k);
+      }
     }
   }
   valid_ = true;

@@ -61,6 +61,11 @@ void AddStencilGradient(int i, const double g8[8], VecX* gradient) {
   const double g_local[12] = {-g8[0],        -g8[1],        -g8[2],        0.0,
                               g8[0] - g8[3], g8[1] - g8[4], g8[2] - g8[5], g8[6],
                               g8[3],         g8[4],         g8[5],         g8[7]};
+  if (base >= 0) {  // every stencil from vertex 2 on: all its dofs are free (no tests per entry)
+    double* g = gradient->data() + base;
+    for (int a = 0; a < 12; ++a) g[a] += g_local[a];  // local 3 (not in the stencil) adds 0
+    return;
+  }
   for (int a = 0; a < 12; ++a)
     if (base + a >= 0 && a != 3) (*gradient)[base + a] += g_local[a];
 }
@@ -173,14 +178,15 @@ void ComputeRodFrames(const RodModel& model, const RodState& state, int first, i
     RodFrames::Edge& f = frames->edges[j + 1];
     const Vec3 e = state.e.col(j);
     f.len = std::sqrt(e.squaredNorm());
-    f.t = e / f.len;
+    f.t = e * (1.0 / f.len);  // one division (e / len is three)
     const Vec3 t_old = state.ref_t.col(j), u_old = state.ref_u.col(j);
     frames->fresh = frames->fresh && (f.t - t_old).cwiseAbs().maxCoeff() <= 1e-13;
     // The transport linearised about the reference tangent, as in VertexGeometry<double, true>:
     // the identity where frames are fresh.
     const Vec3 u = u_old - t_old * (f.t - t_old).dot(u_old);
     const Vec3 v = f.t.cross(u);
-    const double c = std::cos(state.theta[j]), sn = std::sin(state.theta[j]);
+    double c, sn;
+    SinCos(state.theta[j], &c, &sn);
     f.d1 = c * u + sn * v;
     f.d2 = -sn * u + c * v;
   }
@@ -190,7 +196,8 @@ void ComputeRodFrames(const RodModel& model, const RodState& state, int first, i
     g.t = state.end_t;
     g.len = model.end_ghost_length();
     const Vec3 v = g.t.cross(state.end_u);
-    const double c = std::cos(state.end_theta), sn = std::sin(state.end_theta);
+    double c, sn;
+    SinCos(state.end_theta, &c, &sn);
     g.d1 = c * state.end_u + sn * v;
     g.d2 = -sn * state.end_u + c * v;
   }
@@ -205,7 +212,7 @@ struct FreshStencilGeometry {
   FreshStencilGeometry(const RodFrames::Edge& e, const RodFrames::Edge& f)
       : te(e.t), tf(f.t), d1e(e.d1), d2e(e.d2), d1f(f.d1), d2f(f.d2), len_e(e.len), len_f(f.len) {
     chi = 1.0 + te.dot(tf);
-    kb = 2.0 * te.cross(tf) / chi;
+    kb = (2.0 / chi) * te.cross(tf);
   }
 };
 
@@ -629,31 +636,39 @@ void AssembleGradientRows(const RodModel& model, const RodState& state, const En
 
 bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState* out) {
   const int n = model.num_edges();
+  const Eigen::Index prev_twists = prev.ref_twist.size();  // before the resize (prev may be *out)
+  if (out->ref_twist.size() != n + 1) out->ref_twist.conservativeResize(n + 1);
+  // One pass: edge j's reference frame, then vertex j's reference twist from edge j - 1's
+  // frame (the clamp's for j = 0) to edge j's, both just computed and still in registers.
+  Vec3 te = out->clamp_t, ue = out->clamp_d1;
+  auto reference_twist = [&](int i, const Vec3& tf, const Vec3& uf) {
+    if (te.dot(tf) < -0.99) return false;  // a fold back on itself: kb blows up
+    const Vec3 p = ParallelTransport<double, double>(te, tf, ue);
+    const double raw = SignedAngle<double>(p, uf, tf);
+    const double old = i < prev_twists ? prev.ref_twist[i] : 0.0;
+    out->ref_twist[i] = UnwrapNear(raw, raw, old);
+    return true;
+  };
   for (int j = 0; j < n; ++j) {
     const Vec3 e = out->e.col(j);
     const double len = e.norm();
     if (!(len > 1e-9 * model.rest_edge_length(j))) return false;
-    const Vec3 t = e / len;
+    // Reciprocals: a vector divided by a scalar is three divisions, the slowest arithmetic of
+    // the frame updates, which run three times per Newton iteration of a dynamic tick.
+    const Vec3 t = e * (1.0 / len);
     const Vec3 t_old = prev.ref_t.col(j);
     if (t.dot(t_old) < -0.99) return false;  // transport is singular at a full reversal
     Vec3 u = ParallelTransport<double, double>(t_old, t, Vec3(prev.ref_u.col(j)));
-    u = (u - u.dot(t) * t).normalized();  // remove round-off drift
+    u -= u.dot(t) * t;  // remove round-off drift
+    u *= 1.0 / u.norm();
     out->ref_u.col(j) = u;
     out->ref_t.col(j) = t;
+    if (!reference_twist(j, t, u)) return false;
+    te = t;
+    ue = u;
   }
-  if (out->ref_twist.size() != n + 1) out->ref_twist.conservativeResize(n + 1);
-  const int nb = NumBendingVertices(model);
-  for (int i = 0; i < nb; ++i) {
-    const Vec3 te = (i == 0) ? out->clamp_t : Vec3(out->ref_t.col(i - 1));
-    const Vec3 ue = (i == 0) ? out->clamp_d1 : Vec3(out->ref_u.col(i - 1));
-    const Vec3 tf = (i == n) ? out->end_t : Vec3(out->ref_t.col(i));
-    const Vec3 uf = (i == n) ? out->end_u : Vec3(out->ref_u.col(i));
-    if (te.dot(tf) < -0.99) return false;  // a fold back on itself: kb blows up
-    const Vec3 p = ParallelTransport<double, double>(te, tf, ue);
-    const double raw = SignedAngle<double>(p, uf, tf);
-    const double old = i < prev.ref_twist.size() ? prev.ref_twist[i] : 0.0;
-    out->ref_twist[i] = UnwrapNear(raw, raw, old);
-  }
+  // An end clamp's ghost edge carries one more bending vertex, n.
+  if (NumBendingVertices(model) > n && !reference_twist(n, out->end_t, out->end_u)) return false;
   return true;
 }
 
@@ -764,7 +779,10 @@ double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& 
     const Vec3 e0 = state.e.col(j);
     Vec3 e1 = e0 + step.segment<3>(RodModel::VertexDof(j + 1));
     if (j >= 1) e1 -= step.segment<3>(RodModel::VertexDof(j));
-    lowest_cos = std::min(lowest_cos, e0.normalized().dot(e1.normalized()));
+    // The cosine with one division (normalized() divides each vector by its norm).
+    const double norms = std::sqrt(e0.squaredNorm()) * std::sqrt(e1.squaredNorm());
+    if (std::isnan(norms)) return M_PI;
+    lowest_cos = std::min(lowest_cos, norms > 0.0 ? e0.dot(e1) / norms : 0.0);
   }
   if (!std::isfinite(lowest_cos)) return M_PI;
   return std::acos(std::max(-1.0, std::min(1.0, lowest_cos)));
