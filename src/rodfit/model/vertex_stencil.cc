@@ -59,7 +59,8 @@ Vec6 KbGradient(const ReducedGeometry& g, const Vec3d& D, const Vec3d& n_e, cons
 /// dK = KbGradient(D), to the blocks of *J that VertexHessianFromFrames reads: the 2 x 2
 /// diagonal blocks whole and the blocks above them (the blocks below are their transposes).
 /// Every term is linear in the data (D, D_e, D_f, n_e, n_f, and dK, K with them), so one call
-/// adds any linear combination of bending measures, the coefficients folded into the data. DeE = E^T D_e, DfF = F^T D_f, kbDe = kb . D_e, kbDf = kb . D_f.
+/// adds any linear combination of bending measures, the coefficients folded into the data.
+/// DeE = E^T D_e, DfF = F^T D_f, kbDe = kb . D_e, kbDf = kb . D_f.
 void AddKbJacobian(const ReducedGeometry& g, const Vec3d& D, const Vec2& DeE, const Vec2& DfF,
                    double kbDe, double kbDf, const Vec3d& n_e, const Vec3d& n_f,
                    const Vec6& dK, double K, Mat6* J) {
