@@ -74,9 +74,9 @@ EIGEN_ALWAYS_INLINE double SmallAtan(double z) {
 
 /// cos(x) and sin(x), for |x| <= 1/8 by their series to x^12 and x^13 (the first terms left
 /// out are below 2^-70 of the sums), else std::cos and std::sin: within an ulp of them (10^6
-/// random arguments per range, tests/model/frames_test.cc) at a fifth of the cost. The twist
-/// angles of the material frames, which every frame computation turns by, are nearly all that
-/// small; libm's sine and cosine were 3 % of a dynamic runtime tick.
+/// random arguments per range, tests/model/frames_test.cc) without libm's call and range
+/// reduction. The twist angles of the material frames, which every frame computation turns by,
+/// are mostly that small; libm's sine and cosine took 2 % of a dynamic runtime tick.
 EIGEN_ALWAYS_INLINE void SinCos(double x, double* cosine, double* sine) {
   const double w = x * x;
   if (w <= 1.0 / 64) {
