@@ -637,18 +637,6 @@ void AssembleGradientRows(const RodModel& model, const RodState& state, const En
 bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState* out) {
   const int n = model.num_edges();
   const Eigen::Index prev_twists = prev.ref_twist.size();  // before the resize (prev may be *out)
-  if (out->ref_twist.size() != n + 1) out->ref_twist.conservativeResize(n + 1);
-  // One pass: edge j's reference frame, then vertex j's reference twist from edge j - 1's
-  // frame (the clamp's for j = 0) to edge j's, both just computed and still in registers.
-  Vec3 te = out->clamp_t, ue = out->clamp_d1;
-  auto reference_twist = [&](int i, const Vec3& tf, const Vec3& uf) {
-    if (te.dot(tf) < -0.99) return false;  // a fold back on itself: kb blows up
-    const Vec3 p = ParallelTransport<double, double>(te, tf, ue);
-    const double raw = SignedAngle<double>(p, uf, tf);
-    const double old = i < prev_twists ? prev.ref_twist[i] : 0.0;
-    out->ref_twist[i] = UnwrapNear(raw, raw, old);
-    return true;
-  };
   for (int j = 0; j < n; ++j) {
     const Vec3 e = out->e.col(j);
     const double len = e.norm();
@@ -663,12 +651,20 @@ bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState
     u *= 1.0 / u.norm();
     out->ref_u.col(j) = u;
     out->ref_t.col(j) = t;
-    if (!reference_twist(j, t, u)) return false;
-    te = t;
-    ue = u;
   }
-  // An end clamp's ghost edge carries one more bending vertex, n.
-  if (NumBendingVertices(model) > n && !reference_twist(n, out->end_t, out->end_u)) return false;
+  if (out->ref_twist.size() != n + 1) out->ref_twist.conservativeResize(n + 1);
+  const int nb = NumBendingVertices(model);
+  for (int i = 0; i < nb; ++i) {
+    const Vec3 te = (i == 0) ? out->clamp_t : Vec3(out->ref_t.col(i - 1));
+    const Vec3 ue = (i == 0) ? out->clamp_d1 : Vec3(out->ref_u.col(i - 1));
+    const Vec3 tf = (i == n) ? out->end_t : Vec3(out->ref_t.col(i));
+    const Vec3 uf = (i == n) ? out->end_u : Vec3(out->ref_u.col(i));
+    if (te.dot(tf) < -0.99) return false;  // a fold back on itself: kb blows up
+    const Vec3 p = ParallelTransport<double, double>(te, tf, ue);
+    const double raw = SignedAngle<double>(p, uf, tf);
+    const double old = i < prev_twists ? prev.ref_twist[i] : 0.0;
+    out->ref_twist[i] = UnwrapNear(raw, raw, old);
+  }
   return true;
 }
 
