@@ -602,9 +602,17 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
     for (int k = 0; k < N; ++k)
       (*g)[k] += a * mass_[k] * (delta_[k] - y_[k]) + c * drag_[k] * (delta_[k] - z_[k]);
     for (int r : scratch_->held_rows) (*g)[r] = 0.0;
+    // A NaN entry makes the norm NaN (std::max would drop it), which the caller rejects: a
+    // hostile damping of 1e308 overflows c drag to inf, and inf 0 is NaN. Dropped, the NaN rows
+    // left the twist rows' tiny residual, and the step "converged" without an iteration.
     double norm = 0.0;
-    for (int k = 0; k < N; ++k) norm = std::max(norm, weights_[k] * std::abs((*g)[k]));
-    return norm;
+    bool nan = false;
+    for (int k = 0; k < N; ++k) {
+      const double v = weights_[k] * std::abs((*g)[k]);
+      nan = nan || std::isnan(v);
+      norm = std::max(norm, v);
+    }
+    return nan ? std::numeric_limits<double>::quiet_NaN() : norm;
   };
   double force_tol = -1.0, floor_tol = 0.0;
   // Phi at q, evaluated only when a line search needs it (energy_known).
