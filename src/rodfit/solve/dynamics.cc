@@ -543,7 +543,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   RodState& q = prev_;
   // Delta(q0, q) of the predictor without Delta's transports: Advance transported q's reference
   // directors straight from q0's, so the holonomy term of its twist increments is zero (to
-  // round-off). It saves one of the three Deltas of a tick, 2 % of its instructions.
+  // round-off). It saves one of the three Deltas of a tick, 1 % of its instructions.
   delta_.setZero(N);
   for (int i = 1; i <= n; ++i) delta_.segment<3>(RodModel::VertexDof(i)) = q.x.col(i) - q0.x.col(i);
   for (int j = 0; j < n; ++j) delta_[RodModel::TwistDof(j)] = q.theta[j] - q0.theta[j];
@@ -589,7 +589,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   };
   // The inertia and damping forces of the step at `state`, added to *g: grad Phi = grad Pi - f
   // + a M (d - y) + c C (d - z); then the held rows are zeroed, and the result's largest
-  // weighted entry (weights_: the scaled residual) is returned, all in one pass over the dofs.
+  // weighted entry (weights_: the scaled residual) is returned.
   auto AddStepForces = [&](const RodState& state, VecX* g, bool delta_known) {
     if (!delta_known) Delta(q0, state, &delta_);  // else delta_ holds Delta(q0, state)
     // Into kept scratch: a step allocates nothing once the stepper has taken one (the runtime's
