@@ -298,7 +298,7 @@ class NewtonMinimizer {
   bool Evaluate(bool matrix);
   bool FactorWithShift(double* shift, double* shift_failed);
   bool ResidualConverged() const;
-  bool StepConverged(const RelativeStep& s) const;
+  bool StepConverged(const RelativeStep& s, bool taken = false) const;
   bool LineSearch(double slope, double turn, bool shifted, double* alpha);
   bool EscapeSaddle(VecX d);
   bool BestAlongNegativeCurvature(VecX d, double* best_amplitude, double* best_energy);
