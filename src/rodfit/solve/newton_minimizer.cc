@@ -229,7 +229,7 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
   double g_last = kNaN, g_before_last = kNaN;
   bool last_step_full = false, last_step_chord = false;
   // kWhileContracting: the next iteration is a chord iteration; the residual before it.
-  bool chord_next = false;
+  bool chord_next = contracting && start.factor_nearby;
   double previous_gnorm = kInf;
   // A whole step taken without the merit's test, to be verified by the next residual.
   bool verify_pending = false, verify_chord = false;
@@ -382,12 +382,26 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
     }
     // The step's size against its tolerance, measured once for every test below.
     const RelativeStep measured = p_->Measure(step_);
-    if (!chord && !shifted &&
-        (StepConverged(measured) ||
+    // A small unshifted step: converged. With converge_after_small_step the step is taken first
+    // (Newton's error after it is of the order of its square); otherwise the iterate is within
+    // the step of the solution and is kept (its factor, made here, is then the matrix's own).
+    const bool after = options_.converge_after_small_step;
+    if (!shifted && (!chord || after) &&
+        (StepConverged(measured, after) ||
          (options_.converge_on_decrement && options_.merit == Merit::kEnergy &&
           -g_.dot(step_) <= kDecrementOfNoise * p_->EnergyNoise(Merit())))) {
-      summary_.factor_at_solution = matrix || reuse;
-      return finish(ResidualConverged() ? Termination::kConverged : Termination::kSmallStep);
+      if (!after) {
+        summary_.factor_at_solution = matrix || reuse;
+        return finish(ResidualConverged() ? Termination::kConverged : Termination::kSmallStep);
+      }
+      if (p_->Retract(step_, 1.0)) {
+        p_->AcceptTrial();
+        energy_known_ = false;
+        ++summary_.iterations;
+        if (chord) ++summary_.chord_steps;
+        summary_.residual_at_solution = false;
+        return finish(Termination::kSmallStep);
+      }
     }
     if (!chord && shifted && classify &&
         (ResidualConverged() || StepConverged(measured))) {
@@ -505,8 +519,6 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
     }
     if (alpha == 1.0 && !shifted) {
       const RelativeStep& s = measured;
-      if (options_.converge_after_small_step && StepConverged(s, /*taken=*/true))
-        return finish(Termination::kSmallStep);
       if (options_.converge_on_rate && last_full.x >= 0.0) {
         // Newton and chord iterates converge linearly at least: the error left after this
         // step is about its size times the contraction of the step sizes.

@@ -19,7 +19,16 @@ RodNewtonProblem::RodNewtonProblem(const RodModel& model, double step_tolerance,
     : model_(model),
       weights_(GradientNormWeights(model)),
       step_tolerance_(step_tolerance),
-      step_length_(step_length) {}
+      step_length_(step_length) {
+  // Every iterate and frame list at its size now: the iterations then allocate nothing (the
+  // runtime's ticks rely on it).
+  current_ = model.StraightState();
+  trial_ = current_;
+  previous_ = current_;
+  ComputeRodFrames(model, current_, &frames_);
+  trial_frames_ = frames_;
+  previous_frames_ = frames_;
+}
 
 const RodFrames& RodNewtonProblem::CurrentFrames() {
   if (!frames_valid_) ComputeRodFrames(model_, current_, &frames_);
