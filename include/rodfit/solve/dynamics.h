@@ -69,10 +69,9 @@ const char* IntegratorName(Integrator integrator);
 bool ParseIntegrator(const std::string& name, Integrator* integrator);
 
 struct DynamicsOptions {
-  double time_step = 1e-3;  ///< [s]
-  /// The scheme (the scene YAML's default too: BDF2 damps the unresolved stiff modes of driven
-  /// and stiff rods, which the midpoint keeps).
-  Integrator integrator = Integrator::kBdf2;
+  double time_step = kDefaultTimeStep;  ///< [s]
+  /// The scheme (scene.h, kDefaultIntegrator: the scene YAML's default too).
+  Integrator integrator = Integrator(kDefaultIntegrator);
   /// Explicit only: with a time_step above the stable step, take as many equal substeps as the
   /// stable step needs instead of refusing.
   bool substep = false;
@@ -88,8 +87,8 @@ struct DynamicsOptions {
   /// each of which may be halved again, down to time_step / 2^max_halvings (a driven rod
   /// whose held points jump far in one step leaves Newton's basin); 0: the step fails. A
   /// halved step's sensitivities follow its substeps (StepSensitivity). The scene YAML's
-  /// default too.
-  int max_halvings = 4;
+  /// default too (scene.h).
+  int max_halvings = kDefaultMaxHalvings;
   /// Implicit: the wall time [s] one Step() may take (0: no limit). Newton checks it before
   /// each iteration after the first; a step past it fails with
   /// DynamicsStepSummary::out_of_time, *s unchanged and not halved (the runtime's haptic loop
