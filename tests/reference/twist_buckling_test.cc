@@ -27,9 +27,10 @@ constexpr double kPi = 3.14159265358979323846;
 // 1. Greenhill's problem, closed form.
 //
 // Source of the figure: the clamped-end critical twisting moment of Greenhill's problem,
-// M L / B = 2.861 pi, as issue 38 quotes it (Greenhill, "On the strength of shafting when
-// exposed both to torsion and to end thrust", Proc. Inst. Mech. Eng. 1883). The value follows
-// from the derivation in twist_buckling.h's top comment: tan(phi/2) = phi/2.
+// M L / B = 2.861 pi (A. G. Greenhill, "On the strength of shafting when exposed both to
+// torsion and to end thrust", Proc. Inst. Mech. Eng., 1883). The value follows from the
+// derivation in twist_buckling.h's top comment: tan(phi/2) = phi/2, checked here by a second
+// route (the 4 x 4 determinant of the clamped conditions).
 
 // The general solution of the linearised problem, w = a0 + a1 s + a2 s^2 + D e^{i k s}, under
 // the four clamped conditions: a 4 x 4 complex determinant in phi = k L (L = 1). Written out

@@ -25,8 +25,9 @@
 // e^{-i phi/2}) 2 sin(phi/2) = phi cos(phi/2):  tan(phi/2) = phi/2.  The first positive root is
 // phi/2 = 4.4934094579090641753... (the first positive root of tan x = x), so
 //     M_c L / B = phi_c = 8.9868189158181283506... = 2.8605933062484055... pi,
-// quoted as 2.861 pi for clamped ends in Greenhill's problem (Greenhill 1883; the figure is the
-// one issue 38 quotes, and the derivation above reproduces it), and the critical total roll
+// the figure quoted as 2.861 pi for clamped ends in Greenhill's problem (A. G. Greenhill, "On
+// the strength of shafting when exposed both to torsion and to end thrust", Proc. Inst. Mech.
+// Eng., 1883), which the derivation above reproduces; the critical total roll is
 //     Theta_c = phi_c B / GJ.
 // The kernel is two-dimensional (w and i w: the buckling mode can lie in any plane through the
 // axis), which is why the stability test below is an eigenvalue of a symmetric matrix and not a
@@ -108,6 +109,8 @@
 //                                   initial_guess = nullptr /* (n0, m0) of the untwisted solve */);
 //   struct ClampedStability { lambda_min, index, eigenvalues, asymmetry, jacobian_det_sign };
 //   ClampedStability StabilityOfClampedEquilibrium(props, equilibrium, segments, steps, fd_step);
+// Clamps with a normal parallel to the tangent throw std::invalid_argument (as
+// FrameFromTangentNormal); every other failure is a result with ok = false and a message.
 #pragma once
 
 #include "rodfit/reference/kirchhoff_shooting.h"
@@ -117,6 +120,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -196,7 +200,7 @@ inline const char* RollInstabilityName(RollInstability k) {
 
 struct RollPathPoint {
   double roll_rad = 0.0;
-  double arclength = 0.0;       // pseudo-arclength from the untwisted point
+  double arclength = 0.0;       // pseudo-arclength from the untwisted point [rad of roll]
   double lambda_min = 0.0;      // smallest eigenvalue of the stability matrix H
   int index = 0;                // number of negative eigenvalues of H
   double tangent_roll = 0.0;    // roll component of the unit tangent (sign change: a fold)
@@ -584,7 +588,7 @@ inline CriticalRollResult CriticalRoll(const RodProperties& props, const ClampSp
   auto record = [&](const detail::CurvePoint& c) {
     RollPathPoint pp;
     pp.roll_rad = c.roll;
-    pp.arclength = c.arclength;
+    pp.arclength = c.arclength / P.roll_weight;
     pp.lambda_min = c.lin.stab.lambda_min;
     pp.index = c.lin.stab.index;
     pp.tangent_roll = c.tangent(P.N) / P.roll_weight;
