@@ -100,11 +100,15 @@ bool NewtonMinimizer::FactorWithShift(double* shift, double* shift_failed) {
 bool NewtonMinimizer::ResidualConverged() const { return gnorm_ <= tol_.residual; }
 
 // Convergence by an unshifted Newton step of relative size s at the current residual: within the
-// step tolerance, or within kFloorRelaxation of it where the residual is at its round-off floor;
-// and in either case only with the residual within kFloorRelaxation of its floor.
-bool NewtonMinimizer::StepConverged(const RelativeStep& s) const {
+// step tolerance, or within kFloorRelaxation of it where the residual is at its round-off floor.
+// A step computed at the iterate (not taken) counts only with the residual within
+// kFloorRelaxation of its floor: a factor that lost the soft modes to round-off (a fine, stiff
+// rod's Hessian) gives small steps far from the solution. A step just taken (converge_after_
+// small_step, whose problems' matrices the inertia keeps well conditioned) needs no such guard:
+// Newton's error after it is of the order of its square.
+bool NewtonMinimizer::StepConverged(const RelativeStep& s, bool taken) const {
   const double floor = std::max(tol_.residual, tol_.floor);
-  if (!(gnorm_ <= kFloorRelaxation * floor)) return false;
+  if (!taken && !(gnorm_ <= kFloorRelaxation * floor)) return false;
   return s.Within(1.0) || (gnorm_ <= floor && s.Within(kFloorRelaxation));
 }
 
@@ -225,7 +229,7 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
   double g_last = kNaN, g_before_last = kNaN;
   bool last_step_full = false, last_step_chord = false;
   // kWhileContracting: the next iteration is a chord iteration; the residual before it.
-  bool chord_next = false;
+  bool chord_next = contracting && start.factor_nearby;
   double previous_gnorm = kInf;
   // A whole step taken without the merit's test, to be verified by the next residual.
   bool verify_pending = false, verify_chord = false;
@@ -376,15 +380,31 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
       step_ = -g_;  // solved in place: no temporary per step
       p_->Solver().Solve(&step_);
     }
-    if (!chord && !shifted &&
-        (StepConverged(p_->Measure(step_)) ||
+    // The step's size against its tolerance, measured once for every test below.
+    const RelativeStep measured = p_->Measure(step_);
+    // A small unshifted step: converged. With converge_after_small_step the step is taken first
+    // (Newton's error after it is of the order of its square); otherwise the iterate is within
+    // the step of the solution and is kept (its factor, made here, is then the matrix's own).
+    const bool after = options_.converge_after_small_step;
+    if (!shifted && (!chord || after) &&
+        (StepConverged(measured, after) ||
          (options_.converge_on_decrement && options_.merit == Merit::kEnergy &&
           -g_.dot(step_) <= kDecrementOfNoise * p_->EnergyNoise(Merit())))) {
-      summary_.factor_at_solution = matrix || reuse;
-      return finish(ResidualConverged() ? Termination::kConverged : Termination::kSmallStep);
+      if (!after) {
+        summary_.factor_at_solution = matrix || reuse;
+        return finish(ResidualConverged() ? Termination::kConverged : Termination::kSmallStep);
+      }
+      if (p_->Retract(step_, 1.0)) {
+        p_->AcceptTrial();
+        energy_known_ = false;
+        ++summary_.iterations;
+        if (chord) ++summary_.chord_steps;
+        summary_.residual_at_solution = false;
+        return finish(Termination::kSmallStep);
+      }
     }
     if (!chord && shifted && classify &&
-        (ResidualConverged() || StepConverged(p_->Measure(step_)))) {
+        (ResidualConverged() || StepConverged(measured))) {
       // A stationary point with negative curvature is a saddle (a column past its buckling load,
       // kept straight by symmetry): step along the most negative curvature. No step that lowers
       // the merit beyond round-off means the curvature is round-off around a neutral direction
@@ -472,7 +492,7 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
       // kFloorRelaxation of the step tolerance and cannot lower the merit further is at
       // round-off. (A small step with a large residual is not: the factor lost the soft modes.)
       if (!shifted && !chord && gnorm_ <= kFloorRelaxation * floor_tol &&
-          p_->Measure(step_).Within(kFloorRelaxation)) {
+          measured.Within(kFloorRelaxation)) {
         summary_.factor_at_solution = matrix || reuse;
         return finish(Termination::kRoundOff);
       }
@@ -498,16 +518,14 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
       if (stagnant >= 3) return finish(Termination::kRoundOff);
     }
     if (alpha == 1.0 && !shifted) {
-      const RelativeStep s = p_->Measure(step_);
-      if (options_.converge_after_small_step && StepConverged(s))
-        return finish(Termination::kSmallStep);
+      const RelativeStep& s = measured;
       if (options_.converge_on_rate && last_full.x >= 0.0) {
         // Newton and chord iterates converge linearly at least: the error left after this
         // step is about its size times the contraction of the step sizes.
         const double tiny = std::numeric_limits<double>::min();
         const double rate =
             std::max(s.x / std::max(last_full.x, tiny), s.theta / std::max(last_full.theta, tiny));
-        if (rate < 1.0 && StepConverged({s.x * rate, s.theta * rate}))
+        if (rate < 1.0 && StepConverged({s.x * rate, s.theta * rate}, /*taken=*/true))
           return finish(Termination::kContraction);
       }
       last_full = s;

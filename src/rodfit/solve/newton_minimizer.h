@@ -216,8 +216,8 @@ struct NewtonStart {
   /// The linear solver holds the factor of the matrix at the current iterate: the first
   /// iteration evaluates the residual only and solves with it.
   bool factor_current = false;
-  /// The linear solver holds a factor of a nearby iterate (statics: another model's): the first
-  /// iteration is a chord step when chords are on.
+  /// The linear solver holds a factor of a nearby iterate (statics: another model's; a tick: the
+  /// last tick's): the first iteration is a chord step when chords are on.
   bool factor_nearby = false;
   /// The first whole, unshifted Newton step is verified by the residual (a runtime tick started
   /// from a prediction within the linear response of the equilibrium).
@@ -298,7 +298,7 @@ class NewtonMinimizer {
   bool Evaluate(bool matrix);
   bool FactorWithShift(double* shift, double* shift_failed);
   bool ResidualConverged() const;
-  bool StepConverged(const RelativeStep& s) const;
+  bool StepConverged(const RelativeStep& s, bool taken = false) const;
   bool LineSearch(double slope, double turn, bool shifted, double* alpha);
   bool EscapeSaddle(VecX d);
   bool BestAlongNegativeCurvature(VecX d, double* best_amplitude, double* best_energy);

@@ -19,7 +19,16 @@ RodNewtonProblem::RodNewtonProblem(const RodModel& model, double step_tolerance,
     : model_(model),
       weights_(GradientNormWeights(model)),
       step_tolerance_(step_tolerance),
-      step_length_(step_length) {}
+      step_length_(step_length) {
+  // Every iterate and frame list at its size now: the iterations then allocate nothing (the
+  // runtime's ticks rely on it).
+  current_ = model.StraightState();
+  trial_ = current_;
+  previous_ = current_;
+  ComputeRodFrames(model, current_, &frames_);
+  trial_frames_ = frames_;
+  previous_frames_ = frames_;
+}
 
 const RodFrames& RodNewtonProblem::CurrentFrames() {
   if (!frames_valid_) ComputeRodFrames(model_, current_, &frames_);
@@ -65,26 +74,26 @@ void RodNewtonProblem::RestorePrevious() {
 }
 
 StepCaps RodNewtonProblem::Caps(const VecX& step) {
+  const StepTurnStrain ts = MaxTurnAndStrainChange(model_, current_, step);
   StepCaps caps;
-  caps.turn = MaxTangentTurn(model_, current_, step);
+  caps.turn = ts.turn;
   if (caps.turn > max_turn_) caps.alpha = max_turn_ / caps.turn;
-  const double strain = MaxStrainChange(model_, current_, step);
-  if (caps.alpha * strain > kMaxStrainStep) caps.alpha = kMaxStrainStep / strain;
+  if (caps.alpha * ts.strain > kMaxStrainStep) caps.alpha = kMaxStrainStep / ts.strain;
   return caps;
 }
 
-// The largest position and angle entries of a step (held dofs skipped), over their tolerances.
-// One pass with the two maxima in registers.
+// The largest position and angle entries of a step (held dofs skipped by their zero weight),
+// over their tolerances: blocks [x_i, theta_i] of four dofs (RodModel::VertexDof, TwistDof), the
+// maxima in registers and no branch per entry.
 RelativeStep RodNewtonProblem::Measure(const VecX& step) {
   double x = 0.0, theta = 0.0;
   const int m = static_cast<int>(step.size());
-  for (int k = 0; k < m; ++k) {
-    const double v = weights_[k] == 0.0 ? 0.0 : std::abs(step[k]);
-    if (k % 4 == 3) {
-      theta = std::max(theta, v);
-    } else {
-      x = std::max(x, v);
-    }
+  const double* s = step.data();
+  const double* w = weights_.data();
+  auto held0 = [&](int k) { return w[k] == 0.0 ? 0.0 : std::abs(s[k]); };
+  for (int k = 0; k + 3 < m; k += 4) {
+    x = std::max({x, held0(k), held0(k + 1), held0(k + 2)});
+    theta = std::max(theta, held0(k + 3));
   }
   return {x / (step_tolerance_ * step_length_), theta / step_tolerance_};
 }
