@@ -106,8 +106,8 @@ std::string WriteMujoco(const ExportInput& input) {
          "stiffness E I / l = B / l between segments of length l = " << num(l, "l") << " m.\n"
       << "     Equivalent without the plugin (MuJoCo builds without plugins, e.g. its WebAssembly "
          "build): joint stiffness = " << num(0.5 * (m.B1() + m.B2()) / l, "joint stiffness")
-      << " N m/rad (bending; twist would be GJ / l = " << num(m.twist_stiffness / l, "GJ / l")
-      << ").\n"
+      << " N m/rad (bending; twice that for the first joint, against the clamp's half segment; "
+         "twist would be GJ / l = " << num(m.twist_stiffness / l, "GJ / l") << ").\n"
       << "     Mass per segment body mu l = " << num(body_mass, "mass")
       << " kg; joint damping bend_damping / l. The first body (half a segment) is the clamp"
       << (end_clamp ? ", the last one the end clamp (welded)" : "") << ".\n"
