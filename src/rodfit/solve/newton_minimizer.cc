@@ -353,6 +353,7 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
     }
     const bool shifted = shift > 0.0;
     summary_.shifted = shifted;
+    if (shifted) ++summary_.shifted_factors;
     const bool classify = options_.saddles != Saddles::kIgnore;
     if (factor_here && ResidualConverged() && !(shifted && classify)) {
       summary_.factor_at_solution = !shifted;

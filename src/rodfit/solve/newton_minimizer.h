@@ -231,6 +231,7 @@ struct NewtonSummary {
   int factorizations = 0;
   int saddle_escapes = 0;
   bool shifted = false;   ///< the last factor needed a diagonal shift
+  int shifted_factors = 0;  ///< iterations whose matrix needed a diagonal shift
   /// False when the solve ended at a stationary point with clearly negative curvature.
   bool stable = true;
   /// The last factor is the unshifted matrix at the final iterate (statics keep it).
