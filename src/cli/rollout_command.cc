@@ -45,12 +45,16 @@ int RunRollout(int argc, char** argv) {
   app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (" + fittable +
                  ", linear_density); their scene values are the start, > 0");
   int smooth_frames = 5;
-  bool orient_ends = false;
+  std::string held_ends = "pins";
   app.add_option("--smooth", smooth_frames,
                  "held markers' paths smoothed by a centred quadratic over +-N frames (0: as recorded)")
       ->check(CLI::Range(0, 1000));
-  app.add_flag("--orient-ends", orient_ends,
-               "held markers 1 and n-2 orient the clamps at 0 and n-1 instead of being pinned");
+  app.add_option("--held-ends", held_ends,
+                 "how the held end markers hold the rod: pins (default: a clamp at marker 0 towards "
+                 "marker 1, markers 1 and n-2 pinned), grippers (clamps at markers 0 and n-1, "
+                 "their tangents from the first frames, roll by the minimal-twist frame) or "
+                 "free-roll (as grippers, the end free to turn about its tangent)")
+      ->check(CLI::IsMember({"grippers", "free-roll", "pins"}));
   app.add_option("--max-evaluations", max_evaluations, "rollouts of every recording the fit may take")
       ->check(CLI::Range(1, 100000));
   std::string method = "lm";
@@ -92,7 +96,9 @@ int RunRollout(int argc, char** argv) {
   rodfit::RolloutOptions options;
   options.initial_equilibrium = initial == "equilibrium";
   options.smooth_frames = smooth_frames;
-  options.pin_pairs = !orient_ends;
+  options.held_ends = held_ends == "grippers"    ? rodfit::RolloutOptions::HeldEnds::kGrippers
+                      : held_ends == "free-roll" ? rodfit::RolloutOptions::HeldEnds::kFreeRoll
+                                                 : rodfit::RolloutOptions::HeldEnds::kPinnedPairs;
   options.held_markers.clear();
   {
     std::stringstream ss(held_text);

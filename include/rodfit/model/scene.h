@@ -178,6 +178,10 @@ struct DynamicsSpec {
   /// Implicit: a step whose Newton iterations do not converge is retried in halves, down to
   /// time_step / 2^max_halvings (DynamicsOptions::max_halvings); 0: it fails.
   int max_halvings = kDefaultMaxHalvings;
+  /// Implicit: adaptive substeps whose local error stays within this many metres
+  /// (DynamicsOptions::error_tolerance); 0: fixed steps.
+  double error_tolerance = 0.0;
+  double min_time_step = 1e-7;  ///< [s] adaptive: the shortest substep
 };
 
 /// One quasi-static load case: the rod clamped and loaded, solved to equilibrium.

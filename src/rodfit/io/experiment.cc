@@ -20,6 +20,7 @@
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/model/rod_radius.h"
+#include "rodfit/solve/integrator.h"
 #include "rodfit/vision/camera_file.h"
 
 namespace rodfit {
@@ -1078,7 +1079,8 @@ constexpr double kMaxDynamicSteps = 1e8;
 
 DynamicsSpec ReadDynamics(const Reader& r, const Field& f, int* integrator_line) {
   const Entries m =
-      r.Map(f, {"time_step", "duration", "integrator", "output_every", "substep", "max_halvings"});
+      r.Map(f, {"time_step", "duration", "integrator", "output_every", "substep", "max_halvings",
+                "error_tolerance", "min_time_step"});
   DynamicsSpec d;
   const Field& dt = r.Require(m, f, "time_step");
   d.time_step = r.InRange(dt, 1e-12, 10.0);
@@ -1092,10 +1094,11 @@ DynamicsSpec ReadDynamics(const Reader& r, const Field& f, int* integrator_line)
     d.integrator = r.Text(*integrator);
     // `implicit`: the default implicit integrator (BDF2, docs/solvers.md, "Dynamics").
     if (d.integrator == "implicit") d.integrator = "bdf2";
-    if (d.integrator != "explicit" && d.integrator != "backward_euler" &&
-        d.integrator != "midpoint" && d.integrator != "bdf2")
-      r.Fail(*integrator, "must be explicit, implicit, backward_euler, midpoint or bdf2, got '" +
-                              ClipForMessage(d.integrator) + "'");
+    if (!FindIntegrator(d.integrator)) {
+      std::string names = "implicit";
+      for (const std::string& name : IntegratorNames()) names += ", " + name;
+      r.Fail(*integrator, "must be one of " + names + ", got '" + ClipForMessage(d.integrator) + "'");
+    }
   }
   if (const Field* every = Reader::Find(m, "output_every")) {
     d.output_every = r.Integer(*every);
@@ -1110,6 +1113,13 @@ DynamicsSpec ReadDynamics(const Reader& r, const Field& f, int* integrator_line)
     if (d.max_halvings < 0 || d.max_halvings > kMaxStepHalvings)
       r.Fail(*halvings, "must be in [0, " + std::to_string(kMaxStepHalvings) + "], got " +
                             std::to_string(d.max_halvings));
+  }
+  if (const Field* tol = Reader::Find(m, "error_tolerance")) {
+    if (d.integrator == "explicit") r.Fail(*tol, "is for the implicit integrators only");
+    d.error_tolerance = r.InRange(*tol, 0.0, 1.0);
+  }
+  if (const Field* floor = Reader::Find(m, "min_time_step")) {
+    d.min_time_step = r.InRange(*floor, 1e-12, d.time_step);
   }
   return d;
 }
