@@ -960,6 +960,11 @@ class Builder {
     };
     add_ring(rest, "rest section", "#888888", true);
     add_ring(ring, "fitted deformed section", kFitted, false);
+    // A dent of a fraction of a millimetre on a ring of centimetres: also drawn magnified.
+    const double k = DentMagnification(rest, ring);
+    if (k > 1)
+      add_ring(rest + k * (ring - rest),
+               "fitted dent magnified × " + svg::FormatTick(k, k), "#9467bd", false);
     for (const SurfacePoints& sp : fc.surface_points) {
       svg::Series s;
       s.label = "measured " + sp.label.substr(sp.label.find(' ') + 1);
@@ -979,6 +984,11 @@ class Builder {
                  std::string("The poked cross-section in its plane (equal scales): the ring at "
                              "rest (dashed), the ring deformed at the fitted parameters, and the "
                              "measured surface points.") +
+                     (DentMagnification(rest, ring) > 1
+                          ? " The dent is small against the ring: its displacement is also drawn "
+                            "magnified (purple), to show its shape; the measured points compare "
+                            "with the unmagnified ring."
+                          : "") +
                      (aligned ? "" : " Axes: the world's " + std::string(AxisName(ia)) + " and " +
                                          AxisName(ib) + " projected on the section's plane, "
                                          "which the rod's tangent tilts."));
@@ -1509,9 +1519,9 @@ class Builder {
       f.width = 660;
       f.height = 380;
       f.x.label = arc ? "arc length s [m]" : "angle around the section from d1 [°]";
-      if (arc) {
-        f.x.min = 0.0;
-        f.x.max = in_.rod.length;
+      if (arc) {  // a little beyond the rod, so that markers at its ends are not on the frame
+        f.x.min = -0.03 * in_.rod.length;
+        f.x.max = 1.03 * in_.rod.length;
       } else {
         f.x.min = 0.0;
         f.x.max = 360.0;

@@ -232,6 +232,22 @@ std::vector<json> MovingPart(const FitInput& in, const FitResult& r, size_t ci, 
 
 }  // namespace
 
+double DentMagnification(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& deformed) {
+  if (rest.cols() < 3 || rest.cols() != deformed.cols()) return 1.0;
+  const Eigen::Vector3d centre = rest.rowwise().mean();
+  const double radius = (rest.colwise() - centre).colwise().norm().mean();
+  const double largest = (deformed - rest).colwise().norm().maxCoeff();
+  if (!(largest > 0) || !(radius > 0) || largest >= 0.1 * radius) return 1.0;
+  const double want = 0.2 * radius / largest;
+  double k = std::pow(10.0, std::floor(std::log10(want)));
+  for (double m : {5.0, 2.0})
+    if (m * std::pow(10.0, std::floor(std::log10(want))) <= want) {
+      k = m * std::pow(10.0, std::floor(std::log10(want)));
+      break;
+    }
+  return std::max(1.0, k);
+}
+
 view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitResult& r, size_t c,
                             const std::vector<size_t>& samples, const std::string& id) {
   view3d::View view;
@@ -270,6 +286,15 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
     ring.colour = kFitted;
     ring.width = 6;
     view.traces.push_back(view3d::Line("poked section, fitted", closed(r.sections[c]), {}, ring));
+    const double k = DentMagnification(r.rest_sections[c], r.sections[c]);
+    if (k > 1) {
+      Style dent;
+      dent.colour = "#9467bd";
+      dent.width = 8;
+      view.traces.push_back(view3d::Line(
+          "the dent magnified × " + Num(k, "%g") + " (section displacement)",
+          closed(r.rest_sections[c] + k * (r.sections[c] - r.rest_sections[c])), {}, dent));
+    }
   }
   HeldPoints(fc.load_case, L, &view.traces);
 
@@ -335,7 +360,7 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
     Style observed;
     observed.colour = kObserved;
     observed.symbol = "circle";
-    observed.width = 3;
+    observed.width = 2;
     view.traces.push_back(view3d::Points("measured: " + sp.label, Columns(seen), hover, observed));
     Style arrow;
     arrow.colour = kResidual;

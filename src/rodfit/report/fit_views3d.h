@@ -23,6 +23,11 @@ view3d::View StaticCaseView(const Experiment& experiment, const FitInput& input,
                             const FitResult& result, size_t c, const std::vector<size_t>& samples,
                             const std::string& id);
 
+/// The factor a poked section's displacement (deformed - rest ring nodes) is magnified by so
+/// that a dent of a fraction of a millimetre shows: 1, 2 or 5 x 10^k making the largest
+/// displacement about a fifth of the ring's radius; 1 when it shows as it is (or there is none).
+double DentMagnification(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& deformed);
+
 /// One recorded sample of a moving case's 3-D sequence: where it was seen and where the fitted
 /// run puts it at its time [m].
 struct RecordedSample {
