@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -1409,7 +1410,10 @@ class Builder {
             }
         }
       }
-      // Forces, moments and surface points.
+      // Forces, moments and surface points. A force or moment reading is drawn at the arc
+      // length of the held point it was read at (the k-th reading of an entry in the case is its
+      // k-th ForceMeasurement).
+      std::map<std::pair<std::string, std::string>, int> readings;  // (entry, unit) -> count
       for (const MeasurementResidual& mr : r_.measurement_residuals) {
         if (mr.case_index != static_cast<int>(ci)) continue;
         const std::string label = mr.unit == "N m" ? mr.observation + " (moments)" : mr.observation;
@@ -1417,6 +1421,16 @@ class Builder {
         std::vector<double> comps;
         double x = NAN;
         ResidualSeries::Along along = ResidualSeries::Along::kReading;
+        if (mr.unit == "N" || mr.unit == "N m") {
+          int k = readings[{mr.observation, mr.unit}]++;
+          for (const ForceMeasurement& fm : fc.grasp_forces) {
+            const std::string& name = fm.observation.empty() ? fm.label : fm.observation;
+            if (name != mr.observation || k-- != 0) continue;
+            x = HeldArcLength(fc.load_case, fm.point);
+            if (std::isfinite(x)) along = ResidualSeries::Along::kArc;
+            break;
+          }
+        }
         if (mr.unit == "m" && shapes_ok_ && ci < r_.sections.size() && r_.sections[ci].cols() > 2) {
           // A surface point: across the ring, as the centre-line points, at its angle around
           // the section.
@@ -1430,6 +1444,8 @@ class Builder {
         ResidualSeries& s = series(label, along);
         if (along == ResidualSeries::Along::kReading)
           x = static_cast<double>(s.x.empty() ? 1 : s.x.back() + 1);
+        else if (s.along != along)
+          continue;  // an entry drawn against another axis (cannot happen: one kind per entry)
         if (comps.empty()) comps = {e.x(), e.y(), e.z()};
         for (double v : comps) {
           s.x.push_back(x);
@@ -1438,6 +1454,19 @@ class Builder {
       }
     }
     return out;
+  }
+
+  // The arc length [m] of a case's held point as a ForceMeasurement names it (clamp, end_clamp,
+  // end_pin, pins[k], grasp); NaN for another.
+  double HeldArcLength(const LoadCase& lc, const std::string& point) const {
+    if (point == "clamp") return 0.0;
+    if (point == "end_clamp" || point == "end_pin") return in_.rod.length;
+    if (point == "grasp" && lc.grasp) return lc.grasp->s;
+    if (point.rfind("pins[", 0) == 0) {
+      const size_t k = std::strtoul(point.c_str() + 5, nullptr, 10);
+      if (k < lc.pins.size()) return lc.pins[k].s;
+    }
+    return NAN;
   }
 
   // The rest arc lengths of a fit case's fitted vertices: its rod model's (held points move the
@@ -1504,8 +1533,8 @@ class Builder {
 
   void CaseResiduals(size_t c) {
     const std::vector<ResidualSeries> all = ResidualsOfCase(c);
-    // One figure per kind of x: along the rod, around the section; force readings have their
-    // own figure (ForcePlots).
+    // One figure per kind of x: along the rod (centre-line entries, and force readings at
+    // their held point), around the section (surface points).
     for (const ResidualSeries::Along along :
          {ResidualSeries::Along::kArc, ResidualSeries::Along::kAngle}) {
       std::vector<const ResidualSeries*> shown;
@@ -1573,9 +1602,10 @@ class Builder {
       page_.Figure(f, "residual-plot",
                    std::string(arc ? "residuals_" : "surface_residuals_") + e_.scene.cases[c].name,
                    " data-case=\"" + Escape(e_.scene.cases[c].name) + "\"",
-                   arc ? "Every residual component of the case's centre-line entries divided by "
-                         "its entry's sigma, against where on the rod it was measured (a marker's "
-                         "s; a point's or pixel's closest point on the fitted centre-line; "
+                   arc ? "Every residual component of the case divided by its entry's sigma, "
+                         "against where on the rod it was measured (a marker's s; a point's or "
+                         "pixel's closest point on the fitted centre-line; a force reading at its "
+                         "held point; "
                          "closest-point entries: the components across the curve only). About 68 % "
                          "should lie in the ±1 σ band and nearly all in ±3 σ when the model and "
                          "the sigmas are right; a trend along s is a model error there."

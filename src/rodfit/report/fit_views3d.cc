@@ -4,17 +4,22 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <stdexcept>
 
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/observations.h"
+#include "rodfit/report/svg_plot.h"
 
 namespace rodfit {
 namespace {
 
 using nlohmann::json;
 using view3d::Style;
+// Text from the input (case names, file names) is escaped: plotly.js renders names, titles and
+// hover texts as a subset of HTML.
+std::string Text(const std::string& s) { return svg::Escape(s); }
 
 const char* const kFitted = "#1f5fbf";     // the model: blue
 const char* const kObserved = "#d62728";   // measurements: red
@@ -210,6 +215,10 @@ std::vector<json> MovingPart(const FitInput& in, const FitResult& r, size_t ci, 
     Eigen::Vector3d at = fc.load_case.grasp && m.point == "grasp" ? fc.load_case.grasp->position
                                                                    : Eigen::Vector3d(shape.col(0));
     if (m.point == "end_clamp" || m.point == "end_pin") at = shape.col(shape.cols() - 1);
+    if (m.point.rfind("pins[", 0) == 0) {
+      const size_t pin = std::strtoul(m.point.c_str() + 5, nullptr, 10);
+      if (pin < fc.load_case.pins.size()) at = fc.load_case.pins[pin].position;
+    }
     measured.Add(at, m.force, "measured force on the " + m.point);
     if (k < errors.size())
       fitted.Add(at, m.force + errors[k]->error,
@@ -253,7 +262,7 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
   view3d::View view;
   view.id = id;
   const FitCase& fc = in.cases[c];
-  view.title = "Case " + fc.load_case.name + " in 3-D (drag to turn, scroll to zoom, hover for values)";
+  view.title = "Case " + Text(fc.load_case.name) + " in 3-D (drag to turn, scroll to zoom, hover for values)";
   const Eigen::Matrix3Xd& shape = r.shapes[c];
   const std::vector<double> arc = ArcLengths(in, fc.load_case, shape.cols());
   const double L = in.rod.length;
@@ -301,7 +310,7 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
   // Markers and points with their residual vectors.
   for (size_t k = 0; k < fc.observations.size(); ++k) {
     const Observation& obs = *fc.observations[k];
-    const std::string label = k < fc.labels.size() ? fc.labels[k] : obs.type();
+    const std::string label = Text(k < fc.labels.size() ? fc.labels[k] : obs.type());
     VecX res;
     const bool ok = obs.Evaluate(shape, &res);
     std::vector<Eigen::Vector3d> seen, model;
@@ -361,7 +370,7 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
     observed.colour = kObserved;
     observed.symbol = "circle";
     observed.width = 2;
-    view.traces.push_back(view3d::Points("measured: " + sp.label, Columns(seen), hover, observed));
+    view.traces.push_back(view3d::Points("measured: " + Text(sp.label), Columns(seen), hover, observed));
     Style arrow;
     arrow.colour = kResidual;
     arrow.width = 4;
@@ -392,12 +401,12 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
   if (!samples.empty()) {
     const int first = static_cast<int>(view.traces.size());
     for (size_t i = 0; i < moving.size(); ++i) view.animated.push_back(first + static_cast<int>(i));
-    view.frames.push_back({fc.load_case.name, moving});
+    view.frames.push_back({Text(fc.load_case.name), moving});
     for (size_t k : samples) {
       if (k >= r.shapes.size()) continue;
       const std::string& name = in.cases[k].load_case.name;
       const size_t at = name.find("@t=");
-      view.frames.push_back({at == std::string::npos ? name : name.substr(at + 3) + " s",
+      view.frames.push_back({Text(at == std::string::npos ? name : name.substr(at + 3) + " s"),
                              MovingPart(in, r, k, L, metres_per_newton, true)});
     }
     view.slider_prefix = "haptic sample: ";
@@ -416,7 +425,7 @@ bool MovingCaseView(const Experiment& e, const FitResult& r, size_t c,
   const LoadCase& lc = e.scene.cases[c];
   const double L = e.scene.rod.length;
   view->id = id;
-  view->title = "Case " + lc.name + " in 3-D over time (drag to turn, scroll to zoom, slider or ▶ "
+  view->title = "Case " + Text(lc.name) + " in 3-D over time (drag to turn, scroll to zoom, slider or ▶ "
                 "for the recorded frames)";
   // What stays: the held points at the start, and every recorded sample faintly (the paths).
   HeldPoints(lc, L, &view->traces);
@@ -429,7 +438,7 @@ bool MovingCaseView(const Experiment& e, const FitResult& r, size_t c,
     paths.colour = "#f4a3a3";
     paths.width = 2;
     paths.opacity = 0.6;
-    view->traces.push_back(view3d::Points("all recorded samples: " + entry, Columns(seen), {}, paths));
+    view->traces.push_back(view3d::Points("all recorded samples: " + Text(entry), Columns(seen), {}, paths));
   }
   // What moves: per recorded time, the fitted centre-line, the samples seen then and the
   // model's positions of them, with the residual vectors.

@@ -1,7 +1,9 @@
 // plotly_library.h: the reports' plotly.js, found once per process.
 #include "rodfit/report/plotly_library.h"
 
+#include <algorithm>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <vector>
@@ -45,9 +47,19 @@ PlotlyLibrary Find() {
     }
     return lib;
   }
-  for (const std::string& path : {std::string(RODFIT_PLOTLY_JS_PATH),
+  // An installed rodfit (cmake --install, any prefix) has its copy in PREFIX/share/rodfit,
+  // beside PREFIX/bin where the running executable is.
+  std::string beside_executable;
+  {
+    std::error_code ec;
+    const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec)
+      beside_executable =
+          (exe.parent_path().parent_path() / "share/rodfit/plotly-gl3d.min.js").string();
+  }
+  for (const std::string& path : {std::string(RODFIT_PLOTLY_JS_PATH), beside_executable,
                                   std::string(RODFIT_INSTALL_PREFIX "/share/rodfit/plotly-gl3d.min.js")}) {
-    if (path.empty()) continue;
+    if (path.empty() || std::find(tried.begin(), tried.end(), path) != tried.end()) continue;
     tried.push_back(path);
     if (ReadLibrary(path, &lib.script)) {
       lib.path = path;

@@ -16,8 +16,9 @@ struct PlotlyLibrary {
 };
 
 /// Reads plotly.js from, in order: the file named by the environment variable RODFIT_PLOTLY_JS,
-/// the file CMake found (RODFIT_PLOTLY_JS at configure time), and the install prefix's
-/// share/rodfit/plotly-gl3d.min.js. Read once per process.
+/// the file CMake found (RODFIT_PLOTLY_JS at configure time), share/rodfit/plotly-gl3d.min.js
+/// beside the running executable's bin/ (an installed rodfit), and the configured install
+/// prefix's. Read once per process.
 const PlotlyLibrary& FindPlotlyLibrary();
 
 }  // namespace rodfit

@@ -79,7 +79,7 @@ void Recording(Page* page, const RolloutRecordingReport& r, size_t index, int* v
   if (frames > 0) {
     view3d::View view;
     view.id = "view3d-recording-" + std::to_string(index);
-    view.title = "Recording " + name + " in 3-D (drag to turn, scroll to zoom, slider or ▶ for the frames)";
+    view.title = "Recording " + Escape(name) + " in 3-D (drag to turn, scroll to zoom, slider or ▶ for the frames)";
     std::vector<Eigen::Vector3d> all;
     for (size_t k = 0; k < frames; ++k)
       for (Eigen::Index m = 0; m < markers; ++m)
