@@ -273,7 +273,7 @@ int RunFit(int argc, char** argv) {
       const rodfit::RodModel model(input.rod, input.material, input.gravity, c.load_case,
                                    input.springs);
       for (const std::string& span : model.StretchedSpans(0.01))
-        stretched.push_back("case " + c.load_case.name + ": " + span);
+        stretched.push_back("case " + rodfit::DisplayCaseName(c.load_case.name) + ": " + span);
     } catch (const std::invalid_argument&) {
       // The fit names what is wrong with the case.
     }

@@ -209,17 +209,12 @@ FitInput BuildFitInput(const Experiment& e) {
              QuasiStaticSamples(spec, e.scene.cases[c].clamp.position, L)) {
           FitCase gc;
           gc.load_case = e.scene.cases[c];
-          // The sample's time as a person reads it (6 digits: "0.165", not the
-          // 0.16500000000000001 the log's arithmetic left); samples are far more than 1e-6
-          // apart, so the names stay distinct.
-          char when[32];
-          std::snprintf(when, sizeof(when), "%.6g", h.t);
-          gc.load_case.name += std::string("@t=") + when;
+          gc.load_case.name += "@t=" + FormatDouble(h.t);
           gc.load_case.grasp = Grasp{spec.s.at(0), h.tool};
           ForceMeasurement f;
           f.force = h.force;
           f.sigma = spec.sigma;
-          f.label = Label(spec) + " t=" + when;
+          f.label = Label(spec) + " t=" + FormatDouble(h.t);
           f.time = h.t;
           f.observation = Label(spec);
           f.type = spec.type;

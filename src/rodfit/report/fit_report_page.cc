@@ -23,6 +23,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/image_observations.h"
 #include "rodfit/model/rod.h"
+#include "rodfit/report/fit_report.h"
 #include "rodfit/report/fit_views3d.h"
 #include "rodfit/report/plotly_library.h"
 #include "rodfit/report/svg_plot.h"
@@ -571,7 +572,8 @@ class Builder {
         page_.html << "<h3 class=\"case\" id=\"case-" << c << "\">Case <code>"
                    << Escape(e_.scene.cases[c].name) << "</code></h3>\n";
         view3d::View view;
-        if (MovingCaseView(e_, r_, c, RecordedSamples(c), "view3d-case-" + std::to_string(c), &view))
+        if (MovingCaseView(e_, r_, c, RecordedSamples(c), RecordedForces(c),
+                           "view3d-case-" + std::to_string(c), &view))
           View(view);
         page_.html << "<div class=\"figures\">\n";
         SequenceViews(c);
@@ -642,6 +644,48 @@ class Builder {
         }
         rs.entry = label;
         out.push_back(rs);
+      }
+    }
+    return out;
+  }
+
+  // A moving case's load cell readings (its `reaction` entries), with the fitted run's force.
+  std::vector<RecordedForce> RecordedForces(size_t c) const {
+    std::vector<RecordedForce> out;
+    const std::string& case_name = e_.scene.cases[c].name;
+    for (const ObservationSpec& spec : e_.cases[c].observations) {
+      if (spec.type != "reaction") continue;
+      const std::string label = EntryLabel(spec);
+      std::map<double, Vec3> recorded;  // as ReactionSequenceViews reads them
+      try {
+        const CsvTable table = CsvTable::Read(spec.file);
+        const bool by_time = table.HasColumn("t");
+        const std::vector<double> key = table.Column(by_time ? "t" : "frame");
+        std::vector<std::vector<std::string>> text;
+        for (const char* col : {"fx", "fy", "fz"}) text.push_back(table.TextColumn(col));
+        for (int row = 0; row < table.num_rows(); ++row) {
+          Vec3 f;
+          bool taken = true;
+          for (int i = 0; i < 3; ++i) taken = taken && ParseDouble(text[i][row], &f[i]);
+          if (taken) recorded[by_time ? key[row] : key[row] / spec.frame_rate] = f;
+        }
+      } catch (const InputError&) {
+        continue;
+      }
+      std::vector<const MeasurementResidual*> force(recorded.size(), nullptr);
+      for (const MeasurementResidual& mr : r_.measurement_residuals)
+        if (mr.case_name == case_name && mr.observation == label && mr.unit == "N" &&
+            mr.measurement >= 0 && static_cast<size_t>(mr.measurement) < force.size())
+          force[mr.measurement] = &mr;
+      size_t k = 0;
+      for (const auto& [t, value] : recorded) {
+        RecordedForce rf;
+        rf.t = t;
+        rf.point = spec.point;
+        rf.measured = value;
+        if (force[k]) rf.model = value + force[k]->error;
+        out.push_back(rf);
+        ++k;
       }
     }
     return out;
@@ -1675,7 +1719,7 @@ class Builder {
     h << "<h3>RMS per observation entry</h3>\n<table class=\"rms\">\n<tr><th>case</th>"
          "<th>entry</th><th>type</th><th>count</th><th>RMS</th></tr>\n";
     for (const ObservationFit& o : r_.observations) {
-      h << "<tr><td>" << Escape(o.case_name) << "</td><td>" << Escape(o.label) << "</td><td>"
+      h << "<tr><td>" << Escape(DisplayCaseName(o.case_name)) << "</td><td>" << Escape(o.label) << "</td><td>"
         << Escape(o.type) << "</td><td class=\"num\">" << o.num_measurements
         << "</td><td class=\"num\">" << WithUnit(o.rms, o.unit, 3);
       if (std::isfinite(o.rms_moment)) h << "; moments " << WithUnit(o.rms_moment, "N m", 3);

@@ -10,6 +10,7 @@
 
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/observations.h"
+#include "rodfit/report/fit_report.h"
 #include "rodfit/report/svg_plot.h"
 
 namespace rodfit {
@@ -404,7 +405,7 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
     view.frames.push_back({Text(fc.load_case.name), moving});
     for (size_t k : samples) {
       if (k >= r.shapes.size()) continue;
-      const std::string& name = in.cases[k].load_case.name;
+      const std::string name = DisplayCaseName(in.cases[k].load_case.name);
       const size_t at = name.find("@t=");
       view.frames.push_back({Text(at == std::string::npos ? name : name.substr(at + 3) + " s"),
                              MovingPart(in, r, k, L, metres_per_newton, true)});
@@ -416,7 +417,8 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
 }
 
 bool MovingCaseView(const Experiment& e, const FitResult& r, size_t c,
-                    const std::vector<RecordedSample>& samples, const std::string& id,
+                    const std::vector<RecordedSample>& samples,
+                    const std::vector<RecordedForce>& forces, const std::string& id,
                     view3d::View* view) {
   const FittedRun* run = nullptr;
   for (const FittedRun& tr : r.trajectories)
@@ -443,7 +445,13 @@ bool MovingCaseView(const Experiment& e, const FitResult& r, size_t c,
   // What moves: per recorded time, the fitted centre-line, the samples seen then and the
   // model's positions of them, with the residual vectors.
   const int first = static_cast<int>(view->traces.size());
-  for (int i = 0; i < 4; ++i) view->animated.push_back(first + i);
+  // 4 traces of the rod and its samples, and with a load cell 2 arrows (shaft and head each).
+  const int animated = forces.empty() ? 4 : 8;
+  for (int i = 0; i < animated; ++i) view->animated.push_back(first + i);
+  double largest = 0.0;
+  for (const RecordedForce& f : forces)
+    largest = std::max({largest, f.measured.norm(), f.model.allFinite() ? f.model.norm() : 0.0});
+  const double metres_per_newton = largest > 0 ? 0.25 * L / largest : 0.0;
   for (size_t k = 0; k < run->t.size(); ++k) {
     const double t = run->t[k];
     std::vector<json> traces;
@@ -479,6 +487,26 @@ bool MovingCaseView(const Experiment& e, const FitResult& r, size_t c,
     arrow.width = 4;
     traces.push_back(view3d::Segments("residual vectors (recorded → predicted)", Columns(seen),
                                       Columns(model), hover, arrow));
+    if (!forces.empty()) {
+      // The first load cell reading at this time, at its held point on the run's rod.
+      ArrowSet measured, fitted;
+      for (const RecordedForce& f : forces) {
+        if (std::abs(f.t - t) > 1e-9 * std::max(1.0, std::abs(t))) continue;
+        const Eigen::Vector3d at = f.point == "clamp" ? Eigen::Vector3d(run->x[k].col(0))
+                                                      : Eigen::Vector3d(run->x[k].col(run->x[k].cols() - 1));
+        measured.Add(at, f.measured, "force on the " + Text(f.point) + " read at t = " + view3d::TimeLabel(t));
+        if (f.model.allFinite())
+          fitted.Add(at, f.model, "force on the " + Text(f.point) + " of the fitted run");
+        break;
+      }
+      Style fm;
+      fm.colour = kObserved;
+      fm.width = 5;
+      DrawArrows("load cell: measured force", measured, metres_per_newton, 0.02 * L, fm, &traces);
+      Style ff = fm;
+      ff.colour = kFitted;
+      DrawArrows("load cell: fitted force", fitted, metres_per_newton, 0.02 * L, ff, &traces);
+    }
     view->frames.push_back({view3d::TimeLabel(t), std::move(traces)});
   }
   view->traces.insert(view->traces.end(), view->frames.front().traces.begin(),

@@ -39,11 +39,21 @@ struct RecordedSample {
   std::string entry;              ///< "markers3d swing_markers.csv"
 };
 
+/// One reading of a load cell at a held point of a moving case, and the fitted run's force there.
+struct RecordedForce {
+  double t = 0.0;        ///< [s]
+  std::string point;     ///< clamp, end_clamp, end_pin
+  Eigen::Vector3d measured = Eigen::Vector3d::Zero();              ///< [N]
+  Eigen::Vector3d model = Eigen::Vector3d::Constant(NAN);          ///< [N]
+};
+
 /// The view of moving case `c` over its run (result.trajectories): the fitted centre-line at each
-/// recorded time with the samples seen then, observed and predicted. False (nothing in *view)
-/// when the case has no trajectory.
+/// recorded time with the samples seen then, observed and predicted, and a load cell's force
+/// read then, measured and fitted, as arrows. False (nothing in *view) when the case has no
+/// trajectory.
 bool MovingCaseView(const Experiment& experiment, const FitResult& result, size_t c,
-                    const std::vector<RecordedSample>& samples, const std::string& id,
+                    const std::vector<RecordedSample>& samples,
+                    const std::vector<RecordedForce>& forces, const std::string& id,
                     view3d::View* view);
 
 }  // namespace rodfit
