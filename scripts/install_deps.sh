@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Installs what rodfit builds against, only what is missing: Debian packages (apt-get) and the
-# report's 3-D plotting library (plotly.js's gl3d bundle, from the npm registry). With --tests,
+# Installs what rodfit builds against, only what is missing: Debian packages (apt-get), the
+# report's 3-D plotting library (plotly.js's gl3d bundle, from the npm registry) and the npm
+# package one test uses (MuJoCo's WebAssembly build). With --tests,
 # also what the test suite needs beyond the build: Debian's `chromium`, in which the report test
 # loads every report headless (tests/report/report_browser_test.cc).
 # Idempotent: a machine that has them all is left untouched (no apt-get update either).
@@ -48,4 +49,12 @@ if ! plotly_installed; then
   $SUDO npm install --prefix "$plotly_prefix" --no-save --no-package-lock --no-audit --no-fund \
     --loglevel=error "$plotly_package@$plotly_version" >/dev/null
   plotly_installed || { echo "install_deps: $plotly_file missing after npm install" >&2; exit 1; }
+fi
+# npm: MuJoCo's WebAssembly build for the test that loads the MuJoCo export
+# (tests/export/package.json, package-lock.json), when the machine has node and npm; without them
+# that test is skipped. Only installed once (node_modules kept).
+export_tests="$(cd "$(dirname "$0")/.." && pwd)/tests/export"
+if command -v npm >/dev/null 2>&1 && [ ! -d "$export_tests/node_modules/mujoco-js" ]; then
+  echo "install_deps: npm ci in tests/export (mujoco-js)" >&2
+  npm ci --prefix "$export_tests" --no-audit --no-fund >/dev/null
 fi

@@ -3,7 +3,7 @@
 # Chromium (Debian's `chromium`: bash scripts/install_deps.sh --tests) after the page's 3-D views
 # are drawn: the static suture cantilever, the tissue drag and poke, the moving suture swing, a
 # rollout of the cable recording (with --fit) and `rodfit bench --quick`. Writes the reports into
-# out/ and the pictures into out/screenshots/; with --docs also the README's two
+# out/ and the pictures into out/screenshots/; with --docs also the two the docs link
 # (docs/images/report_suture.png, docs/images/report_tissue_drag.png). Needs build/rodfit.
 set -euo pipefail
 cd "$(dirname "$0")/.."
