@@ -90,6 +90,14 @@ int RunRollout(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  if (!report_dir.empty()) {
+    // Two staged directories moved onto one folder would replace each other: said before any
+    // work.
+    std::error_code ec;
+    if (std::filesystem::weakly_canonical(report_dir, ec) ==
+        std::filesystem::weakly_canonical(output_dir, ec))
+      throw std::invalid_argument("--report DIR must differ from -o DIR (" + output_dir + ")");
+  }
   const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
   if (!experiment.scene.dynamics)
     throw rodfit::InputError(scene_path, 1, "dynamics", "rollout needs a dynamics: block");

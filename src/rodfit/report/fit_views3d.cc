@@ -258,7 +258,8 @@ double DentMagnification(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& d
   return std::max(1.0, k);
 }
 
-view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitResult& r, size_t c,
+view3d::View StaticCaseView(const Experiment& /*experiment: the static case is in.cases[c]*/,
+                            const FitInput& in, const FitResult& r, size_t c,
                             const std::vector<size_t>& samples, const std::string& id) {
   view3d::View view;
   view.id = id;
@@ -267,7 +268,6 @@ view3d::View StaticCaseView(const Experiment& e, const FitInput& in, const FitRe
   const Eigen::Matrix3Xd& shape = r.shapes[c];
   const std::vector<double> arc = ArcLengths(in, fc.load_case, shape.cols());
   const double L = in.rod.length;
-  (void)e;
   // The scale of every force arrow of the view: the largest as long as a quarter of the rod.
   double largest = LargestForce(fc, r, c);
   for (size_t k : samples) largest = std::max(largest, LargestForce(in.cases[k], r, k));
