@@ -342,7 +342,7 @@ view3d::View StaticCaseView(const Experiment& /*experiment: the static case is i
     view.traces.push_back(view3d::Points("observed: " + label, Columns(seen), hover, observed));
     Style fitted;
     fitted.colour = kFitted;
-    fitted.symbol = "x";
+    fitted.symbol = "diamond";
     fitted.width = 4;
     fitted.group = "residual vectors";
     view.traces.push_back(view3d::Points("model at the fit", Columns(model), hover, fitted));
@@ -479,7 +479,7 @@ bool MovingCaseView(const Experiment& e, const FitResult& r, size_t c,
     traces.push_back(view3d::Points("recorded at t", Columns(seen), hover, observed));
     Style predicted;
     predicted.colour = kFitted;
-    predicted.symbol = "x";
+    predicted.symbol = "diamond";
     predicted.width = 5;
     traces.push_back(view3d::Points("predicted at t (fitted run)", Columns(model), hover, predicted));
     Style arrow;

@@ -215,7 +215,8 @@ std::string RenderView(const View& view) {
           {"len", 0.88},
           {"y", 0.0},
           {"pad", {{"t", 30}}},
-          {"currentvalue", {{"prefix", view.slider_prefix}, {"font", {{"size", 13}}}}}}});
+          {"currentvalue",
+           {{"prefix", view.slider_prefix}, {"font", {{"size", 13}, {"color", "#222222"}}}}}}});
     // More steps than fit their labels side by side: the labels hidden (transparent), the
     // current one shown above the slider.
     if (view.frames.size() > 12)

@@ -26,7 +26,9 @@ struct Style {
   std::string colour = "#1f5fbf";  ///< any CSS colour
   double width = 5.0;              ///< [px] line width, or marker size
   bool dashed = false;
-  std::string symbol = "circle";   ///< markers: circle, circle-open, cross, diamond, square, x
+  /// markers: circle, circle-open, diamond, square (drawn as the font's glyphs: "x" and
+  /// "cross" show as boxes where the font lacks them, e.g. headless Chromium's)
+  std::string symbol = "circle";
   double opacity = 1.0;
   bool legend = true;              ///< listed in the legend
   std::string group;               ///< legend group: traces toggled together (default: the name)
