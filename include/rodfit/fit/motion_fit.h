@@ -15,12 +15,14 @@
 // vertex Jacobian chained with the trajectory's sensitivities d x / d log p.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "rodfit/fit/fit.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/observe/observations.h"
 #include "rodfit/solve/rollout.h"
@@ -52,6 +54,9 @@ struct MotionFitOptions {
   std::vector<double> lower, upper;
   /// The covariance as the sigmas state it, not scaled by the residual variance.
   bool trusted_sigmas = false;
+  /// Called after each Levenberg–Marquardt iteration (`iteration`, `cost`, `seconds`; `budget`
+  /// is max_evaluations, `global` false): a caller's progress line.
+  std::function<void(const FitIterationInfo&)> progress;
   bool Check(std::string* why) const;
 };
 
@@ -78,6 +83,12 @@ struct MotionFitResult {
   double initial_cost = 0.0, final_cost = 0.0;
   int iterations = 0;                  ///< iterations of the search
   double seconds = 0.0;                ///< wall time of the fit
+  /// Least squares: Ceres' cost at the start ([0]) and after each iteration, and the wall time
+  /// since the fit began [s] at each (the report's convergence plot).
+  std::vector<double> cost_per_iteration, seconds_per_iteration;
+  /// [s] wall time in the runs (rollouts or case integrations, with their sensitivities when
+  /// the search needs them); the rest of `seconds` is the search and the covariance.
+  double run_seconds = 0.0;
 };
 
 /// The material parameters a motion fit may change: bend_stiffness (B2 follows when tied),
@@ -173,6 +184,9 @@ struct SequenceResiduals {
   bool ok = false;
   std::string reason;
   std::vector<std::vector<Eigen::Vector3d>> error;
+  /// Per case with sequences, its run at the union of their frame times (every vertex): what
+  /// the report draws over time.
+  std::vector<FittedRun> trajectories;
 };
 
 /// Fits `names` of a moving scene (Scene::dynamics set; each with a start value > 0) to
