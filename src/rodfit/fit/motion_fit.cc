@@ -61,6 +61,21 @@ struct Ctx {
   double cached_mae = 0.0;   // the mean over recordings of the predicted markers' MAE
   std::string last_failure;
   double run_seconds = 0.0;  // wall time in `forward`
+  // Per recording, the adaptive steps of its first rollout, replayed by every later one: the
+  // objective and its Jacobian stay smooth in the parameters (a step sequence that changed with
+  // them would make the cost jump between a trial and its Jacobian).
+  std::vector<StepSchedule> schedules;
+  StepSchedule* ScheduleOf(size_t recording) {
+    if (schedules.size() != recordings->size()) schedules.assign(recordings->size(), StepSchedule());
+    StepSchedule& s = schedules[recording];
+    if (s.steps.empty()) s.Record(); else s.Replay();
+    return &s;
+  }
+  // "recording NAME: " for a message.
+  std::string Named(size_t recording) const {
+    const std::string& name = (*recordings)[recording].name;
+    return "recording " + (name.empty() ? std::to_string(recording + 1) : name) + ": ";
+  }
 };
 
 // The predicted markers' mean absolute coordinate error averaged over the recordings (the score
@@ -69,12 +84,18 @@ double MeanRolloutError(const std::vector<double>& logp, Ctx* c) {
   const Scene s = SceneAt(*c->scene, *c->names, logp.data());
   ++c->evaluations;
   double sum = 0.0;
-  for (const MotionRecordingData& r : *c->recordings) {
+  for (size_t ri = 0; ri < c->recordings->size(); ++ri) {
+    const MotionRecordingData& r = (*c->recordings)[ri];
     try {
-      const RolloutResult out = Rollout(s, r.frame_interval, r.frames, *c->options, *c->statics);
-      if (!out.ok) return 1e3;  // a run that fails is a very bad point, not an error
+      const RolloutResult out = Rollout(s, r.frame_interval, r.frames, *c->options, *c->statics,
+                                        c->ScheduleOf(ri));
+      if (!out.ok) {  // a run that fails is a very bad point, not an error
+        c->last_failure = c->Named(ri) + out.reason;
+        return 1e3;
+      }
       sum += out.mae_predicted;
-    } catch (const std::runtime_error&) {
+    } catch (const std::runtime_error& e) {
+      c->last_failure = c->Named(ri) + e.what();
       return 1e3;
     }
   }
@@ -122,13 +143,13 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
     RolloutResult out;
     try {
       out = RolloutWithSensitivities(s, rec.frame_interval, rec.frames, *c->options, *c->statics,
-                                     c->directions, &dp);
+                                     c->directions, &dp, c->ScheduleOf(ri));
     } catch (const std::runtime_error& e) {
-      c->last_failure = e.what();
+      c->last_failure = c->Named(ri) + e.what();
       return false;
     }
     if (!out.ok || out.predicted.size() != rec.frames.size()) {
-      c->last_failure = out.reason;
+      c->last_failure = c->Named(ri) + out.reason;
       return false;
     }
     mae += out.mae_predicted;
