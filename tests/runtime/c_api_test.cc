@@ -99,8 +99,9 @@ TEST(CApi, LoopMatchesTheCppRuntime) {
   EXPECT_EQ(rodfit_set_tool_position(rt, nullptr), RODFIT_INVALID_ARGUMENT);
   const double nan_tool[3] = {std::nan(""), 0.0, 0.0};
   ASSERT_EQ(rodfit_set_tool_position(rt, nan_tool), RODFIT_OK);
-  EXPECT_EQ(rodfit_step(rt, nullptr), RODFIT_NOT_CONVERGED);
+  EXPECT_EQ(rodfit_step(rt, nullptr), RODFIT_TOOL_REFUSED);
   EXPECT_THAT(rodfit_last_error(rt), HasSubstr("last good state kept"));
+  EXPECT_THAT(rodfit_last_error(rt), HasSubstr("tool position x = nan is not finite"));
   EXPECT_EQ(rodfit_step(nullptr, nullptr), RODFIT_INVALID_ARGUMENT);
   EXPECT_STREQ(rodfit_status_name(RODFIT_TIME_BUDGET), "RODFIT_TIME_BUDGET");
   rodfit_destroy(rt);

@@ -4,7 +4,8 @@
 // drag (quasi-static, with and without the held orientation, and dynamic) and a poke
 // (quasi-static and dynamic) — each read back as a haptic loop does: Step(), the shape, the tool's force and torque, and the tube
 // mesh with the poke's dent into a kept buffer (Runtime::Mesh(TubeMesh*)). Every other test of
-// the program runs with the flag down.
+// the program runs with the flag down; the program's other files count through
+// allocation_counter.h (the tool-path torture test does).
 #include <atomic>
 #include <cstdlib>
 #include <cmath>
@@ -19,6 +20,7 @@
 
 #include "rodfit/runtime/profile.h"
 #include "rodfit/runtime/runtime.h"
+#include "runtime/allocation_counter.h"
 
 extern "C" {
 void* __libc_malloc(std::size_t size);
@@ -67,6 +69,20 @@ int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
 }
 void free(void* p) { __libc_free(p); }
 }
+
+namespace rodfit_test {
+
+void StartCountingAllocations() {
+  g_allocations = 0;
+  g_counting = true;
+}
+
+long StopCountingAllocations() {
+  g_counting = false;
+  return g_allocations.load();
+}
+
+}  // namespace rodfit_test
 
 namespace rodfit {
 namespace {
