@@ -194,6 +194,50 @@ TEST_P(NoAllocation, InFailedSteps) {
   }
 }
 
+// Nor does a tick that refuses its input or holds the grasp at the strain limit: their messages
+// name values (NaN, 1e308, a mirrored rotation, an absurd push) formatted into the runtime's own
+// buffer.
+TEST_P(NoAllocation, InRefusedAndStrainLimitedSteps) {
+  const Mode m = GetParam();
+  const Profile p = LoadProfile(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + m.profile);
+  RuntimeOptions options;
+  options.mode = m.mode;
+  options.tool = m.tool;
+  options.tool_s = m.s;
+  options.hold_orientation = m.hold_orientation;
+  Runtime rt(p, options);
+  const Vec3 home = rt.ToolPosition();
+  const double nan = std::nan("");
+  int refused = 0, limited = 0;
+  const char* last = "";
+  const long count = AllocationsDuring(
+      [&](int k) {
+        if (m.tool == ToolKind::kGrasp) {
+          const Vec3 inputs[] = {Vec3(nan, 0.0, 0.0), Vec3(0.0, 1e308, 0.0),
+                                 home + Vec3(1.0, 0.0, 0.0), home};
+          rt.SetToolPosition(inputs[k % 4]);
+        } else {
+          const Vec3 inputs[] = {Vec3(0.0, nan, 0.0), Vec3(0.0, 0.0, -1e308), Vec3(0.0, -0.01, 0.0)};
+          rt.SetToolForce(inputs[k % 3]);
+        }
+        if (m.hold_orientation && k % 8 == 7)
+          rt.SetToolOrientation(Vec3(1.0, 1.0, -1.0).asDiagonal());
+        else if (m.hold_orientation)
+          rt.SetToolOrientation(Eigen::Matrix3d::Identity());
+        const StepReport r = rt.Step();
+        refused += r.status == StepStatus::kToolRefused;
+        limited += r.status == StepStatus::kStrainLimit;
+        last = r.message;
+      },
+      40);
+  EXPECT_GT(refused, 0);
+  if (m.tool == ToolKind::kGrasp) {
+    EXPECT_GT(limited, 0);
+  }
+  EXPECT_NE(last, nullptr);
+  EXPECT_EQ(count, 0) << "malloc called " << count << " times in 40 refused or limited ticks";
+}
+
 INSTANTIATE_TEST_SUITE_P(
     Ticks, NoAllocation,
     ::testing::Values(Mode{"suture.json", RuntimeMode::kQuasiStatic, ToolKind::kGrasp, 0.2},

@@ -55,10 +55,25 @@ constexpr int kFailuresBeforeRest = 3;
 // fails; a quarter of that does not). A steady drag changes its move far less per tick and is
 // followed exactly; a tool that jumped is caught up with a ramp up and down.
 constexpr double kMoveChange = 0.25;
+// The grasp's reach: the tool is pulled to (1 + kReachStrain max_strain) times the arc length from
+// each other held point, so that a span pulled taut ends just within max_strain: its own
+// curvature and its kink at a clamp add ~1e-4 to the strain of its chord (measured on the suture
+// at 10 %), which the strain guard would otherwise cut at every tick at the reach.
+constexpr double kReachStrain = 0.99;
+// The strain guard: a move that took the rod's largest edge strain past max_strain sets a wall
+// across it where the strain (linear in a tick's small move) reaches this fraction of the way
+// from where it was to the limit, and a quasi-static tick is taken again to the wall; the wall
+// is lifted when the strain is back below this fraction of the limit.
+constexpr double kStrainAim = 0.9;
 // The grasp's reach (RuntimeOptions::max_strain) is the intersection of a ball per held point;
 // the tool is pulled into it by this many rounds of projections onto the balls at most (one
 // round for a rod held at one point besides the grasp, the bundled profiles' case).
 constexpr int kReachRounds = 8;
+// The residual's round-off floor (ResidualFloor: eps EA per edge, at rest) is an estimate: a rod
+// pulled taut sums larger forces, and its residual stalls a few times above it (measured: the
+// suture held at 10 % strain stalled at 2.8e-9 N against a floor of 2.1e-9 N). A solve stopped
+// within this many floors is at round-off.
+constexpr double kFloorMargin = 10.0;
 // A chord step that cut the residual by less than this is followed by a Newton iteration, which
 // renews the kept factor: the next ticks' predictor is made with it.
 constexpr double kChordRefresh = 1e-3;
@@ -150,6 +165,16 @@ struct Runtime::Impl {
   // The tool pulled into the grasp's reach (RuntimeOptions::max_strain) [m], and whether it was.
   Vec3 goal = Vec3::Zero();
   bool strain_limited = false;
+  // The strain guard (a grasp): the largest edge strain of the state; a wall the goal may not
+  // pass, set where a move took the strain past max_strain (a point and the move's direction),
+  // lifted once the strain is back below kStrainAim of the limit; whether this tick's guard
+  // acted, and the strain and edge it saw.
+  double strain_now = 0.0;
+  bool wall = false;
+  Vec3 wall_point = Vec3::Zero(), wall_normal = Vec3::Zero();
+  bool strain_guarded = false;
+  double strain_seen = 0.0;
+  int strain_edge = 0;
   double move_scale = 1.0;         // of max_tool_move: cut after a failed tick, regrown after
   Vec3 tool_force = Vec3::Zero();  // poke: the tool's force, as set [N]
   // Poke: the force of this tick's step, and between ticks the force the state is in balance
@@ -345,7 +370,8 @@ struct Runtime::Impl {
   // `goal_move`: the goal's own move since the last tick (at most the largest move).
   Vec3 DynamicMove(const Vec3& from, const Vec3& goal_move) const;
   Vec3 held_move = Vec3::Zero();  // dynamic grasp: the last good tick's move of the grasped point [m]
-  Vec3 last_goal = Vec3::Zero();  // dynamic grasp: the last tick's goal [m]
+  Vec3 last_goal = Vec3::Zero();  // grasp: the last tick's goal [m]
+  Vec3 goal_move = Vec3::Zero();  // grasp: the goal's move since (at most the largest move) [m]
   // A poke's force for this tick: the tool's, or after failed ticks a part of the change.
   void ApplyForce();
   // The message of a tick that is not OK (StepReport::message).
@@ -354,6 +380,28 @@ struct Runtime::Impl {
   // Ends a quasi-static tick that failed: the last good state back, a shorter next move, and the
   // solve kept for the next tick to resume when it stopped short (cap, budget) at a finite state.
   StepReport GiveUp(StepStatus status, StepReport report);
+  // The tick in the runtime's mode.
+  StepReport Advance(Clock::time_point start) {
+    return options.mode == RuntimeMode::kDynamic ? StepDynamic() : StepQuasiStatic(start);
+  }
+  // The largest edge strain |e_j| / l_j - 1 of a state, and its edge.
+  double MaxStrain(const RodState& s, int* edge) const {
+    double worst = -1.0;
+    for (int j = 0; j < model->num_edges(); ++j) {
+      const double strain = s.e.col(j).norm() / model->rest_edge_length(j) - 1.0;
+      if (strain > worst) worst = strain, *edge = j;
+    }
+    return worst;
+  }
+  const RodState& Current() const {
+    return options.mode == RuntimeMode::kDynamic ? dynamic.q : state;
+  }
+  // A grasp's tick whose move took the rod's strain past max_strain (and higher than it was):
+  // a wall across the move stops the grasp from then on; a quasi-static tick is taken again from
+  // its start to the wall (and keeps its start if that too overstrains the rod).
+  void GuardStrain(Clock::time_point start, StepReport* report);
+  // Quasi-static: the state at the tick's start again (the tick's solve discarded).
+  void RestoreTickStart();
   // The minimizer from `state` until converged, `max_iterations` or the time budget from
   // `start`. `predicted`: the state is this tick's prediction from the kept factor (within the
   // linear response of the equilibrium), so its first Newton step is taken whole and checked by
@@ -463,7 +511,6 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     m.tool = model.grasp_position();
     m.target = m.tool;
     m.goal = m.tool;
-    m.last_goal = m.tool;
     if (options.hold_orientation) {
       m.oriented = true;
       m.edge_vertex = m.tool_vertex - 1;
@@ -495,16 +542,18 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.trial = m.state;
   m.moved = m.state;
   m.pending = m.state;
+  m.strain_now = m.MaxStrain(m.state, &m.strain_edge);
   if (options.tool == ToolKind::kGrasp) {
     // The grasp's reach: a ball about the clamp and about every other held point (an oriented
     // grasp's own edge aside), of (1 + max_strain) times the rod between.
     const double s_grasp = model.arc_length(m.tool_vertex);
-    m.reach.push_back({m.state.x.col(0), (1.0 + options.max_strain) * s_grasp, 0.0});
+    const double stretch = 1.0 + kReachStrain * options.max_strain;
+    m.reach.push_back({m.state.x.col(0), stretch * s_grasp, 0.0});
     for (const HeldVertex& h : model.held()) {
       if (h.kind == HeldVertex::Kind::kGrasp || (m.oriented && h.vertex == m.edge_vertex))
         continue;
       m.reach.push_back(
-          {h.target, (1.0 + options.max_strain) * std::abs(s_grasp - h.s), h.s});
+          {h.target, stretch * std::abs(s_grasp - h.s), h.s});
     }
   }
   m.max_poke_force = options.max_strain * model.material().stretch_stiffness;
@@ -654,7 +703,7 @@ bool Runtime::Impl::CheckInputs() {
         return false;
       }
     }
-    const double f = tool_force.norm();
+    const double f = tool_force.stableNorm();  // 1e308 stays 1e308, not inf
     if (f > max_poke_force) {
       std::snprintf(message, sizeof(message),
                     "poke force |f| = %g N is out of range (at most max_strain EA = %g N): "
@@ -668,6 +717,7 @@ bool Runtime::Impl::CheckInputs() {
 }
 
 void Runtime::Impl::UpdateGoal() {
+  last_goal = goal;
   goal = tool;
   strain_limited = false;
   reach_limit = nullptr;
@@ -685,6 +735,18 @@ void Runtime::Impl::UpdateGoal() {
     }
     if (!moved) break;
   }
+  if (wall) {
+    // Not past the strain guard's wall: the goal's part beyond it taken off.
+    const double beyond = (goal - wall_point).dot(wall_normal);
+    if (beyond > 0.0) {
+      goal -= beyond * wall_normal;
+      strain_limited = true;
+    }
+  }
+  goal_move = goal - last_goal;
+  const double largest = options.max_tool_move * model->min_rest_edge_length();
+  const double goal_move_norm = goal_move.norm();
+  if (goal_move_norm > largest) goal_move *= largest / goal_move_norm;
 }
 
 Vec3 Runtime::Impl::DynamicMove(const Vec3& from, const Vec3& goal_move) const {
@@ -710,7 +772,12 @@ Vec3 Runtime::Impl::DynamicMove(const Vec3& from, const Vec3& goal_move) const {
   Vec3 change = wanted - held_move;
   const double change_norm = change.norm();
   if (change_norm > a) change *= a / change_norm;
-  return from + held_move + change;
+  // After a failed tick the move is cut to this tick's largest at once: the failed step is not
+  // taken again.
+  Vec3 move = held_move + change;
+  const double move_norm = move.norm();
+  if (move_norm > v_max) move *= v_max / move_norm;
+  return from + move;
 }
 
 Vec3 Runtime::Impl::LimitedMove(const Vec3& from) const {
@@ -789,11 +856,13 @@ StepReport Runtime::Step() {
   const Clock::time_point start = Clock::now();
   Impl& m = *impl_;
   StepReport report;
+  m.strain_guarded = false;
   if (!m.CheckInputs()) {
     report.status = StepStatus::kToolRefused;
   } else {
     if (m.options.tool == ToolKind::kGrasp) m.UpdateGoal();
-    report = m.options.mode == RuntimeMode::kDynamic ? m.StepDynamic() : m.StepQuasiStatic(start);
+    report = m.Advance(start);
+    if (m.options.tool == ToolKind::kGrasp && report.ok()) m.GuardStrain(start, &report);
   }
   if (report.ok()) {
     // A quasi-static tick that ended on its residual check has the grasp's reaction from that
@@ -805,7 +874,7 @@ StepReport Runtime::Step() {
     } else {
       m.UpdateReaction();
     }
-    if (m.strain_limited) report.status = StepStatus::kStrainLimit;
+    if (m.strain_limited || m.strain_guarded) report.status = StepStatus::kStrainLimit;
   }
   if (m.options.tool == ToolKind::kGrasp)
     report.tool_lag = m.tool.allFinite() ? (m.tool - ToolPosition()).norm()
@@ -819,6 +888,63 @@ StepReport Runtime::Step() {
   if (!report.ok()) m.Describe(&report);
   report.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return report;
+}
+
+void Runtime::Impl::RestoreTickStart() {
+  state = last_good;  // same sizes: no allocation
+  rotation = rotation_good;
+  applied_force = last_good_force;
+  target = state.x.col(tool_vertex);
+  factor_near_state = false;  // the factor may belong to the discarded state
+  factor_on_branch = false;
+  corrections = 0;
+  resumed_ticks = 0;
+  reaction_current = false;
+}
+
+void Runtime::Impl::GuardStrain(Clock::time_point start, StepReport* report) {
+  int edge = 0;
+  const double strain = MaxStrain(Current(), &edge);
+  const Vec3 from =
+      (options.mode == RuntimeMode::kDynamic ? dynamic_good.q : last_good).x.col(tool_vertex);
+  const Vec3 move = target - from;
+  if (wall && strain < kStrainAim * options.max_strain) wall = false;
+  if (!(strain > options.max_strain && strain > strain_now) || move.isZero(0.0)) {
+    strain_now = strain;
+    return;
+  }
+  // This tick's move took the strain past the limit: the strain being linear in a tick's small
+  // move, the wall goes where it reaches kStrainAim of the way from where it was to the limit,
+  // across the move.
+  strain_guarded = true;
+  strain_seen = strain;
+  strain_edge = edge;
+  const double alpha = std::min(
+      1.0, std::max(0.0, kStrainAim * (options.max_strain - strain_now) / (strain - strain_now)));
+  wall = true;
+  wall_normal = move.normalized();
+  wall_point = from + alpha * move;
+  if (options.mode == RuntimeMode::kDynamic) {
+    // A dynamic step is kept: its time has passed, and its overshoot is partly the rod's own
+    // motion, which a shorter move would not undo. The next ticks stop the grasp at the wall.
+    strain_now = strain;
+    return;
+  }
+  // Quasi-static: the tick again from its start, to the wall; if that too overstrains the rod,
+  // the tick keeps its start, the last good equilibrium, within the limit.
+  const int iterations = report->iterations;
+  RestoreTickStart();
+  UpdateGoal();
+  *report = Advance(start);
+  report->iterations += iterations;
+  if (!report->ok()) return;
+  const double again = MaxStrain(Current(), &edge);
+  if (again > options.max_strain && again > strain_now) {
+    RestoreTickStart();
+    wall_point = from;
+    return;
+  }
+  strain_now = again;
 }
 
 StepReport Runtime::Impl::GiveUp(StepStatus status, StepReport report) {
@@ -1056,13 +1182,14 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, bo
   }
   if (r.converged()) return StepStatus::kConverged;
   // A solve stopped (by its cap, the budget or a line search that found nothing lower) at a
-  // state whose residual, evaluated there, is within the tolerance or the round-off floor is
+  // state whose residual, evaluated there, is within the tolerance or at the round-off floor is
   // the solution as exactly as doubles make it: the balance of forces the tick renders is then
   // exact to that floor. A soft mode (a slack thread near buckling) can keep Newton's steps
   // large there, which the minimizer's step tests need; a tick does not roll such a state back
   // (measured: the suture's tip pushed 2.5 cm towards the clamp stalled at residuals of
   // 7e-12 N, a floor of 2e-9 N and a tolerance of 4e-13 N, every tick).
-  if (r.residual_at_solution && r.residual_norm <= std::max(force_tolerance, floor_tolerance)) {
+  if (r.residual_at_solution &&
+      r.residual_norm <= std::max(force_tolerance, kFloorMargin * floor_tolerance)) {
     termination = Termination::kRoundOff;
     return StepStatus::kConverged;
   }
@@ -1078,13 +1205,7 @@ StepReport Runtime::Impl::StepDynamic() {
   // The grasp's drive holds the grasped vertex at this tick's target: at most max_tool_move
   // towards the goal, as in quasi-static mode (a held point jumping centimetres in one step
   // would need forces of its mass times the jump over dt^2, which no Newton of a step follows).
-  if (options.tool == ToolKind::kGrasp) {
-    Vec3 goal_move = goal - last_goal;
-    const double largest = options.max_tool_move * model->min_rest_edge_length();
-    if (goal_move.norm() > largest) goal_move *= largest / goal_move.norm();
-    last_goal = goal;
-    target = DynamicMove(dynamic.q.x.col(tool_vertex), goal_move);
-  }
+  if (options.tool == ToolKind::kGrasp) target = DynamicMove(dynamic.q.x.col(tool_vertex), goal_move);
   // A tick lost to the budget leaves the rod a step behind the tool, whose next move is then
   // the larger: under the same budget that tick would likely be lost too, and so on (measured:
   // 768 of 1000 ticks of the suture's loop after one preempted tick). The tick after a lost one
