@@ -8,6 +8,8 @@ packages=(
   libeigen3-dev libceres-dev libgoogle-glog-dev libnlopt-cxx-dev libyaml-cpp-dev nlohmann-json3-dev
   libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  # LAPACK: the tests cross-check the banded factorisations against dpbtrf / dgbtrf.
+  liblapack-dev
   # OpenCV: only the modules rodfit uses (core, imgproc, calib3d), not the metapackage; imgcodecs
   # for the tests only (an independent image decoder). Image files: libpng, libjpeg, libtiff.
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-calib3d-dev

@@ -30,16 +30,19 @@ void NewtonMinimizer::Reserve(int dofs) {
     if (v->size() != dofs) v->setZero(dofs);
 }
 
-// The scaled residual max_k w_k |r_k|. A NaN entry makes it NaN (std::max would drop it, and a
-// step whose other rows are small would "converge" through NaN rows).
+// The scaled residual max_k w_k |r_k|. A NaN or an infinity in any entry makes it NaN: std::max
+// drops a NaN, and so did the "if (!(v <= worst)) worst = v" of the loops this one replaced,
+// whose NaN survived only when no finite entry came after it (a step whose other rows were small
+// "converged" through NaN rows). The probe sums v * 0, which is NaN exactly for those entries.
 double NewtonMinimizer::Norm(const VecX& r) const {
   const VecX& w = p_->NormWeights();
-  double worst = 0.0;
+  double worst = 0.0, probe = 0.0;
   for (int k = 0; k < r.size(); ++k) {
     const double v = w[k] * std::abs(r[k]);
-    if (!(v <= worst)) worst = v;  // a NaN propagates
+    worst = std::max(worst, v);
+    probe += v * 0.0;
   }
-  return worst;
+  return probe == 0.0 ? worst : std::numeric_limits<double>::quiet_NaN();
 }
 
 bool NewtonMinimizer::Evaluate(bool matrix) {
@@ -116,11 +119,19 @@ bool NewtonMinimizer::StepConverged(const RelativeStep& s, bool taken) const {
 // A whole, unshifted step whose decrease the merit cannot resolve (a small correction near the
 // solution) is judged by the residual instead: taken when it lowers the scaled residual.
 bool NewtonMinimizer::LineSearch(double slope, double turn, bool shifted, double* alpha) {
+  merit_not_finite_ = false;
   const double e0 = Merit();
+  if (!std::isfinite(e0)) {
+    merit_not_finite_ = true;
+    return false;
+  }
   const double noise = p_->EnergyNoise(e0);
+  bool any_finite = false, any_retracted = false;
   for (int ls = 0; ls < options_.max_line_search_steps; ++ls, *alpha *= 0.5) {
     if (!p_->Retract(step_, *alpha)) continue;
+    any_retracted = true;
     const double e1 = TrialMerit();
+    any_finite = any_finite || std::isfinite(e1);
     const bool armijo =
         options_.merit == Merit::kResidual
             ? e1 <= (1.0 - 2.0 * kArmijo * *alpha) * e0 + 1e-24 * e0
@@ -140,6 +151,9 @@ bool NewtonMinimizer::LineSearch(double slope, double turn, bool shifted, double
       }
     }
   }
+  // Every trial's merit was a NaN or an infinity: the problem's values are not finite, which is
+  // no failure of the line search's.
+  merit_not_finite_ = any_retracted && !any_finite;
   return false;
 }
 
@@ -497,6 +511,7 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
         summary_.factor_at_solution = matrix || reuse;
         return finish(Termination::kRoundOff);
       }
+      if (merit_not_finite_) return finish(Termination::kNonFinite);
       return finish(options_.merit == Merit::kNone ? Termination::kRetractionFailed
                                                    : Termination::kLineSearchFailed);
     }

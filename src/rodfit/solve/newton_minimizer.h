@@ -314,6 +314,7 @@ class NewtonMinimizer {
   double gnorm_ = 0.0;
   double energy_ = 0.0;
   bool energy_known_ = false;
+  bool merit_not_finite_ = false;  // the last line search met only non-finite merits
   Clock::time_point deadline_;
 };
 

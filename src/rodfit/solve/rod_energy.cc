@@ -825,12 +825,13 @@ VecX GradientNormWeights(const RodModel& model) {
 
 double ScaledGradientNorm(const RodModel& model, const VecX& g) {
   const VecX w = GradientNormWeights(model);
-  double worst = 0.0;
+  double worst = 0.0, probe = 0.0;
   for (int k = 0; k < g.size(); ++k) {
     const double v = w[k] * std::abs(g[k]);
-    if (!(v <= worst)) worst = v;  // a NaN propagates
+    worst = std::max(worst, v);
+    probe += v * 0.0;  // NaN for a NaN or infinite entry anywhere (std::max drops a NaN)
   }
-  return worst;
+  return probe == 0.0 ? worst : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace rodfit
