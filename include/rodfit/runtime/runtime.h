@@ -15,10 +15,11 @@
 //    restores the last good state and says so in its status and message (the tool force stays
 //    the last good one, so a haptic device never sees a jump to NaN).
 //  - Step() never stalls: a grasp moves at most max_tool_move per tick towards the tool (in both
-//    modes), a tick that failed makes the next ones move a quarter as far, and a converged state
-//    is never rolled back, so a tool that jumped ahead is reached in a bounded number of ticks.
-//  - Step() never stretches the rod past RuntimeOptions::max_strain for a grasp, nor takes a
-//    tool input that is not finite or out of range: such ticks say so in their status.
+//    modes), a tick that failed makes the next ones move a quarter as far (a quasi-static solve
+//    cut short is resumed), and a converged state is never rolled back, so a tool that jumped
+//    ahead is reached in a bounded number of ticks.
+//  - Step() does not pull a grasped rod past RuntimeOptions::max_strain, nor takes a tool input
+//    that is not finite or out of range: such ticks say so in their status and message.
 // Thread-safety: a Runtime is not thread-safe; use one per thread (or guard it). Distinct
 // instances share nothing mutable and may step concurrently on different threads.
 #pragma once
@@ -66,19 +67,22 @@ struct RuntimeOptions {
   /// tick after one lost to it runs without it, to catch up (docs/library.md, "Runtime").
   double time_budget = 0.0;
   /// A grasp, in both modes: the largest move of the grasped point in one tick, as a fraction
-  /// of the shortest rest edge [-]. A tool that ran further ahead (a device glitch, a tick lost
-  /// to the time budget) is followed over several ticks (StepReport::tool_lag), so that one far
-  /// jump cannot keep every later tick from converging: a jump of d is reached in
-  /// ceil(d / (max_tool_move l_min)) ticks when they converge. After a tick that failed the
-  /// next ones move a quarter as far (a poke: apply a quarter of the change of force), growing
-  /// back twofold per converged tick.
+  /// of the shortest rest edge l_min [-], in (0, 1]. A tool that ran further ahead (a device
+  /// glitch, a tick lost to the time budget) is followed over several ticks
+  /// (StepReport::tool_lag), so that one far jump cannot keep every later tick from converging:
+  /// a jump of d is reached in ceil(d / (max_tool_move l_min)) ticks (dynamic mode: 5 more, its
+  /// move ramping up and down by a quarter per tick) when they converge. After a tick that
+  /// failed the next ones move a quarter as far (a poke: apply a quarter of the change of
+  /// force), growing back twofold per converged tick.
   double max_tool_move = 0.25;
-  /// A grasp, in both modes: the largest mean strain [-] the tool may pull a span of the rod to.
-  /// The grasped point is kept within (1 + max_strain) times the arc length between it and
-  /// every other held point (the clamp, pins, an end clamp) of that point; a tool beyond is
-  /// followed to that reach, and each such tick says so (StepStatus::kStrainLimit). A poke's
-  /// force is refused above max_strain times the rod's stretch stiffness EA (the force that
-  /// would stretch it so far).
+  /// A grasp, in both modes: the largest strain [-] the tool may pull the rod to, in (0, 1].
+  /// The grasped point is kept within (1 + 0.99 max_strain) times the arc length between it and
+  /// every other held point (the clamp, pins, an end clamp), and a move that takes the largest
+  /// edge strain past max_strain sets a wall across it (a quasi-static tick is taken again to
+  /// the wall, so its strain stays within the limit; a dynamic rod's own waves may carry it over
+  /// for a few ticks). A tool beyond is followed to that reach, and each such tick says so
+  /// (StepStatus::kStrainLimit). A poke's force is refused above max_strain times the rod's
+  /// stretch stiffness EA (the force that would stretch it so far).
   double max_strain = 0.1;
   /// [s] dynamic mode: the step of one tick, a BDF2 step of DynamicsStepper to its default
   /// tolerances, with DynamicsOptions::extrapolate_corrections and converge_on_rate on.
@@ -154,9 +158,10 @@ class Runtime {
   Eigen::Matrix3d ToolOrientation() const;
   /// Poke: the force the tool applies to the tissue from the next Step() on [N].
   void SetToolForce(const Vec3& force_world);
-  // The setters take any value; Step() checks it (finite; a position within kMaxToolReach rod
-  // lengths of the clamp, a rotation within kRotationTolerance, a force within max_strain EA)
-  // and refuses the tick with StepStatus::kToolRefused when it is not.
+  // The setters take any value; Step() checks those it uses (finite; a grasp's position within
+  // kMaxToolReach rod lengths of the clamp, an oriented grasp's rotation within
+  // kRotationTolerance, a poke's force within max_strain EA) and refuses the tick with
+  // StepStatus::kToolRefused when one is not.
 
   /// One tick. Never allocates; see the file comment.
   StepReport Step();
