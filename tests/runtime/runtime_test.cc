@@ -257,6 +257,42 @@ TEST(Runtime, FailedStepKeepsTheLastGoodState) {
   EXPECT_EQ(r.tool_lag, 0.0);
 }
 
+// A quasi-static solve cut short by its iteration cap is not thrown away nor tried again whole:
+// the next tick resumes it from where it stopped, and ends in the equilibrium a solve with
+// iterations to spare finds for the same move.
+TEST(Runtime, SolveCutShortIsResumedByTheNextTick) {
+  const Profile p = Bundled("suture.json");
+  RuntimeOptions options;
+  options.tool_s = 0.2;
+  options.max_iterations = 1;  // the move below needs more (printed)
+  Runtime rt(p, options);
+  options.max_iterations = 20;
+  Runtime reference(p, options);
+  const Vec3 target = rt.ToolPosition() + Vec3(-2e-4, 1e-4, 0.0);
+  rt.SetToolPosition(target);
+  reference.SetToolPosition(target);
+  const StepReport done = reference.Step();
+  ASSERT_TRUE(done.ok());
+  ASSERT_GT(done.iterations, 1);
+  StepReport r = rt.Step();
+  ASSERT_EQ(r.status, StepStatus::kNotConverged);
+  EXPECT_THAT(r.message, HasSubstr("the next tick resumes the solve"));
+  int ticks = 1, iterations = r.iterations;
+  while (!r.ok() && ticks < 5) {
+    r = rt.Step();
+    iterations += r.iterations;
+    ++ticks;
+  }
+  ASSERT_TRUE(r.ok()) << r.message;
+  std::printf("cut short at 1 iteration a tick: converged at tick %d after %d iterations in all "
+              "(uncut: %d)\n", ticks, iterations, done.iterations);
+  EXPECT_EQ(r.tool_lag, 0.0);
+  // One Newton iteration a tick, resumed: about the iterations of the uncut solve, not a restart
+  // per tick.
+  EXPECT_LE(iterations, done.iterations + 1);
+  EXPECT_LT((rt.Shape() - reference.Shape()).cwiseAbs().maxCoeff(), 1e-9 * p.scene.rod.length);
+}
+
 // A tool that jumps far ahead (a lost tracking frame) is followed at max_tool_move per tick:
 // every tick converges, and the lag closes.
 TEST(Runtime, FarJumpIsFollowedOverSeveralTicks) {
