@@ -741,6 +741,7 @@ void Runtime::Impl::UpdateGoal() {
     if (beyond > 0.0) {
       goal -= beyond * wall_normal;
       strain_limited = true;
+      reach_limit = nullptr;  // the wall, not a reach, limits it
     }
   }
   goal_move = goal - last_goal;
@@ -802,14 +803,25 @@ void Runtime::Impl::Describe(StepReport* report) {
     case StepStatus::kConverged:
     case StepStatus::kToolRefused:  // CheckInputs wrote it
       break;
-    case StepStatus::kStrainLimit: {
-      const Reach& r = reach_limit ? *reach_limit : reach.front();
-      std::snprintf(message, sizeof(message),
-                    "strain limit: the tool is %.4g mm from the grasped point, out of the rod's "
-                    "reach at max_strain = %g (%.4g m from the held point at s = %g m)",
-                    lag_mm, options.max_strain, r.radius, r.s);
+    case StepStatus::kStrainLimit:
+      if (strain_guarded) {
+        std::snprintf(message, sizeof(message),
+                      "strain limit: this tick's move took the rod's strain to %.3g at edge %d "
+                      "(max_strain %g): the grasp stops short of that move; the tool %.4g mm "
+                      "from the grasped point",
+                      strain_seen, strain_edge, options.max_strain, lag_mm);
+      } else if (reach_limit) {
+        std::snprintf(message, sizeof(message),
+                      "strain limit: the tool is %.4g mm from the grasped point, out of the rod's "
+                      "reach at max_strain = %g (%.4g m from the held point at s = %g m)",
+                      lag_mm, options.max_strain, reach_limit->radius, reach_limit->s);
+      } else {
+        std::snprintf(message, sizeof(message),
+                      "strain limit: the grasp is held where a move took the rod's strain past "
+                      "max_strain = %g; the tool %.4g mm from the grasped point",
+                      options.max_strain, lag_mm);
+      }
       break;
-    }
     case StepStatus::kNotConverged:
     case StepStatus::kTimeBudget: {
       const bool resume = options.mode == RuntimeMode::kQuasiStatic && resumed_ticks > 0;
