@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <ostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -153,6 +154,12 @@ struct PathRun {
   bool oriented;
   uint64_t seed;
 };
+
+void PrintTo(const PathRun& r, std::ostream* os) {
+  *os << r.profile << (r.mode == RODFIT_MODE_DYNAMIC ? " dynamic" : " quasi-static")
+      << (r.oriented ? " oriented" : "") << (r.tool == RODFIT_TOOL_POKE ? " poke" : " grasp")
+      << ", seed " << r.seed;
+}
 
 std::string RunName(const ::testing::TestParamInfo<PathRun>& info) {
   std::string name = info.param.profile;
