@@ -194,7 +194,7 @@ struct Runtime::Impl {
   const Reach* reach_limit = nullptr;  // the ball that limited this tick's goal, if one did
   // Why the last tick is not OK (StepReport::message), formatted here: no allocation.
   char message[320] = "";
-  Termination termination = Termination::kConverged;  // quasi-static: the last solve's
+  Termination termination = Termination::kConverged;  // the last solve's (a tick's or a step's)
   // Quasi-static: a solve the last tick did not finish (iteration cap or time budget), resumed by
   // the next from where it stopped, with its target and the held orientation.
   RodState pending;
@@ -566,10 +566,15 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.factor_on_branch = m.factor_near_state;
   m.tick = std::make_unique<Impl::TickProblem>(&m);
   m.solver = std::make_unique<BandedCholeskySolver>(&m.hessian, &m.factor);
+  m.solver->ReserveScratch();  // the saddle escape's: sized now, a tick allocates nothing
   NewtonOptions& newton = m.minimizer.options();
   newton.chords = ChordPolicy::kWhileContracting;
   newton.chord_refresh = kChordRefresh;
   newton.converge_after_small_step = true;
+  // A thread pulled taut far off its clamp's axis, or a bowel pulled back through its clamp,
+  // sits at an unstable equilibrium that the shifted steps only creep along: it is left along
+  // its negative curvature (allocation-free once the solver's scratch is sized).
+  newton.saddles = Saddles::kEscape;
   // A grasp's converged tick factors a Hessian assembled at its solution: the next tick's
   // predictor reads that Hessian's columns and solves with its factor, which must be of one
   // matrix. (A poke predicts nothing: its chord steps do as well on the older factor.)
@@ -826,19 +831,11 @@ void Runtime::Impl::Describe(StepReport* report) {
     case StepStatus::kTimeBudget: {
       const bool resume = options.mode == RuntimeMode::kQuasiStatic && resumed_ticks > 0;
       const char* why = "";
-      char reason[96];
-      if (options.mode == RuntimeMode::kQuasiStatic) {
-        why = TerminationMessage(termination);
-      } else if (report->status == StepStatus::kTimeBudget) {
+      if (report->status == StepStatus::kTimeBudget) {
         why = TerminationMessage(Termination::kTimeBudget);
       } else {
-        // The stepper's summary gives no termination (solve/dynamics.h): its iteration count
-        // tells the cap from an earlier failure.
-        std::snprintf(reason, sizeof(reason), "%s",
-                      report->iterations >= options.dynamic_newton_iterations
-                          ? TerminationMessage(Termination::kIterationCap)
-                          : "the implicit step failed before its iteration limit");
-        why = reason;
+        // The minimizer's termination (a quasi-static tick's, or the dynamic step's).
+        why = TerminationMessage(termination);
       }
       char lag[64];
       if (options.tool == ToolKind::kGrasp)
@@ -1227,6 +1224,7 @@ StepReport Runtime::Impl::StepDynamic() {
   const DynamicsStepSummary s = stepper->Step(*drive, &dynamic);
   report.iterations = s.newton_iterations;
   report.residual = s.residual;
+  termination = s.termination;
   if (!s.ok || !dynamic.q.x.allFinite() || !dynamic.v.allFinite()) {
     dynamic = dynamic_good;
     applied_force = last_good_force;
