@@ -266,12 +266,7 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
                                 std::to_string(frame_interval) + " s)");
   sc.dynamics->output_every = per_frame;
   if (sc.dynamics->error_tolerance == 0.0) sc.dynamics->error_tolerance = options.error_tolerance;
-  if (sc.dynamics->error_tolerance > 0.0) {
-    // Adaptive steps: one step per frame, its substeps as long as the motion allows (the scene's
-    // time_step is then only where the first one starts).
-    sc.dynamics->time_step = frame_interval;
-    sc.dynamics->output_every = 1;
-  }
+
   sc.dynamics->duration = (frames.size() - 1) * frame_interval;
 
   return {sc, marker_vertex};
