@@ -565,6 +565,7 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
   m.factor_on_branch = m.factor_near_state;
   m.tick = std::make_unique<Impl::TickProblem>(&m);
+  m.tick->Presize();
   m.solver = std::make_unique<BandedCholeskySolver>(&m.hessian, &m.factor);
   m.solver->ReserveScratch();  // the saddle escape's: sized now, a tick allocates nothing
   NewtonOptions& newton = m.minimizer.options();

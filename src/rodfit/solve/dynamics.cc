@@ -361,6 +361,7 @@ DynamicsStepper::DynamicsStepper(const RodModel& model, const DynamicsOptions& o
   ComputeRodFrames(model, trial_, &scratch_->frames);
   scratch_->hessian.Resize(dofs, kRodBandwidth, 4);
   scratch_->problem = std::make_unique<StepProblem>(this);
+  scratch_->problem->Presize();
   scratch_->solver =
       std::make_unique<BandedCholeskySolver>(&scratch_->hessian, &scratch_->factor);
   scratch_->problem->SetSolver(scratch_->solver.get());

@@ -26,8 +26,9 @@ const char* TerminationMessage(Termination termination) {
 }
 
 void NewtonMinimizer::Reserve(int dofs) {
+  // Sized, not zeroed: each is written before it is read.
   for (VecX* v : {&g_, &g_trial_, &step_, &d_})
-    if (v->size() != dofs) v->setZero(dofs);
+    if (v->size() != dofs) v->resize(dofs);
 }
 
 // The scaled residual max_k w_k |r_k|. A NaN or an infinity in any entry makes it NaN: std::max

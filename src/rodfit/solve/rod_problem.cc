@@ -15,19 +15,20 @@ double ResidualFloor(const RodModel& model, const VecX& weights) {
 }
 
 RodNewtonProblem::RodNewtonProblem(const RodModel& model, double step_tolerance,
-                                   double step_length)
+                                   double step_length, const VecX* weights)
     : model_(model),
-      weights_(GradientNormWeights(model)),
+      weights_(weights ? *weights : GradientNormWeights(model)),
       step_tolerance_(step_tolerance),
-      step_length_(step_length) {
-  // Every iterate and frame list at its size now: the iterations then allocate nothing (the
-  // runtime's ticks rely on it).
-  current_ = model.StraightState();
+      step_length_(step_length) {}
+
+void RodNewtonProblem::Presize() {
+  current_ = model_.StraightState();
   trial_ = current_;
   previous_ = current_;
-  ComputeRodFrames(model, current_, &frames_);
+  ComputeRodFrames(model_, current_, &frames_);
   trial_frames_ = frames_;
   previous_frames_ = frames_;
+  frames_valid_ = trial_frames_valid_ = previous_frames_valid_ = false;
 }
 
 const RodFrames& RodNewtonProblem::CurrentFrames() {

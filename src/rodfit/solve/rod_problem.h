@@ -36,10 +36,16 @@ class RodNewtonProblem : public NewtonProblem {
  public:
   /// `step_tolerance`: a step moving no vertex by more than step_tolerance * step_length [m]
   /// and no twist angle by more than step_tolerance [rad] is within tolerance.
-  RodNewtonProblem(const RodModel& model, double step_tolerance, double step_length);
+  /// `weights`: the scaled residual's (GradientNormWeights of the model when null).
+  RodNewtonProblem(const RodModel& model, double step_tolerance, double step_length,
+                   const VecX* weights = nullptr);
 
-  /// The iterates. current() is where the minimizer stands (set it before Minimize, and mark
-  /// its frames stale with CurrentChanged()).
+  /// Sizes every iterate and frame list now: the iterations then allocate nothing (the
+  /// runtime's ticks and the time steps call it once; a statics solve, which allocates anyway,
+  /// need not).
+  void Presize();
+  /// The iterates. current() is where the minimizer stands (set it before Minimize, or swap a
+  /// state in, and mark its frames stale with CurrentChanged()).
   RodState& current() { return current_; }
   const RodState& current() const { return current_; }
   RodState& trial() { return trial_; }

@@ -179,7 +179,7 @@ class StaticsProblem : public RodNewtonProblem {
  public:
   StaticsProblem(const NewtonContext& ctx, double load_scale, double moment_scale,
                  StaticsWorkspace* ws, bool use_edge, bool positions, StartFactor start)
-      : RodNewtonProblem(ctx.model, ctx.opt.step_tolerance, ctx.model.length()),
+      : RodNewtonProblem(ctx.model, ctx.opt.step_tolerance, ctx.model.length(), &ctx.tol.weights),
         ctx_(ctx),
         ws_(ws),
         moment_scale_(moment_scale),
@@ -191,7 +191,6 @@ class StaticsProblem : public RodNewtonProblem {
         lu_(&tangent_, &ws->tangent),
         edge_(&ws->edge, ctx.tol.stiffest) {
     terms_.load_scale = load_scale;
-    weights_ = ctx.tol.weights;
     set_zero_twist(positions);
   }
 
@@ -313,7 +312,7 @@ StepResult NewtonSolve(const NewtonContext& ctx, double load_scale, double momen
   summary->twist_eliminated = positions;
   StaticsProblem problem(ctx, load_scale, moment_scale, ws, use_edge, positions,
                          moments ? StartFactor::kNone : start);
-  problem.current() = *state;
+  std::swap(problem.current(), *state);  // no copy: the state is the problem's while it runs
   problem.CurrentChanged();
   NewtonOptions o;
   o.max_iterations = max_iterations;
@@ -336,7 +335,7 @@ StepResult NewtonSolve(const NewtonContext& ctx, double load_scale, double momen
   }
   NewtonMinimizer minimizer(o);
   const NewtonSummary r = minimizer.Minimize(&problem, begin);
-  *state = problem.current();
+  std::swap(*state, problem.current());
   summary->iterations += r.iterations;
   summary->chord_steps += r.chord_steps;
   summary->saddle_escapes += r.saddle_escapes;
