@@ -105,9 +105,13 @@ void DenseCholeskySolver::Resize(int n) {
 
 bool DenseCholeskySolver::Factor(double shift) {
   if (!matrix_.allFinite()) return false;
-  work_ = matrix_;
-  if (shift != 0.0) work_.diagonal().array() += shift;
-  llt_.compute(work_);
+  if (shift == 0.0) {
+    llt_.compute(matrix_);  // LLT keeps its own copy: none needed here
+  } else {
+    work_ = matrix_;
+    work_.diagonal().array() += shift;
+    llt_.compute(work_);
+  }
   return llt_.info() == Eigen::Success;
 }
 

@@ -49,6 +49,7 @@ class RingSolver::Problem : public NewtonProblem {
     hess_at_current_ = false;
   }
   bool hessian_at_current() const { return hess_at_current_; }
+  const Eigen::MatrixXd& reduced_hessian() { return solver_.matrix(); }
   int NumDofs() const override { return static_cast<int>(ones_.size()); }
   void Evaluate(bool matrix, VecX* g) override {
     energy_ = s_.Potential(s_.u_, &s_.grad_, matrix ? &s_.hess_ : nullptr, &scale_);
@@ -314,7 +315,12 @@ void RingSolver::Solve(const Vec2& force_in_plane, const Eigen::Matrix2Xd* warm_
     r.pin_moment = arm.x() * force_in_plane.y() - arm.y() * force_in_plane.x();
   }
   if (std::isfinite(pi) && hess_.allFinite()) {
-    ReducedHessian(hess_, &hr_);
+    // The reduced Hessian at the result: the last evaluation's when it was there.
+    if (problem_->hessian_at_current()) {
+      hr_ = problem_->reduced_hessian();  // same size: a copy, no allocation
+    } else {
+      ReducedHessian(hess_, &hr_);
+    }
     llt_.compute(hr_);
     summary.stable = llt_.info() == Eigen::Success;
     if (summary.converged && summary.stable) Sensitivities(u, result);
