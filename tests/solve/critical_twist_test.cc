@@ -58,7 +58,10 @@ RodModel GreenhillModel(int segments, double gj_over_b) {
 struct Loop {
   int segments = 40;
   double B = 1e-3, GJ = 1e-3 / 1.3, rho = 5e-3, EA = 1e8 * 1e-3 / (1.5 * 1.5);
+  double B2_over_B = 1.0;
   double yaw_deg = 0.0;
+  // Extra turns of clamp A's and clamp B's frames about their points.
+  Eigen::Matrix3d clamp_turn = Eigen::Matrix3d::Identity(), end_turn = Eigen::Matrix3d::Identity();
 };
 
 RodModel LoopModel(const Loop& l) {
@@ -69,17 +72,18 @@ RodModel LoopModel(const Loop& l) {
   rod.linear_density = l.rho;
   Material m;
   m.bend_stiffness = l.B;
+  if (l.B2_over_B != 1.0) m.bend_stiffness_2 = l.B * l.B2_over_B;
   m.twist_stiffness = l.GJ;
   m.stretch_stiffness = l.EA;
   LoadCase c;
   c.name = "loop";
-  c.clamp.tangent = Vec3::UnitX();
-  c.clamp.normal = Vec3::UnitZ();
+  c.clamp.tangent = l.clamp_turn * Vec3::UnitX();
+  c.clamp.normal = l.clamp_turn * Vec3::UnitZ();
   EndClamp e;
   e.position = Vec3(-0.12, 0, 0);
   const double yaw = l.yaw_deg * kPi / 180.0;
-  e.tangent = Vec3(std::cos(yaw), std::sin(yaw), 0);
-  e.normal = Vec3::UnitZ();
+  e.tangent = l.end_turn * Vec3(std::cos(yaw), std::sin(yaw), 0);
+  e.normal = l.end_turn * Vec3::UnitZ();
   c.end_clamp = e;
   return RodModel(rod, m, Vec3(0, 0, -9.81), c);
 }
@@ -322,29 +326,20 @@ TEST(CriticalTwist, HeavyLoopClampYawAgainstTheReference) {
 // A loop perturbed in one parameter: log step e of B (tied), B2 alone, GJ, EA, rho; or a turn
 // of e rad of clamp A (5, 6, 7) or clamp B (8, 9, 10) about x, y, z.
 RodModel PerturbedLoop(const Loop& base, int which, double e) {
-  const RodModel m0 = LoopModel(base);
-  RodSpec rod = m0.rod();
-  Material mat = m0.material();
-  LoadCase c = m0.load_case();
+  Loop l = base;
   const double f = std::exp(e);
   switch (which) {
-    case 0: mat.bend_stiffness *= f; break;
-    case 1: mat.bend_stiffness_2 = mat.bend_stiffness * f; break;
-    case 2: mat.twist_stiffness *= f; break;
-    case 3: mat.stretch_stiffness *= f; break;
-    case 4: rod.linear_density *= f; break;
+    case 0: l.B *= f; break;
+    case 1: l.B2_over_B *= f; break;
+    case 2: l.GJ *= f; break;
+    case 3: l.EA *= f; break;
+    case 4: l.rho *= f; break;
     default: {
       const Eigen::Matrix3d R = Eigen::AngleAxisd(e, Vec3::Unit((which - 5) % 3)).toRotationMatrix();
-      if (which <= 7) {
-        c.clamp.tangent = R * c.clamp.tangent;
-        c.clamp.normal = R * c.clamp.normal;
-      } else {
-        c.end_clamp->tangent = R * c.end_clamp->tangent;
-        c.end_clamp->normal = R * *c.end_clamp->normal;
-      }
+      (which <= 7 ? l.clamp_turn : l.end_turn) = R;
     }
   }
-  return RodModel(rod, mat, m0.gravity(), c);
+  return LoopModel(l);
 }
 
 CriticalTwistParameter LoopParameter(int which) {
