@@ -111,7 +111,7 @@ int RunRollout(int argc, char** argv) {
     recs.push_back(rodfit::ReadMarkerRecording(path, frame_rate, unit == "mm" ? 1e-3 : 1.0));
     rodfit::CheckRecordingScale(recs.back(), experiment.scene.rod.length,
                                 unit == "mm" ? "--unit mm is set" : "give --unit mm");
-    data.push_back({recs.back().frame_interval, recs.back().frames});
+    data.push_back({path, recs.back().frame_interval, recs.back().frames});
   }
   rodfit::RolloutOptions options;
   options.initial_equilibrium = initial == "equilibrium";

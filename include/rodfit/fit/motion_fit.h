@@ -30,6 +30,7 @@
 namespace rodfit {
 
 struct MotionRecordingData {
+  std::string name;                           ///< how messages name it (its file)
   double frame_interval = 0.0;                ///< [s]
   std::vector<Eigen::Matrix3Xd> frames;       ///< 3 x markers per frame, NaN where not seen
 };

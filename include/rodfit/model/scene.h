@@ -25,6 +25,13 @@ struct RodSpec {
   /// Intrinsic curvature at rest (k1°, k2°, tau°) [1/m]; [0, k, 0] with k > 0 bends the unloaded
   /// rod towards the clamp's normal.
   Vec3 rest_curvature = Vec3::Zero();
+  /// The rod's natural shape as intrinsic curvature varying along it (docs/model.md, "Rest
+  /// shape"): (k1°, k2°, tau°) [1/m] at the arc lengths `rest_curvature_s` [m] (strictly
+  /// increasing, within [0, length]), linear between them and constant beyond, added to
+  /// `rest_curvature`. From `rod.rest_shape` (a centre-line at rest) or fitted (the
+  /// `rest_curvature` parameters of a motion fit). Empty: none.
+  std::vector<double> rest_curvature_s;
+  std::vector<Vec3> rest_curvature_profile;
   /// Optional arc lengths of the vertices [m], strictly increasing from 0 to `length`
   /// (segments + 1 values); empty: `segments` equal edges.
   std::vector<double> vertex_s;

@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "rodfit/model/rod.h"
+#include "rodfit/solve/termination.h"
 
 namespace rodfit {
 
@@ -220,6 +221,9 @@ struct DynamicsStepSummary {
   int newton_iterations = 0;  ///< implicit: Newton iterations in this step
   int substeps = 1;           ///< substeps taken (explicit with substep; implicit halved)
   int rejected = 0;           ///< adaptive: substeps retried (error above tolerance or failed)
+  /// Implicit: how the (last) Newton solve of the step ended (termination.h); kConverged for an
+  /// explicit step.
+  Termination termination = Termination::kConverged;
   double residual = 0.0;      ///< implicit: scaled residual at exit [N]
   std::string reason;         ///< why a step failed
   bool out_of_time = false;   ///< failed because DynamicsOptions::time_budget ran out

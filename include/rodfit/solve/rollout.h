@@ -86,9 +86,12 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers);
 /// The material is used as given (`rodfit rollout` first applies DefaultTwistDamping).
 /// Throws std::invalid_argument for unusable input (fewer than 3 markers, a held marker missing
 /// from every frame, markers 0 and 1 missing in frame 0 or 1, ...).
+/// With adaptive steps, `schedule` (when given) records or replays them: a fit replays its base
+/// trajectory's steps so that its objective stays smooth (StepSchedule).
 RolloutResult Rollout(const Scene& scene, double frame_interval,
                       const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
-                      const StaticsOptions& statics = StaticsOptions());
+                      const StaticsOptions& statics = StaticsOptions(),
+                      StepSchedule* schedule = nullptr);
 
 /// The same rollout with the derivatives of its predictions (docs/solvers.md, "Sensitivities in
 /// time"): (*d_predicted)[k] is 3 M x directions.size() for frame k, rows 3 m .. 3 m + 2 marker
@@ -100,6 +103,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
                                        const std::vector<Eigen::Matrix3Xd>& frames,
                                        const RolloutOptions& options, const StaticsOptions& statics,
                                        const std::vector<ParameterDirection>& directions,
-                                       std::vector<Eigen::MatrixXd>* d_predicted);
+                                       std::vector<Eigen::MatrixXd>* d_predicted,
+                                       StepSchedule* schedule = nullptr);
 
 }  // namespace rodfit

@@ -4,12 +4,14 @@
 #include "rodfit/fit/motion_fit.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <functional>
 #include <limits>
 #include <stdexcept>
+#include <thread>
 
 #include <ceres/ceres.h>
 #include <nlopt.hpp>
@@ -61,6 +63,21 @@ struct Ctx {
   double cached_mae = 0.0;   // the mean over recordings of the predicted markers' MAE
   std::string last_failure;
   double run_seconds = 0.0;  // wall time in `forward`
+  // Per recording, the adaptive steps of its first rollout, replayed by every later one: the
+  // objective and its Jacobian stay smooth in the parameters (a step sequence that changed with
+  // them would make the cost jump between a trial and its Jacobian).
+  std::vector<StepSchedule> schedules;
+  StepSchedule* ScheduleOf(size_t recording) {
+    if (schedules.size() != recordings->size()) schedules.assign(recordings->size(), StepSchedule());
+    StepSchedule& s = schedules[recording];
+    if (s.steps.empty()) s.Record(); else s.Replay();
+    return &s;
+  }
+  // "recording NAME: " for a message.
+  std::string Named(size_t recording) const {
+    const std::string& name = (*recordings)[recording].name;
+    return "recording " + (name.empty() ? std::to_string(recording + 1) : name) + ": ";
+  }
 };
 
 // The predicted markers' mean absolute coordinate error averaged over the recordings (the score
@@ -69,12 +86,18 @@ double MeanRolloutError(const std::vector<double>& logp, Ctx* c) {
   const Scene s = SceneAt(*c->scene, *c->names, logp.data());
   ++c->evaluations;
   double sum = 0.0;
-  for (const MotionRecordingData& r : *c->recordings) {
+  for (size_t ri = 0; ri < c->recordings->size(); ++ri) {
+    const MotionRecordingData& r = (*c->recordings)[ri];
     try {
-      const RolloutResult out = Rollout(s, r.frame_interval, r.frames, *c->options, *c->statics);
-      if (!out.ok) return 1e3;  // a run that fails is a very bad point, not an error
+      const RolloutResult out = Rollout(s, r.frame_interval, r.frames, *c->options, *c->statics,
+                                        c->ScheduleOf(ri));
+      if (!out.ok) {  // a run that fails is a very bad point, not an error
+        c->last_failure = c->Named(ri) + out.reason;
+        return 1e3;
+      }
       sum += out.mae_predicted;
-    } catch (const std::runtime_error&) {
+    } catch (const std::runtime_error& e) {
+      c->last_failure = c->Named(ri) + e.what();
       return 1e3;
     }
   }
@@ -112,37 +135,65 @@ bool EvaluateWithSensitivities(const double* logp, Ctx* c) {
   return c->cached_ok;
 }
 
-// The recordings' residuals and Jacobian at scene `s` (rollouts with sensitivities).
+// The recordings' residuals and Jacobian at scene `s` (rollouts with sensitivities), the
+// recordings run in parallel threads (each its own rollout, schedule and rows).
 bool RecordingsForward(const Scene& s, Ctx* c) {
+  const size_t count = c->recordings->size();
+  struct Run {
+    RolloutResult out;
+    std::vector<Eigen::MatrixXd> dp;
+    std::string failure;
+  };
+  std::vector<Run> runs(count);
+  // Schedules are chosen (recorded or replayed) before the threads start.
+  std::vector<StepSchedule*> schedules(count);
+  for (size_t ri = 0; ri < count; ++ri) schedules[ri] = c->ScheduleOf(ri);
+  auto run_one = [&](size_t ri) {
+    const MotionRecordingData& rec = (*c->recordings)[ri];
+    Run& run = runs[ri];
+    try {
+      run.out = RolloutWithSensitivities(s, rec.frame_interval, rec.frames, *c->options,
+                                         *c->statics, c->directions, &run.dp, schedules[ri]);
+      if (!run.out.ok || run.out.predicted.size() != rec.frames.size())
+        run.failure = c->Named(ri) + run.out.reason;
+    } catch (const std::exception& e) {
+      run.failure = c->Named(ri) + e.what();
+    }
+  };
+  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
+                                                           static_cast<unsigned>(count)));
+  if (threads <= 1) {
+    for (size_t ri = 0; ri < count; ++ri) run_one(ri);
+  } else {
+    std::atomic<size_t> next{0};
+    std::vector<std::thread> pool;
+    for (unsigned t = 0; t < threads; ++t)
+      pool.emplace_back([&]() {
+        for (size_t ri = next++; ri < count; ri = next++) run_one(ri);
+      });
+    for (std::thread& t : pool) t.join();
+  }
   int row = 0;
   double mae = 0.0;
-  for (size_t ri = 0; ri < c->recordings->size(); ++ri) {
+  for (size_t ri = 0; ri < count; ++ri) {
+    const Run& run = runs[ri];
+    if (!run.failure.empty()) {
+      c->last_failure = run.failure;
+      return false;
+    }
     const MotionRecordingData& rec = (*c->recordings)[ri];
-    std::vector<Eigen::MatrixXd> dp;
-    RolloutResult out;
-    try {
-      out = RolloutWithSensitivities(s, rec.frame_interval, rec.frames, *c->options, *c->statics,
-                                     c->directions, &dp);
-    } catch (const std::runtime_error& e) {
-      c->last_failure = e.what();
-      return false;
-    }
-    if (!out.ok || out.predicted.size() != rec.frames.size()) {
-      c->last_failure = out.reason;
-      return false;
-    }
-    mae += out.mae_predicted;
+    mae += run.out.mae_predicted;
     const int M = static_cast<int>(rec.frames[0].cols());
     for (size_t k = 1; k < rec.frames.size(); ++k)
       for (int mk = 0; mk < M; ++mk) {
         if (c->held[ri][mk] || !rec.frames[k].col(mk).allFinite()) continue;
         for (int a = 0; a < 3; ++a, ++row) {
-          c->cached_r[row] = (out.predicted[k](a, mk) - rec.frames[k](a, mk)) / c->sigma;
-          c->cached_J.row(row) = dp[k].row(3 * mk + a) / c->sigma;
+          c->cached_r[row] = (run.out.predicted[k](a, mk) - rec.frames[k](a, mk)) / c->sigma;
+          c->cached_J.row(row) = run.dp[k].row(3 * mk + a) / c->sigma;
         }
       }
   }
-  c->cached_mae = mae / static_cast<double>(c->recordings->size());
+  c->cached_mae = mae / static_cast<double>(count);
   return true;
 }
 

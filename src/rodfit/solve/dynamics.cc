@@ -716,6 +716,7 @@ DynamicsStepSummary DynamicsStepper::StepAdaptive(const Drive& drive, DynamicSta
     const DynamicsStepSummary one = StepImplicit(drive, step, s);
     summary.newton_iterations += one.newton_iterations;
     summary.residual = one.residual;
+    summary.termination = one.termination;
     if (one.out_of_time) {
       *s = start;
       substeps_.clear();
@@ -770,6 +771,7 @@ bool DynamicsStepper::StepHalving(const Drive& drive, double dt, int depth, Dyna
     return true;
   }
   if (depth >= options_.max_halvings || one.out_of_time) {
+    summary->termination = one.termination;
     summary->reason = one.reason;
     summary->out_of_time = one.out_of_time;
     return false;
@@ -797,6 +799,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   const RodState& q0 = s->q;
   StepProblem& problem = *scratch_->problem;
   if (!Advance(q0, t.predictor, *pose, &problem.current())) {  // the predictor
+    summary.termination = Termination::kRetractionFailed;
     if (options_.failure_reasons)
       summary.reason = "the predictor folds an edge back: time_step too large for this motion";
     return summary;
@@ -837,6 +840,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   const NewtonSummary r = scratch_->minimizer.Minimize(&problem);
   summary.newton_iterations = r.iterations;
   summary.residual = r.residual_norm;
+  summary.termination = r.termination;
   if (!r.converged()) {
     summary.out_of_time = r.termination == Termination::kTimeBudget;
     if (summary.out_of_time) {
@@ -854,6 +858,7 @@ DynamicsStepSummary DynamicsStepper::StepImplicit(const Drive& drive, double dt,
   if (w.midpoint) {
     // q_{n+1} = 2 q_m - q_n (the midpoint's state carried on by the same increment).
     if (!Advance(problem.current(), delta_, pose_, &trial_)) {
+      summary.termination = Termination::kRetractionFailed;
       if (options_.failure_reasons)
         summary.reason = "the midpoint's extrapolation folds an edge back (reduce time_step)";
       return summary;

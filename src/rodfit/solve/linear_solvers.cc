@@ -28,34 +28,34 @@ double BandedCholeskySolver::MaxDiagonal() const {
 double BandedCholeskySolver::NegativeCurvature(double shift_ok, double shift_failed,
                                                int bisections, const VecX& gradient, VecX* d) {
   const BandedSymmetric& H = *matrix_;
-  VecX g;
   if (positions_) {
-    GatherPositions(gradient, &g);
+    GatherPositions(gradient, &g_);
   } else {
-    g = gradient;
+    g_ = gradient;  // same size after the first search: no allocation
   }
   double lo = std::max(shift_failed, 0.0), hi = shift_ok;
-  BandedCholesky probe, best;
   for (int k = 0; k < bisections && hi > 1.0001 * lo; ++k) {
     const double mid = lo > 0.0 ? std::sqrt(lo * hi) : 0.5 * hi;
-    if (probe.Factor(H, mid)) {
+    if (probe_.Factor(H, mid)) {
       hi = mid;
     } else {
       lo = mid;
     }
   }
-  if (!best.Factor(H, hi)) return 0.0;
-  VecX v = VecX::Ones(H.size());
-  for (int k = 0; k < v.size(); k += 3) v[k] = -0.5;
-  const double gmax = g.cwiseAbs().maxCoeff();
-  if (gmax > 0) v = 1e-3 * v - g / gmax;
+  if (!best_.Factor(H, hi)) return 0.0;
+  v_.resize(H.size());
+  v_.setOnes();
+  for (int k = 0; k < v_.size(); k += 3) v_[k] = -0.5;
+  const double gmax = g_.cwiseAbs().maxCoeff();
+  if (gmax > 0) v_ = 1e-3 * v_ - g_ / gmax;
   double rq = 0.0;
   for (int it = 0; it < 40; ++it) {
-    best.SolveInPlace(v);
-    const double scale = v.cwiseAbs().maxCoeff();
+    best_.SolveInPlace(v_);
+    const double scale = v_.cwiseAbs().maxCoeff();
     if (!(scale > 0) || !std::isfinite(scale)) return 0.0;
-    v /= scale;
-    const double q = v.dot(H.Multiply(v)) / v.squaredNorm();
+    v_ /= scale;
+    H.MultiplyInto(v_, &hv_);
+    const double q = v_.dot(hv_) / v_.squaredNorm();
     if (it > 3 && std::abs(q - rq) <= 1e-6 * std::abs(q)) {
       rq = q;
       break;
@@ -63,12 +63,25 @@ double BandedCholeskySolver::NegativeCurvature(double shift_ok, double shift_fai
     rq = q;
   }
   if (positions_) {
-    d->setZero(gradient.size());
-    ScatterPositions(v, d);
+    d->resize(gradient.size());
+    d->setZero();
+    ScatterPositions(v_, d);
   } else {
-    *d = v;
+    *d = v_;
   }
   return rq;
+}
+
+void BandedCholeskySolver::ReserveScratch() {
+  const BandedSymmetric& H = *matrix_;
+  // A shift far above the diagonal factors any matrix: it sizes the factors' blocks.
+  const double big = 1e3 * (H.band().row(0).cwiseAbs().maxCoeff() + 1.0);
+  probe_.Factor(H, big);
+  best_.Factor(H, big);
+  const int n = H.size();  // the position rows alone when positions_: the matrix is theirs
+  g_.setZero(n);
+  v_.setZero(n);
+  hv_.setZero(n);
 }
 
 bool BandedLUSolver::Factor(double shift) {

@@ -32,15 +32,22 @@ class BandedCholeskySolver : public LinearSolver {
   /// Bisects the shift down to the smallest that factors, then inverse iteration with it, from
   /// the descent direction -g plus a fixed non-symmetric vector (within a degenerate eigenspace,
   /// an isotropic column buckling alike in every direction about its axis, it converges to the
-  /// mode the loads push, so a heavy rod buckles down, not sideways). Allocates (statics only).
+  /// mode the loads push, so a heavy rod buckles down, not sideways). Its scratch is kept: once
+  /// sized it allocates nothing (the runtime's ticks may escape saddles).
   double NegativeCurvature(double shift_ok, double shift_failed, int bisections,
                            const VecX& gradient, VecX* d) override;
+  /// Sizes NegativeCurvature's scratch for the matrix's current shape now (a real-time caller
+  /// does it at construction; afterwards nothing allocates).
+  void ReserveScratch();
 
  private:
   BandedSymmetric* matrix_;
   BandedCholesky* factor_;
   bool positions_;
   mutable VecX gathered_;  // the position rows (positions_ only)
+  // NegativeCurvature's scratch, kept: after a first search it allocates nothing.
+  BandedCholesky probe_, best_;
+  VecX g_, v_, hv_;
 };
 
 /// P A = L U of a general band matrix (banded.h), the shift added on a copy of the diagonal.

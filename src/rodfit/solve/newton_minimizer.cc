@@ -159,7 +159,8 @@ bool NewtonMinimizer::LineSearch(double slope, double turn, bool shifted, double
 
 // Leaves a saddle along d (negative curvature): the first step along +-d, from 0.1 L down by
 // halves, that lowers the merit beyond round-off.
-bool NewtonMinimizer::EscapeSaddle(VecX d) {
+bool NewtonMinimizer::EscapeSaddle() {
+  VecX& d = d_;  // the direction, in place (no copy: the runtime's ticks allocate nothing)
   const VecX& w = p_->NormWeights();
   for (int k = 0; k < d.size(); ++k)
     if (w[k] == 0.0) d[k] = 0.0;  // held rows
@@ -188,14 +189,13 @@ bool NewtonMinimizer::EscapeSaddle(VecX d) {
 // its signed amplitude and merit, when it lowers the merit beyond round-off. Far from
 // equilibrium an indefinite Hessian (a straight segment compressed between held points) makes
 // the shifted Newton step tiny while the buckling mode lowers the merit by orders of magnitude.
-bool NewtonMinimizer::BestAlongNegativeCurvature(VecX d, double* best_amplitude,
-                                                 double* best_energy) {
+bool NewtonMinimizer::BestAlongNegativeCurvature(double* best_amplitude, double* best_energy) {
   const VecX& w = p_->NormWeights();
-  for (int k = 0; k < d.size(); ++k)
-    if (w[k] == 0.0) d[k] = 0.0;
-  const double dmax = d.cwiseAbs().maxCoeff();
+  for (int k = 0; k < d_.size(); ++k)
+    if (w[k] == 0.0) d_[k] = 0.0;
+  const double dmax = d_.cwiseAbs().maxCoeff();
   if (!(dmax > 0.0)) return false;
-  d_ = d / dmax;
+  d_ /= dmax;
   const double e0 = Merit();
   const double L = p_->Length();
   double best = e0;
@@ -437,7 +437,7 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
           rq < 0.0 && 0.5 * -rq * d_.squaredNorm() * amplitude * amplitude >
                           100.0 * p_->EnergyNoise(Merit());
       if (options_.saddles == Saddles::kEscape && summary_.saddle_escapes < kMaxSaddleEscapes &&
-          EscapeSaddle(d_)) {
+          EscapeSaddle()) {
         ++summary_.saddle_escapes;
         ++summary_.iterations;
         last_step_full = false;
@@ -490,7 +490,7 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
       if (shifted && classify) {
         const double rq = p_->Solver().NegativeCurvature(shift, shift_failed,
                                                          kShiftedBisections, g_, &d_);
-        if (rq < 0.0) nc = BestAlongNegativeCurvature(d_, &nc_amplitude, &nc_energy);
+        if (rq < 0.0) nc = BestAlongNegativeCurvature(&nc_amplitude, &nc_energy);
       }
       accepted = LineSearch(slope, caps.turn, shifted, &alpha);
       const double newton_energy = accepted ? energy_ : kInf;

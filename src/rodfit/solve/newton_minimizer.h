@@ -19,27 +19,11 @@
 
 #include <Eigen/Core>
 
+#include "rodfit/solve/termination.h"
+
 namespace rodfit {
 
 using VecX = Eigen::VectorXd;
-
-/// Why a minimization stopped. The first four are convergence.
-enum class Termination : unsigned char {
-  kConverged,            ///< the scaled residual is within its tolerance
-  kSmallStep,            ///< an unshifted Newton step within the step tolerance
-  kContraction,          ///< the steps' contraction puts the error left within the step tolerance
-  kRoundOff,             ///< stagnated at round-off: the state is as exact as doubles make it
-  kIterationCap,         ///< the iteration cap was reached
-  kLineSearchFailed,     ///< no step length lowered the merit
-  kNotPositiveDefinite,  ///< no diagonal shift up to its cap made the matrix factor
-  kNonFinite,            ///< a NaN or infinity in the merit, residual or matrix
-  kTimeBudget,           ///< the wall-time budget ran out
-  kRetractionFailed,     ///< the problem could not take any step (an edge would fold back)
-};
-
-/// A fixed, static message per termination (no allocation: the haptic loop reads it).
-const char* TerminationMessage(Termination termination);
-inline bool IsConverged(Termination t) { return t <= Termination::kRoundOff; }
 
 /// The linear solve of a Newton iteration, as a strategy (linear_solvers.h): the problem
 /// assembles its matrix into the strategy's storage, the minimizer factors it (with a diagonal
@@ -301,8 +285,8 @@ class NewtonMinimizer {
   bool ResidualConverged() const;
   bool StepConverged(const RelativeStep& s, bool taken = false) const;
   bool LineSearch(double slope, double turn, bool shifted, double* alpha);
-  bool EscapeSaddle(VecX d);
-  bool BestAlongNegativeCurvature(VecX d, double* best_amplitude, double* best_energy);
+  bool EscapeSaddle();
+  bool BestAlongNegativeCurvature(double* best_amplitude, double* best_energy);
   double Merit();
   double TrialMerit();
 

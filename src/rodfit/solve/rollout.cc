@@ -266,6 +266,7 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
                                 std::to_string(frame_interval) + " s)");
   sc.dynamics->output_every = per_frame;
   if (sc.dynamics->error_tolerance == 0.0) sc.dynamics->error_tolerance = options.error_tolerance;
+
   sc.dynamics->duration = (frames.size() - 1) * frame_interval;
 
   return {sc, marker_vertex};
@@ -321,11 +322,11 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers) {
 
 RolloutResult Rollout(const Scene& scene, double frame_interval,
                       const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
-                      const StaticsOptions& statics) {
+                      const StaticsOptions& statics, StepSchedule* schedule) {
   RolloutResult out;
   const RolloutProblem problem = SetUpRollout(scene, frame_interval, frames, options, &out);
   const int M = static_cast<int>(frames[0].cols());
-  const CaseTrajectory traj = SimulateCaseDynamics(problem.scene, 0, statics);
+  const CaseTrajectory traj = SimulateCaseDynamics(problem.scene, 0, statics, nullptr, schedule);
   out.seconds = traj.seconds;
   out.halved_steps = traj.halved_steps;
   out.ok = traj.ok;
@@ -343,7 +344,8 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
                                        const std::vector<Eigen::Matrix3Xd>& frames,
                                        const RolloutOptions& options, const StaticsOptions& statics,
                                        const std::vector<ParameterDirection>& directions,
-                                       std::vector<Eigen::MatrixXd>* d_predicted) {
+                                       std::vector<Eigen::MatrixXd>* d_predicted,
+                                       StepSchedule* schedule) {
   RolloutResult out;
   const RolloutProblem problem = SetUpRollout(scene, frame_interval, frames, options, &out);
   const Scene& sc = problem.scene;
@@ -355,6 +357,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
   const DynamicsSpec& spec = *sc.dynamics;
   const RodModel model(sc.rod, sc.material, sc.gravity, CaseAtStart(sc.cases[0]), sc.springs);
   DynamicsStepper stepper(model, DynamicsOptionsFrom(spec));
+  stepper.SetSchedule(schedule);
   const CaseDrive drive(model, sc.cases[0]);
   DynamicState s = InitialDynamicState(sc, 0, statics, stepper);
   DynamicSensitivity ds;
