@@ -39,7 +39,7 @@ struct CriticalTwistOptions {
   /// [rad] natural-parameter steps of the roll: the first, the largest, and the smallest before
   /// the crossing is taken over by the pseudo-arclength continuation.
   double initial_step_rad = 0.1;
-  double max_step_rad = 0.5;
+  double max_step_rad = 1.0;
   double min_step_rad = 1e-3;
   /// Steps in all (natural and pseudo-arclength) before giving up.
   int max_steps = 2000;
