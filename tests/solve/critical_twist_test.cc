@@ -537,5 +537,49 @@ TEST(CriticalTwist, DISABLED_HeavyLoopTimesAndConvergence) {
   }
 }
 
+// Other loops against the reference (heavy: ~4 s): a light, torsionally stiff wire (rho = 1e-3,
+// GJ = B) and a heavy, soft one (rho = 2e-2, GJ = 0.6 B). Measured: reference 10.50641535 and
+// 17.44749082 rad; rodfit's error at 60, 120, 240 segments +0.0507, +0.0128, +0.0032 and
+// +0.1915, +0.0580, +0.0157 rad (the same branch, converging at second order).
+TEST(CriticalTwist, DISABLED_OtherLoopsAgainstTheReference) {
+  for (const auto& [rho, gj] : {std::pair<double, double>{1e-3, 1.0}, {2e-2, 0.6}}) {
+    rodfit_reference::RodProperties p;
+    p.length = 1.5;
+    p.B1 = p.B2 = 1e-3;
+    p.GJ = gj * 1e-3;
+    p.linear_density = rho;
+    p.gravity = Eigen::Vector3d(0, 0, -9.81);
+    rodfit_reference::ClampSpec a;
+    a.tangent = Eigen::Vector3d::UnitX();
+    a.normal = Eigen::Vector3d::UnitZ();
+    rodfit_reference::ClampSpec b = a;
+    b.position = Eigen::Vector3d(-0.12, 0, 0);
+    rodfit_reference::CriticalRollOptions o;
+    o.steps = 256;
+    o.max_roll_rad = 30.0;
+    o.initial_step = 0.1;
+    o.max_step = 1.0;
+    Eigen::Matrix<double, 6, 1> guess;
+    guess << 0, 0, 0, 0, 2 * kPi * 1e-3 / 1.5, 0;
+    const rodfit_reference::CriticalRollResult ref = rodfit_reference::CriticalRoll(p, a, b, o, &guess);
+    ASSERT_TRUE(ref.ok) << ref.message;
+    std::printf("rho %g, GJ/B %g: reference %.8f rad\n", rho, gj, ref.critical_roll_rad);
+    double previous = 0.0;
+    for (int n : {60, 120, 240}) {
+      Loop l;
+      l.segments = n;
+      l.rho = rho;
+      l.GJ = gj * 1e-3;
+      const CriticalTwistResult r = LoopCriticalTwist(l);
+      ASSERT_TRUE(r.ok) << r.message;
+      EXPECT_EQ(r.kind, TwistInstability::kFold);
+      const double error = r.critical_roll_rad - ref.critical_roll_rad;
+      std::printf("  N %3d: %.8f rad, error %+.4e rad\n", n, r.critical_roll_rad, error);
+      if (n > 60) EXPECT_GT(previous / error, 3.2);
+      previous = error;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace rodfit

@@ -11,8 +11,8 @@
 //     solve fails, its state is not stable, or it jumped to another branch (farther from the
 //     predictor than kJumpFraction of the predictor's own move). The steps shorten as the
 //     smallest eigenvalue lambda falls: each covers at most kCrossingFraction of the distance to
-//     the crossing predicted by extrapolating lambda^2 linearly in r (exact near a fold, where
-//     lambda ~ sqrt(r_f - r); safe at a bifurcation, where lambda falls linearly).
+//     the crossing predicted by extrapolating lambda linearly in r (a bifurcation's) or lambda^2
+//     (a fold's, where lambda ~ sqrt(r_f - r)), whichever predicted the last point better.
 //  2. pseudo-arclength steps once the crossing predicted by extrapolating lambda linearly is
 //     nearer than kArclengthTakeover (or the natural steps shrank below min_step_rad): unknowns
 //     z = (q, r), the corrector solves g = 0 with t . W (z - z_a) = ds (W the continuation
@@ -28,10 +28,12 @@
 // lumped length metric (Voronoi length per position, edge length cubed per twist angle: a
 // twist counts like the displacement it makes across an edge, so the twist modes, which never
 // go unstable, stay far above the bending modes that do), so that the critical lambda
-// converges with the segments. It is found by subspace inverse iteration with kModes vectors (a rod symmetric
-// about its axis has a double critical eigenvalue, Greenhill's) and the banded Cholesky factor
-// of H - sigma M, sigma below lambda (0 on the stable branch, lowered until the factor exists
-// beyond the crossing), Rayleigh–Ritz on the subspace, warm-started from the previous point.
+// converges with the segments. It is found by subspace inverse iteration with kModes vectors (a
+// rod symmetric about its axis has a double critical eigenvalue, Greenhill's) and the banded
+// Cholesky factor of H - sigma M, sigma below lambda (0 on the stable branch, a margin below it
+// beyond the crossing), warm-started from the previous point, and its Ritz values are recomputed
+// from the energy's terms one by one (QuadraticForms: the assembled band's round-off would swamp
+// a soft mode's eigenvalue).
 //
 // Derivatives (CriticalTwistDerivatives). dg/dr is exact: rolling the clamp turns the ghost
 // edge's d1, i.e. its twist angle theta_e in vertex 0's stencil, whose closed-form gradient is
@@ -54,6 +56,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
@@ -118,7 +121,7 @@ constexpr int kModes = 6;
 /// Of which this many start from fixed vectors at every point (see LowestModes).
 constexpr int kFreshModes = 2;
 /// The Ritz values have converged when the lowest two change by less than this times the
-/// subspace's spectral width (lambda_4 - sigma) in an iteration.
+/// subspace's spectral width (its largest Ritz value - sigma) in an iteration.
 constexpr double kRitzTolerance = 1e-14;
 constexpr int kMaxEigenIterations = 400;
 /// Eigenvalues within this times lambda_unit of lambda_min count as one multiple eigenvalue.
@@ -197,7 +200,6 @@ RodModel RolledModel(const RodModel& model, const Vec3& d1) {
 // The lumped length metric M (see the top comment); held rows 1.
 VecX LengthMetric(const RodModel& model) {
   const int n = model.num_edges();
-  const double L = model.length();
   VecX m = VecX::Ones(model.num_free_dofs());
   for (int i = 1; i <= n; ++i) {
     const double cell =
@@ -206,7 +208,6 @@ VecX LengthMetric(const RodModel& model) {
   }
   for (int j = 0; j < n; ++j) m[RodModel::TwistDof(j)] = std::pow(model.rest_edge_length(j), 3);
   if (model.has_end_ghost()) m[RodModel::TwistDof(n)] = std::pow(model.end_ghost_length(), 3);
-  (void)L;
   return m;
 }
 
@@ -807,7 +808,13 @@ CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwist
     RodState predictor;
     // Predictor: along the tangent by dr (its W-length is h / |t_r|).
     ok = ApplyStep(model, a.q, VecX(a.tangent.head(n)), h / std::abs(a.tangent[n]), &predictor);
-    const RodModel rolled = RolledModel(model, RolledD1(t0, d1_0, roll));
+    std::unique_ptr<RodModel> rolled_model;
+    try {
+      rolled_model = std::make_unique<RodModel>(RolledModel(model, RolledD1(t0, d1_0, roll)));
+    } catch (const std::exception& e) {  // the same rod as `model`'s: not expected
+      return fail(std::string("the rolled case is not a valid rod: ") + e.what());
+    }
+    const RodModel& rolled = *rolled_model;
     ok = ok && SetClampFrame(model, rolled.clamp_tangent(), rolled.clamp_d1(), &predictor);
     if (ok) {
       c.q = predictor;
