@@ -575,7 +575,9 @@ TEST(CriticalTwist, DISABLED_OtherLoopsAgainstTheReference) {
       EXPECT_EQ(r.kind, TwistInstability::kFold);
       const double error = r.critical_roll_rad - ref.critical_roll_rad;
       std::printf("  N %3d: %.8f rad, error %+.4e rad\n", n, r.critical_roll_rad, error);
-      if (n > 60) EXPECT_GT(previous / error, 3.2);
+      if (n > 60) {
+        EXPECT_GT(previous / error, 3.2);
+      }
       previous = error;
     }
   }
