@@ -15,7 +15,8 @@
 
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
+#include "rodfit/pipeline/fit_input.h"
+#include "rodfit/pipeline/experiment.h"
 
 int main() {
   const char* path = "calibration/suture_cantilever/experiment.yaml";

@@ -17,7 +17,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "rodfit/io/csv.h"
-#include "rodfit/io/image_observations.h"
+#include "rodfit/pipeline/image_observations.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/synth/synth.h"

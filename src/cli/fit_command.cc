@@ -19,13 +19,14 @@
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/io/fit_input.h"
-#include "rodfit/io/marker_sequences.h"
+#include "rodfit/pipeline/fit_input.h"
+#include "rodfit/pipeline/sequence_input.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/report/fit_report.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/profile.h"
 #include "rodfit/io/progress.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace {
 

@@ -20,6 +20,7 @@
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/solve/rollout.h"
 #include "rodfit/version.h"
+#include "rodfit/pipeline/experiment.h"
 
 int RunRollout(int argc, char** argv) {
   CLI::App app(

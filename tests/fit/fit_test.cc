@@ -44,7 +44,7 @@ Mat3X Solve(const FitInput& in, const LoadCase& c) {
 }
 
 // Markers at `count` evenly spaced s in (0, L], Gaussian noise sigma (0 = exact).
-std::shared_ptr<const Observation> Markers(const FitInput& in, const Mat3X& x, int count,
+std::shared_ptr<const Measurement> Markers(const FitInput& in, const Mat3X& x, int count,
                                            double sigma, double noise, std::mt19937* rng) {
   std::normal_distribution<double> N(0.0, 1.0);
   const RodModel model(in.rod, in.material, in.gravity, LoadCase());
@@ -60,7 +60,8 @@ std::shared_ptr<const Observation> Markers(const FitInput& in, const Mat3X& x, i
     if (noise > 0) m.p_world += noise * Vec3(N(*rng), N(*rng), N(*rng));
     markers.push_back(m);
   }
-  return std::make_shared<Markers3dObservation>(VertexArcLengths(model), markers, sigma);
+  return MakeShapeMeasurement("markers3d", "markers3d",
+                              Markers3dObservation(VertexArcLengths(model), markers, sigma));
 }
 
 void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double start_factor) {
@@ -99,7 +100,7 @@ FitInput Protocol(const FitInput& truth_material, double noise, std::mt19937* rn
   for (const LoadCase& c : cases) {
     FitCase fc;
     fc.load_case = c;
-    fc.observations.push_back(Markers(in, Solve(in, c), markers, sigma, noise, rng));
+    fc.measurements.push_back(Markers(in, Solve(in, c), markers, sigma, noise, rng));
     in.cases.push_back(fc);
   }
   return in;
@@ -167,7 +168,7 @@ FitInput TwistedProtocol(const FitInput& truth, std::mt19937* rng) {
   c.tip_force = Vec3(0, 0, -3e-5);
   FitCase fc;
   fc.load_case = c;
-  fc.observations.push_back(Markers(in, Solve(in, c), 10, 3e-4, 0.0, rng));
+  fc.measurements.push_back(Markers(in, Solve(in, c), 10, 3e-4, 0.0, rng));
   in.cases.push_back(fc);
   return in;
 }
@@ -217,7 +218,7 @@ TEST(Fit, RecoversStretchFromAStretchedCase) {
   c.tip_force = Vec3(0, 0, -0.1);  // 2 % strain
   FitCase fc;
   fc.load_case = c;
-  fc.observations.push_back(Markers(in, Solve(in, c), 10, 1e-5, 0.0, &rng));
+  fc.measurements.push_back(Markers(in, Solve(in, c), 10, 1e-5, 0.0, &rng));
   in.cases.push_back(fc);
   AddParameters(&in, {"stretch_stiffness"}, 3.0);
   const FitResult r = Fit(in, FitOptions());
@@ -242,7 +243,8 @@ TEST(Fit, RecoversBendingFromUnorderedPoints) {
     }
     FitCase fc;
     fc.load_case = c;
-    fc.observations.push_back(std::make_shared<Points3dObservation>(n + 1, samples, 3e-4));
+    fc.measurements.push_back(
+        MakeShapeMeasurement("points3d", "points3d", Points3dObservation(n + 1, samples, 3e-4)));
     in.cases.push_back(fc);
   }
   AddParameters(&in, {"bend_stiffness"}, 2.0);

@@ -85,7 +85,8 @@ FitCase Measured(const FitInput& truth, const LoadCase& c, const std::vector<std
       f.moment = r.moment;
       f.sigma_moment = 1e-5;
     }
-    fc.grasp_forces.push_back(f);
+    fc.measurements.push_back(
+        std::make_shared<ForceReadings>("reaction", f.label, std::vector<ForceMeasurement>{f}));
   }
   return fc;
 }

@@ -47,7 +47,7 @@ RodState Solve(const FitInput& in, const LoadCase& c, RodModel** keep = nullptr)
   return state;
 }
 
-std::shared_ptr<const Observation> Markers(const FitInput& in, const Mat3X& x, double sigma,
+std::shared_ptr<const Measurement> Markers(const FitInput& in, const Mat3X& x, double sigma,
                                            double noise, std::mt19937* rng) {
   std::normal_distribution<double> N(0.0, 1.0);
   const RodModel model(in.rod, in.material, in.gravity, Case("m"), in.springs);
@@ -57,7 +57,8 @@ std::shared_ptr<const Observation> Markers(const FitInput& in, const Mat3X& x, d
     if (noise > 0) p += noise * Vec3(N(*rng), N(*rng), N(*rng));
     markers.push_back({model.arc_length(i), p});
   }
-  return std::make_shared<Markers3dObservation>(VertexArcLengths(model), markers, sigma);
+  return MakeShapeMeasurement("markers3d", "markers3d",
+                              Markers3dObservation(VertexArcLengths(model), markers, sigma));
 }
 
 void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double factor) {
@@ -99,7 +100,7 @@ TEST(TissueFit, SingleSpringStiffnessFromMarkers) {
   for (const LoadCase& c : {Case("rest"), GraspCases()[0]}) {
     FitCase fc;
     fc.load_case = c;
-    fc.observations.push_back(Markers(in, Solve(in, c).x, 2e-4, 2e-4, &rng));
+    fc.measurements.push_back(Markers(in, Solve(in, c).x, 2e-4, 2e-4, &rng));
     in.cases.push_back(fc);
   }
   auto add = [&](const std::string& name, double v, bool fit) {
@@ -122,7 +123,7 @@ TEST(TissueFit, TwoZoneStiffnessesFromMarkers) {
   for (const LoadCase& c : {Case("rest"), GraspCases()[0], GraspCases()[2]}) {
     FitCase fc;
     fc.load_case = c;
-    fc.observations.push_back(Markers(in, Solve(in, c).x, 2e-4, 2e-4, &rng));
+    fc.measurements.push_back(Markers(in, Solve(in, c).x, 2e-4, 2e-4, &rng));
     in.cases.push_back(fc);
   }
   AddParameters(&in, {"spring_stiffness", "mesentery"}, 0.4);
@@ -152,7 +153,8 @@ FitInput ForceOnly(double noise, std::mt19937* rng) {
     m.force = f;
     m.sigma = 0.01;
     m.label = "grasp_force log " + c.name;
-    fc.grasp_forces.push_back(m);
+    fc.measurements.push_back(std::make_shared<ForceReadings>(
+        "grasp_force", m.label, std::vector<ForceMeasurement>{m}));
     in.cases.push_back(fc);
   }
   return in;

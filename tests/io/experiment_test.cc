@@ -12,6 +12,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/output_dir.h"
 #include "temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {

@@ -20,17 +20,15 @@ namespace {
 void CheckSurfacePoints(const FitInput& in, const std::vector<Fitted>& fitted) {
   bool any = false;
   for (const FitCase& c : in.cases) {
-    if (c.surface_points.empty()) continue;
+    bool has = false;
+    for (const auto& meas : c.measurements) has = has || meas->needs_section();
+    if (!has) continue;
     any = true;
     if (!c.load_case.poke)
       throw std::invalid_argument("case " + c.load_case.name + ": surface_points without a poke");
     if (!in.section)
       throw std::invalid_argument("case " + c.load_case.name +
                                   ": surface_points need the cross-section model (section:)");
-    for (const SurfacePoints& sp : c.surface_points)
-      if (!(sp.sigma > 0) || sp.points.empty())
-        throw std::invalid_argument("case " + c.load_case.name + ": " + sp.label +
-                                    ": needs points and sigma > 0");
   }
   for (const Fitted& f : fitted) {
     if (f.ring != 0 && !any)
@@ -144,12 +142,13 @@ std::unique_ptr<ceres::LossFunction> MakeLoss(RobustLoss loss, double scale) {
 
 CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fitted> fitted,
               const ceres::LossFunction* loss)
-    : in_(in), case_(in.cases[case_index]), measurements_(CaseMeasurements(case_)),
+    : in_(in), case_(in.cases[case_index]), measurements_(case_.measurements),
       fitted_(std::move(fitted)), loss_(loss), statics_(in.statics) {
   for (const auto& meas : measurements_) {
     num_residuals_ += meas->num_residuals();
     needs_reactions_ = needs_reactions_ || meas->needs_reactions();
     needs_section_ = needs_section_ || meas->needs_section();
+    needs_state_ = needs_state_ || meas->needs_state();
   }
 }
 
@@ -198,7 +197,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     return false;
   }
   const int m = num_parameters();
-  Eigen::MatrixXd dx;
+  Eigen::MatrixXd dx, dq_all;
   // Per measured holder: d(reaction) / d log p, 6 x m (force rows, then moment rows).
   std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
   if (jacobian) {
@@ -246,6 +245,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     }
     terms.resize(fitted_terms);
     dx = VertexSensitivities(*model, dq);
+    if (needs_state_) dq_all = dq;
     if (needs_reactions_) {
       // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
       // included), the equilibrium's dq, and which spring zones each parameter stiffens.
@@ -271,12 +271,15 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
   if (needs_section_ && !SolveSection(*model, state, material, &poke, jacobian ? &d_ring : nullptr))
     return false;
   SolvedCase view;
+  view.x = &state.x;
+  view.model = model.get();
   view.state = &state;
   view.reactions = &solved.reactions;
   view.poke = &poke;
   view.num_parameters = m;
   if (jacobian) {
     view.d_x = &dx;
+    view.d_q = &dq_all;
     view.d_reactions = &d_reactions;
     view.d_ring = &d_ring;
   }

@@ -217,6 +217,10 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
       entry["rms_moment"] = o.rms_moment;
       entry["unit_moment"] = "N m";
     }
+    if (std::isfinite(o.rms_roll)) {
+      entry["rms_roll"] = o.rms_roll;
+      entry["unit_roll"] = "deg";
+    }
     rms.push_back(entry);
   }
   fit["rms"] = rms;

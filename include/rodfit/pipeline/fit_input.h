@@ -1,6 +1,7 @@
-// From an experiment file to the fit's input (docs/formats.md, "Observation entries"): reads every
-// observation's data file (CSV, image) and camera, checks it against the rod, and builds the
-// observation models. Errors name the file, the row's line and the column or key.
+// From an experiment to the static fit's input (docs/formats.md, "Observation entries"): every
+// observation entry read by its kind (rodfit/pipeline/observation_kind.h) from its data file (CSV,
+// image) and camera, checked against the rod, into the case's measurements. Errors name the
+// file, the row's line and the column or key. Pipeline layer.
 #pragma once
 
 #include "rodfit/fit/fit.h"
