@@ -17,6 +17,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "rodfit/io/csv.h"
+#include "rodfit/io/errors.h"
 #include "rodfit/pipeline/image_observations.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/observe/camera.h"
@@ -77,13 +78,17 @@ int RunExtract(int argc, char** argv) {
       "Extract the ordered centre-line of a thread from a camera image (writes u,v), or from two "
       "images of two calibrated cameras (writes triangulated x,y,z).",
       "rodfit extract");
-  std::vector<std::string> images, camera_paths, starts, overlays, rois, masks;
-  std::string stereo_path, output_path;
+  std::vector<std::string> images, camera_paths, stereo_paths, starts, overlays, rois, masks;
+  std::string output_path;
   app.add_option("images", images, "one image, or two images of two cameras")
       ->required()
       ->expected(1, 2);
   app.add_option("--camera", camera_paths, "camera file, one per image (docs/formats.md)");
-  app.add_option("--stereo", stereo_path, "stereo calibration file holding both cameras");
+  app.add_option("--stereo", stereo_paths,
+                 "stereo calibration file holding both cameras (M1|K1 D1 M2|K2 D2 R T), or "
+                 "OpenCV's stereo_calib pair: intrinsics.yml extrinsics.yml; without an image "
+                 "size the images give it")
+      ->expected(1, 2);
   app.add_option("-o,--output", output_path, "output CSV: u,v (one image) or x,y,z (two)")
       ->required();
   app.add_option("--overlay", overlays, "image with the centre-line drawn, one per image");
@@ -103,15 +108,32 @@ int RunExtract(int argc, char** argv) {
   std::vector<rodfit::InputFile> inputs;
   for (const std::string& image : images) inputs.emplace_back(image, "an input image");
   for (const std::string& camera : camera_paths) inputs.emplace_back(camera, "a camera file");
-  if (!stereo_path.empty()) inputs.emplace_back(stereo_path, "the stereo file");
+  for (const std::string& stereo : stereo_paths) inputs.emplace_back(stereo, "a stereo file");
   for (const std::string& mask : masks) inputs.emplace_back(mask, "a mask");
   rodfit::RefuseOverwritingInput(output_path, inputs);
   for (const std::string& overlay : overlays) rodfit::RefuseOverwritingInput(overlay, inputs);
 
   std::vector<rodfit::Camera> cameras;
-  if (!stereo_path.empty()) {
+  if (!stereo_paths.empty()) {
     if (n != 2 || !camera_paths.empty()) return fail("--stereo needs two images and no --camera");
-    const auto pair = rodfit::LoadStereoCameras(stereo_path);
+    if (stereo_paths.size() > 2) return fail("--stereo takes one file, or intrinsics and extrinsics");
+    rodfit::StereoFileOptions stereo;
+    if (stereo_paths.size() == 2) stereo.extrinsics_path = stereo_paths[1];
+    // cv::stereoCalibrate calibrates a pair of one image size, which its callers rarely write
+    // down: the images state it (decoded here once more; extraction decodes them again).
+    stereo.image_size_when_absent = [&images]() {
+      const cv::Mat a = rodfit::ReadImageFile(images[0]), b = rodfit::ReadImageFile(images[1]);
+      if (a.size() != b.size()) {
+        throw rodfit::InputError(
+            images[1], 0, "", "the image is " + std::to_string(b.cols) + "x" +
+            std::to_string(b.rows) + " px but " + images[0] + " is " + std::to_string(a.cols) +
+            "x" + std::to_string(a.rows) +
+            "; the stereo file states no image size, so the pair must be of one size (as "
+            "cv::stereoCalibrate calibrates it)");
+      }
+      return rodfit::ImageSizePx{a.cols, a.rows};
+    };
+    const auto pair = rodfit::LoadStereoCameras(stereo_paths[0], stereo);
     cameras = {pair.first, pair.second};
   } else {
     if (camera_paths.size() != n) return fail("give one --camera per image, or --stereo");

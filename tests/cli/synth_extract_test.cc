@@ -267,6 +267,70 @@ TEST_F(SynthExtractCliTest, StereoExtractTriangulatesTheTruth) {
   }
 }
 
+// OpenCV's stereo_calib sample writes intrinsics.yml (M1 D1 M2 D2) and extrinsics.yml (R T R1 R2
+// P1 P2 Q) with cv::FileStorage and no image size (issue 38): extract takes the two files and the
+// size from the images, and triangulates in camera 1's frame (the sample poses no camera). The
+// same pair as one XML file without a size gives the same points.
+TEST_F(SynthExtractCliTest, StereoFilesAsTheOpenCVSampleWritesThem) {
+  const std::string out = dir_.File("out");
+  ASSERT_EQ(Rodfit("synth " + Q(WriteExperiment()) + " -o " + Q(out)).status, 0);
+  cv::FileStorage reference(kData + "stereo_front_top.yaml", cv::FileStorage::READ);
+  ASSERT_TRUE(reference.isOpened());
+  auto matrix = [&](const char* key) {
+    cv::Mat m;
+    reference[key] >> m;
+    EXPECT_FALSE(m.empty()) << key;
+    return m;
+  };
+  const std::string intrinsics = dir_.File("intrinsics.yml"), extrinsics = dir_.File("extrinsics.yml");
+  {
+    cv::FileStorage fs(intrinsics, cv::FileStorage::WRITE);
+    fs << "M1" << matrix("M1") << "D1" << matrix("D1") << "M2" << matrix("M2") << "D2" << matrix("D2");
+  }
+  {
+    const cv::Mat eye = cv::Mat::eye(3, 3, CV_64F);
+    cv::FileStorage fs(extrinsics, cv::FileStorage::WRITE);
+    fs << "R" << matrix("R") << "T" << matrix("T") << "R1" << eye << "R2" << eye;
+  }
+  const std::string one_xml = dir_.File("stereo.xml");
+  {
+    cv::FileStorage fs(one_xml, cv::FileStorage::WRITE);
+    for (const char* key : {"M1", "D1", "M2", "D2", "R", "T"}) fs << key << matrix(key);
+  }
+  const std::string images = Q(out + "/front.png") + " " + Q(out + "/top.png");
+  const std::string two = dir_.File("two.csv"), one = dir_.File("one.csv");
+  RunResult run = Rodfit("extract " + images + " --stereo " + Q(intrinsics) + " " +
+                         Q(extrinsics) + " -o " + Q(two));
+  ASSERT_EQ(run.status, 0) << run.err;
+  run = Rodfit("extract " + images + " --stereo " + Q(one_xml) + " -o " + Q(one));
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_EQ(ReadText(one), ReadText(two));
+  // On the truth, seen from camera 1 (cam_front.yaml's pose): the error bound of
+  // StereoExtractTriangulatesTheTruth.
+  const Camera front = LoadCamera(out + "/cam_front.yaml");
+  std::vector<Eigen::Vector3d> truth_cam;
+  for (const Eigen::Vector3d& x : Truth(out))
+    truth_cam.push_back(front.cam_from_world_R * x + front.cam_from_world_t);
+  const double expected_error_m = 0.4 * 0.5 / 2000.0 / std::sin(17.0 * M_PI / 180.0);
+  const CsvTable table = CsvTable::Read(two);
+  const std::vector<double> x = table.Column("x"), y = table.Column("y"), z = table.Column("z");
+  ASSERT_GT(x.size(), 500u);
+  for (size_t k = 0; k < x.size(); ++k)
+    EXPECT_LT(DistanceToPolyline<3>(Eigen::Vector3d(x[k], y[k], z[k]), truth_cam),
+              expected_error_m) << "row " << k;
+  // Without a size, the images must be of one size; each mistake names its file.
+  const std::string small = dir_.File("small.png");
+  cv::imwrite(small, cv::Mat(512, 640, CV_8UC3, cv::Scalar(235, 235, 235)));
+  run = Rodfit("extract " + Q(out + "/front.png") + " " + Q(small) + " --stereo " +
+               Q(intrinsics) + " " + Q(extrinsics) + " -o " + Q(one));
+  ExpectOneLineError(run, small + ": the image is 640x512 px but " + out + "/front.png is 1280x1024");
+  run = Rodfit("extract " + images + " --stereo " + Q(intrinsics) + " -o " + Q(one));
+  ExpectOneLineError(run, intrinsics + ": R: missing");
+  run = Rodfit("extract " + images + " --stereo " + Q(one_xml) + " " + Q(extrinsics) + " -o " +
+               Q(one));
+  ExpectOneLineError(run, one_xml + ": R: given here and in the extrinsics file");
+}
+
 TEST_F(SynthExtractCliTest, SameSeedSameBytes) {
   const std::string experiment = WriteExperiment();
   ASSERT_EQ(Rodfit("synth " + Q(experiment) + " -o " + Q(dir_.File("a")) + " --seed 9").status, 0);

@@ -64,3 +64,46 @@ for source in examples/*.cc examples/*.c; do
   echo "== $example"
   "$work/examples/$example"
 done
+
+# The shared library (docs/library.md, "Shared library"): librodfit.so.0 with its soname, the C
+# API's symbols exported and nothing else, a C program linked against rodfit::rodfit_shared by
+# the C linker, and the library found by dlopen as Python's ctypes loads it.
+lib=$(ls "$prefix"/lib*/librodfit.so.0)
+test -L "$(dirname "$lib")/librodfit.so"
+soname=$(objdump -p "$lib" | awk '$1 == "SONAME" {print $2}')
+[ "$soname" = "librodfit.so.0" ] || { echo "soname is '$soname', not librodfit.so.0" >&2; exit 1; }
+exported=$(nm -D --defined-only "$lib" | awk '$2 ~ /^[TDBR]$/ {print $3}' | sed 's/@.*//' | sort -u)
+api=$(grep -o '\brodfit_[a-z_]*(' "$source_dir/include/rodfit/runtime/rodfit_c.h" | tr -d '(' | sort -u)
+if [ "$exported" != "$api" ]; then
+  echo "librodfit.so exports other symbols than the C API of rodfit_c.h:" >&2
+  diff <(echo "$api") <(echo "$exported") >&2 || true
+  exit 1
+fi
+echo "== runtime_c_shared (librodfit.so.0)"
+"$work/examples/runtime_c_shared" >/dev/null
+ldd "$work/examples/runtime_c_shared" | grep -q "librodfit.so.0 => $prefix" ||
+  { echo "runtime_c_shared does not load the installed librodfit.so.0" >&2; exit 1; }
+echo "== ctypes"
+python3 - "$lib" <<'PY'
+import ctypes, sys
+lib = ctypes.CDLL(sys.argv[1])
+lib.rodfit_status_name.restype = ctypes.c_char_p
+assert lib.rodfit_status_name(0) == b"RODFIT_OK", lib.rodfit_status_name(0)
+class Options(ctypes.Structure):
+    _fields_ = [("mode", ctypes.c_int), ("tool", ctypes.c_int), ("tool_s", ctypes.c_double),
+                ("max_iterations", ctypes.c_int), ("gradient_tolerance", ctypes.c_double),
+                ("time_budget", ctypes.c_double), ("time_step", ctypes.c_double),
+                ("mesh_ring_vertices", ctypes.c_int), ("hold_orientation", ctypes.c_int)]
+options = Options()
+lib.rodfit_default_options(ctypes.byref(options))
+options.tool_s = 0.2
+handle = ctypes.c_void_p()
+error = ctypes.create_string_buffer(512)
+status = lib.rodfit_create(b"data/profiles/suture.json", ctypes.byref(options), None, None, 0,
+                           ctypes.byref(handle), error, ctypes.c_size_t(512))
+assert status == 0, error.value
+assert lib.rodfit_num_vertices(handle) == 51
+assert lib.rodfit_step(handle, None) == 0
+lib.rodfit_destroy(handle)
+print("ctypes: rodfit_create, rodfit_step through", sys.argv[1])
+PY

@@ -133,6 +133,15 @@ TEST_F(ExperimentTest, MissingRequiredKeys) {
 TEST_F(ExperimentTest, NonPositiveSizesAndStiffnesses) {
   ExpectError(With("length: 0.2", "length: 0"), 2, "rod.length");
   ExpectError(With("radius: 1.0e-4", "radius: -1.0e-4"), 4, "rod.radius");
+  // Issue 34: a radius outside its physical range (1e-7 to 1 m, at most the length) is refused
+  // where it is read, not left to overflow in an export.
+  for (const auto& [value, message] :
+       {std::pair<std::string, std::string>{"1.0e308", "1e+308 m is outside the physical range"},
+        {"1.0e-300", "1e-300 m is outside the physical range"},
+        {"0.5", "0.5 m is more than the rod's length 0.2 m"}}) {
+    ExpectError(With("radius: 1.0e-4", "radius: " + value), 4, "rod.radius");
+    EXPECT_THAT(Error(With("radius: 1.0e-4", "radius: " + value)), HasSubstr(message));
+  }
   ExpectError(With("linear_density: 5.0e-5", "linear_density: -1"), 5, "rod.linear_density");
   ExpectError(With("{value: 1.0e-6,", "{value: 0,"), 8, "parameters.bend_stiffness.value");
   ExpectError(With("{value: 8.0e-7}", "{value: -8.0e-7}"), 9, "parameters.twist_stiffness.value");

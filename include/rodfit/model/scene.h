@@ -161,15 +161,23 @@ struct InitialMotion {
 /// Most halvings of an implicit step (DynamicsSpec::max_halvings): 2^20 substeps.
 inline constexpr int kMaxStepHalvings = 20;
 
+/// The defaults of a dynamics setting, declared once (the scene YAML's DynamicsSpec and the
+/// library's DynamicsOptions both read them): BDF2 damps the unresolved stiff modes of driven and
+/// stiff rods, which the midpoint keeps; a step whose Newton does not converge (a driven rod
+/// whose held points jump far in one step leaves Newton's basin) is retried in halves.
+inline constexpr const char* kDefaultIntegrator = "bdf2";
+inline constexpr int kDefaultMaxHalvings = 4;
+inline constexpr double kDefaultTimeStep = 1e-3;  ///< [s]
+
 struct DynamicsSpec {
-  double time_step = 1e-3;      ///< [s]
+  double time_step = kDefaultTimeStep;  ///< [s]
   double duration = 1.0;        ///< [s]
-  std::string integrator = "bdf2";  ///< explicit | backward_euler | midpoint | bdf2
+  std::string integrator = kDefaultIntegrator;  ///< a registered scheme (explicit, bdf2, ...)
   int output_every = 1;         ///< write every this many steps
   bool substep = false;         ///< explicit: substep a time_step above the stable step
   /// Implicit: a step whose Newton iterations do not converge is retried in halves, down to
   /// time_step / 2^max_halvings (DynamicsOptions::max_halvings); 0: it fails.
-  int max_halvings = 4;
+  int max_halvings = kDefaultMaxHalvings;
 };
 
 /// One quasi-static load case: the rod clamped and loaded, solved to equilibrium.

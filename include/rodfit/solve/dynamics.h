@@ -45,16 +45,33 @@ inline bool SameStep(double a, double b) {
   return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b));
 }
 
-/// The scheme in time (DynamicsSpec::integrator names it).
-enum class Integrator { kExplicit, kBackwardEuler, kMidpoint, kBdf2 };
-/// "explicit", "backward_euler", "midpoint", "bdf2".
+/// A scheme in time, by its registered name (the schemes are classes in a registry,
+/// src/rodfit/solve/integrator.h: "explicit" (Störmer–Verlet), "backward_euler", "midpoint",
+/// "bdf2"). The constants below name the bundled ones; any registered name works.
+class Integrator {
+ public:
+  constexpr explicit Integrator(const char* name) : name_(name) {}
+  const char* name() const { return name_; }
+  bool operator==(const Integrator& other) const;
+  bool operator!=(const Integrator& other) const { return !(*this == other); }
+  static const Integrator kExplicit, kBackwardEuler, kMidpoint, kBdf2;
+
+ private:
+  const char* name_;
+};
+inline constexpr Integrator Integrator::kExplicit{"explicit"};
+inline constexpr Integrator Integrator::kBackwardEuler{"backward_euler"};
+inline constexpr Integrator Integrator::kMidpoint{"midpoint"};
+inline constexpr Integrator Integrator::kBdf2{"bdf2"};
+/// Its name.
 const char* IntegratorName(Integrator integrator);
-/// Parses an integrator name; false for an unknown one.
+/// Looks a name up in the registry; false for an unknown one.
 bool ParseIntegrator(const std::string& name, Integrator* integrator);
 
 struct DynamicsOptions {
-  double time_step = 1e-3;  ///< [s]
-  Integrator integrator = Integrator::kMidpoint;
+  double time_step = kDefaultTimeStep;  ///< [s]
+  /// The scheme (scene.h, kDefaultIntegrator: the scene YAML's default too).
+  Integrator integrator = Integrator(kDefaultIntegrator);
   /// Explicit only: with a time_step above the stable step, take as many equal substeps as the
   /// stable step needs instead of refusing.
   bool substep = false;
@@ -69,8 +86,9 @@ struct DynamicsOptions {
   /// Implicit: a step whose Newton iterations do not converge is retried as two half steps,
   /// each of which may be halved again, down to time_step / 2^max_halvings (a driven rod
   /// whose held points jump far in one step leaves Newton's basin); 0: the step fails. A
-  /// halved step's sensitivities follow its substeps (StepSensitivity).
-  int max_halvings = 0;
+  /// halved step's sensitivities follow its substeps (StepSensitivity). The scene YAML's
+  /// default too (scene.h).
+  int max_halvings = kDefaultMaxHalvings;
   /// Implicit: the wall time [s] one Step() may take (0: no limit). Newton checks it before
   /// each iteration after the first; a step past it fails with
   /// DynamicsStepSummary::out_of_time, *s unchanged and not halved (the runtime's haptic loop
@@ -190,6 +208,8 @@ bool EquilibriumSensitivity(const RodModel& model, const RodState& q,
                             const std::vector<ParameterDirection>& directions, Eigen::MatrixXd* dq,
                             std::string* why);
 
+class TimeIntegrator;  // a scheme of the registry (src/rodfit/solve/integrator.h)
+
 /// Integrates a RodModel in time. The stepper owns its scratch (band matrices, factor, states),
 /// kept between steps. The held points' reactions at a step's end are those of
 /// solve/reactions.h at the state (the held vertices' own inertia is the driver's).
@@ -265,17 +285,19 @@ class DynamicsStepper {
 
   const RodModel& model_;
   DynamicsOptions options_;
+  const TimeIntegrator* scheme_ = nullptr;  // the registry's (integrator.h)
   VecX mass_, drag_;  // per free dof: lumped mass, external drag coefficient [N s/m]
   bool internal_damping_ = false;
   std::vector<char> held_;
   VecX weights_;  // ScaledGradientNorm weights
   // Scratch.
   HeldPose pose_, pose_mid_;
-  RodState trial_, prev_;
-  // y_ab_: the third-order predictor's increment, without the extrapolated corrections.
-  VecX g_, g_trial_, step_, delta_, delta0_, force_, cv_, cd_, y_, z_, y_pred_, y_ab_;
-  // The frames, the band matrices and their factor: internal types (dynamics.cc).
+  RodState trial_;
+  VecX g_, step_, delta_, delta0_, force_, cv_, cd_;
+  // The frames, the band matrices and their factor, the step's problem and the minimizer:
+  // internal types (dynamics.cc).
   struct Scratch;
+  class StepProblem;
   std::unique_ptr<Scratch> scratch_;
   bool force_valid_ = false;  // explicit: force_ holds -grad at s->q (cached between steps)
   double force_time_ = -1.0;

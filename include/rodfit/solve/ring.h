@@ -3,6 +3,7 @@
 // in-plane force, with its stiffness and force sensitivities.
 #pragma once
 
+#include <memory>
 #include <string>
 
 #include <Eigen/Cholesky>
@@ -31,10 +32,13 @@ struct RingSolveOptions {
 /// into the same result allocate no heap memory unless options.compute_sensitivities is set
 /// (the interactive runtime re-solves the ring of a poke at every mesh update). Throws
 /// std::invalid_argument for an invalid spec, stiffness or options.
+class NewtonMinimizer;
+
 class RingSolver {
  public:
   RingSolver(const SectionSpec& spec, const RingStiffness& stiffness,
              const RingSolveOptions& options = {});
+  ~RingSolver();
   /// SolveRing's solve (below) into *result. Throws std::invalid_argument for a non-finite
   /// force or a warm start without one column per node.
   void Solve(const Eigen::Vector2d& force_in_plane, const Eigen::Matrix2Xd* warm_start,
@@ -61,7 +65,10 @@ class RingSolver {
   RingLoad load_;
   Eigen::VectorXd u_, grad_, grad_try_, gr_, p_, du_, u_try_, full_;
   Eigen::MatrixXd hess_, work_, hr_;
-  Eigen::LLT<Eigen::MatrixXd> llt_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;  // the reduced Hessian's at the result (stability, sensitivities)
+  class Problem;                     // the solve as a Newton problem (ring.cc)
+  std::unique_ptr<Problem> problem_;
+  std::unique_ptr<NewtonMinimizer> minimizer_;
 };
 
 /// Statics of the ring under the in-plane force F (section coordinates [N]): Newton on the

@@ -30,10 +30,7 @@ struct StaticsOptions {
   /// stiff stretch (EA L^2 / EI >> 1) leaves a floor of ~eps EA on each force that the first test
   /// may not pass, while the state is as exact as doubles allow.
   double step_tolerance = 1e-9;
-  int max_line_search_steps = 30;      ///< halvings before a step counts as failed
-  double armijo = 1e-4;                ///< sufficient-decrease constant
   int max_load_steps = 64;             ///< load increments before giving up on continuation
-  double max_rotation_per_step = 0.5;  ///< [rad] cap on any tangent's turn in one Newton step
   /// Continuation of held points and clamp frames from the start state to their targets: the
   /// largest move per step, as a fraction of the rod length and in radians, and the cap on steps.
   double continuation_move = 0.1;

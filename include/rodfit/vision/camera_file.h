@@ -5,8 +5,11 @@
 //  - OpenCV tutorial: Camera_Matrix, Distortion_Coefficients, image_Width, image_Height;
 //  - ROS camera_info YAML: camera_matrix / distortion_coefficients as {rows, cols, data},
 //    distortion_model plumb_bob (or rational_polynomial with zero extra coefficients);
-//  - stereo files (LoadStereoCameras): M1 D1 M2 D2 (OpenCV's sample) or K1 D1 K2 D2 or
-//    cameraMatrix1 distCoeffs1 cameraMatrix2 distCoeffs2, and R T with x_cam2 = R x_cam1 + T.
+//  - stereo files (LoadStereoCameras): M1 D1 M2 D2 (OpenCV's stereo_calib sample) or K1 D1 K2 D2
+//    or cameraMatrix1 distCoeffs1 cameraMatrix2 distCoeffs2, and R T with x_cam2 = R x_cam1 + T,
+//    in one file or, as the sample writes them, in two (intrinsics.yml, extrinsics.yml); the
+//    image size is optional there (neither the sample nor cv::stereoCalibrate writes one) and is
+//    then taken from the pair's images.
 // Matrices are !!opencv-matrix nodes, {rows, cols, data} maps, flat lists (row-major) or lists of
 // rows. The world-to-camera pose is rvec/tvec (x_cam = R(rvec) x_world + tvec, Rodrigues) or R/T;
 // no pose means the camera frame is the world frame. Distortion is OpenCV's (k1, k2, p1, p2[, k3])
@@ -16,6 +19,7 @@
 // poses).
 #pragma once
 
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -47,9 +51,31 @@ int MarkupNestingDepth(const std::string& text);
 /// Throws CameraFileError.
 Camera LoadCamera(const std::string& path);
 
-/// Loads a stereo pair (M1|K1 D1 M2|K2 D2 R T and the shared image size). Camera 1 is posed by
-/// rvec/tvec if present (else it is the world frame); camera 2 is [R | T] composed with camera 1.
-/// Names are "STEM[1]" and "STEM[2]". Throws CameraFileError.
-std::pair<Camera, Camera> LoadStereoCameras(const std::string& path);
+/// An image size [px].
+struct ImageSizePx {
+  int width = 0;
+  int height = 0;
+};
+
+/// Where a stereo pair's R and T come from, and what stands in for an image size the file leaves
+/// out.
+struct StereoFileOptions {
+  /// A second file holding R and T: OpenCV's stereo_calib sample writes the intrinsics (M1 D1 M2
+  /// D2) to intrinsics.yml and R T R1 R2 P1 P2 Q to extrinsics.yml. Empty: R and T are in the
+  /// main file. Given, R and T must not be in the main file too.
+  std::string extrinsics_path;
+  /// Called only when the main file states no image size (image_width/image_height or
+  /// image_size): the size of the pair's images, which cv::stereoCalibrate requires to be one
+  /// size. It may throw (an image that cannot be read). Null: a missing size is an error naming
+  /// the file and image_width.
+  std::function<ImageSizePx()> image_size_when_absent;
+};
+
+/// Loads a stereo pair (M1|K1 D1 M2|K2 D2 R T and, if stated, the shared image size). Camera 1
+/// is posed by rvec/tvec if present (else it is the world frame); camera 2 is [R | T] composed
+/// with camera 1. Names are "STEM[1]" and "STEM[2]". Throws CameraFileError naming the file (the
+/// main one or the extrinsics file) and the key.
+std::pair<Camera, Camera> LoadStereoCameras(const std::string& path,
+                                            const StereoFileOptions& options = {});
 
 }  // namespace rodfit

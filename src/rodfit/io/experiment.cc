@@ -19,6 +19,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod.h"
+#include "rodfit/model/rod_radius.h"
 #include "rodfit/vision/camera_file.h"
 
 namespace rodfit {
@@ -263,7 +264,10 @@ RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool de
     const Field& segments = r.Require(m, f, "segments");
     rod.segments = r.IntegerIn(segments, 2, kMaxSegments);
   }
-  rod.radius = r.Positive(r.Require(m, f, "radius"));
+  const Field& radius = r.Require(m, f, "radius");
+  rod.radius = r.Positive(radius);
+  if (const std::string why = CheckRodRadius(rod.radius, rod.length); !why.empty())
+    r.Fail(radius, why);
   if (density_elsewhere) {
     if (const Field* d = Reader::Find(m, "linear_density"))
       r.Fail(*d, "given twice: here and as parameters.linear_density (keep one)");

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "rodfit/model/material_parameters.h"
+#include "rodfit/model/rod_radius.h"
 
 namespace rodfit {
 namespace {
@@ -131,6 +132,10 @@ RodSpec ReadRod(const Reader& r, const json& v) {
   rod.length = r.Positive(r.Require(v, "rod", "length"), "rod.length");
   rod.segments = r.Integer(r.Require(v, "rod", "segments"), "rod.segments", 2, kMaxProfileSegments);
   rod.radius = r.NonNegative(r.Require(v, "rod", "radius"), "rod.radius");
+  // 0: the fit had no radius (a version 1 profile may say so); any other value is a real one.
+  if (rod.radius != 0.0)
+    if (const std::string why = CheckRodRadius(rod.radius, rod.length); !why.empty())
+      r.Fail("rod.radius", why);
   rod.linear_density = r.NonNegative(r.Require(v, "rod", "linear_density"), "rod.linear_density");
   if (const json* k = r.Find(v, "rest_curvature"))
     rod.rest_curvature = r.Vector3(*k, "rod.rest_curvature");

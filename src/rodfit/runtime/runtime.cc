@@ -1,8 +1,9 @@
-// The interactive runtime (rodfit/runtime/runtime.h). Quasi-static ticks run their own Newton
-// loop on the solve layer's assembly (rod_energy.h) and banded Cholesky (banded.h) with every
-// buffer sized at construction, because SolveStatics builds strings, copies states and resizes
-// scratch as it goes: right for a fit, not for a 1 kHz loop. Dynamic ticks are one step of the
-// DynamicsStepper, which keeps its scratch between steps.
+// The interactive runtime (rodfit/runtime/runtime.h). A quasi-static tick is the equilibrium at
+// the tool's new position, solved by the one Newton minimizer (solve/newton_minimizer.h) on a
+// tick problem whose every buffer is sized at construction (the statics' continuation and
+// summaries build strings and copy states: right for a fit, not for a 1 kHz loop; the minimizer
+// itself allocates nothing). Dynamic ticks are one step of the DynamicsStepper, which keeps its
+// scratch between steps.
 #include "rodfit/runtime/runtime.h"
 
 #include <algorithm>
@@ -17,8 +18,11 @@
 #include "rodfit/model/cross_section.h"
 #include "rodfit/solve/banded.h"
 #include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/linear_solvers.h"
+#include "rodfit/solve/newton_minimizer.h"
 #include "rodfit/solve/ring.h"
 #include "rodfit/solve/rod_energy.h"
+#include "rodfit/solve/rod_problem.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
@@ -26,21 +30,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Largest turn of an edge tangent in one Newton step [rad] (the statics solver's cap): beyond
-// it the edge-wise retraction is far from the linearisation and the step is shortened.
-constexpr double kMaxTurnPerStep = 0.5;
-constexpr int kMaxLineSearchSteps = 30;
 // The smallest fraction of max_tool_move a tick falls back to after failed ticks.
 constexpr double kMinMoveScale = 1.0 / 64.0;
-constexpr double kArmijo = 1e-4;
-// Relative round-off of the potential energy: an Armijo test between two values equal to this
-// precision is decided by noise, so a step that does not raise Pi beyond it is accepted.
-constexpr double kEnergyRoundOff = 1e-13;
-// A chord step (the kept factor, no new Hessian) must cut the residual at least this much, or
-// the tick refactors: the kept factor then belongs to a state too far from this one.
-constexpr double kChordContraction = 0.25;
 // A chord step that cut the residual by less than this is followed by a Newton iteration, which
-// renews the kept factor.
+// renews the kept factor: the next ticks' predictor is made with it.
 constexpr double kChordRefresh = 1e-3;
 // Moves that differ by less than this fraction of the move count as a steady drag, whose
 // predictor correction is extrapolated from the two last ticks'.
@@ -125,8 +118,8 @@ struct Runtime::Impl {
   double floor_tolerance = 0.0;    // [N] the residual's round-off floor
   // Quasi-static scratch, sized once.
   RodState state, last_good, trial, moved;
-  RodFrames frames, trial_frames;
-  VecX g, g_free, step, weights;
+  RodFrames rows_frames;  // GraspLoads' scratch
+  VecX g, g_free, step;
   // The sum of this tick's steps after its prediction, and those of the two last converged ticks
   // (with their grasp's moves): the predictor's second-order correction.
   VecX correction, last_correction, older_correction;
@@ -140,14 +133,15 @@ struct Runtime::Impl {
   // earlier one's): the predictor and the chord steps may use it; a chord step that does not
   // contract fast enough refactors.
   bool factor_near_state = false;
-  // `frames` are those of `state` (a line search left them), so the next check need not
-  // recompute them.
-  bool frames_current = false;
   // The grasp's reaction at the state of the last residual check (its hold-free rows), and
   // whether that check was at the final state.
   Vec3 checked_force = Vec3::Zero();
   bool reaction_current = false;
-  double shift_base = 0.0;
+  // The tick as a Newton problem, and the minimizer (both sized at construction).
+  class TickProblem;
+  std::unique_ptr<TickProblem> tick;
+  std::unique_ptr<BandedCholeskySolver> solver;
+  NewtonMinimizer minimizer;
   // An oriented grasp (RuntimeOptions::hold_orientation) holds the edge that ends at the grasped
   // vertex, from vertex w = tool_vertex - 1 (a pin of the model, so that the retraction keeps it)
   // and that edge's twist angle (a Dirichlet row of the runtime's own): the edge is a rigid
@@ -173,6 +167,7 @@ struct Runtime::Impl {
     PropagationWorkspace propagation;
     LocalDeformation local;
   };
+
   MeshScratch mesh_scratch;
   void BuildMesh(MeshScratch* scratch, TubeMesh* mesh) const;
   // Dynamic.
@@ -248,9 +243,6 @@ struct Runtime::Impl {
       }
     }
   }
-  double Residual(const VecX& gradient) const {
-    return (weights.array() * gradient.array().abs()).maxCoeff();
-  }
   void GraspLoads(const RodState& s, Vec3* force, Vec3* moment) {
     // -dPi/dx at the held dofs with the hold off: the constraint forces' opposite.
     // Only the rows ToolLoads reads (the grasped vertex, an oriented grasp's held edge): the
@@ -258,8 +250,7 @@ struct Runtime::Impl {
     EnergyTerms terms;
     terms.hold = false;
     AssembleGradientRows(*model, s, terms, oriented ? edge_vertex : tool_vertex, tool_vertex,
-                         &g_free, &frames);
-    frames_current = false;  // `frames` now holds those edges' alone
+                         &g_free, &rows_frames);
     ToolLoads(s, g_free, force, moment);
   }
   void UpdateReaction() {
@@ -271,25 +262,57 @@ struct Runtime::Impl {
       torque.setZero();
     }
   }
-  // The kept Hessian with its Dirichlet rows, ready to factor.
-  void PrepareKept() {
-    hessian = hessian_full;  // same size: a copy, no allocation
-    ApplyHeldRows(held_rows, nullptr, &hessian);
-  }
-  // Factors it with a diagonal shift; an unshifted factor may serve later chord steps and ticks.
-  bool FactorKept(double shift) {
-    const bool factored = factor.Factor(hessian, shift);
-    factor_near_state = factored && shift == 0.0;
-    return factored;
-  }
   StepReport StepQuasiStatic(Clock::time_point start);
-  // Newton from `state` until converged, `max_iterations` or the time budget from `start`.
-  // `predicted`: the state is this tick's prediction from the kept factor (within the linear
-  // response of the equilibrium), so its first Newton step is taken whole and checked by the
-  // residual after it, like a chord step.
+  // The minimizer from `state` until converged, `max_iterations` or the time budget from
+  // `start`. `predicted`: the state is this tick's prediction from the kept factor (within the
+  // linear response of the equilibrium), so its first Newton step is taken whole and checked by
+  // the residual after it, like a chord step.
   StepStatus Newton(Clock::time_point start, int max_iterations, bool predicted,
                     StepReport* report);
   StepReport StepDynamic();
+};
+
+// A quasi-static tick as a Newton problem (solve/newton_minimizer.h): Pi of the rod with its held
+// points (the grasp at this tick's target) and the poke's dead force, over the free dofs. Its
+// matrix is the kept Hessian: assembled with the held rows left in (hessian_full, the next tick's
+// predictor reads its columns), then copied with Dirichlet rows (hessian) for the factor. Each
+// residual also reads the grasp's reaction from the rows the hold zeroes.
+class Runtime::Impl::TickProblem : public RodNewtonProblem {
+ public:
+  explicit TickProblem(Impl* impl)
+      : RodNewtonProblem(*impl->model, impl->options.step_tolerance, impl->model->length()),
+        m_(*impl) {
+    free_terms_.hold = false;  // held rows kept to read the grasp's reaction, then cleared
+  }
+  void Evaluate(bool matrix, VecX* g) override {
+    const RodFrames& f = CurrentFrames();
+    if (matrix) {
+      AssembleHessian(model_, current(), free_terms_, g, &m_.hessian_full, &f);
+      m_.hessian = m_.hessian_full;  // same size: a copy, no allocation
+      ApplyHeldRows(m_.held_rows, nullptr, &m_.hessian);
+    } else {
+      AssembleGradient(model_, current(), free_terms_, g, &f);
+    }
+    if (m_.tool_vertex >= 1 && m_.options.tool == ToolKind::kGrasp)
+      m_.ToolLoads(current(), *g, &m_.checked_force, &m_.checked_torque);
+    ApplyHeldRows(m_.held_rows, g, nullptr);
+    m_.AddPokeGradient(g);
+  }
+  double Energy() override { return m_.Energy(current(), CurrentFrames()); }
+  double TrialEnergy() override { return m_.Energy(trial(), TrialFrames()); }
+  void TrialResidual(VecX* g) override {
+    AssembleGradient(model_, trial(), free_terms_, g, &TrialFrames());
+    ApplyHeldRows(m_.held_rows, g, nullptr);
+    m_.AddPokeGradient(g);
+  }
+  NewtonTolerances Tolerances() override { return {m_.force_tolerance, m_.floor_tolerance}; }
+  LinearSolver& Solver() override { return *m_.solver; }
+  // An unshifted factor may serve later chord steps and the next ticks' predictor.
+  void OnFactor(bool shifted) override { m_.factor_near_state = !shifted; }
+
+ private:
+  Impl& m_;
+  EnergyTerms free_terms_;
 };
 
 Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
@@ -356,15 +379,8 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     Bracket(model, options.tool_s, &m.tool_vertex, &m.poke_weight);
   }
   m.force_tolerance = options.gradient_tolerance * model.force_scale();
-  m.weights = GradientNormWeights(model);
-  // The stretch forces' round-off, ~eps EA per edge, in the residual's measure (the dynamic
-  // stepper's floor).
-  m.floor_tolerance = 64.0 * std::numeric_limits<double>::epsilon() *
-                      scene.material.stretch_stiffness * m.weights.maxCoeff();
-  const double l = model.min_rest_edge_length();
-  const Material& mat = scene.material;
-  // The statics solver's first diagonal shift for an indefinite Hessian.
-  m.shift_base = 1e-6 * std::min({mat.B1(), mat.B2(), mat.twist_stiffness}) / (l * l * l);
+  // The stretch forces' round-off, ~eps EA per edge, in the residual's measure.
+  m.floor_tolerance = ResidualFloor(model, GradientNormWeights(model));
 
   // The first equilibrium, by the statics solver (allocation is fine here).
   m.state = start;
@@ -379,14 +395,24 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.last_good = m.state;
   m.trial = m.state;
   m.moved = m.state;
-  ComputeRodFrames(model, m.state, &m.frames);
-  m.trial_frames = m.frames;
   EnergyTerms free_terms;
   free_terms.hold = false;
-  AssembleHessian(model, m.state, free_terms, &m.g, &m.hessian_full, &m.frames);
+  AssembleHessian(model, m.state, free_terms, &m.g, &m.hessian_full);
   m.hessian = m.hessian_full;
   ApplyHeldRows(m.held_rows, &m.g, &m.hessian);
   m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
+  m.tick = std::make_unique<Impl::TickProblem>(&m);
+  m.solver = std::make_unique<BandedCholeskySolver>(&m.hessian, &m.factor);
+  NewtonOptions& newton = m.minimizer.options();
+  newton.chords = ChordPolicy::kWhileContracting;
+  newton.chord_refresh = kChordRefresh;
+  newton.converge_after_small_step = true;
+  // A grasp's converged tick factors a Hessian assembled at its solution: the next tick's
+  // predictor reads that Hessian's columns and solves with its factor, which must be of one
+  // matrix. (A poke predicts nothing: its chord steps do as well on the older factor.)
+  newton.factor_at_solution =
+      options.tool == ToolKind::kGrasp ? FactorAtSolution::kWhenAssembled : FactorAtSolution::kNever;
+  m.minimizer.Reserve(model.num_free_dofs());
   m.step = m.g;
   m.g_free = m.g;
   m.correction = VecX::Zero(m.g.size());
@@ -402,6 +428,7 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     DynamicsOptions dyn;
     dyn.time_step = options.time_step;
     dyn.integrator = Integrator::kBdf2;
+    dyn.max_halvings = 0;  // a tick's step is not halved (halving copies states: it allocates)
     dyn.failure_reasons = false;  // a failed tick says so by its status, without the heap
     // A tick ends on its last step's contraction (one gradient fewer), and Newton starts from
     // a steady drag's extrapolated corrections (0.3 solves fewer): together 10 % of a dynamic
@@ -443,13 +470,14 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     m.stepper->SetNewtonLimits(options.dynamic_newton_iterations, options.time_budget);
   }
   if (options.tool == ToolKind::kPoke && scene.section &&
-      RingStiffness{mat.ring_bend_stiffness, mat.ring_stretch_stiffness}.Check(nullptr)) {
+      RingStiffness{scene.material.ring_bend_stiffness, scene.material.ring_stretch_stiffness}
+          .Check(nullptr)) {
     // A throwaway dent, a gentle push of 1e-3 kb / R^2 along the section's d1, sizes the
     // mesh's scratch (the ring's solver and result, the propagation's lists), so that
     // Mesh(TubeMesh*) allocates nothing later.
     const double R = scene.section->radius;
     const Vec3 d1 = SectionAt(model, m.state, options.tool_s).d1;
-    m.tool_force = 1e-3 * mat.ring_bend_stiffness / (R * R) * d1;
+    m.tool_force = 1e-3 * scene.material.ring_bend_stiffness / (R * R) * d1;
     TubeMesh throwaway;
     m.BuildMesh(&m.mesh_scratch, &throwaway);
     m.tool_force.setZero();
@@ -508,7 +536,6 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   last_good = state;
   rotation_good = rotation;
   reaction_current = false;
-  frames_current = false;
   bool predicted_start = false;
   Vec3 move = Vec3::Zero();  // the grasp's move this tick [m]
   bool turned = false;       // an oriented grasp turned this tick
@@ -599,7 +626,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
         step[held_twist] = d_twist;
         moved.x.col(edge_vertex) += d_w;
       }
-      if (MaxTangentTurn(m, state, step) <= kMaxTurnPerStep &&
+      if (MaxTurnAndStrainChange(m, state, step).turn <= kMaxTurnPerStep &&
           ApplyStep(m, moved, step, 1.0, &trial) && trial.x.allFinite()) {
         bool held_exactly = true;
         if (oriented) {
@@ -651,11 +678,6 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
 
 StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, bool predicted,
                                  StepReport* report) {
-  const RodModel& m = *model;
-  const double budget = options.time_budget;
-  const std::vector<char>& held = held_rows;
-  EnergyTerms free_terms;  // the held rows are kept to read the grasp's reaction, then cleared
-  free_terms.hold = false;
   // Chord steps reuse the kept factor: a tick moves the tool by a fraction of an edge, so the
   // Hessian of the last tick's solve still contracts the residual by orders of magnitude per
   // step, and a step then costs a gradient and a back-substitution instead of an assembly of
@@ -664,140 +686,29 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, bo
   // A tick that starts from a prediction starts with a Newton iteration instead: the Hessian at
   // the prediction converges it in one step (the kept factor, a tick old, only gains ~300x per
   // step there: a stiff edge near the tool turns by ~l/20 per tick), and its factor, made at a
-  // state within ~1e-6 N of the equilibrium, serves the next tick's prediction.
-  bool chord = factor_near_state && factor.valid() && !predicted;
-  frames_current = false;  // the caller has moved the state
-  double previous_residual = std::numeric_limits<double>::infinity();
-  // The Hessian at `state` with its gradient, in place of the gradient alone.
-  auto assemble_hessian = [&]() {
-    AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
-    ApplyHeldRows(held, &g, nullptr);
-    AddPokeGradient(&g);
-  };
-  for (int it = 0;; ++it) {
-    if (!frames_current) ComputeRodFrames(m, state, &frames);
-    frames_current = false;
-    if (chord) {
-      AssembleGradient(m, state, free_terms, &g, &frames);
-    } else {
-      AssembleHessian(m, state, free_terms, &g, &hessian_full, &frames);
-    }
-    if (tool_vertex >= 1 && options.tool == ToolKind::kGrasp)
-      ToolLoads(state, g, &checked_force, &checked_torque);
-    ApplyHeldRows(held, &g, nullptr);
-    AddPokeGradient(&g);
-    report->residual = Residual(g);
-    if (!std::isfinite(report->residual)) return StepStatus::kNotConverged;
-    if (report->residual <= force_tolerance) {
-      reaction_current = true;
-      // A Hessian assembled for this check is factored too: the next tick's predictor reads
-      // the kept Hessian's columns and solves with the kept factor, which must be of one matrix.
-      // (A poke predicts nothing: its chord steps do as well on the older factor.)
-      if (!chord && options.tool == ToolKind::kGrasp) {
-        PrepareKept();
-        FactorKept(0.0);
-      }
-      break;
-    }
-    if (it >= max_iterations) return StepStatus::kNotConverged;
-    if (budget > 0.0 && std::chrono::duration<double>(Clock::now() - start).count() > budget)
-      return StepStatus::kTimeBudget;
-    if (chord && report->residual > kChordContraction * previous_residual) {
-      // The kept factor no longer contracts fast: a Newton iteration, from the state before the
-      // chord step if that step did not even lower the residual.
-      chord = false;
-      if (report->residual > previous_residual) {
-        std::swap(state, moved);
-        correction -= step;
-        --report->iterations;
-        ComputeRodFrames(m, state, &frames);
-      }
-      assemble_hessian();
-      report->residual = Residual(g);
-    }
-    const bool refresh = chord && report->residual > kChordRefresh * previous_residual;
-    previous_residual = report->residual;
-    if (chord) {
-      // A chord step is checked by the residual at the next check (above), and undone there if
-      // it made it worse; its cost is a back-substitution, a retraction and that check.
-      step = -g;
-      factor.SolveInPlace(step);
-      if (MaxTangentTurn(m, state, step) <= kMaxTurnPerStep &&
-          ApplyStep(m, state, step, 1.0, &trial)) {
-        std::swap(moved, state);  // kept to undo the step
-        std::swap(state, trial);
-        correction += step;
-        ++report->iterations;
-        // A factor that contracts only slowly is renewed on the next iteration, so that the
-        // next ticks start from a fresh one (their predictor is made with it too).
-        if (refresh) chord = false;
-        continue;
-      }
-      chord = false;
-      assemble_hessian();
-    }
-    // Factor, shifting the diagonal tenfold at a time while the Hessian is indefinite (the
-    // state a tool's move leads to often is, before Newton has carried the move into the rod).
-    double shift = 0.0;
-    bool factored = false;
-    PrepareKept();
-    for (int k = 0; k < 16 && !factored; ++k) {
-      factored = FactorKept(shift);
-      if (!factored) shift = shift == 0.0 ? shift_base : 10.0 * shift;
-    }
-    if (!factored) return StepStatus::kNotConverged;
-    step = -g;
-    factor.SolveInPlace(step);
-    if (predicted && it == 0 && shift == 0.0 && MaxTangentTurn(m, state, step) <= kMaxTurnPerStep &&
-        ApplyStep(m, state, step, 1.0, &trial)) {
-      // The prediction is within the linear response of the equilibrium, and the Hessian there
-      // is positive definite: the whole Newton step, checked (and undone if it raised the
-      // residual) at the next check as a chord step is, which spares the line search's two
-      // energies. That check's gradient is the one a converged tick needs for its reaction.
-      std::swap(moved, state);
-      std::swap(state, trial);
-      correction += step;
-      ++report->iterations;
-      chord = true;
-      continue;
-    }
-    double alpha = 1.0;
-    const double turn = MaxTangentTurn(m, state, step);
-    if (turn > kMaxTurnPerStep) alpha = kMaxTurnPerStep / turn;
-    const double e0 = Energy(state, frames);
-    // Pi's round-off: relative to its size and to the work of the loads over the rod (Pi of a
-    // hanging rod can be near zero while its terms are not).
-    const double energy_noise = kEnergyRoundOff * (std::abs(e0) + m.force_scale() * m.length());
-    const double slope = g.dot(step);
-    bool accepted = false;
-    for (int ls = 0; ls < kMaxLineSearchSteps && !accepted; ++ls, alpha *= 0.5) {
-      if (!ApplyStep(m, state, step, alpha, &trial)) continue;
-      ComputeRodFrames(m, trial, &trial_frames);
-      const double e1 = Energy(trial, trial_frames);
-      accepted = std::isfinite(e1) && e1 <= e0 + kArmijo * alpha * slope + energy_noise;
-    }
-    alpha *= 2.0;  // the accepted one
-    if (!accepted) return StepStatus::kNotConverged;
-    std::swap(state, trial);
-    std::swap(frames, trial_frames);  // the new state's, computed by the line search
-    frames_current = true;
-    correction += alpha * step;
-    ++report->iterations;
-    // A full, unshifted Newton step below the step tolerance: Newton converges quadratically
-    // here, so the state after it is far closer than the step (the statics solver's second
-    // test; a stiff stretch leaves a gradient floor of ~eps EA the first test may not pass).
-    // At the residual's round-off floor (~eps EA per edge) the test is relaxed a thousandfold,
-    // as in the statics.
-    const double step_tol = options.step_tolerance * std::min(1.0, m.length()) *
-                            (report->residual <= floor_tolerance ? 1e3 : 1.0);
-    if (alpha == 1.0 && shift == 0.0 &&
-        step.lpNorm<Eigen::Infinity>() <= step_tol) {
-      reaction_current = false;  // the last check was at the state before the step
-      break;
-    }
-    // The next iterations may chord on this factor, if it gave a whole, unshifted step.
-    chord = alpha == 1.0 && shift == 0.0;
+  // state within ~1e-6 N of the equilibrium, serves the next tick's prediction; that first step
+  // is taken whole and checked by the residual after it, which spares the line search's two
+  // energies.
+  NewtonOptions& o = minimizer.options();
+  o.max_iterations = max_iterations;
+  o.time_budget = 0.0;
+  if (options.time_budget > 0.0) {
+    const double used = std::chrono::duration<double>(Clock::now() - start).count();
+    o.time_budget = std::max(options.time_budget - used, 1e-12);
   }
+  NewtonStart begin;
+  begin.factor_nearby = factor_near_state && factor.valid() && !predicted;
+  begin.verify_first_step = predicted;
+  std::swap(state, tick->current());  // the tick's iterate (swaps: no copies)
+  tick->CurrentChanged();
+  tick->set_track_steps(&correction);
+  const NewtonSummary r = minimizer.Minimize(tick.get(), begin);
+  std::swap(state, tick->current());
+  report->iterations += r.iterations;
+  report->residual = r.residual_norm;
+  reaction_current = r.residual_at_solution;
+  if (r.termination == Termination::kTimeBudget) return StepStatus::kTimeBudget;
+  if (!r.converged()) return StepStatus::kNotConverged;
   return state.x.allFinite() ? StepStatus::kConverged : StepStatus::kNotConverged;
 }
 

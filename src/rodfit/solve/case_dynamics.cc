@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "rodfit/solve/case_solve.h"
+#include "rodfit/solve/integration.h"
 #include "rodfit/solve/rod_energy.h"
 
 namespace rodfit {
@@ -299,12 +300,7 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
   const DynamicsSpec& spec = *scene.dynamics;
   const LoadCase start_case = CaseAtStart(scene.cases[index]);
   const RodModel model(scene.rod, scene.material, scene.gravity, start_case, scene.springs);
-  DynamicsOptions options;
-  options.time_step = spec.time_step;
-  options.substep = spec.substep;
-  options.max_halvings = spec.max_halvings;
-  if (!ParseIntegrator(spec.integrator, &options.integrator))
-    throw std::invalid_argument("unknown integrator " + spec.integrator);
+  const DynamicsOptions options = DynamicsOptionsFrom(spec);
   DynamicsStepper stepper(model, options);
   const LoadCase driven =
       model.symmetric() ? HalfDrives(model, scene.cases[index]) : scene.cases[index];
@@ -354,23 +350,23 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
     out.frames.push_back(std::move(f));
   };
   record(0.0);
-  const auto t0 = std::chrono::steady_clock::now();
   const int steps = static_cast<int>(std::ceil(spec.duration / spec.time_step - 1e-9));
-  for (int k = 0; k < steps; ++k) {
-    v_before = s.v;
-    const DynamicsStepSummary r = stepper.Step(drive, &s);
-    if (!r.ok) {
-      out.reason = "t = " + std::to_string(s.t) + " s: " + r.reason;
-      break;
-    }
-    ++out.steps;
-    if (r.substeps > 1) ++out.halved_steps;
-    out.newton_iterations += r.newton_iterations;
-    if ((k + 1) % spec.output_every == 0 || k + 1 == steps) record(spec.time_step);
-    if (progress) progress(s.t);
-  }
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  out.ok = out.reason.empty();
+  int taken = 0;
+  const IntegrationStats stats = Integrate(
+      stepper, drive, steps, &s,
+      [&](const DynamicState& before, const DynamicState&, const DynamicsStepSummary&) {
+        v_before = before.v;
+        ++taken;
+        if (taken % spec.output_every == 0 || taken == steps) record(spec.time_step);
+        return true;
+      },
+      nullptr, progress);
+  out.steps = stats.steps;
+  out.halved_steps = stats.halved_steps;
+  out.newton_iterations = stats.newton_iterations;
+  out.seconds = stats.seconds;
+  out.reason = stats.reason;
+  out.ok = stats.ok;
   return out;
 }
 
@@ -404,13 +400,7 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
     vertex[m] = std::max(i, 0);
     weight[m] = std::clamp((s[m] - arc[vertex[m]]) / (arc[vertex[m] + 1] - arc[vertex[m]]), 0.0, 1.0);
   }
-  DynamicsOptions options;
-  options.time_step = spec.time_step;
-  options.substep = spec.substep;
-  options.max_halvings = spec.max_halvings;
-  if (!ParseIntegrator(spec.integrator, &options.integrator))
-    throw std::invalid_argument("unknown integrator " + spec.integrator);
-  DynamicsStepper stepper(model, options);
+  DynamicsStepper stepper(model, DynamicsOptionsFrom(spec));
   const CaseDrive drive(model, scene.cases[index]);
   CaseSamples out;
   DynamicState state = InitialDynamicState(scene, index, statics, stepper);
@@ -447,6 +437,7 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
   std::vector<Reaction6> dr_now, dr_before;
   VecX v_step_start = state.v;
   Eigen::MatrixXd dv_step_start = ds.dv;
+  Eigen::MatrixXd dv_before_step = ds.dv;  // ds.dv before the step in progress
   HeldPose pose;
   auto reactions = [&](double step) {
     pose.held.assign(model.held().size(), Vec3::Zero());
@@ -485,41 +476,36 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
       lerp_reactions(1.0);
     }
   }
-  const auto t0 = std::chrono::steady_clock::now();
-  while (next < t.size()) {
-    const double t_before = state.t;
-    x_before = x_now;
-    d_before = d_now;
-    r_before.swap(r_now);
-    dr_before.swap(dr_now);
-    v_step_start = state.v;
-    if (np > 0) dv_step_start = ds.dv;
-    const DynamicState before = state;
-    const DynamicsStepSummary r = stepper.Step(drive, &state);
-    if (!r.ok) {
-      out.reason = "t = " + std::to_string(state.t) + " s: " + r.reason;
-      break;
-    }
-    ++out.steps;
-    if (np > 0) {
-      std::string why;
-      if (!stepper.StepSensitivity(drive, before, state, directions, &ds, &why)) {
-        out.reason = "t = " + std::to_string(state.t) + " s: " + why;
-        break;
-      }
-    }
-    points();
-    if (reactions_needed(next)) reactions(state.t - t_before);
-    // Every sample time up to this step's end (within round-off of the step count).
-    for (; next < t.size() && t[next] <= state.t + 1e-9 * dt; ++next) {
-      const double w = std::clamp((t[next] - t_before) / (state.t - t_before), 0.0, 1.0);
-      out.x.push_back((1.0 - w) * x_before + w * x_now);
-      if (np > 0) out.dx.push_back((1.0 - w) * d_before + w * d_now);
-      if (with_reactions) lerp_reactions(w);
-    }
-  }
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  out.ok = out.reason.empty();
+  // Steps until every sample time is covered (within round-off of the step count), each step's
+  // samples interpolated between the states around them.
+  const int steps = t.empty() ? 0 : static_cast<int>(std::ceil(t.back() / dt - 1e-9)) + 1;
+  const SensitivityCarry carry{&directions, &ds};
+  const IntegrationStats stats = Integrate(
+      stepper, drive, next < t.size() ? steps : 0, &state,
+      [&](const DynamicState& before, const DynamicState&, const DynamicsStepSummary&) {
+        const double t_before = before.t;
+        x_before = x_now;
+        d_before = d_now;
+        r_before.swap(r_now);
+        dr_before.swap(dr_now);
+        v_step_start = before.v;
+        if (np > 0) dv_step_start = dv_before_step;
+        if (np > 0) dv_before_step = ds.dv;
+        points();
+        if (reactions_needed(next)) reactions(state.t - t_before);
+        for (; next < t.size() && t[next] <= state.t + 1e-9 * dt; ++next) {
+          const double w = std::clamp((t[next] - t_before) / (state.t - t_before), 0.0, 1.0);
+          out.x.push_back((1.0 - w) * x_before + w * x_now);
+          if (np > 0) out.dx.push_back((1.0 - w) * d_before + w * d_now);
+          if (with_reactions) lerp_reactions(w);
+        }
+        return next < t.size();
+      },
+      np > 0 ? &carry : nullptr);
+  out.steps = stats.steps;
+  out.seconds = stats.seconds;
+  out.reason = stats.reason;
+  out.ok = stats.ok;
   return out;
 }
 

@@ -18,6 +18,7 @@
 
 #include "rodfit/solve/banded.h"
 #include "rodfit/solve/dynamics.h"
+#include "rodfit/solve/integrator.h"
 #include "rodfit/solve/rod_energy.h"
 
 namespace rodfit {
@@ -189,9 +190,9 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
                                          DynamicSensitivity* ds, std::string* why) {
   const int N = model_.num_free_dofs();
   const int m = static_cast<int>(directions.size());
-  if (options_.integrator != Integrator::kBackwardEuler && options_.integrator != Integrator::kBdf2) {
-    *why = std::string("sensitivities in time are implemented for backward_euler and bdf2, not ") +
-           IntegratorName(options_.integrator);
+  if (!scheme_->has_sensitivities()) {
+    *why = std::string("sensitivities in time are not implemented for the ") + scheme_->name() +
+           " integrator (backward_euler and bdf2 have them)";
     return false;
   }
   drive.PoseAt(model_, after.t, &pose_);
@@ -204,25 +205,44 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
     return false;
   }
   if (ds->dv.rows() != N || ds->dv.cols() != m) ds->dv.setZero(N, m);
-  // The coefficients and offsets StepImplicit used (its first BDF2 step is backward Euler's).
-  const bool bdf2 = options_.integrator == Integrator::kBdf2 && before.has_history &&
-                    before.last_step.size() == N && before.last_v.size() == N &&
-                    SameStep(before.last_dt, dt);
+  // The weights and targets StepImplicit used (its scheme's; BDF2's first step is backward
+  // Euler's). y and z are linear in the rates and the history, so their derivatives are the
+  // same targets of the derivatives (DerivativeTargets below).
+  const StepWeights sw = scheme_->Weights(before, dt);
+  const bool bdf2 = sw.bdf2;
   if (bdf2 && (ds->dlast_step.rows() != N || ds->dlast_step.cols() != m ||
                ds->dlast_v.rows() != N || ds->dlast_v.cols() != m)) {
     *why = "the sensitivities lack the BDF2 history the state has (follow every step)";
     return false;
   }
-  const double a = bdf2 ? 9.0 / (4.0 * dt * dt) : 1.0 / (dt * dt);
-  const double c = bdf2 ? 1.5 / dt : 1.0 / dt;
-  VecX y, z, d;
-  if (bdf2) {
-    y = before.last_step / 3.0 + (2.0 * dt / 9.0) * (4.0 * before.v - before.last_v);
-    z = before.last_step / 3.0;
-  } else {
-    y = dt * before.v;
-    z.setZero(N);
-  }
+  const double a = sw.a;
+  const double c = sw.c;
+  StepTargets targets;
+  for (VecX* v : {&targets.y, &targets.z, &targets.predictor, &targets.y_ab}) v->setZero(N);
+  DynamicsOptions plain = options_;
+  plain.extrapolate_corrections = false;
+  scheme_->Targets(before, dt, sw, plain, &targets);
+  const VecX& y = targets.y;
+  const VecX& z = targets.z;
+  (void)y;
+  // The targets of a column of derivatives (rates, last step, last rates).
+  DynamicState derivative;
+  derivative.has_history = before.has_history;
+  derivative.last_dt = before.last_dt;
+  derivative.has_older = false;
+  StepTargets d_targets = targets;
+  auto DerivativeTargets = [&](const VecX& dv, int k, VecX* dy, VecX* dz) {
+    derivative.v = dv;
+    derivative.last_step = bdf2 ? VecX(ds->dlast_step.col(k)) : VecX::Zero(N);
+    derivative.last_v = bdf2 ? VecX(ds->dlast_v.col(k)) : VecX::Zero(N);
+    derivative.older_v = VecX::Zero(N);
+    StepWeights dw = sw;
+    dw.third_order = false;
+    scheme_->Targets(derivative, dt, dw, plain, &d_targets);
+    *dy = d_targets.y;
+    *dz = d_targets.z;
+  };
+  VecX d;
   Delta(before.q, after.q, &d);
   const VecX w = d - z;  // the damping's displacement
 
@@ -255,18 +275,14 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   Eigen::MatrixXd twist_from_start, twist_from_end;
   TransportTwist(model_, held_, before.q, after.q, before.q, ds->dq, &twist_from_start);
   Eigen::MatrixXd rhs(N, m);
+  Eigen::MatrixXd dz_all = Eigen::MatrixXd::Zero(N, m);  // the damping targets' derivatives
   VecX dy, dz, col, tmp;
   for (int k = 0; k < m; ++k) {
     const ParameterDirection& dir = directions[k];
     const VecX dq = ds->dq.col(k);
     const VecX dv = ds->dv.col(k);
-    if (bdf2) {
-      dy = ds->dlast_step.col(k) / 3.0 + (2.0 * dt / 9.0) * (4.0 * dv - ds->dlast_v.col(k));
-      dz = ds->dlast_step.col(k) / 3.0;
-    } else {
-      dy = dt * dv;
-      dz.setZero(N);
-    }
+    DerivativeTargets(dv, k, &dy, &dz);
+    dz_all.col(k) = dz;
     // Inertia and damping carried from the state before.
     col = a * mass_.cwiseProduct(dq + dy) + c * drag_.cwiseProduct(dq + dz) -
           apply_a(twist_from_start.col(k));
@@ -370,11 +386,10 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
   // The rates and BDF2's history follow the step's increment d (dynamics.cc: v = c (d - z)).
   Eigen::MatrixXd dd = next - ds->dq + twist_from_start + twist_from_end;
-  Eigen::MatrixXd dz_all = bdf2 ? Eigen::MatrixXd(ds->dlast_step / 3.0) : Eigen::MatrixXd::Zero(N, m);
   Eigen::MatrixXd dv_new = c * (dd - dz_all);
   for (int r = 0; r < N; ++r)
     if (held_[r]) dd.row(r).setZero(), dv_new.row(r).setZero();
-  if (options_.integrator == Integrator::kBdf2) {
+  if (scheme_->keeps_history()) {
     ds->dlast_v = ds->dv;
     ds->dlast_step = dd;
   }

@@ -8,6 +8,9 @@
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
 
+#include "rodfit/solve/linear_solvers.h"
+#include "rodfit/solve/newton_minimizer.h"
+
 namespace rodfit {
 namespace {
 
@@ -28,6 +31,100 @@ bool RingSolveOptions::Check(std::string* why) const {
   if (why) *why = w;
   return w.empty();
 }
+
+// The ring's statics as a Newton problem (newton_minimizer.h), on the constrained coordinates
+// y (u = u_0 + Z y; the constraints C u = 0 are kept exactly): its merit is Pi, its residual
+// Z^T grad Pi, its matrix Z^T H Z (dense: the ring has few nodes), its step du = Z p.
+class RingSolver::Problem : public NewtonProblem {
+ public:
+  explicit Problem(RingSolver* s) : s_(*s) {
+    const int m = 2 * s->g_.n;
+    ones_ = VecX::Ones(m - 3);
+    solver_.Resize(m - 3);
+    for (VecX* v : {&u_trial_, &u_previous_, &du_, &grad_trial_}) v->setZero(m);
+  }
+  /// Starts from the displacements u (the solver's u_).
+  void Begin() {
+    energy_valid_ = false;
+    hess_at_current_ = false;
+  }
+  bool hessian_at_current() const { return hess_at_current_; }
+  int NumDofs() const override { return static_cast<int>(ones_.size()); }
+  void Evaluate(bool matrix, VecX* g) override {
+    energy_ = s_.Potential(s_.u_, &s_.grad_, matrix ? &s_.hess_ : nullptr, &scale_);
+    energy_valid_ = true;
+    hess_at_current_ = matrix;
+    s_.ToReduced(s_.grad_, g);
+    if (matrix) s_.ReducedHessian(s_.hess_, &solver_.matrix());
+  }
+  double Energy() override {
+    if (!energy_valid_) energy_ = s_.Potential(s_.u_, nullptr, nullptr, &scale_);
+    energy_valid_ = true;
+    return energy_;
+  }
+  bool Retract(const VecX& p, double alpha) override {
+    s_.FromReduced(p, &du_);  // O(N): three reflections
+    u_trial_ = s_.u_ + alpha * du_;
+    trial_energy_valid_ = false;
+    return true;
+  }
+  double TrialEnergy() override {
+    trial_energy_ = s_.Potential(u_trial_, nullptr, nullptr, &trial_scale_);
+    trial_energy_valid_ = true;
+    return trial_energy_;
+  }
+  void TrialResidual(VecX* g) override {
+    s_.Potential(u_trial_, &grad_trial_, nullptr, nullptr);
+    s_.ToReduced(grad_trial_, g);
+  }
+  void AcceptTrial() override {
+    u_previous_.swap(s_.u_);
+    s_.u_.swap(u_trial_);
+    energy_valid_ = trial_energy_valid_;
+    energy_ = trial_energy_;
+    if (trial_energy_valid_) scale_ = trial_scale_;
+    hess_at_current_ = false;
+  }
+  void RestorePrevious() override {
+    u_previous_.swap(s_.u_);
+    energy_valid_ = false;
+    hess_at_current_ = false;
+  }
+  StepCaps Caps(const VecX&) override {
+    // No turn to cap: the ring's energy is exact at any displacement.
+    return {1.0, std::numeric_limits<double>::infinity()};
+  }
+  RelativeStep Measure(const VecX& p) override {
+    s_.FromReduced(p, &du_);
+    // Relative to the displacement: the gradient's round-off floor (eps ks |u| / L_k from the
+    // stretch, more from cancellation in a fine ring's turning angles) can exceed its tolerance.
+    const double u = s_.u_.lpNorm<Eigen::Infinity>();
+    const double d = du_.lpNorm<Eigen::Infinity>();
+    return {u > 0.0 ? d / (s_.options_.step_tolerance * u)
+                    : (d > 0.0 ? std::numeric_limits<double>::infinity() : 0.0),
+            0.0};
+  }
+  const VecX& NormWeights() override { return ones_; }
+  // Pi's round-off: a few ulps of its terms (|U| and |f . u|, which cancel).
+  double EnergyNoise(double) override {
+    return 64.0 * std::numeric_limits<double>::epsilon() * scale_;
+  }
+  NewtonTolerances Tolerances() override { return {s_.options_.gradient_tolerance * force_, 0.0}; }
+  // The ring's first shift: a small fraction of its reduced Hessian's diagonal (its bending and
+  // stretch are of one order on a section's scale, unlike a thread's).
+  double ShiftBase() override { return 1e-8 * solver_.MaxDiagonal(); }
+  LinearSolver& Solver() override { return solver_; }
+  void SetForce(double force_norm) { force_ = force_norm; }
+
+ private:
+  RingSolver& s_;
+  VecX ones_, u_trial_, u_previous_, du_, grad_trial_;
+  DenseCholeskySolver solver_;
+  double energy_ = 0.0, trial_energy_ = 0.0, scale_ = 0.0, trial_scale_ = 0.0, force_ = 0.0;
+  bool energy_valid_ = false, trial_energy_valid_ = false, hess_at_current_ = false;
+};
+
+RingSolver::~RingSolver() = default;
 
 RingSolver::RingSolver(const SectionSpec& spec, const RingStiffness& stiffness,
                        const RingSolveOptions& options)
@@ -64,6 +161,16 @@ RingSolver::RingSolver(const SectionSpec& spec, const RingStiffness& stiffness,
   work_.setZero(m, m);
   hr_.setZero(m - 3, m - 3);
   llt_ = Eigen::LLT<Eigen::MatrixXd>(m - 3);
+  problem_ = std::make_unique<Problem>(this);
+  minimizer_ = std::make_unique<NewtonMinimizer>();
+  NewtonOptions& o = minimizer_->options();
+  o.max_iterations = options.max_iterations;
+  o.max_line_search_steps = options.max_line_search_steps;
+  // The tiny final step is taken, not discarded; a step promising less than Pi's round-off also
+  // ends the solve.
+  o.converge_after_small_step = true;
+  o.converge_on_decrement = true;
+  minimizer_->Reserve(m - 3);
 }
 
 void RingSolver::ToReduced(const Eigen::VectorXd& x, Eigen::VectorXd* reduced) {
@@ -174,96 +281,31 @@ void RingSolver::Solve(const Vec2& force_in_plane, const Eigen::Matrix2Xd* warm_
     return;
   }
 
+  problem_->Begin();
+  problem_->SetForce(force_norm);
+  const NewtonSummary nr = minimizer_->Minimize(problem_.get());
+  summary.iterations = nr.iterations;
+  summary.hessian_shifts = nr.shifted_factors;
+  summary.converged = nr.converged();
+  switch (nr.termination) {
+    case Termination::kConverged: summary.reason = RingTermination::kGradientTolerance; break;
+    case Termination::kSmallStep:
+    case Termination::kContraction:
+    case Termination::kRoundOff: summary.reason = RingTermination::kStepTolerance; break;
+    case Termination::kIterationCap: summary.reason = RingTermination::kMaxIterations; break;
+    case Termination::kLineSearchFailed: summary.reason = RingTermination::kLineSearchFailed; break;
+    default: summary.reason = RingTermination::kNotFinite; break;
+  }
+  // Pi, its gradient and Hessian at the result (the last evaluation's when it was there).
   double scale = 0.0;
-  double pi = Potential(u, &grad_, &hess_, &scale);
-  for (int it = 0;; ++it) {
-    if (!std::isfinite(pi) || !grad_.allFinite()) {
-      summary.reason = RingTermination::kNotFinite;
-      break;
-    }
-    ToReduced(grad_, &gr_);
-    summary.gradient_norm = gr_.lpNorm<Eigen::Infinity>();
-    if (summary.gradient_norm <= options_.gradient_tolerance * force_norm) {
-      summary.converged = true;
-      summary.reason = RingTermination::kGradientTolerance;
-      break;
-    }
-    if (it >= options_.max_iterations) {
-      summary.reason = RingTermination::kMaxIterations;
-      break;
-    }
-    // Newton direction on the reduced Hessian, shifted until positive definite.
-    ReducedHessian(hess_, &hr_);
-    llt_.compute(hr_);
-    const bool shifted = llt_.info() != Eigen::Success;
-    if (shifted) {
-      ++summary.hessian_shifts;
-      const double diag = hr_.diagonal().cwiseAbs().maxCoeff();
-      double mu = 1e-8 * diag;
-      for (int s = 0; s < 60 && llt_.info() != Eigen::Success; ++s, mu *= 10.0) {
-        hr_.diagonal().array() += mu - (s == 0 ? 0.0 : mu / 10.0);
-        llt_.compute(hr_);
-      }
-      if (llt_.info() != Eigen::Success) {
-        summary.reason = RingTermination::kNotFinite;
-        break;
-      }
-    }
-    p_ = llt_.solve(gr_);
-    p_ = -p_;
-    FromReduced(p_, &du_);
-    const double slope = gr_.dot(p_);
-    // Converged once the Newton step is negligible: relative to the displacement, or promising
-    // less than Pi's round-off (the decrement -g.p is twice the promised decrease). The gradient
-    // alone cannot tell: its round-off floor (cancellation in the turning angle, eps ks |u| / L_k
-    // in the stretch) can exceed gradient_tolerance |F|. The tiny step is taken, not discarded.
-    const bool tiny_step =
-        du_.lpNorm<Eigen::Infinity>() <= options_.step_tolerance * u.lpNorm<Eigen::Infinity>();
-    const bool round_off = -slope <= 16.0 * std::numeric_limits<double>::epsilon() * scale;
-    if (tiny_step || round_off) {
-      u += du_;
-      pi = Potential(u, &grad_, &hess_, &scale);
-      ++summary.iterations;
-      summary.converged = true;
-      summary.reason = tiny_step ? RingTermination::kStepTolerance : RingTermination::kRoundOff;
-      ToReduced(grad_, &gr_);
-      summary.gradient_norm = gr_.lpNorm<Eigen::Infinity>();
-      break;
-    }
-    // Armijo backtracking; Pi's round-off (a few ulps of its terms) is tolerated so that the last
-    // steps near convergence, whose decrease is below round-off, are not rejected as uphill.
-    const double noise = 64.0 * std::numeric_limits<double>::epsilon() * scale;
-    double alpha = 1.0;
-    bool accepted = false;
-    if (!shifted && -slope <= 1e3 * noise) {
-      // A decrease the energy barely resolves: Pi is a sum of terms far larger than the step's
-      // change (|U| and |f.u| cancel), so its actual round-off exceeds `noise`, and Armijo
-      // accepted only steps of 2^-17 and smaller there and ran to max_iterations with the
-      // gradient 1e3 x its tolerance (35 of 1300 warm solves of a runtime poke's ring). The
-      // full, unshifted Newton step is judged by the gradient instead, and taken if it lowers it.
-      u_try_ = u + du_;
-      Potential(u_try_, &grad_try_, nullptr, nullptr);
-      ToReduced(grad_try_, &p_);  // p_ is free until the next iteration's solve
-      if (grad_try_.allFinite() && p_.lpNorm<Eigen::Infinity>() < summary.gradient_norm)
-        accepted = true;
-    }
-    for (int ls = 0; ls < options_.max_line_search_steps && !accepted; ++ls, alpha *= 0.5) {
-      u_try_ = u + alpha * du_;
-      const double pi_try = Potential(u_try_, nullptr, nullptr, nullptr);
-      if (std::isfinite(pi_try) && pi_try <= pi + 1e-4 * alpha * slope + noise) {
-        accepted = true;
-        break;
-      }
-    }
-    ++summary.iterations;
-    if (!accepted) {
-      summary.reason = RingTermination::kLineSearchFailed;
-      break;
-    }
-    u.swap(u_try_);
+  double pi = 0.0;
+  if (problem_->hessian_at_current()) {
+    pi = Potential(u, nullptr, nullptr, &scale);
+  } else {
     pi = Potential(u, &grad_, &hess_, &scale);
   }
-
+  ToReduced(grad_, &gr_);
+  summary.gradient_norm = gr_.lpNorm<Eigen::Infinity>();
   summary.energy = pi;
   r.nodes = g.rest + Eigen::Map<const Eigen::Matrix2Xd>(u.data(), 2, n);
   const Vec2 centre = RingCentre(g, r.nodes);

@@ -784,16 +784,26 @@ double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& 
   return std::acos(std::max(-1.0, std::min(1.0, lowest_cos)));
 }
 
-double MaxStrainChange(const RodModel& model, const RodState& state, const VecX& step) {
+StepTurnStrain MaxTurnAndStrainChange(const RodModel& model, const RodState& state,
+                                      const VecX& step) {
   const int n = model.num_edges();
-  double worst = 0.0;
+  double lowest_cos = 1.0;  // the largest turn has the smallest cosine: one acos at the end
+  double strain = 0.0;
   for (int j = 0; j < n; ++j) {
+    const Vec3 e0 = state.e.col(j);
     Vec3 de = step.segment<3>(RodModel::VertexDof(j + 1));
     if (j >= 1) de -= step.segment<3>(RodModel::VertexDof(j));
-    const Vec3 e = state.e.col(j);
-    worst = std::max(worst, std::abs(e.dot(de)) / (e.norm() * model.rest_edge_length(j)));
+    const Vec3 e1 = e0 + de;
+    const double n0 = std::sqrt(e0.squaredNorm());
+    const double norms = n0 * std::sqrt(e1.squaredNorm());
+    if (std::isnan(norms)) return {M_PI, std::numeric_limits<double>::infinity()};
+    lowest_cos = std::min(lowest_cos, norms > 0.0 ? e0.dot(e1) / norms : 0.0);
+    strain = std::max(strain, std::abs(e0.dot(de)) / (n0 * model.rest_edge_length(j)));
   }
-  return std::isfinite(worst) ? worst : std::numeric_limits<double>::infinity();
+  StepTurnStrain r;
+  r.turn = std::isfinite(lowest_cos) ? std::acos(std::max(-1.0, std::min(1.0, lowest_cos))) : M_PI;
+  r.strain = std::isfinite(strain) ? strain : std::numeric_limits<double>::infinity();
+  return r;
 }
 
 VecX GradientNormWeights(const RodModel& model) {
@@ -815,12 +825,13 @@ VecX GradientNormWeights(const RodModel& model) {
 
 double ScaledGradientNorm(const RodModel& model, const VecX& g) {
   const VecX w = GradientNormWeights(model);
-  double worst = 0.0;
+  double worst = 0.0, probe = 0.0;
   for (int k = 0; k < g.size(); ++k) {
     const double v = w[k] * std::abs(g[k]);
-    if (!(v <= worst)) worst = v;  // a NaN propagates
+    worst = std::max(worst, v);
+    probe += v * 0.0;  // NaN for a NaN or infinite entry anywhere (std::max drops a NaN)
   }
-  return worst;
+  return probe == 0.0 ? worst : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace rodfit

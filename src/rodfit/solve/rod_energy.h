@@ -201,9 +201,15 @@ bool UpdateReferenceFrames(const RodModel& model, const RodState& prev, RodState
 /// Largest turn [rad] of any edge tangent under state + step (used to limit Newton steps).
 double MaxTangentTurn(const RodModel& model, const RodState& state, const VecX& step);
 
-/// Largest change of any edge's strain, |t . de| / l0, under state + step (the retraction changes
-/// lengths by the linear part only).
-double MaxStrainChange(const RodModel& model, const RodState& state, const VecX& step);
+/// The largest turn [rad] of any edge tangent under state + step (MaxTangentTurn) and the largest
+/// change of any edge's strain, |t . de| / l0 (the retraction changes lengths by the linear part
+/// only), in one pass over the edges.
+struct StepTurnStrain {
+  double turn = 0.0;
+  double strain = 0.0;
+};
+StepTurnStrain MaxTurnAndStrainChange(const RodModel& model, const RodState& state,
+                                      const VecX& step);
 
 /// The force [N] the rod exerts on the instrument at the grasped vertex: minus the constraint
 /// force that holds it, -dPi/dx_k at equilibrium (zero without a grasp).

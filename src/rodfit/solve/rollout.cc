@@ -6,6 +6,7 @@
 
 #include "rodfit/model/frames.h"
 #include "rodfit/solve/case_dynamics.h"
+#include "rodfit/solve/integration.h"
 
 namespace rodfit {
 namespace {
@@ -273,17 +274,11 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
   const int M = static_cast<int>(frames[0].cols());
   const int np = static_cast<int>(directions.size());
   d_predicted->clear();
-  // The integration of SimulateCaseDynamics (case_dynamics.cc), step by step, each step's
-  // sensitivities propagated after it; only the markers are recorded.
+  // The integration of SimulateCaseDynamics (case_dynamics.cc) with each step's sensitivities
+  // propagated after it; only the markers are recorded.
   const DynamicsSpec& spec = *sc.dynamics;
   const RodModel model(sc.rod, sc.material, sc.gravity, CaseAtStart(sc.cases[0]), sc.springs);
-  DynamicsOptions dyn;
-  dyn.time_step = spec.time_step;
-  dyn.substep = spec.substep;
-  dyn.max_halvings = spec.max_halvings;
-  if (!ParseIntegrator(spec.integrator, &dyn.integrator))
-    throw std::invalid_argument("unknown integrator " + spec.integrator);
-  DynamicsStepper stepper(model, dyn);
+  DynamicsStepper stepper(model, DynamicsOptionsFrom(spec));
   const CaseDrive drive(model, sc.cases[0]);
   DynamicState s = InitialDynamicState(sc, 0, statics, stepper);
   DynamicSensitivity ds;
@@ -306,25 +301,21 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
     d_predicted->push_back(dp);
   };
   record();
-  const auto t0 = std::chrono::steady_clock::now();
   const int steps = static_cast<int>(std::ceil(spec.duration / spec.time_step - 1e-9));
-  for (int k = 0; k < steps; ++k) {
-    const DynamicState before = s;
-    const DynamicsStepSummary r = stepper.Step(drive, &s);
-    if (!r.ok) {
-      out.reason = "t = " + std::to_string(s.t) + " s: " + r.reason;
-      break;
-    }
-    if (r.substeps > 1) ++out.halved_steps;
-    std::string why;
-    if (!stepper.StepSensitivity(drive, before, s, directions, &ds, &why)) {
-      out.reason = "t = " + std::to_string(s.t) + " s: " + why;
-      break;
-    }
-    if ((k + 1) % spec.output_every == 0 || k + 1 == steps) record();
-  }
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  out.ok = out.reason.empty();
+  int taken = 0;
+  const SensitivityCarry carry{&directions, &ds};
+  const IntegrationStats stats = Integrate(
+      stepper, drive, steps, &s,
+      [&](const DynamicState&, const DynamicState&, const DynamicsStepSummary&) {
+        ++taken;
+        if (taken % spec.output_every == 0 || taken == steps) record();
+        return true;
+      },
+      &carry);
+  out.halved_steps = stats.halved_steps;
+  out.seconds = stats.seconds;
+  out.reason = stats.reason;
+  out.ok = stats.ok;
   Score(frames, &out);
   return out;
 }

@@ -13,7 +13,10 @@
 #include <Eigen/Geometry>
 
 #include "rodfit/model/frames.h"
+#include "rodfit/solve/linear_solvers.h"
 #include "rodfit/solve/moment_loads.h"
+#include "rodfit/solve/newton_minimizer.h"
+#include "rodfit/solve/rod_problem.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics_workspace.h"
 
@@ -27,12 +30,7 @@ bool StaticsOptions::Check(std::string* why) const {
   if (max_iterations < 1) return fail("max_iterations must be >= 1");
   if (!(gradient_tolerance > 0)) return fail("gradient_tolerance must be > 0");
   if (!(step_tolerance > 0)) return fail("step_tolerance must be > 0");
-  if (max_line_search_steps < 1) return fail("max_line_search_steps must be >= 1");
-  if (!(armijo > 0 && armijo < 0.5)) return fail("armijo must lie in (0, 0.5)");
   if (max_load_steps < 1) return fail("max_load_steps must be >= 1");
-  if (!(max_rotation_per_step > 0 && max_rotation_per_step < 3)) {
-    return fail("max_rotation_per_step must lie in (0, 3) rad");
-  }
   if (!(continuation_move > 0 && continuation_move <= 1)) {
     return fail("continuation_move must lie in (0, 1]");
   }
@@ -77,102 +75,24 @@ bool SameState(const RodState& a, const RodState& b) {
          a.end_theta == b.end_theta;
 }
 
-// Constants of one solve: the convergence measure's weights and tolerances.
+// Constants of one solve: the convergence measure's weights, the tolerances and the scales.
 struct Tolerances {
   VecX weights;          // ScaledGradientNorm = max_k weights_k |g_k|
   double strict = 0.0;   // [N] gradient tolerance: gradient_tolerance x the load scale
-  double force = 0.0;    // [N] the larger of `strict` and the gradient's round-off floor
-  double step_x = 0.0;   // [m] Newton step tolerance on positions
-  double step_theta = 0.0;
-  double shift_base = 0.0;  // first diagonal shift for an indefinite Hessian
-  double shift_cap = 0.0;   // beyond this the Hessian is taken as hopeless
-
-  double Norm(const VecX& g) const {
-    double worst = 0.0;
-    for (int k = 0; k < g.size(); ++k) {
-      const double v = weights[k] * std::abs(g[k]);
-      if (!(v <= worst)) worst = v;  // a NaN propagates
-    }
-    return worst;
-  }
-  /// The largest position and angle entries of `step` (held dofs skipped). One pass with the
-  /// two maxima in registers: selecting the maximum to update through a reference made each
-  /// entry wait on the store before it (a visible part of a warm re-solve).
-  struct StepSize {
-    double x = 0.0;      // [m]
-    double theta = 0.0;  // [rad]
-  };
-  StepSize Size(const VecX& step) const {
-    StepSize s;
-    const int m = static_cast<int>(step.size());
-    for (int k = 0; k < m; ++k) {
-      const double v = weights[k] == 0.0 ? 0.0 : std::abs(step[k]);
-      if (k % 4 == 3) {
-        s.theta = std::max(s.theta, v);
-      } else {
-        s.x = std::max(s.x, v);
-      }
-    }
-    return s;
-  }
-  bool SmallStep(const StepSize& s, double factor = 1.0) const {
-    return s.x <= factor * step_x && s.theta <= factor * step_theta;
-  }
-  bool SmallStep(const VecX& step, double factor = 1.0) const {
-    return SmallStep(Size(step), factor);
-  }
-  /// Convergence at a state with gradient norm `gnorm` and unshifted Newton step `step`: the
-  /// gradient below the load tolerance; or the step below the step tolerance (1e-9 L: the state
-  /// is as exact as the iteration can tell); or the gradient at its round-off floor with a step
-  /// below 1e3 times the step tolerance (1e-6 L by default: a stiff stretch's floor may sit above
-  /// the load tolerance, and the step then tells how far the state still is).
-  /// A small step counts only with a gradient near its floor (within 1e3): a factor that lost
-  /// the soft modes to round-off gives small steps far from the solution.
-  bool Converged(double gnorm, const VecX& step) const {
-    if (gnorm <= strict) return true;
-    if (!(gnorm <= 1e3 * force)) return false;
-    const StepSize s = Size(step);
-    return SmallStep(s) || (gnorm <= force && SmallStep(s, 1e3));
-  }
+  double floor = 0.0;    // [N] the gradient's round-off floor (ResidualFloor)
+  double stiffest = 0.0; // the rod's stiffest scale max(EA / l, B / l^3, GJ / l)
 };
 
 Tolerances MakeTolerances(const RodModel& model, const StaticsOptions& opt) {
   Tolerances t;
   t.weights = GradientNormWeights(model);
   t.strict = opt.gradient_tolerance * model.force_scale();
-  // The gradient's round-off: the stretch forces are EA (|e| / l - 1), with |e| known to ~eps
-  // (the edges are the state's primary record), so each carries ~eps EA; a vertex sums two and
-  // the scaled norm multiplies by up to L / l.
-  const double max_weight = t.weights.size() ? t.weights.maxCoeff() : 1.0;
-  const double floor = 64.0 * std::numeric_limits<double>::epsilon() *
-                       model.material().stretch_stiffness * max_weight;
-  t.force = std::max(t.strict, floor);
+  t.floor = ResidualFloor(model, t.weights);
   const Material& m = model.material();
   const double l = model.min_rest_edge_length();
-  t.shift_base = 1e-6 * std::min({m.B1(), m.B2(), m.twist_stiffness}) / (l * l * l);
-  t.shift_cap = 1e6 * std::max({m.stretch_stiffness / l, std::max(m.B1(), m.B2()) / (l * l * l),
-                                m.twist_stiffness / l});
-  t.step_x = opt.step_tolerance * model.length();
-  t.step_theta = opt.step_tolerance;
+  t.stiffest = std::max({m.stretch_stiffness / l, std::max(m.B1(), m.B2()) / (l * l * l),
+                         m.twist_stiffness / l});
   return t;
-}
-
-double EnergyNoise(const RodModel& model, double energy) {
-  return 1e-13 * (std::abs(energy) + model.force_scale() * model.length());
-}
-
-// Solves H s = b in place with the kept factor: over every free dof, or over the positions
-// only when the twist is eliminated (the twist rows of s come back zero; SetZeroTwist makes
-// the twist angles follow the step).
-void SolveWithFactor(const BandedCholesky& factor, bool positions, VecX* s) {
-  if (!positions) {
-    factor.SolveInPlace(*s);
-    return;
-  }
-  VecX p;
-  GatherPositions(*s, &p);
-  factor.SolveInPlace(p);
-  ScatterPositions(p, s);
 }
 
 // Chord steps. A Newton step needs the Hessian at the current state; a chord step reuses the
@@ -189,11 +109,11 @@ void SolveWithFactor(const BandedCholesky& factor, bool positions, VecX* s) {
 // of those since the basis state (about the size of the last Newton step). Solving with H~ is
 // the factor's solve wrapped in O(n) suffix sums, rotations and prefix sums. Returns false
 // when a tangent has turned too far for the transport (> 60 degrees).
-bool ChordStep(const BandedCholesky& factor, bool positions, const Eigen::Matrix3Xd& basis_tangents,
-               const RodFrames& frames, const VecX& g, VecX* step) {
+bool ChordStep(const LinearSolver& factor, int factor_size,
+               const Eigen::Matrix3Xd& basis_tangents, const RodFrames& frames, const VecX& g,
+               VecX* step) {
   const int n = static_cast<int>(basis_tangents.cols());
-  const int factor_size = positions ? 3 * (static_cast<int>(g.size()) / 4) : static_cast<int>(g.size());
-  if (static_cast<int>(frames.edges.size()) != n + 1 || factor.size() != factor_size) return false;
+  if (static_cast<int>(frames.edges.size()) != n + 1 || factor_size <= 0) return false;
   for (int j = 0; j < n; ++j)
     if (!(basis_tangents.col(j).dot(frames.edges[j + 1].t) > 0.5)) return false;
   *step = g;
@@ -207,7 +127,7 @@ bool ChordStep(const BandedCholesky& factor, bool positions, const Eigen::Matrix
     s.segment<3>(RodModel::VertexDof(j + 1)) = rotated - rotated_next;
     rotated_next = rotated;
   }
-  SolveWithFactor(factor, positions, &s);
+  factor.Solve(&s);
   s = -s;
   // A (edge steps), R, then A^-1 (prefix sums from the clamp).
   Vec3 previous = Vec3::Zero(), position = Vec3::Zero();
@@ -220,13 +140,6 @@ bool ChordStep(const BandedCholesky& factor, bool positions, const Eigen::Matrix
   }
   return true;
 }
-
-void KeepTangents(const RodFrames& frames, int n, Eigen::Matrix3Xd* tangents) {
-  tangents->resize(3, n);
-  for (int j = 0; j < n; ++j) tangents->col(j) = frames.edges[j + 1].t;
-}
-
-constexpr double kMaxStrainStep = 0.1;
 
 // The largest distance [m] any vertex moved between two states.
 double LargestMove(const RodState& a, const RodState& b) {
@@ -242,608 +155,239 @@ double TotalTwist(const RodModel& model, const RodState& s) {
   return last - s.theta[0] + s.ref_twist.sum();
 }
 
-
-/// How NewtonAtLoad may start from the workspace's factor.
+/// How a Newton solve may start from the workspace's factor.
 enum class StartFactor {
   kNone,   ///< no usable factor: assemble at the start
   kExact,  ///< the factor of the Hessian at *state for this model: first step reuses it
   kChord,  ///< a factor at *state for another model (a fit's parameter change): chord step
 };
 
-/// True when every entry is finite: 0 * x is 0 for a finite x and NaN for inf or NaN, and the sum
-/// of those vectorises (Eigen's allFinite tests entry by entry, a measurable part of a warm
-/// re-solve on the band).
-bool AllFinite(const Eigen::MatrixXd& m) { return (m.array() * 0.0).sum() == 0.0; }
-
-/// Factors H + shift I with the smallest shift of 0, then `base` x 10^k, that succeeds. Returns
-/// the shift used (0: H itself), or a negative value when none does (non-finite entries, or no
-/// shift up to 1e6 times the largest diagonal entry). The base is set by the soft (bending)
-/// scale, not by the diagonal, which the stretch stiffness EA / l dominates: a shift of even 1e-10
-/// of that would swamp the bending and stall Newton on a stiff, fine rod.
-double FactorShifted(const BandedSymmetric& H, double base, BandedCholesky* factor,
-                     double* last_failed) {
-  *last_failed = -1.0;
-  const double diag_scale = H.band().row(0).cwiseAbs().maxCoeff();
-  if (!std::isfinite(diag_scale)) return -1.0;
-  const double cap = 1e6 * std::max(diag_scale, 1e-300);
-  double shift = 0.0;
-  for (int k = 0; k < 80; ++k) {  // 0, then base .. cap in decades
-    // A non-finite entry makes a pivot non-finite (every entry of the band's blocks enters one),
-    // which Factor refuses: the band is checked only after a failure, not before every factor.
-    if (factor->Factor(H, shift)) return shift;
-    if (k == 0 && !AllFinite(H.band())) return -1.0;
-    *last_failed = shift;
-    shift = (shift == 0.0) ? std::min(base, cap) : shift * 10.0;
-    if (shift > cap) break;
-  }
-  return -1.0;
-}
-
-/// Looks for a direction of negative curvature of H (held rows excluded) at a state the shifted
-/// factorisation `shifted` (H + shift I, shift > 0) was made for: bisects the shift down to the
-/// smallest that factors, then inverse iteration with it. Returns the Rayleigh quotient of the
-/// direction found (d, scaled to max |d| = 1).
-double NegativeCurvature(const BandedSymmetric& H, double shift_ok, double shift_failed,
-                         BandedCholesky* factor, VecX* d, int bisections, const VecX& g) {
-  double lo = std::max(shift_failed, 0.0), hi = shift_ok;
-  BandedCholesky probe;
-  for (int k = 0; k < bisections && hi > 1.0001 * lo; ++k) {
-    const double mid = lo > 0.0 ? std::sqrt(lo * hi) : 0.5 * hi;
-    if (probe.Factor(H, mid)) {
-      hi = mid;
-      *factor = probe;
-    } else {
-      lo = mid;
-    }
-  }
-  if (!factor->Factor(H, hi)) return 0.0;
-  // Inverse iteration from the descent direction -g (plus a fixed, non-symmetric vector so that
-  // no mode is missed): within a degenerate eigenspace (an isotropic column buckles alike in
-  // every direction about its axis) it converges to the mode the loads push, so a heavy rod
-  // buckles down, not sideways.
-  *d = VecX::Ones(H.size());
-  for (int k = 0; k < d->size(); k += 3) (*d)[k] = -0.5;
-  const double gmax = g.cwiseAbs().maxCoeff();
-  if (gmax > 0) *d = 1e-3 * *d - g / gmax;
-  double rq = 0.0;
-  for (int it = 0; it < 40; ++it) {
-    *d = factor->Solve(*d);
-    const double scale = d->cwiseAbs().maxCoeff();
-    if (!(scale > 0) || !std::isfinite(scale)) return 0.0;
-    *d /= scale;
-    const double q = d->dot(H.Multiply(*d)) / d->squaredNorm();
-    if (it > 3 && std::abs(q - rq) <= 1e-6 * std::abs(q)) {
-      rq = q;
-      break;
-    }
-    rq = q;
-  }
-  return rq;
-}
-
-/// NegativeCurvature of H over the free dofs, or over the positions when H is the position-only
-/// Hessian (g and the direction d in the free-dof layout either way).
-double NegativeCurvatureOf(const BandedSymmetric& H, bool positions, double shift_ok,
-                           double shift_failed, BandedCholesky* factor, VecX* d, int bisections,
-                           const VecX& g) {
-  if (!positions) return NegativeCurvature(H, shift_ok, shift_failed, factor, d, bisections, g);
-  VecX gp, dp;
-  GatherPositions(g, &gp);
-  const double rq = NegativeCurvature(H, shift_ok, shift_failed, factor, &dp, bisections, gp);
-  ScatterPositions(dp, d);
-  return rq;
-}
-
 struct NewtonContext {
   const RodModel& model;
   const StaticsOptions& opt;
   const Tolerances& tol;
-  const std::vector<char>& held;
   /// The twist is eliminated (TwistCanBeEliminated and StaticsOptions::eliminate_twist): every
   /// state the solver makes has zero twist, and Newton's system is over the positions.
   bool eliminate_twist = false;
 };
 
-/// ApplyStep, then the twist angles set to zero twist when it is eliminated.
-bool ApplyNewtonStep(const NewtonContext& ctx, const RodState& state, const VecX& step,
-                     double alpha, RodState* out) {
-  if (!ApplyStep(ctx.model, state, step, alpha, out)) return false;
-  if (ctx.eliminate_twist) SetZeroTwist(ctx.model, out);
-  return true;
-}
+// The statics as a Newton problem (newton_minimizer.h): Pi at a load factor, or, for a case with
+// moments, the balance's residual with its non-symmetric tangent. The linear solve is the
+// workspace's: the banded Cholesky (over every free dof, or over the positions when the twist is
+// eliminated), the banded LU of the tangent, or a fine rod's edge coordinates.
+class StaticsProblem : public RodNewtonProblem {
+ public:
+  StaticsProblem(const NewtonContext& ctx, double load_scale, double moment_scale,
+                 StaticsWorkspace* ws, bool use_edge, bool positions, StartFactor start)
+      : RodNewtonProblem(ctx.model, ctx.opt.step_tolerance, ctx.model.length()),
+        ctx_(ctx),
+        ws_(ws),
+        moment_scale_(moment_scale),
+        moments_(moment_scale > 0.0),
+        use_edge_(use_edge),
+        positions_(positions),
+        reuse_(start == StartFactor::kExact),
+        cholesky_(&ws->scratch_hessian, &ws->hessian, positions),
+        lu_(&tangent_, &ws->tangent),
+        edge_(&ws->edge, ctx.tol.stiffest) {
+    terms_.load_scale = load_scale;
+    weights_ = ctx.tol.weights;
+    set_zero_twist(positions);
+  }
 
-/// Tries to leave a saddle along d (negative curvature): the first step along +-d, from 0.1 L
-/// down, that lowers Pi beyond round-off. True when taken (*state, *frames and *energy moved).
-bool StepAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& terms, VecX d,
-                                RodState* state, RodFrames* frames, double* energy) {
-  for (int k = 0; k < d.size(); ++k)
-    if (ctx.held[k]) d[k] = 0.0;
-  const double dmax = d.cwiseAbs().maxCoeff();
-  if (!(dmax > 0)) return false;
-  d /= dmax;
-  const double noise = EnergyNoise(ctx.model, *energy);
-  RodState trial;
-  RodFrames trial_frames;
-  for (double a = 0.1 * ctx.model.length(); a > 1e-9 * ctx.model.length(); a *= 0.5) {
-    for (double sgn : {1.0, -1.0}) {
-      if (!ApplyNewtonStep(ctx, *state, d, sgn * a, &trial)) continue;
-      ComputeRodFrames(ctx.model, trial, &trial_frames);
-      const double e_trial = PotentialEnergyFreshFrames(ctx.model, trial, terms, &trial_frames);
-      if (std::isfinite(e_trial) && e_trial < *energy - 10.0 * noise) {
-        std::swap(*state, trial);
-        std::swap(*frames, trial_frames);
-        *energy = e_trial;
-        return true;
-      }
+  void Evaluate(bool matrix, VecX* g) override {
+    if (reuse_) {
+      // The kept factor's state: Pi and its gradient without the dead loads were kept with it,
+      // and Pi is linear in the dead loads: nothing is assembled.
+      reuse_ = false;
+      *g = ws_->factor_unloaded_gradient;
+      AddDeadLoadGradient(model_, terms_.load_scale, /*hold=*/true, g);
+      return;
+    }
+    const RodFrames& frames = CurrentFrames();
+    if (moments_) {
+      AssembleBalance(model_, current(), frames, terms_.load_scale, g,
+                      matrix && !use_edge_ ? &tangent_ : nullptr, &ws_->scratch_hessian, true,
+                      moment_scale_);
+    } else if (!matrix || use_edge_) {
+      AssembleGradient(model_, current(), terms_, g, &frames);
+    } else if (positions_) {
+      AssemblePositionHessian(model_, current(), terms_, g, &ws_->scratch_hessian, &frames);
+    } else {
+      AssembleHessian(model_, current(), terms_, g, &ws_->scratch_hessian, &frames);
+    }
+    if (matrix && use_edge_)
+      edge_.At(&model_, &current(), &frames, &terms_, moments_ ? moment_scale_ : 0.0);
+  }
+  double Energy() override {
+    if (kept_energy_) {
+      kept_energy_ = false;
+      return ws_->factor_unloaded_energy + DeadLoadEnergy(model_, current(), terms_.load_scale);
+    }
+    return PotentialEnergyFreshFrames(model_, current(), terms_, &CurrentFrames());
+  }
+  double TrialEnergy() override {
+    return PotentialEnergyFreshFrames(model_, trial(), terms_, &TrialFrames());
+  }
+  void TrialResidual(VecX* g) override {
+    if (moments_) {
+      AssembleBalance(model_, trial(), TrialFrames(), terms_.load_scale, g, nullptr, nullptr,
+                      true, moment_scale_);
+    } else {
+      AssembleGradient(model_, trial(), terms_, g, &TrialFrames());
     }
   }
-  return false;
-}
-
-/// The lowest Pi along +-d (negative curvature), scanning amplitudes from 0.2 L down by halves
-/// and keeping the best; true when it lowers Pi below *energy (*state, *frames, *energy moved).
-/// Far from equilibrium an indefinite Hessian (a straight segment compressed between held
-/// points, a column past buckling) makes the shifted Newton step tiny, while the buckling mode
-/// lowers Pi by orders of magnitude.
-bool BestAlongNegativeCurvature(const NewtonContext& ctx, const EnergyTerms& terms, VecX d,
-                                RodState* state, RodFrames* frames, double* energy) {
-  for (int k = 0; k < d.size(); ++k)
-    if (ctx.held[k]) d[k] = 0.0;
-  const double dmax = d.cwiseAbs().maxCoeff();
-  if (!(dmax > 0)) return false;
-  d /= dmax;
-  RodState trial, best;
-  RodFrames trial_frames, best_frames;
-  double best_energy = *energy;
-  for (double sgn : {1.0, -1.0}) {
-    double previous = std::numeric_limits<double>::infinity();
-    for (double a = 0.2 * ctx.model.length(); a > 1e-6 * ctx.model.length(); a *= 0.5) {
-      if (!ApplyNewtonStep(ctx, *state, d, sgn * a, &trial)) continue;
-      ComputeRodFrames(ctx.model, trial, &trial_frames);
-      const double e = PotentialEnergyFreshFrames(ctx.model, trial, terms, &trial_frames);
-      if (!std::isfinite(e)) continue;
-      if (e < best_energy) {
-        best_energy = e;
-        best = trial;
-        best_frames = trial_frames;
-      }
-      if (e > previous && previous < *energy) break;  // past the best amplitude on this side
-      previous = e;
-    }
+  void AcceptTrial() override {
+    kept_energy_ = false;
+    RodNewtonProblem::AcceptTrial();
   }
-  if (!(best_energy < *energy - 10.0 * EnergyNoise(ctx.model, *energy))) return false;
-  *state = std::move(best);
-  *frames = std::move(best_frames);
-  *energy = best_energy;
-  return true;
-}
+  NewtonTolerances Tolerances() override { return {ctx_.tol.strict, ctx_.tol.floor}; }
+  double ShiftBase() override {
+    // With moments the tangent's first shift is also bounded by its diagonal.
+    const double base = RodNewtonProblem::ShiftBase();
+    return moments_ && !use_edge_ ? std::min(base, std::max(tangent_.MaxDiagonal(), 1e-300))
+                                  : base;
+  }
+  LinearSolver& Solver() override {
+    if (use_edge_) return edge_;
+    if (moments_) return lu_;
+    return cholesky_;
+  }
+  bool ChordStep(const VecX& g, VecX* step) override {
+    const int size = ws_->factor_positions ? NumPositionDofs(model_) : model_.num_free_dofs();
+    if (ws_->hessian.size() != size || ws_->factor_tangents.cols() != model_.num_edges())
+      return false;
+    const BandedCholeskySolver kept(&ws_->scratch_hessian, &ws_->hessian, ws_->factor_positions);
+    return rodfit::ChordStep(kept, size, ws_->factor_tangents, CurrentFrames(), g, step);
+  }
+  void OnFactor(bool shifted) override {
+    if (use_edge_) {
+      ws_->edge_valid = !shifted;
+      return;
+    }
+    if (moments_) return;
+    // The new factor is the chord basis from here on, if it is the Hessian's own.
+    const int n = model_.num_edges();
+    const RodFrames& frames = CurrentFrames();
+    ws_->factor_tangents.resize(3, n);
+    for (int j = 0; j < n; ++j) ws_->factor_tangents.col(j) = frames.edges[j + 1].t;
+    ws_->factor_positions = positions_;
+  }
+  /// The first energy asked for is the kept factor's (StartFactor::kExact).
+  void UseKeptEnergy() { kept_energy_ = true; }
 
-/// Newton iterations at one load factor for a conservative case. Returns kConverged with *state
-/// at equilibrium. With StartFactor::kExact, ws->hessian already holds the factor of the
-/// (unshifted) Hessian at *state for this model and load, and ws the energy and gradient there
-/// without dead loads, so the first iteration assembles nothing.
-// One function, though long: the iteration's steps (assemble, shift, factor, solve, line search,
-// the convergence proof) share the workspace's factor and energies, and each step's shortcut
-// depends on what the previous one left valid; split, that state would pass through every call.
-StepResult NewtonAtLoad(const NewtonContext& solve_ctx, double load_scale, int max_iterations,
-                        RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
-                        std::string* why, StartFactor start) {
-  const RodModel& model = solve_ctx.model;
-  const StaticsOptions& opt = solve_ctx.opt;
-  const Tolerances& tol = solve_ctx.tol;
+ private:
+  const NewtonContext& ctx_;
+  StaticsWorkspace* ws_;
+  EnergyTerms terms_;
+  double moment_scale_;
+  bool moments_;
+  bool use_edge_, positions_;
+  bool reuse_ = false, kept_energy_ = false;
+  BandedMatrix tangent_;
+  BandedCholeskySolver cholesky_;
+  BandedLUSolver lu_;
+  EdgeCoordinateSolver edge_;
+};
+
+/// Newton at one load factor (and, for a case with moments, one moment factor > 0; 0: the
+/// potential alone) from *state, on the one minimizer. Returns kConverged with *state at
+/// equilibrium, the workspace's factor kept there when it is the Hessian's (or the tangent's)
+/// own. With StartFactor::kExact, ws->hessian already holds the factor of the (unshifted)
+/// Hessian at *state for this model and load, and ws the energy and gradient there without dead
+/// loads, so the first iteration assembles nothing.
+StepResult NewtonSolve(const NewtonContext& ctx, double load_scale, double moment_scale,
+                       int max_iterations, RodState* state, StaticsWorkspace* ws,
+                       StaticsSummary* summary, std::string* why, StartFactor start) {
+  const RodModel& model = ctx.model;
+  const StaticsOptions& opt = ctx.opt;
   const int n = model.num_edges();
-  EnergyTerms terms;
-  terms.load_scale = load_scale;
-  VecX g, step;
-  // The assembled Hessian's storage is the workspace's: a warm re-solve then neither allocates
-  // nor zeroes a band before assembling it (3.5 % of a 100-segment re-solve). It is assembled
-  // before any use in an iteration.
-  BandedSymmetric& H = ws->scratch_hessian;
-  RodState trial;
-  const bool factor_at_start = (start == StartFactor::kExact);
-  const double force_tol = tol.force;
-  // Frames of the current state and of the trial, each computed once and shared by the energy
-  // and the assembly at that state. (With the kept factor the first iteration needs no frames;
-  // later states arrive with theirs.)
-  RodFrames frames, trial_frames;
-  // A fine rod's steps come from the edge-coordinate factor (edge_solver.h); the vertex factor
-  // still tells definiteness. Chord steps and the kept factor's reuse are for the vertex path.
+  const bool moments = moment_scale > 0.0;
+  // A fine rod's steps come from the edge-coordinate factor (edge_solver.h).
   const bool use_edge = n >= opt.edge_solver_segments && EdgeSolver::Applies(model);
   // Twist eliminated: Newton's system is over the positions (AssemblePositionHessian), every
   // state has zero twist (on a converged state SetZeroTwist changes nothing, so the kept
   // factor's state is unchanged). The edge-coordinate path keeps the twist.
-  const bool positions = solve_ctx.eliminate_twist && !use_edge;
-  // The steps of this Newton keep zero twist only when it is over the positions.
-  NewtonContext ctx = solve_ctx;
-  ctx.eliminate_twist = positions;
+  const bool positions = ctx.eliminate_twist && !use_edge && !moments;
   if (positions) SetZeroTwist(model, state);
   summary->twist_eliminated = positions;
-  if (!factor_at_start) ComputeRodFrames(model, *state, &frames);
-  double energy = factor_at_start ? ws->factor_unloaded_energy +
-                                        DeadLoadEnergy(model, *state, load_scale)
-                                  : PotentialEnergyFreshFrames(model, *state, terms, &frames);
-  if (!std::isfinite(energy)) {
-    *why = "non-finite energy (the values are too large to represent)";
-    return StepResult::kFailed;
+  StaticsProblem problem(ctx, load_scale, moment_scale, ws, use_edge, positions,
+                         moments ? StartFactor::kNone : start);
+  problem.current() = *state;
+  problem.CurrentChanged();
+  NewtonOptions o;
+  o.max_iterations = max_iterations;
+  o.factor_at_solution = FactorAtSolution::kAlways;
+  NewtonStart begin;
+  if (moments) {
+    o.merit = Merit::kResidual;
+  } else {
+    o.stagnation = true;
+    o.saddles = use_edge ? Saddles::kClassify
+                         : (opt.escape_saddles ? Saddles::kEscape : Saddles::kClassify);
+    // Chord steps carry the vertex factor along the edges; held points (Dirichlet rows) keep to
+    // Newton.
+    const bool chords_allowed =
+        opt.chord_steps && model.held().empty() && !model.has_end_ghost() && !use_edge;
+    if (chords_allowed) o.chords = ChordPolicy::kWhenFinishing;
+    begin.factor_current = start == StartFactor::kExact;
+    begin.factor_nearby = start == StartFactor::kChord && chords_allowed;
+    if (begin.factor_current) problem.UseKeptEnergy();
   }
-  // On convergence, keeps Pi and its gradient without the dead loads with the factor.
-  auto converged = [&](bool stable) {
-    summary->stable = stable;
-    ws->factor_unloaded_energy = energy - DeadLoadEnergy(model, *state, load_scale);
-    ws->factor_unloaded_gradient = g;
-    AddDeadLoadGradient(model, -load_scale, /*hold=*/true, &ws->factor_unloaded_gradient);
+  NewtonMinimizer minimizer(o);
+  const NewtonSummary r = minimizer.Minimize(&problem, begin);
+  *state = problem.current();
+  summary->iterations += r.iterations;
+  summary->chord_steps += r.chord_steps;
+  summary->saddle_escapes += r.saddle_escapes;
+  summary->gradient_norm = r.residual_norm;
+  if (!moments) summary->energy = r.energy;
+  if (!r.converged()) {
+    *why = r.termination == Termination::kNonFinite ? "non-finite energy, gradient or Hessian"
+                                                    : r.message();
+    return r.termination == Termination::kIterationCap ? StepResult::kIterationCap
+                                                       : StepResult::kFailed;
+  }
+  if (r.termination == Termination::kRoundOff) summary->reason_detail = "stagnated at round-off";
+  if (moments) {
+    summary->energy = PotentialEnergy(model, *state, EnergyTerms());
+    // Stable when the symmetric part of the tangent is positive definite (all eigenvalues of
+    // the tangent then have positive real parts), on the held points' constraint space.
+    if (use_edge) {
+      summary->stable = !r.shifted && ws->edge.positive_definite();
+    } else {
+      RodFrames frames;
+      ComputeRodFrames(model, *state, &frames);
+      VecX g;
+      BandedMatrix J;
+      BandedSymmetric H;
+      AssembleBalance(model, *state, frames, load_scale, &g, &J, &H, true, moment_scale);
+      BandedCholesky sym;
+      summary->stable = !r.shifted && sym.Factor(J.SymmetricPart(1));
+    }
+    ws->tangent_valid = r.factor_at_solution && !use_edge;
     return StepResult::kConverged;
-  };
-  // Chord steps (see ChordStep) converge linearly, at about the rate r = |g_k| / |g_k-1| of the
-  // step before (both scale with how far the state moved), and cost about half a Newton step on
-  // the benchmark suture (a gradient instead of a Hessian, no factorisation). One is taken where
-  // it is predicted to reach the tolerance by itself (r <= 0.1, r |g| <= tol): there it replaces
-  // a Newton step. (Two chords cost about one Newton step, which usually gains more than their
-  // two rates: not worth the risk.) Where the next |g| is predicted below the tolerance (r |g|
-  // after a chord; r^2 |g| after a Newton step, which converges quadratically with an unknown
-  // constant, so below ten times the tolerance), the Hessian is assembled straight away: it is
-  // needed at the solution anyway, where its factor is kept. A chord step that fails any test is
-  // not taken and Newton resumes. Held points (Dirichlet rows) keep to Newton.
-  constexpr double kChordRate = 0.1;
-  auto chord_pays = [&](double rate, double gnorm) {
-    return rate <= kChordRate && rate * gnorm <= force_tol;
-  };
-  const bool chords_allowed =
-      opt.chord_steps && model.held().empty() && !model.has_end_ghost() && !use_edge;
-  bool chord_basis = chords_allowed && start != StartFactor::kNone &&
-                     ws->factor_tangents.cols() == n;
-  bool last_step_full = false, last_step_chord = false;
-  double g_last = std::numeric_limits<double>::quiet_NaN(), g_before_last = g_last;
-  constexpr int kMaxSaddleEscapes = 5;
-  int stagnant = 0;
-  double previous_energy = energy;
-  double last_move = std::numeric_limits<double>::infinity();  // [m] of the last step taken
-  for (int it = 0; it < max_iterations; ++it) {
-    const bool reuse = (it == 0 && factor_at_start);
-    bool chord = false;
-    if (!reuse && chord_basis) {
-      if (it == 0) {
-        chord = (start == StartFactor::kChord);
-      } else if (last_step_full) {
-        // After the first step the rate is unknown: a warm start's first step is Newton's (or a
-        // chord's) from close by, worth a gradient to find out; a cold start's may be far from
-        // Newton's fast regime.
-        const double rate = g_last / g_before_last;
-        const double predicted = g_last * rate * (last_step_chord ? 1.0 : rate);
-        const double margin = last_step_chord ? 1.0 : 10.0;
-        chord = std::isnan(rate) ? start != StartFactor::kNone
-                                 : predicted > margin * force_tol && chord_pays(rate, predicted);
-      }
-    }
-    if (chord) {
-      AssembleGradient(model, *state, terms, &g, &frames);
-      const double gnorm = tol.Norm(g);
-      summary->gradient_norm = gnorm;
-      summary->energy = energy;
-      // The first chord step of a solve from the kept factor of another model has no rate yet.
-      const bool progress = std::isnan(g_last) || chord_pays(gnorm / g_last, gnorm);
-      bool taken = false;
-      if (std::isfinite(gnorm) && gnorm > force_tol && progress &&
-          ChordStep(ws->hessian, ws->factor_positions, ws->factor_tangents, frames, g, &step)) {
-        const double slope = g.dot(step);
-        const double noise = EnergyNoise(model, energy);
-        if (slope < 0.0 && MaxTangentTurn(model, *state, step) <= opt.max_rotation_per_step &&
-            ApplyNewtonStep(ctx, *state, step, 1.0, &trial)) {
-          ComputeRodFrames(model, trial, &trial_frames);
-          const double e_trial = PotentialEnergyFreshFrames(model, trial, terms, &trial_frames);
-          if (std::isfinite(e_trial) && e_trial <= energy + opt.armijo * slope + noise) {
-            taken = true;
-            energy = e_trial;
-            last_move = LargestMove(*state, trial);
-            std::swap(*state, trial);
-            std::swap(frames, trial_frames);
-          }
-        }
-      }
-      if (taken) {
-        ++summary->iterations;
-        ++summary->chord_steps;
-        g_before_last = g_last;
-        g_last = gnorm;
-        last_step_full = true;
-        last_step_chord = true;
-        continue;
-      }
-      chord_basis = false;  // Newton from here on (converged states included: see below)
-    }
-    if (reuse) {
-      g = ws->factor_unloaded_gradient;
-      AddDeadLoadGradient(model, load_scale, /*hold=*/true, &g);
-    } else if (use_edge) {
-      AssembleGradient(model, *state, terms, &g, &frames);
-    } else if (positions) {
-      AssemblePositionHessian(model, *state, terms, &g, &H, &frames);
-    } else {
-      AssembleHessian(model, *state, terms, &g, &H, &frames);
-    }
-    const double gnorm = tol.Norm(g);
-    summary->gradient_norm = gnorm;
-    summary->energy = energy;
-    if (!std::isfinite(gnorm)) {
-      *why = "non-finite gradient";
-      return StepResult::kFailed;
-    }
-    // Factor; on failure (indefinite or singular) shift the diagonal, growing the shift tenfold.
-    double shift = 0.0, shift_failed = -1.0;
-    if (use_edge) {
-      // Fine rod: the edge-coordinate tangent, its definiteness on the held points' constraint
-      // space from its inertia (edge_solver.h); the vertex factor is not formed at all.
-      bool ok = false;
-      for (int k = 0; k < 80 && !ok; ++k) {
-        ok = ws->edge.Factor(model, *state, frames, terms, 0.0, shift) &&
-             ws->edge.positive_definite();
-        if (!ok) {
-          shift_failed = shift;
-          shift = shift == 0.0 ? tol.shift_base : 10.0 * shift;
-          if (shift > tol.shift_cap) break;
-        }
-      }
-      if (!ok) {
-        *why = "Hessian could not be made positive definite";
-        return StepResult::kFailed;
-      }
-    } else if (!reuse) {
-      shift = FactorShifted(H, tol.shift_base, &ws->hessian, &shift_failed);
-      if (shift < 0.0) {
-        *why = AllFinite(H.band()) ? "Hessian could not be made positive definite"
-                                    : "non-finite Hessian";
-        return StepResult::kFailed;
-      }
-    }
-    const bool shifted = shift > 0.0;
-    if (!reuse && !use_edge) {
-      // The new factor is the chord basis from here on, if it is the Hessian's own.
-      KeepTangents(frames, n, &ws->factor_tangents);
-      ws->factor_positions = positions;
-      chord_basis = chords_allowed && !shifted;
-    }
-    ws->edge_valid = use_edge && !shifted;
-    if (use_edge) {
-      step = -g;
-      ws->edge.SolveInPlace(step);
-      if (tol.Converged(gnorm, step)) {
-        // Shifted: an equilibrium with a negative direction (no escape on this path).
-        ws->factor_valid = false;
-        return converged(!shifted);
-      }
-    } else if (!shifted && gnorm <= force_tol && last_step_full &&
-               last_move <= 1e3 * tol.step_x) {
-      // At the gradient's floor after a full step that moved no vertex by more than 1e-6 L: the
-      // state is that close to the solution (the Converged() test's last clause, without the
-      // back-substitution for a step that would be no longer).
-      ws->factor_valid = true;
-      return converged(true);
-    } else {
-      step = -g;  // solved in place: no temporary vector per Newton step
-      SolveWithFactor(ws->hessian, positions, &step);
-    }
-    if (!shifted && tol.Converged(gnorm, step)) {
-      ws->factor_valid = true;
-      return converged(true);
-    }
-    // With a shift the step is nearly Newton's except along the negative directions.
-    if (shifted && !use_edge && tol.Converged(gnorm, step)) {
-      // A stationary point with negative curvature is a saddle (a column past its buckling
-      // load, kept straight by symmetry): find the most negative curvature direction and, if
-      // asked, step along it. No step that lowers Pi beyond round-off means the curvature is
-      // round-off around a neutral direction (e.g. an isotropic buckled column turning about
-      // its load axis): stable, though the factor is then not the Hessian's own.
-      VecX d;
-      BandedCholesky probe;
-      const double rq = NegativeCurvatureOf(H, positions, shift, shift_failed, &probe, &d, 12, g);
-      const double amplitude = 0.01 * model.length() / std::max(d.cwiseAbs().maxCoeff(), 1e-300);
-      const bool clearly_negative =
-          rq < 0.0 && 0.5 * -rq * d.squaredNorm() * amplitude * amplitude >
-                          100.0 * EnergyNoise(model, energy);
-      if (opt.escape_saddles && summary->saddle_escapes < kMaxSaddleEscapes &&
-          StepAlongNegativeCurvature(ctx, terms, d, state, &frames, &energy)) {
-        ++summary->saddle_escapes;
-        ++summary->iterations;
-        last_step_full = false;
-        chord_basis = false;
-        continue;
-      }
-      ws->factor_valid = false;
-      return converged(!clearly_negative);
-    }
-    const double slope = g.dot(step);
-    double alpha = 1.0;
-    const double turn = MaxTangentTurn(model, *state, step);
-    if (turn > opt.max_rotation_per_step) alpha = opt.max_rotation_per_step / turn;
-    // Nor may an edge's strain change by more than 10 % in one step: on a fine rod whose edges
-    // are soft in stretch against their bending (EA l^2 / EI << 1) a full step would crumple them.
-    const double strain = MaxStrainChange(model, *state, step);
-    if (alpha * strain > kMaxStrainStep) alpha = kMaxStrainStep / strain;
-    // Near convergence Pi changes by round-off only; allow that much so that Newton's final
-    // quadratically convergent steps are not rejected by noise.
-    const double noise = EnergyNoise(model, energy);
-    bool accepted = false;
-    for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
-      if (!ApplyNewtonStep(ctx, *state, step, alpha, &trial)) continue;
-      ComputeRodFrames(model, trial, &trial_frames);
-      const double e_trial = PotentialEnergyFreshFrames(model, trial, terms, &trial_frames);
-      if (std::isfinite(e_trial) && e_trial <= energy + opt.armijo * alpha * slope + noise) {
-        accepted = true;
-        energy = e_trial;
-        break;
-      }
-    }
-    if (shifted && !use_edge) {
-      // Compare with the best step along the negative curvature (BestAlongNegativeCurvature).
-      VecX d;
-      BandedCholesky probe;
-      if (NegativeCurvatureOf(H, positions, shift, shift_failed, &probe, &d, 5, g) < 0.0) {
-        RodState nc_state = *state;
-        RodFrames nc_frames = frames;
-        double nc_energy = energy;
-        const double newton_energy = accepted ? energy : std::numeric_limits<double>::infinity();
-        const double base_energy = PotentialEnergyFreshFrames(model, *state, terms, &frames);
-        nc_energy = base_energy;
-        if (BestAlongNegativeCurvature(ctx, terms, d, &nc_state, &nc_frames, &nc_energy) &&
-            nc_energy < newton_energy) {
-          trial = std::move(nc_state);
-          trial_frames = std::move(nc_frames);
-          energy = nc_energy;
-          accepted = true;
-          alpha = 0.0;  // not a full Newton step
-        }
-      }
-    }
-    ++summary->iterations;
-    if (!accepted) {
-      // A state at the gradient's round-off floor whose unshifted Newton step is within 1e3 of
-      // the step tolerance and cannot lower Pi further is at round-off level. (A small step with
-      // a large gradient is not: the factor has lost the soft modes.)
-      if (!shifted && gnorm <= 1e3 * force_tol && tol.SmallStep(step, 1e3)) {
-        ws->factor_valid = !use_edge;
-        return converged(true);
-      }
-      *why = "line search failed";
-      return StepResult::kFailed;
-    }
-    last_step_full = (alpha == 1.0);
-    last_step_chord = false;
-    g_before_last = g_last;
-    g_last = gnorm;
-    // Stagnation at round-off: full unshifted Newton steps that move no vertex by more than
-    // 1e3 times the step tolerance (1e-6 L) and change Pi by no more than its round-off, three
-    // times running. The gradient's floor is then above the tolerance (fine rods: the bending
-    // forces' round-off grows as eps B / l^2), and the state is as good as doubles make it.
-    const double moved = LargestMove(*state, trial);
-    last_move = moved;
-    const double change = std::abs(energy - previous_energy);
-    stagnant = (!shifted && alpha == 1.0 && moved <= 1e3 * tol.step_x &&
-                change <= 10.0 * EnergyNoise(model, energy))
-                   ? stagnant + 1
-                   : 0;
-    previous_energy = energy;
-    std::swap(*state, trial);
-    std::swap(frames, trial_frames);
-    if (stagnant >= 3) {
-      ws->factor_valid = false;
-      summary->reason_detail = "stagnated at round-off";
-      return converged(true);
-    }
   }
-  *why = "iteration limit reached";
-  return StepResult::kIterationCap;
+  summary->stable = r.stable;
+  ws->factor_valid = r.factor_at_solution && !use_edge;
+  // Pi and its gradient without the dead loads, kept with the factor.
+  ws->factor_unloaded_energy = r.energy - DeadLoadEnergy(model, *state, load_scale);
+  ws->factor_unloaded_gradient = minimizer.residual();
+  AddDeadLoadGradient(model, -load_scale, /*hold=*/true, &ws->factor_unloaded_gradient);
+  return StepResult::kConverged;
 }
 
-/// Newton on the balance of a case with moments: the tangent is not symmetric (banded LU), and
-/// the line search is on the weighted residual 1/2 |W r|^2, for which the Newton step is a
-/// descent direction with slope -|W r|^2.
+StepResult NewtonAtLoad(const NewtonContext& ctx, double load_scale, int max_iterations,
+                        RodState* state, StaticsWorkspace* ws, StaticsSummary* summary,
+                        std::string* why, StartFactor start) {
+  return NewtonSolve(ctx, load_scale, 0.0, max_iterations, state, ws, summary, why, start);
+}
+
 StepResult NewtonNonconservative(const NewtonContext& ctx, double load_scale, double moment_scale,
                                  int max_iterations, RodState* state, StaticsWorkspace* ws,
                                  StaticsSummary* summary, std::string* why) {
-  const RodModel& model = ctx.model;
-  const StaticsOptions& opt = ctx.opt;
-  const Tolerances& tol = ctx.tol;
-  EnergyTerms terms;
-  terms.load_scale = load_scale;
-  VecX g, g_trial, step;
-  BandedSymmetric H;
-  BandedMatrix J;
-  RodState trial;
-  RodFrames frames, trial_frames;
-  ComputeRodFrames(model, *state, &frames);
-  auto merit = [&](const VecX& r) {
-    double m = 0.0;
-    for (int k = 0; k < r.size(); ++k) m += 0.5 * std::pow(tol.weights[k] * r[k], 2);
-    return m;
-  };
-  const bool use_edge =
-      model.num_edges() >= opt.edge_solver_segments && EdgeSolver::Applies(model);
-  for (int it = 0; it < max_iterations; ++it) {
-    AssembleBalance(model, *state, frames, load_scale, &g, use_edge ? nullptr : &J, &H, true,
-                    moment_scale);
-    const double gnorm = tol.Norm(g);
-    summary->gradient_norm = gnorm;
-    summary->energy = PotentialEnergyFreshFrames(model, *state, terms, &frames);
-    if (!std::isfinite(gnorm) || (!use_edge && !J.AllFinite())) {
-      *why = "non-finite residual or tangent";
-      return StepResult::kFailed;
-    }
-    // LU of the tangent, shifted towards the identity where it is singular (a fine rod's in edge
-    // coordinates, edge_solver.h).
-    const double diag = use_edge ? tol.shift_cap * 1e-6 : J.MaxDiagonal();
-    double shift = 0.0;
-    bool factored = false;
-    for (int k = 0; k < 80 && !factored; ++k) {
-      if (use_edge) {
-        factored = ws->edge.Factor(model, *state, frames, terms, moment_scale, shift);
-      } else {
-        BandedMatrix Js = J;
-        if (shift > 0.0)
-          for (int r = 0; r < Js.size(); ++r) Js.At(r, r) += shift;
-        factored = ws->tangent.Factor(Js);
-      }
-      if (!factored) {
-        shift = shift == 0.0 ? std::min(tol.shift_base, std::max(diag, 1e-300)) : 10.0 * shift;
-        if (shift > 1e6 * std::max(diag, 1e-300)) break;
-      }
-    }
-    if (!factored) {
-      *why = "the tangent could not be factored";
-      return StepResult::kFailed;
-    }
-    const bool shifted = shift > 0.0;
-    ws->edge_valid = use_edge && !shifted;
-    auto finish = [&]() {
-      // Stable when the symmetric part of the tangent is positive definite (all eigenvalues of
-      // the tangent then have positive real parts), on the held points' constraint space.
-      if (use_edge) {
-        summary->stable = !shifted && ws->edge.positive_definite();
-      } else {
-        BandedCholesky sym;
-        summary->stable = !shifted && sym.Factor(J.SymmetricPart(1));
-      }
-      ws->tangent_valid = !shifted && !use_edge;
-      return StepResult::kConverged;
-    };
-    if (use_edge) {
-      step = -g;
-      ws->edge.SolveInPlace(step);
-    } else {
-      step = -ws->tangent.Solve(g);
-    }
-    if (!shifted && tol.Converged(gnorm, step)) return finish();
-    if (gnorm <= tol.strict) return finish();  // shifted: a singular tangent at a solution
-    double alpha = 1.0;
-    const double turn = MaxTangentTurn(model, *state, step);
-    if (turn > opt.max_rotation_per_step) alpha = opt.max_rotation_per_step / turn;
-    // Nor may an edge's strain change by more than 10 % in one step: on a fine rod whose edges
-    // are soft in stretch against their bending (EA l^2 / EI << 1) a full step would crumple them.
-    const double strain = MaxStrainChange(model, *state, step);
-    if (alpha * strain > kMaxStrainStep) alpha = kMaxStrainStep / strain;
-    const double m0 = merit(g);
-    bool accepted = false;
-    for (int ls = 0; ls < opt.max_line_search_steps; ++ls, alpha *= 0.5) {
-      if (!ApplyStep(model, *state, step, alpha, &trial)) continue;
-      ComputeRodFrames(model, trial, &trial_frames);
-      AssembleBalance(model, trial, trial_frames, load_scale, &g_trial, nullptr, nullptr, true,
-                      moment_scale);
-      const double m1 = merit(g_trial);
-      if (std::isfinite(m1) && m1 <= (1.0 - 2.0 * opt.armijo * alpha) * m0 + 1e-24 * m0) {
-        accepted = true;
-        break;
-      }
-    }
-    ++summary->iterations;
-    if (!accepted) {
-      if (!shifted && gnorm <= 1e3 * tol.force && tol.SmallStep(step, 1e3)) return finish();
-      *why = "line search failed";
-      return StepResult::kFailed;
-    }
-    std::swap(*state, trial);
-    std::swap(frames, trial_frames);
-  }
-  *why = "iteration limit reached";
-  return StepResult::kIterationCap;
+  return NewtonSolve(ctx, load_scale, moment_scale, max_iterations, state, ws, summary, why,
+                     StartFactor::kNone);
 }
 
 StepResult NewtonAny(const NewtonContext& ctx, double load_scale, int max_iterations,
@@ -1233,9 +777,8 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
   StaticsWorkspace local;
   StaticsWorkspace* ws = workspace ? workspace : &local;
   const Tolerances tol = MakeTolerances(model, options);
-  const std::vector<char>& held = HeldDofs(model);
   const bool eliminate = options.eliminate_twist && TwistCanBeEliminated(model);
-  const NewtonContext ctx{model, options, tol, held, eliminate};
+  const NewtonContext ctx{model, options, tol, eliminate};
   // The kept factor belongs to factor_state: from exactly that state it is the Hessian there
   // (same digest) or a chord basis (a model with other stiffnesses).
   StartFactor start_factor = StartFactor::kNone;
@@ -1285,7 +828,7 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     StaticsOptions moving_options = options;
     moving_options.edge_solver_segments =
         std::min(options.edge_solver_segments, kEdgeContinuationSegments);
-    const NewtonContext moving{model, moving_options, tol, held, eliminate};
+    const NewtonContext moving{model, moving_options, tol, eliminate};
     {
       RodState at_start = *state;
       StaticsSummary attempt = summary;

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -241,7 +242,9 @@ void CheckImageArea(const Document& doc, const std::string& key, const CameraInt
   }
 }
 
-void ReadImageSize(const Document& doc, CameraIntrinsics* K) {
+// The image size the file states; false when it states none (width and height both absent) and
+// `optional`, else a missing size is an error naming the file and key.
+bool ReadImageSize(const Document& doc, CameraIntrinsics* K, bool optional = false) {
   std::string size_key, w_key, h_key;
   const cv::FileNode size = doc.Find({"image_size", "imageSize", "cameraResolution"}, &size_key);
   const cv::FileNode width = doc.Find({"image_width", "image_Width", "imageWidth"}, &w_key);
@@ -258,9 +261,10 @@ void ReadImageSize(const Document& doc, CameraIntrinsics* K) {
     K->width = static_cast<int>(wh(0));
     K->height = static_cast<int>(wh(1));
     CheckImageArea(doc, size_key, *K);
-    return;
+    return true;
   }
   if (width.isNone() && height.isNone()) {
+    if (optional) return false;
     doc.Fail(w_key, "missing: the image size is required (image_width and image_height, or "
                     "image_size: [width, height])");
   }
@@ -269,6 +273,7 @@ void ReadImageSize(const Document& doc, CameraIntrinsics* K) {
   K->width = ImageDimension(doc, width, w_key);
   K->height = ImageDimension(doc, height, h_key);
   CheckImageArea(doc, w_key, *K);
+  return true;
 }
 
 void ReadIntrinsics(const Document& doc, std::initializer_list<const char*> matrix_keys,
@@ -425,21 +430,41 @@ Camera LoadCamera(const std::string& path) {
   return camera;
 }
 
-std::pair<Camera, Camera> LoadStereoCameras(const std::string& path) {
+std::pair<Camera, Camera> LoadStereoCameras(const std::string& path,
+                                            const StereoFileOptions& options) {
   const Document doc(path);
   Camera first, second;
   // M1/M2 (OpenCV's stereo_calib sample), K1/K2 (what most lab tools and OpenCV's Python
   // examples write), cameraMatrix1/2 with distCoeffs1/2 (cv::stereoCalibrate's argument names).
   ReadIntrinsics(doc, {"M1", "K1", "cameraMatrix1"}, {"D1", "distCoeffs1"}, &first.K);
   ReadIntrinsics(doc, {"M2", "K2", "cameraMatrix2"}, {"D2", "distCoeffs2"}, &second.K);
-  ReadImageSize(doc, &first.K);
+  if (!ReadImageSize(doc, &first.K, /*optional=*/static_cast<bool>(options.image_size_when_absent))) {
+    // Neither the sample nor cv::stereoCalibrate writes the size: the images have it.
+    const ImageSizePx size = options.image_size_when_absent();
+    first.K.width = size.width;
+    first.K.height = size.height;
+  }
   second.K.width = first.K.width;
   second.K.height = first.K.height;
   ReadPose(doc, false, &first.cam_from_world_R, &first.cam_from_world_t);
+  // R and T from the extrinsics file when there is one (the sample's extrinsics.yml), and then
+  // from there only: two relative poses would be a silent choice.
+  std::optional<Document> extrinsics_doc;
+  if (!options.extrinsics_path.empty()) {
+    extrinsics_doc.emplace(options.extrinsics_path);
+    for (const char* key : {"R", "T"}) {
+      std::string spelled;
+      if (!doc.Find({key}, &spelled).isNone()) {
+        doc.Fail(key, "given here and in the extrinsics file " + options.extrinsics_path +
+                          "; keep one");
+      }
+    }
+  }
+  const Document& pose_doc = extrinsics_doc ? *extrinsics_doc : doc;
   std::string R_key, T_key;
-  const Eigen::Matrix3d R = Rotation(doc, doc.Require({"R"}, &R_key), R_key);
-  const Eigen::Vector3d T = Vector(doc, doc.Require({"T"}, &T_key), T_key, 3);
-  if (!(T.norm() > 0.0)) doc.Fail(T_key, "zero baseline");
+  const Eigen::Matrix3d R = Rotation(pose_doc, pose_doc.Require({"R"}, &R_key), R_key);
+  const Eigen::Vector3d T = Vector(pose_doc, pose_doc.Require({"T"}, &T_key), T_key, 3);
+  if (!(T.norm() > 0.0)) pose_doc.Fail(T_key, "zero baseline");
   // x2 = R x1 + T and x1 = R1 x_world + t1 give x2 = (R R1) x_world + (R t1 + T).
   second.cam_from_world_R = R * first.cam_from_world_R;
   second.cam_from_world_t = R * first.cam_from_world_t + T;

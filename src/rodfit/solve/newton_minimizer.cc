@@ -1,0 +1,554 @@
+// The one Newton minimizer (newton_minimizer.h). The loop below is the only place in rodfit
+// that shifts a diagonal, backtracks a step or decides convergence; the problems only evaluate,
+// retract and measure.
+#include "rodfit/solve/newton_minimizer.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rodfit {
+
+const char* TerminationMessage(Termination termination) {
+  switch (termination) {
+    case Termination::kConverged: return "converged";
+    case Termination::kSmallStep: return "converged (Newton step within tolerance)";
+    case Termination::kContraction: return "converged (contraction within tolerance)";
+    case Termination::kRoundOff: return "converged (stagnated at round-off)";
+    case Termination::kIterationCap: return "iteration limit reached";
+    case Termination::kLineSearchFailed: return "line search failed";
+    case Termination::kNotPositiveDefinite:
+      return "the Newton matrix could not be made positive definite";
+    case Termination::kNonFinite: return "non-finite merit, residual or matrix";
+    case Termination::kTimeBudget: return "time budget exceeded";
+    case Termination::kRetractionFailed: return "no step could be taken (an edge would fold back)";
+  }
+  return "unknown termination";
+}
+
+void NewtonMinimizer::Reserve(int dofs) {
+  for (VecX* v : {&g_, &g_trial_, &step_, &d_})
+    if (v->size() != dofs) v->setZero(dofs);
+}
+
+// The scaled residual max_k w_k |r_k|. A NaN or an infinity in any entry makes it NaN: std::max
+// drops a NaN, and so did the "if (!(v <= worst)) worst = v" of the loops this one replaced,
+// whose NaN survived only when no finite entry came after it (a step whose other rows were small
+// "converged" through NaN rows). The probe sums v * 0, which is NaN exactly for those entries.
+double NewtonMinimizer::Norm(const VecX& r) const {
+  const VecX& w = p_->NormWeights();
+  double worst = 0.0, probe = 0.0;
+  for (int k = 0; k < r.size(); ++k) {
+    const double v = w[k] * std::abs(r[k]);
+    worst = std::max(worst, v);
+    probe += v * 0.0;
+  }
+  return probe == 0.0 ? worst : std::numeric_limits<double>::quiet_NaN();
+}
+
+bool NewtonMinimizer::Evaluate(bool matrix) {
+  p_->Evaluate(matrix, &g_);
+  gnorm_ = Norm(g_);
+  summary_.residual_norm = gnorm_;
+  return std::isfinite(gnorm_);
+}
+
+double NewtonMinimizer::Merit() {
+  if (!energy_known_) {
+    energy_ = options_.merit == Merit::kResidual ? 0.5 * [&] {
+      const VecX& w = p_->NormWeights();
+      double m = 0.0;
+      for (int k = 0; k < g_.size(); ++k) m += (w[k] * g_[k]) * (w[k] * g_[k]);
+      return m;
+    }() : p_->Energy();
+    energy_known_ = true;
+  }
+  return energy_;
+}
+
+double NewtonMinimizer::TrialMerit() {
+  if (options_.merit != Merit::kResidual) return p_->TrialEnergy();
+  p_->TrialResidual(&g_trial_);
+  const VecX& w = p_->NormWeights();
+  double m = 0.0;
+  for (int k = 0; k < g_trial_.size(); ++k) m += (w[k] * g_trial_[k]) * (w[k] * g_trial_[k]);
+  return 0.5 * m;
+}
+
+// Factors the assembled matrix with the smallest shift of 0, then ShiftBase() x 10^k, that works,
+// up to kShiftCap times its largest diagonal entry. *shift_failed: the last shift that failed
+// (-1: none).
+bool NewtonMinimizer::FactorWithShift(double* shift, double* shift_failed) {
+  LinearSolver& solver = p_->Solver();
+  *shift = 0.0;
+  *shift_failed = -1.0;
+  ++summary_.factorizations;
+  if (solver.Factor(0.0)) return true;
+  const double diagonal = solver.MaxDiagonal();
+  if (!std::isfinite(diagonal)) return false;
+  const double cap = kShiftCap * std::max(diagonal, 1e-300);
+  *shift_failed = 0.0;
+  for (double s = std::min(p_->ShiftBase(), cap); s <= cap; s *= kShiftGrowth) {
+    ++summary_.factorizations;
+    if (solver.Factor(s)) {
+      *shift = s;
+      return true;
+    }
+    *shift_failed = s;
+    if (!(s > 0.0)) break;
+  }
+  return false;
+}
+
+// Convergence by the residual alone.
+bool NewtonMinimizer::ResidualConverged() const { return gnorm_ <= tol_.residual; }
+
+// Convergence by an unshifted Newton step of relative size s at the current residual: within the
+// step tolerance, or within kFloorRelaxation of it where the residual is at its round-off floor.
+// A step computed at the iterate (not taken) counts only with the residual within
+// kFloorRelaxation of its floor: a factor that lost the soft modes to round-off (a fine, stiff
+// rod's Hessian) gives small steps far from the solution. A step just taken (converge_after_
+// small_step, whose problems' matrices the inertia keeps well conditioned) needs no such guard:
+// Newton's error after it is of the order of its square.
+bool NewtonMinimizer::StepConverged(const RelativeStep& s, bool taken) const {
+  const double floor = std::max(tol_.residual, tol_.floor);
+  if (!taken && !(gnorm_ <= kFloorRelaxation * floor)) return false;
+  return s.Within(1.0) || (gnorm_ <= floor && s.Within(kFloorRelaxation));
+}
+
+// Armijo backtracking from alpha along step_ (slope = r . step < 0 for a descent direction).
+// A whole, unshifted step whose decrease the merit cannot resolve (a small correction near the
+// solution) is judged by the residual instead: taken when it lowers the scaled residual.
+bool NewtonMinimizer::LineSearch(double slope, double turn, bool shifted, double* alpha) {
+  merit_not_finite_ = false;
+  const double e0 = Merit();
+  if (!std::isfinite(e0)) {
+    merit_not_finite_ = true;
+    return false;
+  }
+  const double noise = p_->EnergyNoise(e0);
+  bool any_finite = false, any_retracted = false;
+  for (int ls = 0; ls < options_.max_line_search_steps; ++ls, *alpha *= 0.5) {
+    if (!p_->Retract(step_, *alpha)) continue;
+    any_retracted = true;
+    const double e1 = TrialMerit();
+    any_finite = any_finite || std::isfinite(e1);
+    const bool armijo =
+        options_.merit == Merit::kResidual
+            ? e1 <= (1.0 - 2.0 * kArmijo * *alpha) * e0 + 1e-24 * e0
+            : e1 <= e0 + kArmijo * *alpha * slope + noise;
+    if (std::isfinite(e1) && armijo) {
+      energy_ = e1;
+      energy_known_ = true;
+      return true;
+    }
+    if (ls == 0 && *alpha == 1.0 && !shifted && options_.merit == Merit::kEnergy &&
+        (turn <= kSmallCorrectionTurn || -slope <= kUnresolvedDecrease * noise)) {
+      p_->TrialResidual(&g_trial_);
+      if (Norm(g_trial_) < gnorm_) {
+        energy_ = e1;
+        energy_known_ = std::isfinite(e1);
+        return true;
+      }
+    }
+  }
+  // Every trial's merit was a NaN or an infinity: the problem's values are not finite, which is
+  // no failure of the line search's.
+  merit_not_finite_ = any_retracted && !any_finite;
+  return false;
+}
+
+// Leaves a saddle along d (negative curvature): the first step along +-d, from 0.1 L down by
+// halves, that lowers the merit beyond round-off.
+bool NewtonMinimizer::EscapeSaddle(VecX d) {
+  const VecX& w = p_->NormWeights();
+  for (int k = 0; k < d.size(); ++k)
+    if (w[k] == 0.0) d[k] = 0.0;  // held rows
+  const double dmax = d.cwiseAbs().maxCoeff();
+  if (!(dmax > 0.0)) return false;
+  d /= dmax;
+  const double e0 = Merit();
+  const double noise = p_->EnergyNoise(e0);
+  const double L = p_->Length();
+  for (double a = 0.1 * L; a > 1e-9 * L; a *= 0.5) {
+    for (double sgn : {1.0, -1.0}) {
+      if (!p_->Retract(d, sgn * a)) continue;
+      const double e = p_->TrialEnergy();
+      if (std::isfinite(e) && e < e0 - 10.0 * noise) {
+        p_->AcceptTrial();
+        energy_ = e;
+        energy_known_ = true;
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+// The lowest merit along +-d (negative curvature), scanning amplitudes from 0.2 L down by halves:
+// its signed amplitude and merit, when it lowers the merit beyond round-off. Far from
+// equilibrium an indefinite Hessian (a straight segment compressed between held points) makes
+// the shifted Newton step tiny while the buckling mode lowers the merit by orders of magnitude.
+bool NewtonMinimizer::BestAlongNegativeCurvature(VecX d, double* best_amplitude,
+                                                 double* best_energy) {
+  const VecX& w = p_->NormWeights();
+  for (int k = 0; k < d.size(); ++k)
+    if (w[k] == 0.0) d[k] = 0.0;
+  const double dmax = d.cwiseAbs().maxCoeff();
+  if (!(dmax > 0.0)) return false;
+  d_ = d / dmax;
+  const double e0 = Merit();
+  const double L = p_->Length();
+  double best = e0;
+  for (double sgn : {1.0, -1.0}) {
+    double previous = std::numeric_limits<double>::infinity();
+    for (double a = 0.2 * L; a > 1e-6 * L; a *= 0.5) {
+      if (!p_->Retract(d_, sgn * a)) continue;
+      const double e = p_->TrialEnergy();
+      if (!std::isfinite(e)) continue;
+      if (e < best) {
+        best = e;
+        *best_amplitude = sgn * a;
+      }
+      if (e > previous && previous < e0) break;  // past the best amplitude on this side
+      previous = e;
+    }
+  }
+  *best_energy = best;
+  return best < e0 - 10.0 * p_->EnergyNoise(e0);
+}
+
+// One function, though long: the iteration's phases (evaluate, verify, test, factor, solve, take
+// the step, book-keep) share the chord, verification and rate state, which each phase reads as
+// the previous one left it; split, that state would pass through every call.
+NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStart& start) {
+  p_ = problem;
+  summary_ = NewtonSummary();
+  Reserve(p_->NumDofs());
+  energy_known_ = false;
+  if (options_.time_budget > 0.0)
+    deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                   std::chrono::duration<double>(options_.time_budget));
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  auto finish = [&](Termination t) {
+    summary_.termination = t;
+    if (options_.merit == Merit::kEnergy && energy_known_) summary_.energy = energy_;
+    return summary_;
+  };
+  const bool finishing = options_.chords == ChordPolicy::kWhenFinishing;
+  const bool contracting = options_.chords == ChordPolicy::kWhileContracting;
+  // kWhenFinishing: a kept factor usable for chord steps (from the start, or the last unshifted
+  // factor), and the residuals of the last two steps (their ratio is the rate).
+  bool chord_basis = finishing && (start.factor_current || start.factor_nearby);
+  double g_last = kNaN, g_before_last = kNaN;
+  bool last_step_full = false, last_step_chord = false;
+  // kWhileContracting: the next iteration is a chord iteration; the residual before it.
+  bool chord_next = contracting && start.factor_nearby;
+  double previous_gnorm = kInf;
+  // A whole step taken without the merit's test, to be verified by the next residual.
+  bool verify_pending = false, verify_chord = false;
+  double verify_from = 0.0;
+  bool line_search = options_.merit != Merit::kEnergy || !options_.verify_steps_by_residual;
+  RelativeStep last_full{-1.0, -1.0};  // converge_on_rate: the last whole step's size
+  int stagnant = 0;
+  double previous_energy = kNaN;
+  bool tolerances_known = false;
+  // Iterations repeated at the same iterate (a chord replaced by Newton, a step undone) do not
+  // count; this bounds them all the same.
+  int evaluations_left = 4 * options_.max_iterations + 8;
+  for (int it = 0;; ++it) {
+    if (--evaluations_left < 0) return finish(Termination::kIterationCap);
+    const bool reuse = it == 0 && start.factor_current;
+    bool chord = false;
+    if (finishing && !reuse && chord_basis) {
+      if (it == 0) {
+        chord = start.factor_nearby;
+      } else if (last_step_full) {
+        const double rate = g_last / g_before_last;
+        const double predicted = g_last * rate * (last_step_chord ? 1.0 : rate);
+        const double margin = last_step_chord ? 1.0 : 10.0;
+        const double floor_tol = std::max(tol_.residual, tol_.floor);
+        // After the first step the rate is unknown: a warm start's first step is Newton's (or
+        // a chord's) from close by, worth a residual to find out.
+        chord = std::isnan(rate) || (predicted > margin * floor_tol &&
+                                     rate <= kChordPredictedRate && rate * predicted <= floor_tol);
+      }
+    } else if (contracting) {
+      chord = chord_next;
+    }
+    const bool matrix = !chord && !reuse;
+    const bool finite = Evaluate(matrix);
+    if (!tolerances_known) {
+      tol_ = p_->Tolerances();
+      tolerances_known = true;
+    }
+    const double floor_tol = std::max(tol_.residual, tol_.floor);
+    summary_.residual_at_solution = true;
+    if (verify_pending) {
+      verify_pending = false;
+      // The whole step did not lower the residual (above its round-off floor, where a rise is
+      // noise): back to the iterate before it, and this iteration again there.
+      if (!finite || (!(gnorm_ < verify_from) && gnorm_ > tol_.floor && !ResidualConverged())) {
+        p_->RestorePrevious();
+        line_search = line_search || !verify_chord;
+        chord_next = false;
+        previous_gnorm = kInf;
+        last_full = {-1.0, -1.0};
+        energy_known_ = false;
+        --it;
+        continue;
+      }
+    }
+    if (!finite) return finish(Termination::kNonFinite);
+    if (finishing && chord) {
+      // A chord step where it is predicted to finish, checked by the energy; otherwise Newton
+      // from here (the matrix assembled at this iterate).
+      const bool progress = std::isnan(g_last) || (gnorm_ / g_last <= kChordPredictedRate &&
+                                                   (gnorm_ / g_last) * gnorm_ <= floor_tol);
+      bool taken = false;
+      if (gnorm_ > floor_tol && progress && p_->ChordStep(g_, &step_)) {
+        const double slope = g_.dot(step_);
+        const double e0 = Merit();
+        if (slope < 0.0 && p_->Caps(step_).alpha >= 1.0 && p_->Retract(step_, 1.0)) {
+          const double e1 = p_->TrialEnergy();
+          if (std::isfinite(e1) && e1 <= e0 + kArmijo * slope + p_->EnergyNoise(e0)) {
+            p_->AcceptTrial();
+            energy_ = e1;
+            energy_known_ = true;
+            taken = true;
+          }
+        }
+      }
+      if (taken) {
+        ++summary_.iterations;
+        ++summary_.chord_steps;
+        g_before_last = g_last;
+        g_last = gnorm_;
+        last_step_full = last_step_chord = true;
+        continue;
+      }
+      chord_basis = false;
+      --it;
+      continue;
+    }
+    const bool factor_here = matrix && options_.factor_at_solution != FactorAtSolution::kNever;
+    if (!factor_here && ResidualConverged()) {
+      if (reuse) summary_.factor_at_solution = true;
+      if (chord && options_.factor_at_solution == FactorAtSolution::kAlways) {
+        chord_next = false;  // the matrix at the solution, for the factor kept there
+        --it;
+        continue;
+      }
+      return finish(Termination::kConverged);
+    }
+    if (!factor_here) {
+      if (it >= options_.max_iterations) return finish(Termination::kIterationCap);
+      if (options_.time_budget > 0.0 && it > 0 && Clock::now() > deadline_)
+        return finish(Termination::kTimeBudget);
+    }
+    if (contracting && chord && gnorm_ > kChordContraction * previous_gnorm) {
+      // The kept factor no longer contracts fast: this iteration again with the matrix.
+      chord_next = false;
+      previous_gnorm = kInf;
+      --it;
+      continue;
+    }
+    const bool refresh = contracting && chord && options_.chord_refresh > 0.0 &&
+                         gnorm_ > options_.chord_refresh * previous_gnorm;
+    previous_gnorm = gnorm_;
+    double shift = 0.0, shift_failed = -1.0;
+    if (matrix) {
+      if (!FactorWithShift(&shift, &shift_failed)) {
+        const bool nan = !std::isfinite(p_->Solver().MaxDiagonal());
+        return finish(nan ? Termination::kNonFinite : Termination::kNotPositiveDefinite);
+      }
+      p_->OnFactor(shift > 0.0);
+      chord_basis = finishing && shift == 0.0;
+    }
+    const bool shifted = shift > 0.0;
+    summary_.shifted = shifted;
+    if (shifted) ++summary_.shifted_factors;
+    const bool classify = options_.saddles != Saddles::kIgnore;
+    if (factor_here && ResidualConverged() && !(shifted && classify)) {
+      summary_.factor_at_solution = !shifted;
+      return finish(Termination::kConverged);
+    }
+    if (factor_here) {
+      if (it >= options_.max_iterations) return finish(Termination::kIterationCap);
+      if (options_.time_budget > 0.0 && it > 0 && Clock::now() > deadline_)
+        return finish(Termination::kTimeBudget);
+    }
+    if (options_.stagnation && !shifted && !chord && gnorm_ <= floor_tol && last_step_full &&
+        p_->LastMove() <= p_->StagnationMove()) {
+      // At the residual's floor after a whole step that moved no point by more than the
+      // stagnation bound: the state is that close to the solution (no back-substitution needed).
+      summary_.factor_at_solution = matrix || reuse;
+      return finish(Termination::kSmallStep);
+    }
+    if (chord) {
+      if (!p_->ChordStep(g_, &step_)) {
+        chord_next = false;
+        --it;
+        continue;
+      }
+    } else {
+      step_ = -g_;  // solved in place: no temporary per step
+      p_->Solver().Solve(&step_);
+    }
+    // The step's size against its tolerance, measured once for every test below.
+    const RelativeStep measured = p_->Measure(step_);
+    // A small unshifted step: converged. With converge_after_small_step the step is taken first
+    // (Newton's error after it is of the order of its square); otherwise the iterate is within
+    // the step of the solution and is kept (its factor, made here, is then the matrix's own).
+    const bool after = options_.converge_after_small_step;
+    if (!shifted && (!chord || after) &&
+        (StepConverged(measured, after) ||
+         (options_.converge_on_decrement && options_.merit == Merit::kEnergy &&
+          -g_.dot(step_) <= kDecrementOfNoise * p_->EnergyNoise(Merit())))) {
+      if (!after) {
+        summary_.factor_at_solution = matrix || reuse;
+        return finish(ResidualConverged() ? Termination::kConverged : Termination::kSmallStep);
+      }
+      if (p_->Retract(step_, 1.0)) {
+        p_->AcceptTrial();
+        energy_known_ = false;
+        ++summary_.iterations;
+        if (chord) ++summary_.chord_steps;
+        summary_.residual_at_solution = false;
+        return finish(Termination::kSmallStep);
+      }
+    }
+    if (!chord && shifted && classify &&
+        (ResidualConverged() || StepConverged(measured))) {
+      // A stationary point with negative curvature is a saddle (a column past its buckling load,
+      // kept straight by symmetry): step along the most negative curvature. No step that lowers
+      // the merit beyond round-off means the curvature is round-off around a neutral direction
+      // (an isotropic buckled column turning about its load axis): stable, though the factor is
+      // then not the matrix's own. A strategy that cannot look (NaN) reports it unstable.
+      const double rq = p_->Solver().NegativeCurvature(shift, shift_failed, kSaddleBisections,
+                                                       g_, &d_);
+      if (std::isnan(rq)) {
+        summary_.stable = false;
+        return finish(Termination::kSmallStep);
+      }
+      const double dmax = std::max(d_.cwiseAbs().maxCoeff(), 1e-300);
+      const double amplitude = 0.01 * p_->Length() / dmax;
+      const bool clearly_negative =
+          rq < 0.0 && 0.5 * -rq * d_.squaredNorm() * amplitude * amplitude >
+                          100.0 * p_->EnergyNoise(Merit());
+      if (options_.saddles == Saddles::kEscape && summary_.saddle_escapes < kMaxSaddleEscapes &&
+          EscapeSaddle(d_)) {
+        ++summary_.saddle_escapes;
+        ++summary_.iterations;
+        last_step_full = false;
+        chord_basis = false;
+        chord_next = false;
+        continue;
+      }
+      summary_.stable = !clearly_negative;
+      return finish(Termination::kSmallStep);
+    }
+    ++summary_.iterations;
+    if (chord) ++summary_.chord_steps;
+    const StepCaps caps = p_->Caps(step_);
+    double alpha = caps.alpha;
+    const double slope = g_.dot(step_);
+    bool accepted = false, unchecked = false;
+    const bool whole = !shifted && alpha >= 1.0;
+    if (options_.merit == Merit::kEnergy && whole &&
+        (chord || !line_search || (it == 0 && start.verify_first_step))) {
+      // Taken as it is and verified by the residual at the next iteration.
+      if (p_->Retract(step_, 1.0)) {
+        p_->AcceptTrial();
+        accepted = unchecked = true;
+        alpha = 1.0;
+        energy_known_ = false;
+        verify_pending = true;
+        verify_chord = chord;
+        verify_from = gnorm_;
+      } else if (chord) {
+        chord_next = false;
+        --summary_.iterations;
+        --summary_.chord_steps;
+        --it;
+        continue;
+      }
+    }
+    if (!accepted && options_.merit == Merit::kNone) {
+      for (int ls = 0; ls < options_.max_line_search_steps && !accepted; ++ls, alpha *= 0.5)
+        accepted = p_->Retract(step_, alpha);
+      if (accepted) {
+        alpha *= 2.0;
+        p_->AcceptTrial();
+        energy_known_ = false;
+      }
+    } else if (!accepted) {
+      // While shifted, the lowest point along the negative curvature is found first (its scan
+      // uses the trial iterate), and preferred to the line search's when lower.
+      double nc_amplitude = 0.0, nc_energy = kInf;
+      bool nc = false;
+      if (shifted && classify) {
+        const double rq = p_->Solver().NegativeCurvature(shift, shift_failed,
+                                                         kShiftedBisections, g_, &d_);
+        if (rq < 0.0) nc = BestAlongNegativeCurvature(d_, &nc_amplitude, &nc_energy);
+      }
+      accepted = LineSearch(slope, caps.turn, shifted, &alpha);
+      const double newton_energy = accepted ? energy_ : kInf;
+      if (nc && nc_energy < newton_energy && p_->Retract(d_, nc_amplitude)) {
+        energy_ = p_->TrialEnergy();
+        energy_known_ = true;
+        accepted = true;
+        alpha = 0.0;  // not a whole Newton step
+      }
+      if (accepted) p_->AcceptTrial();
+    }
+    if (!accepted) {
+      // An iterate at the residual's round-off floor whose unshifted Newton step is within
+      // kFloorRelaxation of the step tolerance and cannot lower the merit further is at
+      // round-off. (A small step with a large residual is not: the factor lost the soft modes.)
+      if (!shifted && !chord && gnorm_ <= kFloorRelaxation * floor_tol &&
+          measured.Within(kFloorRelaxation)) {
+        summary_.factor_at_solution = matrix || reuse;
+        return finish(Termination::kRoundOff);
+      }
+      if (merit_not_finite_) return finish(Termination::kNonFinite);
+      return finish(options_.merit == Merit::kNone ? Termination::kRetractionFailed
+                                                   : Termination::kLineSearchFailed);
+    }
+    summary_.residual_at_solution = false;
+    last_step_full = alpha == 1.0;
+    last_step_chord = chord;
+    g_before_last = g_last;
+    g_last = gnorm_;
+    if (contracting) chord_next = alpha == 1.0 && !shifted && !refresh;
+    if (options_.stagnation) {
+      // Stagnation at round-off: whole unshifted steps that move no point by more than the
+      // stagnation bound and change the merit by its round-off only, three times running.
+      const double e = unchecked ? kNaN : energy_;
+      const double change = std::abs(e - previous_energy);
+      stagnant = (!shifted && alpha == 1.0 && p_->LastMove() <= p_->StagnationMove() &&
+                  change <= 10.0 * p_->EnergyNoise(e))
+                     ? stagnant + 1
+                     : 0;
+      previous_energy = e;
+      if (stagnant >= 3) return finish(Termination::kRoundOff);
+    }
+    if (alpha == 1.0 && !shifted) {
+      const RelativeStep& s = measured;
+      if (options_.converge_on_rate && last_full.x >= 0.0) {
+        // Newton and chord iterates converge linearly at least: the error left after this
+        // step is about its size times the contraction of the step sizes.
+        const double tiny = std::numeric_limits<double>::min();
+        const double rate =
+            std::max(s.x / std::max(last_full.x, tiny), s.theta / std::max(last_full.theta, tiny));
+        if (rate < 1.0 && StepConverged({s.x * rate, s.theta * rate}, /*taken=*/true))
+          return finish(Termination::kContraction);
+      }
+      last_full = s;
+    } else {
+      last_full = {-1.0, -1.0};  // a damped or shifted step measures no contraction
+    }
+  }
+}
+
+}  // namespace rodfit
