@@ -121,7 +121,7 @@ FitInput Protocol(int num_cases, int markers, std::string* error) {
     in.cases.push_back(fc);
   }
   for (const char* name : {"bend_stiffness", "bend_stiffness_2"}) {
-    FitParameter p;
+    Parameter p;
     p.name = name;
     p.value = 3.0e-6;
     p.fit = true;
@@ -156,8 +156,8 @@ void TimeFit(benchmark::State& st, const FitInput& in, int threads) {
     st.SkipWithError(("fit failed: " + r.message).c_str());
     return;
   }
-  for (const ParameterEstimate& p : r.parameters) {
-    if (p.fitted && !p.identifiable) {
+  for (const Parameter& p : r.parameters) {
+    if (p.fit && !p.identifiable) {
       st.SkipWithError((p.name + " not identifiable: " + p.reason).c_str());
       return;
     }

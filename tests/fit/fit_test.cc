@@ -67,7 +67,7 @@ std::shared_ptr<const Measurement> Markers(const FitInput& in, const Mat3X& x, i
 void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double start_factor) {
   const Material& m = in->material;
   auto add = [&](const std::string& name, double v) {
-    FitParameter p;
+    Parameter p;
     p.name = name;
     p.fit = std::find(fitted.begin(), fitted.end(), name) != fitted.end();
     p.value = p.fit ? v * start_factor : v;
@@ -79,7 +79,7 @@ void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double 
   add("stretch_stiffness", m.stretch_stiffness);
 }
 
-const ParameterEstimate& Estimate(const FitResult& r, const std::string& name) {
+const Parameter& Estimate(const FitResult& r, const std::string& name) {
   for (const auto& p : r.parameters)
     if (p.name == name) return p;
   throw std::runtime_error("no parameter " + name);
@@ -198,7 +198,7 @@ TEST(Fit, TwistOfAnIsotropicRodUnderDeadLoadsIsNotIdentifiable) {
   std::mt19937 rng(4);
   FitInput in = TwistedProtocol(truth, &rng);
   AddParameters(&in, {"bend_stiffness", "twist_stiffness"}, 1.8);
-  for (FitParameter& p : in.parameters)
+  for (Parameter& p : in.parameters)
     if (p.name == "twist_stiffness") p.value = 8e-7, p.min = 4e-7, p.max = 1.6e-6;
   FitOptions options;
   options.trusted_sigmas = true;  // noise-free data: the residual variance would be 0
@@ -264,7 +264,7 @@ TEST(Fit, NoisyEstimatesLieWithinThreeStd) {
   for (const auto& [name, truth_value] :
        std::vector<std::pair<std::string, double>>{{"bend_stiffness", 1.0e-6},
                                                     {"bend_stiffness_2", 1.4e-6}}) {
-    const ParameterEstimate& e = Estimate(r, name);
+    const Parameter& e = Estimate(r, name);
     ASSERT_TRUE(e.std.has_value()) << name << ": " << e.reason;
     EXPECT_LT(std::abs(e.value - truth_value), 3.0 * *e.std) << name;
   }
@@ -281,7 +281,7 @@ TEST(Fit, ReportedStdMatchesTheSpreadOverSeeds) {
     AddParameters(&in, {"bend_stiffness"}, 1.5);
     const FitResult r = Fit(in, FitOptions());
     ASSERT_TRUE(r.success) << r.message;
-    const ParameterEstimate& e = Estimate(r, "bend_stiffness");
+    const Parameter& e = Estimate(r, "bend_stiffness");
     ASSERT_TRUE(e.std.has_value());
     estimates.push_back(std::log(e.value));
     stds.push_back(*e.std / e.value);
@@ -301,11 +301,11 @@ TEST(Fit, TorsionFromAPlaneIsNotIdentifiable) {
   in.cases.resize(2);  // planar sag only: nothing twists the rod
   AddParameters(&in, {"bend_stiffness", "twist_stiffness"}, 1.5);
   const FitResult r = Fit(in, FitOptions());
-  const ParameterEstimate& gj = Estimate(r, "twist_stiffness");
+  const Parameter& gj = Estimate(r, "twist_stiffness");
   EXPECT_FALSE(gj.identifiable);
   EXPECT_FALSE(gj.std.has_value());
   EXPECT_FALSE(gj.reason.empty());
-  const ParameterEstimate& b = Estimate(r, "bend_stiffness");
+  const Parameter& b = Estimate(r, "bend_stiffness");
   EXPECT_TRUE(b.identifiable) << b.reason;
   EXPECT_NEAR(b.value, 1e-6, 0.005e-6);
 }

@@ -113,7 +113,7 @@ TEST(SurfacePointsIo, SynthWritesPointsOnTheRingAndBuildFitInputLoadsThem) {
   EXPECT_EQ(sp.label(), "surface_points side.csv");
   EXPECT_TRUE(surface_points(in.cases[1]).empty());
   bool ring_fitted = false;
-  for (const FitParameter& p : in.parameters)
+  for (const Parameter& p : in.parameters)
     if (p.name == "ring_bend_stiffness") ring_fitted = p.fit;
   EXPECT_TRUE(ring_fitted);
 

@@ -240,15 +240,15 @@ FitResult FitTwisted(const std::string& kind, unsigned seed) {
   options.seed = seed;
   Synthesize(LoadExperiment(path), dir.File("out"), options);
   FitInput input = BuildFitInput(LoadExperiment(dir.File("out/experiment.yaml")));
-  for (FitParameter& p : input.parameters) {
+  for (Parameter& p : input.parameters) {
     if (p.fit) p.value *= 2.0;
     if (p.name == "twist_stiffness") p.min = 4.0e-6, p.max = 2.0e-5;
   }
   return Fit(input, FitOptions());
 }
 
-const ParameterEstimate& Estimate(const FitResult& r, const std::string& name) {
-  for (const ParameterEstimate& p : r.parameters)
+const Parameter& Estimate(const FitResult& r, const std::string& name) {
+  for (const Parameter& p : r.parameters)
     if (p.name == name) return p;
   throw std::invalid_argument(name);
 }
@@ -259,19 +259,19 @@ TEST(RollMarkers, MakeTwistStiffnessIdentifiableFromA3dTwistedShape) {
     // Markers alone: the shape says nothing of GJ, and the fit says so.
     const FitResult shape = FitTwisted("markers3d", seed);
     ASSERT_TRUE(shape.success) << shape.message;
-    const ParameterEstimate& gj_shape = Estimate(shape, "twist_stiffness");
+    const Parameter& gj_shape = Estimate(shape, "twist_stiffness");
     EXPECT_FALSE(gj_shape.identifiable) << "seed " << seed << ": " << gj_shape.value;
     EXPECT_THAT(gj_shape.reason,
                 ::testing::AnyOf(HasSubstr("do not depend on it"), HasSubstr("below the noise")));
-    const ParameterEstimate& b_shape = Estimate(shape, "bend_stiffness");
+    const Parameter& b_shape = Estimate(shape, "bend_stiffness");
     ASSERT_TRUE(b_shape.identifiable && b_shape.std);
     EXPECT_LT(std::abs(b_shape.value - B), 3.0 * *b_shape.std) << "seed " << seed;
 
     // With the stripe's roll: both, each within 3 std of the truth.
     const FitResult roll = FitTwisted("roll_markers", seed);
     ASSERT_TRUE(roll.success) << roll.message;
-    const ParameterEstimate& gj = Estimate(roll, "twist_stiffness");
-    const ParameterEstimate& b = Estimate(roll, "bend_stiffness");
+    const Parameter& gj = Estimate(roll, "twist_stiffness");
+    const Parameter& b = Estimate(roll, "bend_stiffness");
     ASSERT_TRUE(gj.identifiable && gj.std) << gj.reason;
     ASSERT_TRUE(b.identifiable && b.std) << b.reason;
     EXPECT_LT(std::abs(gj.value - GJ), 3.0 * *gj.std) << "seed " << seed << ": " << gj.value;

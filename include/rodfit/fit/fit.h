@@ -18,18 +18,11 @@
 #include <Eigen/Core>
 
 #include "rodfit/fit/measurement.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
-
-/// One material parameter as the experiment declares it.
-struct FitParameter {
-  std::string name;              ///< bend_stiffness, bend_stiffness_2, twist_stiffness, ...
-  double value = 0.0;            ///< start (and the value when not fitted)
-  bool fit = false;
-  std::optional<double> min, max;
-};
 
 /// A load case with its measurements, in residual order (rodfit/fit/measurement.h).
 struct FitCase {
@@ -43,7 +36,8 @@ struct FitInput {
   Vec3 gravity = Vec3(0, 0, -9.81);
   std::vector<SpringZone> springs;  ///< attachment zones (tissue)
   std::optional<SectionSpec> section;  ///< the cross-section model, for surface_points
-  std::vector<FitParameter> parameters;
+  /// Every parameter the static fit sees, fitted or not (name, value, fit, min, max).
+  std::vector<Parameter> parameters;
   std::vector<FitCase> cases;
   StaticsOptions statics;  ///< solver settings of every forward solve
 };
@@ -85,19 +79,6 @@ struct FitOptions {
   bool Check(std::string* why) const;
 };
 
-struct ParameterEstimate {
-  std::string name;
-  std::string unit;
-  double value = 0.0;            ///< the estimate; for a parameter not identifiable, where the
-                                 ///< fit stopped: not determined by the data (see reason)
-  double start = 0.0;            ///< the value the fit started from (the experiment's value)
-  bool fitted = false;
-  std::optional<double> std;     ///< present only for a fitted, identifiable parameter
-  bool identifiable = true;
-  std::string reason;            ///< why not identifiable
-  bool at_bound = false;
-};
-
 struct FitResult {
   bool success = false;          ///< converged to a usable estimate
   std::string message;           ///< termination, or why the fit failed
@@ -120,7 +101,9 @@ struct FitResult {
   /// observation models; the rest of `seconds` is Ceres and the covariance.
   double solve_seconds = 0.0, jacobian_seconds = 0.0, observation_seconds = 0.0;
   int forward_solves = 0;
-  std::vector<ParameterEstimate> parameters;  ///< every parameter of the model
+  /// Every parameter of the input with its estimate: value, start, std, identifiable, reason,
+  /// at_bound (a parameter not fitted: its value).
+  std::vector<Parameter> parameters;
   std::vector<std::string> fitted_names;
   Eigen::MatrixXd correlation;   ///< among fitted parameters (in log space)
   std::vector<ObservationFit> observations;

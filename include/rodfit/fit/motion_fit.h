@@ -80,13 +80,10 @@ struct MotionFitResult {
   double seconds = 0.0;                ///< wall time of the fit
 };
 
-/// The material parameters a motion fit may change: bend_stiffness (B2 follows when tied),
-/// bend_stiffness_2, twist_stiffness, stretch_stiffness, damping, bend_damping, twist_damping,
-/// stretch_damping. Throws std::invalid_argument for another name.
-void SetMaterialParameter(const std::string& name, double value, Material* material);
-double MaterialParameter(const std::string& name, const Material& material);
-
-/// Those and linear_density (the rod's, not the material's): the parameters FitMotion takes.
+/// The parameters a motion fit may change, rows of the parameter table
+/// (rodfit/model/material_parameters.h) of the rod's stiffness (bend_stiffness moves B2 too when
+/// tied), damping and mass (linear_density, set on the rod): those FitMotion takes. Throws
+/// std::invalid_argument for another name.
 void SetMotionParameter(const std::string& name, double value, Scene* scene);
 double MotionParameter(const std::string& name, const Scene& scene);
 

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "rodfit/fit/fit.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/solve/statics.h"
@@ -33,17 +34,6 @@ inline constexpr int kMaxDragSteps = 1000;     ///< grasp_force count (cases of 
 inline constexpr double kMaxBlurPx = 100.0;    ///< images: blur [px]
 inline constexpr double kMaxNoiseGrey = 255.0; ///< images: noise [grey levels]
 inline constexpr int kMaxFitIterations = 10000;  ///< fit.max_iterations
-
-/// One entry of `parameters:`. Parameters are fitted in log space (docs/solvers.md, "The fit"), so
-/// a fitted value and any bound are > 0.
-struct ParameterSpec {
-  double value = 0.0;         ///< in the parameter's SI unit (see Material)
-  bool fit = false;           ///< fitted, or held at value
-  std::optional<double> min;  ///< lower bound for the fit, < max, <= value
-  std::optional<double> max;  ///< upper bound for the fit, >= value
-  int line = 0;               ///< 1-based line of the parameter's key
-  int fit_line = 0;           ///< 1-based line of its `fit:` value (0 when absent)
-};
 
 /// One entry of a case's `observations:` (docs/formats.md, "Observation entries"). Which keys an
 /// entry takes is declared by its kind (rodfit/pipeline/observation_kind.h, through EntryKeys
@@ -176,9 +166,11 @@ struct Experiment {
   std::string path;       ///< the YAML file as given
   std::string directory;  ///< its folder; relative paths inside the file are resolved here
   Scene scene;            ///< rod, material (the parameters' values), gravity, cases
-  /// Keyed by parameter name; only names present in the file (bend_stiffness,
-  /// bend_stiffness_2, twist_stiffness, stretch_stiffness, spring_stiffness).
-  std::map<std::string, ParameterSpec> parameters;
+  /// The `parameters:` block, keyed by name: only the names present in the file (rows of the
+  /// parameter table, rodfit/model/material_parameters.h, and the spring zones' own). Each
+  /// value is in the parameter's SI unit; a fitted value and its bounds are > 0 (fitted in log
+  /// space, docs/solvers.md, "The fit"), min < max, min <= value <= max.
+  std::map<std::string, Parameter> parameters;
   std::vector<CaseSpec> cases;  ///< parallel to scene.cases
   FitSpec fit;
   /// 1-based line of `dynamics.integrator` (of `dynamics:` when the key is absent), 0 without a

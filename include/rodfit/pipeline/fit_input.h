@@ -11,7 +11,7 @@ namespace rodfit {
 
 /// All five parameters of the model in a fixed order, fitted or not; an absent
 /// bend_stiffness_2 is left out (tied to bend_stiffness), an absent spring_stiffness is 0.
-std::vector<FitParameter> FitParametersOf(const Experiment& experiment);
+std::vector<Parameter> FitParametersOf(const Experiment& experiment);
 
 /// Loads every observation of every case. Throws InputError (or CameraFileError) for a missing
 /// or malformed file, a missing column, a non-number, a marker with s outside [0, L], a camera

@@ -57,7 +57,7 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
   std::vector<Fitted> out;
   const bool tied = !in.material.bend_stiffness_2.has_value();
   for (size_t k = 0; k < in.parameters.size(); ++k) {
-    const FitParameter& p = in.parameters[k];
+    const Parameter& p = in.parameters[k];
     if (!p.fit) continue;
     Fitted f;
     f.input_index = static_cast<int>(k);
@@ -66,8 +66,10 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
     const bool zone_parameter = in.material.spring_parameters.count(p.name) > 0;
     if (!row && !zone_parameter)
       throw std::invalid_argument(p.name + ": not a parameter of the rod model");
-    if (row && row->kind == ParameterKind::kDamping)
-      throw std::invalid_argument(p.name + ": damping is seen only in motion, not by a static fit");
+    if (row && (row->kind == ParameterKind::kDamping || row->kind == ParameterKind::kMass))
+      throw std::invalid_argument(p.name + ": " +
+                                  (row->kind == ParameterKind::kMass ? "the rod's mass" : "damping") +
+                                  " is seen only in motion, not by a static fit");
     if (row && row->kind == ParameterKind::kRodStiffness) {
       if (row->tied_to && tied)
         throw std::invalid_argument(p.name + ": fitted but tied to " + row->tied_to);

@@ -100,7 +100,7 @@ void WarmStartsAtTheStart(const FitInput& in, const std::vector<Fitted>& fitted,
 }
 
 // Log-space search box of a fitted parameter: its bounds, or three decades around the start.
-void SearchBox(const FitParameter& p, double* lo, double* hi) {
+void SearchBox(const Parameter& p, double* lo, double* hi) {
   *lo = p.min ? std::log(*p.min) : std::log(p.value) - 3.0 * std::log(10.0);
   *hi = p.max ? std::log(*p.max) : std::log(p.value) + 3.0 * std::log(10.0);
 }
@@ -130,7 +130,7 @@ ResidualCounts CountResiduals(const FitInput& input) {
 std::vector<double> StartLogValues(const FitInput& input, const std::vector<Fitted>& fitted) {
   std::vector<double> logp;
   for (const Fitted& f : fitted) {
-    const FitParameter& p = input.parameters[f.input_index];
+    const Parameter& p = input.parameters[f.input_index];
     if (!(p.value > 0)) throw std::invalid_argument(p.name + ": start value must be > 0");
     if (p.min && p.max && !(*p.min < *p.max))
       throw std::invalid_argument(p.name + ": min must be < max");
@@ -264,13 +264,14 @@ void ReportParameters(const FitInput& input, const std::vector<Fitted>& fitted,
   const Eigen::MatrixXd& cov_log = id.cov_log;
   const Material final_material = MaterialAt(input, fitted, logp.data());
   for (size_t k = 0; k < input.parameters.size(); ++k) {
-    const FitParameter& p = input.parameters[k];
-    ParameterEstimate e;
+    const Parameter& p = input.parameters[k];
+    Parameter e;
     e.name = p.name;
-    e.unit = MaterialParameterUnit(p.name);
     e.value = p.value;
     e.start = p.value;
-    e.fitted = p.fit;
+    e.fit = p.fit;
+    e.min = p.min;
+    e.max = p.max;
     for (int f = 0; f < m; ++f) {
       if (fitted[f].input_index != static_cast<int>(k)) continue;
       e.value = std::exp(logp[f]);
@@ -431,7 +432,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   ceres::Problem problem(problem_options);
   problem.AddParameterBlock(logp.data(), m);
   for (int k = 0; k < m; ++k) {
-    const FitParameter& p = input.parameters[fitted[k].input_index];
+    const Parameter& p = input.parameters[fitted[k].input_index];
     if (p.min) problem.SetParameterLowerBound(logp.data(), k, std::log(*p.min));
     if (p.max) problem.SetParameterUpperBound(logp.data(), k, std::log(*p.max));
   }

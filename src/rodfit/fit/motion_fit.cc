@@ -184,24 +184,17 @@ class Budget : public ceres::IterationCallback {
 
 namespace {
 
-// The rows a motion sees: the rod's stiffnesses and its damping (springs and the ring are not
-// part of a moving thread's model).
+// The rows a motion sees: the rod's stiffnesses, its damping and its mass (springs and the ring
+// are not part of a moving thread's model).
 const MaterialParameterInfo& MotionRow(const std::string& name) {
   const MaterialParameterInfo* row = FindMaterialParameter(name);
-  if (!row || (row->kind != ParameterKind::kRodStiffness && row->kind != ParameterKind::kDamping))
+  if (!row || (row->kind != ParameterKind::kRodStiffness && row->kind != ParameterKind::kDamping &&
+               row->kind != ParameterKind::kMass))
     throw std::invalid_argument("a motion fit cannot fit '" + name.substr(0, 60) + "'");
   return *row;
 }
 
 }  // namespace
-
-void SetMaterialParameter(const std::string& name, double value, Material* m) {
-  AssignMaterialParameter(MotionRow(name).name, value, m);
-}
-
-double MaterialParameter(const std::string& name, const Material& m) {
-  return EffectiveMaterialParameter(m, MotionRow(name).name);
-}
 
 bool MotionFitOptions::Check(std::string* why) const {
   if (max_evaluations < 1) {
@@ -223,19 +216,13 @@ bool MotionFitOptions::Check(std::string* why) const {
   return true;
 }
 
-// linear_density is the rod's (RodSpec), not a row of the material table: the one name the
-// motion fit adds to SetMaterialParameter's.
+// Where the row says: the material, or the rod (linear_density).
 void SetMotionParameter(const std::string& name, double value, Scene* scene) {
-  if (name == "linear_density") {
-    scene->rod.linear_density = value;
-  } else {
-    SetMaterialParameter(name, value, &scene->material);
-  }
+  AssignMaterialParameter(MotionRow(name).name, value, &scene->material, &scene->rod);
 }
 
 double MotionParameter(const std::string& name, const Scene& scene) {
-  return name == "linear_density" ? scene.rod.linear_density
-                                  : MaterialParameter(name, scene.material);
+  return EffectiveMaterialParameter(scene.material, MotionRow(name).name, &scene.rod);
 }
 
 namespace {

@@ -32,12 +32,6 @@ namespace fs = std::filesystem;
 constexpr double kMinClampSine = 1e-3;
 constexpr size_t kMaxCaseNameLength = 100;
 
-// Damping (dynamics only): >= 0, fitted only from the motion of a moving scene.
-bool IsDampingParameter(const std::string& name) {
-  const MaterialParameterInfo* row = FindMaterialParameter(name);
-  return row && row->kind == ParameterKind::kDamping;
-}
-
 std::string Join(const std::vector<std::string>& words) {
   std::string out;
   for (const auto& w : words) out += (out.empty() ? "" : ", ") + w;
@@ -280,21 +274,30 @@ RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool de
   return rod;
 }
 
-ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& name) {
+// One entry of `parameters:`. A damping's `fit: true` needs motion (a dynamics: block), as does
+// linear_density at all (elsewhere it is rod.linear_density, a weight, not a parameter).
+Parameter ReadParameter(const Reader& r, const Field& f, const std::string& name, bool moving) {
   if (!f.node.IsMap()) r.Fail(f, "expected a mapping {value: ..., fit: ..., min: ..., max: ...}");
+  const MaterialParameterInfo* row = FindMaterialParameter(name);
+  if (row && row->kind == ParameterKind::kMass && !moving)
+    r.Fail(f.key_line, f.key,
+           "only in a moving scene (a dynamics: block), where motion and forces determine it; "
+           "elsewhere give rod." + name);
   const Entries m = r.Map(f, {"value", "fit", "min", "max"});
-  ParameterSpec p;
+  Parameter p;
+  p.name = name;
   p.line = f.key_line;
   const Field& value = r.Require(m, f, "value");
   // spring_stiffness = 0 means no springs and zero damping none (docs/model.md, "What a scene
   // builds"); every stiffness of the rod is > 0. A zone's own parameter is a spring stiffness.
-  const MaterialParameterInfo* row = FindMaterialParameter(name);
   p.value = row && row->positive ? r.Positive(value) : r.NonNegative(value);
+  p.start = p.value;
   if (const Field* fit = Reader::Find(m, "fit")) {
     p.fit = r.Bool(*fit);
-    // Whether a fitted damping has motion to be fitted to is checked once the dynamics: block
-    // is read (ParseExperiment).
-    p.fit_line = fit->line;
+    if (p.fit && row && row->kind == ParameterKind::kDamping && !moving)
+      r.Fail(fit->line, fit->key,
+             "damping is identified from motion: fitting it needs a dynamics: block and "
+             "observation sequences (else give its value, fit: false)");
   }
   if (p.fit && !(p.value > 0.0)) {
     r.Fail(value, "a fitted parameter must be > 0 (fitted in log space)");
@@ -316,14 +319,9 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
   std::vector<std::string> allowed;
   for (const MaterialParameterInfo& row : MaterialParameters()) allowed.push_back(row.name);
   allowed.insert(allowed.end(), zone_parameters.begin(), zone_parameters.end());
-  allowed.push_back("linear_density");  // a moving scene's, fitted to motion and forces
   const Entries m = r.Map(f, allowed);
-  for (const auto& [name, field] : m) ex->parameters[name] = ReadParameter(r, field, name);
-  if (const Field* density = Reader::Find(m, "linear_density")) {
-    // The rod's, not the material's: it sets the masses and weights.
-    const Entries spec = r.Map(*density, {"value", "fit", "min", "max"});
-    ex->scene.rod.linear_density = r.Positive(r.Require(spec, *density, "value"));
-  }
+  const bool moving = ex->scene.dynamics.has_value();
+  for (const auto& [name, field] : m) ex->parameters[name] = ReadParameter(r, field, name, moving);
   for (const std::string& name : zone_parameters) r.Require(m, f, name);
   const bool section = ex->scene.section.has_value();
   for (const MaterialParameterInfo& row : MaterialParameters()) {
@@ -331,11 +329,12 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
     if (row.needs_section && !section) continue;
     if (row.required) r.Require(m, f, row.name);
   }
-  for (const auto& [name, spec] : ex->parameters) {
-    if (name == "linear_density") continue;
+  // Each value where its row says (the rod's density into the rod: it sets the masses and
+  // weights).
+  for (const auto& [name, p] : ex->parameters) {
     const MaterialParameterInfo* row = FindMaterialParameter(name);
     if (row && row->needs_section && !section) continue;
-    AssignMaterialParameter(name, spec.value, &ex->scene.material);
+    AssignMaterialParameter(name, p.value, &ex->scene.material, &ex->scene.rod);
   }
 }
 
@@ -1235,8 +1234,11 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
       top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit", "solver",
             "dynamics"});
   const Field* params = Reader::Find(m, "parameters");
-  const bool density_in_parameters =
-      params && params->node.IsMap() && params->node["linear_density"].IsDefined();
+  // The rod's density given as a parameter (a row of the rod's, in a moving scene).
+  bool density_in_parameters = false;
+  for (const MaterialParameterInfo& row : MaterialParameters())
+    density_in_parameters |= row.rod_field == &RodSpec::linear_density && params &&
+                             params->node.IsMap() && params->node[row.name].IsDefined();
   ex.scene.rod =
       ReadRod(r, r.Require(m, top, "rod"), density_in_parameters, parameters_optional);
   if (const Field* section = Reader::Find(m, "section")) ex.scene.section = ReadSection(r, *section);
@@ -1244,24 +1246,15 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   if (const Field* springs = Reader::Find(m, "springs")) {
     zone_parameters = ReadSprings(r, *springs, &ex);
   }
+  // Before the parameters: whether the scene moves decides which of them may be fitted.
+  if (const Field* dynamics = Reader::Find(m, "dynamics"))
+    ex.scene.dynamics = ReadDynamics(r, *dynamics, &ex.integrator_line);
   // With a profile supplying the material (`simulate --profile`) the block may be left out.
   if (params || !parameters_optional)
     ReadParameters(r, params ? *params : r.Require(m, top, "parameters"), &ex, zone_parameters);
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
   if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
   if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
-  if (const Field* dynamics = Reader::Find(m, "dynamics"))
-    ex.scene.dynamics = ReadDynamics(r, *dynamics, &ex.integrator_line);
-  if (const auto it = ex.parameters.find("linear_density");
-      it != ex.parameters.end() && !ex.scene.dynamics)
-    r.Fail(it->second.line, "parameters.linear_density",
-           "only in a moving scene (a dynamics: block), where motion and forces determine it; "
-           "elsewhere give rod.linear_density");
-  for (const auto& [name, p] : ex.parameters)
-    if (p.fit && IsDampingParameter(name) && !ex.scene.dynamics)
-      r.Fail(p.fit_line, "parameters." + name + ".fit",
-             "damping is identified from motion: fitting it needs a dynamics: block and "
-             "observation sequences (else give its value, fit: false)");
   if (ex.scene.dynamics && ex.fit.line > 0) {
     // A moving scene's fit is plain least squares on the sequences (docs/formats.md,
     // "Observation sequences"): the static fit's robust losses and global search are not part

@@ -49,7 +49,12 @@ nlohmann::json DerivedJson(const Material& m, const RodSpec& rod,
                            const std::set<std::string>& undetermined) {
   using nlohmann::json;
   json derived;
-  derived["mass_density"] = rod.radius > 0.0 && !undetermined.count("linear_density")
+  // The rod's density row, when a fit left it undetermined, leaves the mass density unknown.
+  bool density_known = rod.radius > 0.0;
+  for (const MaterialParameterInfo& row : MaterialParameters())
+    if (row.rod_field == &RodSpec::linear_density && undetermined.count(row.name))
+      density_known = false;
+  derived["mass_density"] = density_known
                                 ? json(rod.linear_density / (M_PI * rod.radius * rod.radius))
                                 : json(nullptr);
   for (const MaterialParameterInfo& row : MaterialParameters()) {
@@ -102,12 +107,14 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   p["version"] = kProfileVersion;
   p["rodfit_version"] = RODFIT_VERSION;
   const Scene& scene = e.scene;
-  // The rod as fitted: a moving experiment may fit its linear density (a parameter the data do
-  // not determine keeps its start here, and its row says it is not a measurement).
+  // The rod as fitted: a moving experiment may fit a row of the rod, its linear density (a
+  // parameter the data do not determine keeps its start here, and its row says it is not a
+  // measurement).
   RodSpec rod = scene.rod;
-  for (const ParameterEstimate& est : r.parameters)
-    if (est.name == "linear_density" && (!est.fitted || est.identifiable))
-      rod.linear_density = est.value;
+  for (const Parameter& est : r.parameters) {
+    const MaterialParameterInfo* row = FindMaterialParameter(est.name);
+    if (row && row->rod_field && (!est.fit || est.identifiable)) rod.*(row->rod_field) = est.value;
+  }
   p["rod"] = {{"length", rod.length},
               {"segments", rod.segments},
               {"radius", rod.radius},
@@ -136,28 +143,28 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   std::set<std::string> undetermined;
   json params = json::object();
   std::set<std::string> listed;
-  for (const ParameterEstimate& est : r.parameters) {
+  for (const Parameter& est : r.parameters) {
     // A parameter the data do not determine has no value: where the fit stopped (often a bound)
     // would be imported as if measured. Its start is kept apart, under "start".
-    const bool determined = !est.fitted || est.identifiable;
+    const bool determined = !est.fit || est.identifiable;
     json q = {{"value", determined ? json(est.value) : json(nullptr)},
               {"std", est.std ? json(*est.std) : json(nullptr)},
-              {"fitted", est.fitted},
+              {"fitted", est.fit},
               {"identifiable", determined},
-              {"unit", MaterialParameterUnit(est.name)}};
-    if (est.fitted) {
+              {"unit", est.unit()}};
+    if (est.fit) {
       q["start"] = est.start;
       if (!est.identifiable) q["reason"] = est.reason;
       if (est.at_bound) q["at_bound"] = true;
     }
     params[est.name] = q;
     listed.insert(est.name);
-    if (est.name == "linear_density") {
+    const MaterialParameterInfo* row = FindMaterialParameter(est.name);
+    if (row && row->rod_field) {
       if (!determined) undetermined.insert(est.name);  // the rod's: set above
     } else if (determined) {
       // A tied row (bend_stiffness_2 absent) is listed at its row's value but stays tied.
-      const MaterialParameterInfo* row = FindMaterialParameter(est.name);
-      if (!row || !row->tied_to || MaterialParameterValue(scene.material, est.name) || est.fitted)
+      if (!row || !row->tied_to || MaterialParameterValue(scene.material, est.name) || est.fit)
         AssignMaterialParameter(est.name, est.value, &fitted);
     } else {
       undetermined.insert(est.name);
@@ -177,9 +184,11 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
     if (undetermined.count(row.tied_to)) undetermined.insert(row.name);
   }
   // Every other row of the parameter table the model reads, at the scene's value: a simulator
-  // gets damping and the rest explicitly rather than by a default of its own.
+  // gets damping and the rest explicitly rather than by a default of its own. A row of the rod
+  // (its density) is in `rod`, and listed here only when a fit estimated it.
   for (const MaterialParameterInfo& row : MaterialParameters()) {
-    if (listed.count(row.name) || (row.needs_section && !scene.section)) continue;
+    if (listed.count(row.name) || (row.needs_section && !scene.section) || row.rod_field)
+      continue;
     const std::optional<double> v = MaterialParameterValue(scene.material, row.name);
     if (!v) continue;
     params[row.name] = {{"value", *v}, {"std", nullptr}, {"fitted", false},

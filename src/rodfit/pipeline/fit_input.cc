@@ -14,12 +14,14 @@
 
 namespace rodfit {
 
-std::vector<FitParameter> FitParametersOf(const Experiment& e) {
-  std::vector<FitParameter> out;
-  // Every parameter a static fit can see (damping is seen only in motion), then the zones' own.
+std::vector<Parameter> FitParametersOf(const Experiment& e) {
+  std::vector<Parameter> out;
+  // Every parameter a static fit can see (damping and mass are seen only in motion), then the
+  // zones' own.
   std::vector<std::string> names;
   for (const MaterialParameterInfo& row : MaterialParameters())
-    if (row.kind != ParameterKind::kDamping) names.push_back(row.name);
+    if (row.kind != ParameterKind::kDamping && row.kind != ParameterKind::kMass)
+      names.push_back(row.name);
   for (const auto& [name, value] : e.scene.material.spring_parameters) names.push_back(name);
   for (const std::string& name : names) {
     const auto it = e.parameters.find(name);
@@ -29,8 +31,7 @@ std::vector<FitParameter> FitParametersOf(const Experiment& e) {
       if (row && row->kind == ParameterKind::kSpring) out.push_back({name, 0.0, false, {}, {}});
       continue;
     }
-    const ParameterSpec& p = it->second;
-    out.push_back({name, p.value, p.fit, p.min, p.max});
+    out.push_back(it->second);
   }
   return out;
 }

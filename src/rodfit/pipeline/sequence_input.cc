@@ -314,10 +314,6 @@ std::vector<std::string> FittedNames(const Experiment& experiment) {
     const auto it = experiment.parameters.find(row.name);
     if (it != experiment.parameters.end() && it->second.fit) names.push_back(row.name);
   }
-  // The rod's linear density (a moving experiment's), after the material's.
-  if (const auto it = experiment.parameters.find("linear_density");
-      it != experiment.parameters.end() && it->second.fit)
-    names.push_back("linear_density");
   return names;
 }
 
@@ -327,7 +323,7 @@ MotionFitOptions SequenceFitOptionsOf(const Experiment& experiment,
   options.max_evaluations = experiment.fit.max_iterations;
   options.trusted_sigmas = experiment.fit.trusted_sigmas;
   for (const std::string& name : names) {
-    const ParameterSpec& p = experiment.parameters.at(name);
+    const Parameter& p = experiment.parameters.at(name);
     options.lower.push_back(p.min ? *p.min : NAN);
     options.upper.push_back(p.max ? *p.max : NAN);
   }
@@ -348,26 +344,28 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
   r.seconds = motion.seconds;
   r.forward_solves = motion.evaluations;
   r.fitted_names = motion.names;
-  // Every parameter the static fit lists (the rod's and the springs'), then the damping
-  // parameters the experiment gives.
+  // Every parameter the static fit lists (the rod's and the springs'), then those only motion
+  // sees (damping, the rod's mass) that the experiment gives.
   std::vector<std::string> listed;
-  for (const FitParameter& p : FitParametersOf(experiment)) listed.push_back(p.name);
+  for (const Parameter& p : FitParametersOf(experiment)) listed.push_back(p.name);
   for (const MaterialParameterInfo& row : MaterialParameters())
-    if (row.kind == ParameterKind::kDamping && experiment.parameters.count(row.name))
+    if ((row.kind == ParameterKind::kDamping || row.kind == ParameterKind::kMass) &&
+        experiment.parameters.count(row.name))
       listed.push_back(row.name);
-  if (experiment.parameters.count("linear_density")) listed.push_back("linear_density");
   for (const std::string& name : listed) {
-    ParameterEstimate est;
-    est.name = name;
-    est.unit = MaterialParameterUnit(name);
+    Parameter est;
     const auto spec = experiment.parameters.find(name);
-    est.value = est.start = spec != experiment.parameters.end()
-                                ? spec->second.value
-                                : MaterialParameterValue(experiment.scene.material, name).value_or(0.0);
+    if (spec != experiment.parameters.end()) est = spec->second;
+    est.name = name;
+    est.fit = false;
+    est.value = est.start =
+        spec != experiment.parameters.end()
+            ? spec->second.value
+            : MaterialParameterValue(experiment.scene.material, name).value_or(0.0);
     const auto k = std::find(motion.names.begin(), motion.names.end(), name);
     if (k != motion.names.end()) {
       const size_t i = static_cast<size_t>(k - motion.names.begin());
-      est.fitted = true;
+      est.fit = true;
       est.start = motion.start[i];
       est.value = motion.values[i];
       est.identifiable = motion.identifiable[i];

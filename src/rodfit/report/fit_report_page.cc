@@ -437,33 +437,30 @@ class Builder {
     h << "<table class=\"parameters\">\n<tr><th>parameter</th><th>value ± std</th><th>unit</th>"
          "<th>relative std</th><th>identifiable</th><th>start</th><th>bounds</th>"
          "<th>at a bound</th></tr>\n";
-    std::vector<const ParameterEstimate*> held;
-    for (const ParameterEstimate& p : r_.parameters) {
-      if (!p.fitted) {
+    std::vector<const Parameter*> held;
+    for (const Parameter& p : r_.parameters) {
+      if (!p.fit) {
         held.push_back(&p);
         continue;
       }
-      const FitParameter* spec = nullptr;
-      for (const FitParameter& f : in_.parameters)
-        if (f.name == p.name) spec = &f;
       h << "<tr class=\"parameter" << (p.identifiable ? "" : " not-identifiable")
         << "\" data-name=\"" << Escape(p.name) << "\"><td><code>" << Escape(p.name)
         << "</code></td>";
       if (p.identifiable && p.std) {
         h << "<td class=\"num\">" << HtmlNumber(p.value) << " ± " << HtmlNumber(*p.std, 2)
-          << "</td><td>" << HtmlUnit(p.unit) << "</td><td class=\"num\">"
+          << "</td><td>" << HtmlUnit(p.unit()) << "</td><td class=\"num\">"
           << (p.value != 0 ? Percent(*p.std / std::abs(p.value)) : "—") << "</td>"
           << "<td>yes</td>";
       } else {
         // Where the fit stopped is not a measurement: no number an importer could mistake.
-        h << "<td class=\"num\">not determined</td><td>" << HtmlUnit(p.unit)
+        h << "<td class=\"num\">not determined</td><td>" << HtmlUnit(p.unit())
           << "</td><td class=\"num\">—</td><td><span class=\"verdict-no\">no</span>: "
           << Escape(p.reason) << "</td>";
       }
       h << "<td class=\"num\">" << WithUnit(p.start, "") << "</td><td class=\"num\">";
-      if (spec && (spec->min || spec->max))
-        h << "[" << (spec->min ? HtmlNumber(*spec->min) : "0") << ", "
-          << (spec->max ? HtmlNumber(*spec->max) : "∞") << "]";
+      if (p.min || p.max)
+        h << "[" << (p.min ? HtmlNumber(*p.min) : "0") << ", "
+          << (p.max ? HtmlNumber(*p.max) : "∞") << "]";
       else
         h << "none";
       h << "</td><td>" << (p.at_bound ? "<span class=\"warn\">yes</span>" : "no") << "</td></tr>\n";
@@ -472,9 +469,9 @@ class Builder {
     if (!held.empty()) {
       h << "<p>Held at their given values:</p>\n<table class=\"held\">\n<tr><th>parameter</th>"
            "<th>value</th><th>unit</th></tr>\n";
-      for (const ParameterEstimate* p : held)
+      for (const Parameter* p : held)
         h << "<tr><td><code>" << Escape(p->name) << "</code></td><td class=\"num\">"
-          << HtmlNumber(p->value) << "</td><td>" << HtmlUnit(p->unit) << "</td></tr>\n";
+          << HtmlNumber(p->value) << "</td><td>" << HtmlUnit(p->unit()) << "</td></tr>\n";
       h << "</table>\n";
     }
     // Correlations among the fitted parameters (of their logs), coloured: red positive, blue

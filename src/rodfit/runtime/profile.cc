@@ -240,22 +240,23 @@ SectionSpec ReadSection(const Reader& r, const json& v) {
 
 // One parameter: its unit must be the table's, its value present (or overridden), finite and
 // in range. `zone` marks a spring zone's own parameter (a spring stiffness).
-ProfileParameter ReadParameter(const Reader& r, const json& v, const std::string& name,
-                               int version, const ProfileReadOptions& options) {
+Parameter ReadParameter(const Reader& r, const json& v, const std::string& name, int version,
+                        const ProfileReadOptions& options) {
   const std::string key = "parameters." + name;
   r.Object(v, key, {"value", "std", "fitted", "identifiable", "unit", "start", "reason",
                     "at_bound", "tied_to"});
-  ProfileParameter p;
+  Parameter p;
   p.name = name;
   const MaterialParameterInfo* row = FindMaterialParameter(name);
-  const std::string unit = MaterialParameterUnit(name);
-  p.unit = r.String(r.Require(v, key, "unit"), key + ".unit");
+  const std::string unit = p.unit();
+  const std::string written = r.String(r.Require(v, key, "unit"), key + ".unit");
   // Version 1 labelled the damping rows "N/m^2" (the label of spring stiffness); their values
   // were in the table's units all along.
-  const bool v1_damping_label = version == 1 && p.unit == "N/m^2" &&
+  const bool v1_damping_label = version == 1 && written == "N/m^2" &&
                                 std::string(unit).find(" s") != std::string::npos;
-  if (p.unit != unit && !v1_damping_label) r.Fail(key + ".unit", "must be \"" + unit + "\" (is \"" + p.unit + "\")");
-  if (const json* f = r.Find(v, "fitted")) p.fitted = r.Bool(*f, key + ".fitted");
+  if (written != unit && !v1_damping_label)
+    r.Fail(key + ".unit", "must be \"" + unit + "\" (is \"" + written + "\")");
+  if (const json* f = r.Find(v, "fitted")) p.fit = r.Bool(*f, key + ".fitted");
   if (const json* i = r.Find(v, "identifiable")) p.identifiable = r.Bool(*i, key + ".identifiable");
   if (const json* t = r.Find(v, "tied_to")) {
     p.tied_to = r.String(*t, key + ".tied_to");
@@ -266,7 +267,7 @@ ProfileParameter ReadParameter(const Reader& r, const json& v, const std::string
   }
   if (const json* s = r.Find(v, "std"); s && !s->is_null())
     p.std = r.NonNegative(*s, key + ".std");
-  const bool positive = row ? row->positive : name == "linear_density";
+  const bool positive = row && row->positive;  // a spring zone's own stiffness may be 0
   auto check = [&](double x, const std::string& where) {
     if (!std::isfinite(x)) r.Fail(where, "must be finite");
     if (positive && !(x > 0.0)) r.Fail(where, "must be > 0 (is " + Show(x) + ")");
@@ -308,8 +309,8 @@ ProfileError::ProfileError(const std::string& file_in, const std::string& key_in
       key(key_in),
       message(message_in) {}
 
-const ProfileParameter* Profile::Find(const std::string& name) const {
-  for (const ProfileParameter& p : parameters)
+const Parameter* Profile::Find(const std::string& name) const {
+  for (const Parameter& p : parameters)
     if (p.name == name) return &p;
   return nullptr;
 }
@@ -379,8 +380,7 @@ Profile ParseProfile(const std::string& text, const std::string& path,
     const std::string& name = item.key();
     const MaterialParameterInfo* row = FindMaterialParameter(name);
     // Version 1 wrote zone parameters without their zones: read them as spring stiffnesses.
-    // A moving fit lists the rod's linear density it fitted (as rod.linear_density).
-    if (!row && !zone_parameters.count(name) && out.version >= 2 && name != "linear_density")
+    if (!row && !zone_parameters.count(name) && out.version >= 2)
       r.Fail("parameters." + name, "unknown parameter (neither in the parameter table nor a "
                                    "spring zone's parameter)");
     if (row && row->needs_section && !scene.section) continue;  // no ring without a section
@@ -397,19 +397,18 @@ Profile ParseProfile(const std::string& text, const std::string& path,
       r.Fail(std::string("parameters.") + row.name, "missing (" + std::string(row.description) + ")");
   for (const std::string& name : zone_parameters)
     if (!seen.count(name)) r.Fail("parameters." + name, "missing (a spring zone's stiffness)");
-  for (const ProfileParameter& p : out.parameters) {
+  for (const Parameter& p : out.parameters) {
     // An isotropic B2 stays tied, so that the rod model sees exactly what the fit's did.
     if (!p.tied_to.empty()) continue;
-    if (p.name == "linear_density") {
-      // The row is the rod's mass per length: --set on it sets the rod's; as written it must
-      // agree with rod.linear_density.
-      if (!p.overridden && p.value != scene.rod.linear_density)
-        r.Fail("parameters.linear_density.value",
-               "disagrees with rod.linear_density (" + Show(scene.rod.linear_density) + ")");
-      scene.rod.linear_density = p.value;
-      continue;
+    const MaterialParameterInfo* row = FindMaterialParameter(p.name);
+    if (row && row->rod_field) {
+      // A row of the rod (its mass per length, a moving fit's): --set on it sets the rod's; as
+      // written it must agree with the rod's block.
+      if (!p.overridden && p.value != scene.rod.*(row->rod_field))
+        r.Fail("parameters." + p.name + ".value",
+               "disagrees with rod." + p.name + " (" + Show(scene.rod.*(row->rod_field)) + ")");
     }
-    AssignMaterialParameter(p.name, p.value, &scene.material);
+    AssignMaterialParameter(p.name, p.value, &scene.material, &scene.rod);
   }
   if (scene.section && !(scene.rod.radius > 0.0))
     r.Fail("rod.radius", "must be > 0 with a section");

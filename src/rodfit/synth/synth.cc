@@ -939,7 +939,9 @@ std::string FormatTruthJson(const Experiment& experiment, const std::vector<Case
   std::map<std::string, double> values;
   for (const auto& [name, spec] : experiment.parameters) values[name] = spec.value;
   // A moving scene's rod density is a parameter its fit may estimate: listed with the rest.
-  if (experiment.scene.dynamics) values["linear_density"] = experiment.scene.rod.linear_density;
+  if (experiment.scene.dynamics)
+    for (const MaterialParameterInfo& row : MaterialParameters())
+      if (row.rod_field) values[row.name] = experiment.scene.rod.*(row.rod_field);
   bool first = true;
   for (const auto& [name, value] : values) {
     out += std::string(first ? "" : ",") + "\n    " + nlohmann::json(name).dump() + ": " +
