@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "rodfit/fit/fit.h"
+#include "rodfit/io/settings.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/observe/camera.h"
@@ -33,7 +34,6 @@ inline constexpr int kMaxSamples = 100000;     ///< an observation's count (synt
 inline constexpr int kMaxDragSteps = 1000;     ///< grasp_force count (cases of the fit)
 inline constexpr double kMaxBlurPx = 100.0;    ///< images: blur [px]
 inline constexpr double kMaxNoiseGrey = 255.0; ///< images: noise [grey levels]
-inline constexpr int kMaxFitIterations = 10000;  ///< fit.max_iterations
 
 /// One entry of a case's `observations:` (docs/formats.md, "Observation entries"). Which keys an
 /// entry takes is declared by its kind (rodfit/pipeline/observation_kind.h, through EntryKeys
@@ -152,14 +152,10 @@ struct CaseSpec {
   int line = 0;  ///< 1-based line of the case's entry
 };
 
-/// The optional top-level `fit:` block; defaults apply when it or a key is absent.
-struct FitSpec {
-  RobustLoss loss = RobustLoss::kNone;  ///< robust loss: none | huber | cauchy | soft_l1
-  double loss_scale = 1.0;          ///< residual (in sigmas) where the loss turns robust, > 0
-  bool global = false;              ///< NLopt global search before Ceres
-  int max_iterations = 100;         ///< Ceres iterations, >= 1
-  bool trusted_sigmas = false;      ///< covariance unscaled by the residual variance
-  int line = 0;                     ///< 1-based line of `fit:`, 0 when absent
+/// The optional top-level `fit:` block: FitOptions' settings as the file gives them (their
+/// defaults where it does not; rodfit/io/settings.h declares the keys).
+struct FitSpec : FitOptions {
+  int line = 0;  ///< 1-based line of `fit:`, 0 when absent
 };
 
 struct Experiment {

@@ -1075,92 +1075,84 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   ex->cases.push_back(spec);
 }
 
-StaticsOptions ReadSolver(const Reader& r, const Field& f) {
-  const Entries m =
-      r.Map(f, {"max_iterations", "gradient_tolerance", "step_tolerance", "escape_saddles"});
-  StaticsOptions o;
-  if (const Field* it = Reader::Find(m, "max_iterations")) {
-    o.max_iterations = r.IntegerIn(*it, 1, 100000);
-  }
-  if (const Field* g = Reader::Find(m, "gradient_tolerance")) {
-    o.gradient_tolerance = r.InRange(*g, 1e-16, 1e-2);
-  }
-  if (const Field* st = Reader::Find(m, "step_tolerance")) {
-    o.step_tolerance = r.InRange(*st, 1e-16, 1e-2);
-  }
-  if (const Field* e = Reader::Find(m, "escape_saddles")) o.escape_saddles = r.Bool(*e);
-  return o;
-}
+// A settings block (`solver:`, `fit:`, `dynamics:`) as its configuration declares it
+// (rodfit/io/settings.h). Collecting, it records the keys declared (the block's allowed keys);
+// reading, it checks and reads each key the block holds.
+class YamlSettings final : public SettingsArchive {
+ public:
+  YamlSettings(const Reader& r, const Field& block, const Entries& keys, bool reading)
+      : r_(r), block_(block), keys_(keys), reading_(reading) {}
 
-// Steps a run may take in all (duration / time_step): beyond it the run would take hours.
-constexpr double kMaxDynamicSteps = 1e8;
+  const std::vector<std::string>& declared() const { return declared_; }
 
-DynamicsSpec ReadDynamics(const Reader& r, const Field& f, int* integrator_line) {
-  const Entries m =
-      r.Map(f, {"time_step", "duration", "integrator", "output_every", "substep", "max_halvings"});
-  DynamicsSpec d;
-  const Field& dt = r.Require(m, f, "time_step");
-  d.time_step = r.InRange(dt, 1e-12, 10.0);
-  d.duration = r.InRange(r.Require(m, f, "duration"), 0.0, 1e6);
-  if (d.duration / d.time_step > kMaxDynamicSteps)
-    r.Fail(dt, "gives " + Show(d.duration / d.time_step) + " steps, above the limit of " +
-                   Show(kMaxDynamicSteps));
-  *integrator_line = f.key_line;
-  if (const Field* integrator = Reader::Find(m, "integrator")) {
-    *integrator_line = integrator->line;
-    d.integrator = r.Text(*integrator);
-    // `implicit`: the default implicit integrator (BDF2, docs/solvers.md, "Dynamics").
-    if (d.integrator == "implicit") d.integrator = "bdf2";
-    if (d.integrator != "explicit" && d.integrator != "backward_euler" &&
-        d.integrator != "midpoint" && d.integrator != "bdf2")
-      r.Fail(*integrator, "must be explicit, implicit, backward_euler, midpoint or bdf2, got '" +
-                              ClipForMessage(d.integrator) + "'");
+  bool reading() const override { return reading_; }
+  void Integer(const char* key, int* value, int lo, int hi) override {
+    if (const Field* f = Take(key)) *value = r_.IntegerIn(*f, lo, hi);
   }
-  if (const Field* every = Reader::Find(m, "output_every")) {
-    d.output_every = r.Integer(*every);
-    if (d.output_every < 1 || d.output_every > 100000000)
-      r.Fail(*every, "must be in [1, 1e8], got " + std::to_string(d.output_every));
+  void Count(const char* key, int* value, int lo, int hi) override {
+    if (const Field* f = Take(key)) {
+      *value = r_.Integer(*f);
+      if (*value < lo || *value > hi)
+        r_.Fail(*f, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+                        std::to_string(*value));
+    }
   }
-  if (const Field* sub = Reader::Find(m, "substep")) d.substep = r.Bool(*sub);
-  if (d.substep && d.integrator != "explicit") r.Fail(*Reader::Find(m, "substep"), "is for the explicit integrator only");
-  if (const Field* halvings = Reader::Find(m, "max_halvings")) {
-    if (d.integrator == "explicit") r.Fail(*halvings, "is for the implicit integrators only");
-    d.max_halvings = r.Integer(*halvings);
-    if (d.max_halvings < 0 || d.max_halvings > kMaxStepHalvings)
-      r.Fail(*halvings, "must be in [0, " + std::to_string(kMaxStepHalvings) + "], got " +
-                            std::to_string(d.max_halvings));
+  void Number(const char* key, double* value, double lo, double hi) override {
+    if (const Field* f = Take(key)) *value = r_.InRange(*f, lo, hi);
   }
-  return d;
-}
-
-FitSpec ReadFit(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"loss", "loss_scale", "global", "max_iterations", "trusted_sigmas"});
-  FitSpec fit;
-  fit.line = f.key_line;
-  if (const Field* loss = Reader::Find(m, "loss")) {
-    const std::string name = r.Text(*loss);
-    bool known = false;
-    for (RobustLoss t :
-         {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy, RobustLoss::kSoftL1}) {
-      if (name == RobustLossName(t)) {
-        fit.loss = t;
-        known = true;
+  void Positive(const char* key, double* value) override {
+    if (const Field* f = Take(key)) *value = r_.Positive(*f);
+  }
+  void Bool(const char* key, bool* value) override {
+    if (const Field* f = Take(key)) *value = r_.Bool(*f);
+  }
+  void Choice(const char* key, int* index, const std::vector<std::string>& words,
+              const std::string& expected) override {
+    const Field* f = Take(key);
+    if (!f) return;
+    const std::string word = r_.Text(*f);
+    for (size_t k = 0; k < words.size(); ++k)
+      if (word == words[k]) {
+        *index = static_cast<int>(k);
+        return;
       }
-    }
-    if (!known) {
-      r.Fail(*loss, "unknown loss '" + ClipForMessage(name) +
-                        "' (allowed: none, huber, cauchy, soft_l1)");
-    }
+    r_.Fail(*f, expected + ", got '" + ClipForMessage(word) + "'");
   }
-  if (const Field* scale = Reader::Find(m, "loss_scale")) fit.loss_scale = r.Positive(*scale);
-  if (const Field* global = Reader::Find(m, "global")) fit.global = r.Bool(*global);
-  if (const Field* iterations = Reader::Find(m, "max_iterations")) {
-    fit.max_iterations = r.IntegerIn(*iterations, 1, kMaxFitIterations);
+  void Require(const char* key) override {
+    if (reading_) r_.Require(keys_, block_, key);
   }
-  if (const Field* trusted = Reader::Find(m, "trusted_sigmas")) {
-    fit.trusted_sigmas = r.Bool(*trusted);
+  bool Has(const char* key) const override { return Reader::Find(keys_, key) != nullptr; }
+  void Check(bool ok, const char* key, const std::string& message) override {
+    if (!reading_ || ok) return;
+    if (const Field* f = Reader::Find(keys_, key)) r_.Fail(*f, message);
+    r_.Fail(block_, message);
   }
-  return fit;
+
+ private:
+  const Field* Take(const char* key) {
+    declared_.push_back(key);
+    return reading_ ? Reader::Find(keys_, key) : nullptr;
+  }
+
+  const Reader& r_;
+  const Field& block_;
+  const Entries& keys_;
+  bool reading_;
+  std::vector<std::string> declared_;
+};
+
+// Reads a settings block into `config` (its defaults where the block says nothing); returns the
+// block's entries.
+template <class Config>
+Entries ReadSettings(const Reader& r, const Field& f, Config* config) {
+  static const Entries kNoKeys;
+  Config scratch;
+  YamlSettings keys(r, f, kNoKeys, /*reading=*/false);
+  Serialize(&keys, &scratch);
+  const Entries m = r.Map(f, keys.declared());
+  YamlSettings read(r, f, m, /*reading=*/true);
+  Serialize(&read, config);
+  return m;
 }
 
 // Before yaml-cpp sees the text: no control characters (binary data; yaml-cpp's messages for
@@ -1247,14 +1239,22 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
     zone_parameters = ReadSprings(r, *springs, &ex);
   }
   // Before the parameters: whether the scene moves decides which of them may be fitted.
-  if (const Field* dynamics = Reader::Find(m, "dynamics"))
-    ex.scene.dynamics = ReadDynamics(r, *dynamics, &ex.integrator_line);
+  if (const Field* dynamics = Reader::Find(m, "dynamics")) {
+    ex.scene.dynamics.emplace();
+    const Entries block = ReadSettings(r, *dynamics, &*ex.scene.dynamics);
+    // Where a fit that cannot use the integrator points: its key, or the block's.
+    const Field* integrator = Reader::Find(block, "integrator");
+    ex.integrator_line = integrator ? integrator->line : dynamics->key_line;
+  }
   // With a profile supplying the material (`simulate --profile`) the block may be left out.
   if (params || !parameters_optional)
     ReadParameters(r, params ? *params : r.Require(m, top, "parameters"), &ex, zone_parameters);
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
-  if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
-  if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
+  if (const Field* fit = Reader::Find(m, "fit")) {
+    ReadSettings(r, *fit, static_cast<FitOptions*>(&ex.fit));
+    ex.fit.line = fit->key_line;
+  }
+  if (const Field* solver = Reader::Find(m, "solver")) ReadSettings(r, *solver, &ex.statics);
   if (ex.scene.dynamics && ex.fit.line > 0) {
     // A moving scene's fit is plain least squares on the sequences (docs/formats.md,
     // "Observation sequences"): the static fit's robust losses and global search are not part

@@ -36,15 +36,7 @@ std::vector<Parameter> FitParametersOf(const Experiment& e) {
   return out;
 }
 
-FitOptions FitOptionsOf(const Experiment& e) {
-  FitOptions options;
-  options.loss = e.fit.loss;
-  options.loss_scale = e.fit.loss_scale;
-  options.global = e.fit.global;
-  options.max_iterations = e.fit.max_iterations;
-  options.trusted_sigmas = e.fit.trusted_sigmas;
-  return options;
-}
+FitOptions FitOptionsOf(const Experiment& e) { return e.fit; }
 
 FitInput BuildFitInput(const Experiment& e) {
   FitInput in;
