@@ -2,8 +2,11 @@
 # Builds everything and runs the whole test suite with CTest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# The tests also need a browser: the report test loads every bundled recipe's report in
+# headless Chromium (tests/cli/report_browser_test.cc), and fails rather than skips without it.
+./scripts/install_deps.sh --tests
 ./scripts/build.sh
-(cd build && ctest --output-on-failure -j"$(nproc)")
+(cd build && RODFIT_BROWSER_REQUIRED=1 ctest --output-on-failure -j"$(nproc)")
 
 # Issue 15: the fuzz corpus (tests/cli/fuzz_corpus_test.cc) once more on an address +
 # undefined-behaviour sanitizer build of the CLI and its libraries only (no tests, no

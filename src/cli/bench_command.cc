@@ -607,7 +607,19 @@ std::string Html(const std::vector<Row>& rows) {
   page += SkipTable(rows);
   const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
   int id = 0;
+  // A problem with fewer than two points that a log-log chart can show (one setting, or errors
+  // of exactly 0 or not measured) gets no chart, which would be empty or a lone dot: its rows
+  // are listed in a table after the charts instead.
+  std::vector<const Row*> unplotted;
   for (const std::string& problem : order) {
+    int drawable = 0;
+    for (const Row* r : by_problem[problem])
+      if (std::isfinite(r->error) && r->error > 0 && std::isfinite(r->t_median) && r->t_median > 0)
+        ++drawable;
+    if (drawable < 2) {
+      unplotted.insert(unplotted.end(), by_problem[problem].begin(), by_problem[problem].end());
+      continue;
+    }
     rodfit::svg::Figure f;
     f.title = problem;
     f.x.label = "time [s]";
@@ -631,6 +643,21 @@ std::string Html(const std::vector<Row>& rows) {
     }
     page += "<h2>" + rodfit::svg::Escape(problem) + "</h2>\n" +
             rodfit::svg::RenderSvg(f, "p" + std::to_string(id++)) + "\n";
+  }
+  if (!unplotted.empty()) {
+    page += "<h2>Problems with fewer than two points to plot</h2>\n<p>Measured at one setting, "
+            "or with an error of exactly 0 or not measured (not drawable on log axes):</p>\n"
+            "<table><tr><th>problem</th><th>setting</th><th>error</th><th>time [s]</th>"
+            "<th>verdict</th></tr>\n";
+    for (const Row* r : unplotted) {
+      char e[64], t[64];
+      std::snprintf(e, sizeof(e), "%.3g %s", r->error, r->error_unit.c_str());
+      std::snprintf(t, sizeof(t), "%.3g", r->t_median);
+      page += "<tr><td>" + rodfit::svg::Escape(r->problem) + "</td><td>" +
+              rodfit::svg::Escape(r->setting) + "</td><td>" + e + "</td><td>" + t + "</td><td>" +
+              rodfit::svg::Escape(r->verdict) + "</td></tr>\n";
+    }
+    page += "</table>\n";
   }
   page += "<h2>All rows</h2>\n<table><tr><th>problem</th><th>setting</th><th>error</th>"
           "<th>time [s]</th><th>iterations</th><th>converged</th><th>verdict</th></tr>\n";

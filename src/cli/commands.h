@@ -25,7 +25,7 @@ struct MarkerSampling {
 };
 int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scene_path,
                    const std::string& output_dir, bool keep_going,
-                   const MarkerSampling& markers = MarkerSampling());
+                   const MarkerSampling& markers = MarkerSampling(), bool quiet = false);
 
 // --- In the commands module (commands_module.cc).
 

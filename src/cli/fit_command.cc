@@ -57,14 +57,20 @@ std::string CheckThreads(const std::string& text) {
 // Stages the report (when asked) and the profile, then commits both together: the report first,
 // so that no profile claims a finished run without its report; when the profile cannot be
 // moved into place the report is rolled back. A failure leaves both locations as they were.
-void WriteOutputs(const rodfit::Experiment& experiment, const rodfit::FitInput& input,
-                  const rodfit::FitOptions& options, const rodfit::FitResult& result,
-                  const std::string& profile_path, const std::string& report_dir) {
+// Returns the report's own warnings (e.g. written without its 3-D views).
+std::vector<std::string> WriteOutputs(const rodfit::Experiment& experiment,
+                                      const rodfit::FitInput& input,
+                                      const rodfit::FitOptions& options,
+                                      const rodfit::FitResult& result,
+                                      const std::string& profile_path,
+                                      const std::string& report_dir,
+                                      const std::vector<std::string>& warnings) {
   std::vector<rodfit::StagedDirectory*> outputs;
   std::unique_ptr<rodfit::StagedDirectory> report;
+  std::vector<std::string> report_warnings;
   if (!report_dir.empty()) {
     report = std::make_unique<rodfit::StagedDirectory>(report_dir);
-    rodfit::WriteFitReport(report.get(), experiment, input, result);
+    report_warnings = rodfit::WriteFitReport(report.get(), experiment, input, result, warnings);
     outputs.push_back(report.get());
   }
   const std::filesystem::path profile(profile_path);
@@ -76,6 +82,7 @@ void WriteOutputs(const rodfit::Experiment& experiment, const rodfit::FitInput& 
                     "profile file name");
   outputs.push_back(&profile_dir);
   rodfit::CommitAll(outputs);
+  return report_warnings;
 }
 
 // The fitted parameters as the summary lists them.
@@ -93,33 +100,36 @@ void PrintEstimates(const rodfit::FitResult& result) {
 // The residual variance against its chi-square band, warned about on one line even with
 // --quiet (a warning is not progress). Trusted sigmas keep the std as stated, so nothing else
 // would show that the residuals are not what those sigmas predict; untrusted ones scale the
-// std by the variance, which covers sigmas stated too small but not a model error.
-rodfit::ResidualCheck WarnAboutResiduals(const rodfit::FitResult& result,
-                                         const rodfit::FitOptions& options) {
+// std by the variance, which covers sigmas stated too small but not a model error. The warning's
+// text (empty: none) goes into the report's summary too.
+std::string ResidualWarning(const rodfit::FitResult& result, const rodfit::FitOptions& options,
+                            rodfit::ResidualCheck* check_out) {
   const rodfit::ResidualCheck check = rodfit::CheckResiduals(result, options);
+  *check_out = check;
   const double v = result.residual_variance;
+  char text[640] = "";
   if (check.above && options.trusted_sigmas)
-    std::fprintf(stderr,
-                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
-                 "to %.2g for %d degrees of freedom): the model does not explain the data "
-                 "(cameras swapped? wrong units? sigmas too small?)\n",
-                 v, check.band.low, check.band.high, result.residual_dof);
+    std::snprintf(text, sizeof(text),
+                  "residual variance %.3g x the stated sigmas (expected %.2g to %.2g for %d "
+                  "degrees of freedom): the model does not explain the data (cameras swapped? "
+                  "wrong units? sigmas too small?)",
+                  v, check.band.low, check.band.high, result.residual_dof);
   else if (check.above)
-    std::fprintf(stderr,
-                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
-                 "to %.2g for %d degrees of freedom): %s; the std are scaled by it, but a model "
-                 "error (clamp pose, rod length, camera calibration, a missing load) is not "
-                 "noise and they do not cover it\n",
-                 v, check.band.low, check.band.high, result.residual_dof,
-                 check.gross ? "the model does not explain the data"
-                             : "the sigmas understate the noise, or the model misses something");
+    std::snprintf(text, sizeof(text),
+                  "residual variance %.3g x the stated sigmas (expected %.2g to %.2g for %d "
+                  "degrees of freedom): %s; the std are scaled by it, but a model error (clamp "
+                  "pose, rod length, camera calibration, a missing load) is not noise and they do "
+                  "not cover it",
+                  v, check.band.low, check.band.high, result.residual_dof,
+                  check.gross ? "the model does not explain the data"
+                              : "the sigmas understate the noise, or the model misses something");
   else if (check.below)
-    std::fprintf(stderr,
-                 "rodfit fit: warning: residual variance %.3g x the stated sigmas (expected %.2g "
-                 "to %.2g for %d degrees of freedom): the data scatter less than the sigmas "
-                 "say, so the std are too large (sigmas too large?)\n",
-                 v, check.band.low, check.band.high, result.residual_dof);
-  return check;
+    std::snprintf(text, sizeof(text),
+                  "residual variance %.3g x the stated sigmas (expected %.2g to %.2g for %d "
+                  "degrees of freedom): the data scatter less than the sigmas say, so the std are "
+                  "too large (sigmas too large?)",
+                  v, check.band.low, check.band.high, result.residual_dof);
+  return text;
 }
 
 // The exit status of a fit that wrote its profile (docs/cli.md, "Exit status").
@@ -145,10 +155,19 @@ int RunSequenceFit(const rodfit::Experiment& experiment, const std::string& expe
   }
   rodfit::ProgressLine progress(quiet, STDERR_FILENO);
   if (progress.enabled()) progress.Update("fit: integrating the cases with their sensitivities");
+  rodfit::MotionFitOptions fit_options = rodfit::SequenceFitOptionsOf(experiment, names);
+  if (progress.enabled()) {
+    fit_options.progress = [&progress](const rodfit::FitIterationInfo& i) {
+      char text[96];
+      std::snprintf(text, sizeof(text), "fit: iteration %d  cost %.4e  relative change %.1e",
+                    i.iteration, i.cost, i.relative_decrease);
+      progress.Update(text);
+    };
+  }
   rodfit::MotionFitResult motion;
   try {
     motion = rodfit::FitSequences(experiment.scene, input.sequences, names, experiment.statics,
-                                  rodfit::SequenceFitOptionsOf(experiment, names));
+                                  fit_options);
   } catch (const std::invalid_argument& e) {
     progress.Finish();
     std::cerr << "rodfit fit: " << experiment_path << ": " << e.what() << "\n";
@@ -168,8 +187,13 @@ int RunSequenceFit(const rodfit::Experiment& experiment, const std::string& expe
   const rodfit::FitResult result = rodfit::SequenceFitResult(experiment, input, motion, residuals);
   rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
   const rodfit::FitInput report_input;  // a moving experiment has no static cases
-  WriteOutputs(experiment, report_input, options, result, profile_path, report_dir);
-  const rodfit::ResidualCheck check = WarnAboutResiduals(result, options);
+  rodfit::ResidualCheck check;
+  std::vector<std::string> warnings;
+  if (std::string w = ResidualWarning(result, options, &check); !w.empty()) warnings.push_back(w);
+  for (const std::string& w :
+       WriteOutputs(experiment, report_input, options, result, profile_path, report_dir, warnings))
+    warnings.push_back(w);
+  for (const std::string& w : warnings) std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
   if (!quiet) {
     PrintEstimates(result);
     std::fprintf(stderr, "%d iterations, %d runs, %.3f s, residual variance %.3g; wrote %s\n",
@@ -247,7 +271,7 @@ int RunFit(int argc, char** argv) {
       const rodfit::RodModel model(input.rod, input.material, input.gravity, c.load_case,
                                    input.springs);
       for (const std::string& span : model.StretchedSpans(0.01))
-        stretched.push_back("case " + c.load_case.name + ": " + span);
+        stretched.push_back("case " + rodfit::DisplayCaseName(c.load_case.name) + ": " + span);
     } catch (const std::invalid_argument&) {
       // The fit names what is wrong with the case.
     }
@@ -284,14 +308,28 @@ int RunFit(int argc, char** argv) {
               << " (no profile written)\n";
     return EXIT_FAILURE;
   }
-  WriteOutputs(experiment, input, options, result, profile_path, report_dir);
+  // The run's warnings: every one in the report's summary, with what to do; on stderr the
+  // stretched spans in one line.
+  rodfit::ResidualCheck check;
+  std::vector<std::string> warnings;
+  for (const std::string& span : stretched)
+    warnings.push_back(span + " (check rod.length and the held positions)");
+  std::string residual_warning = ResidualWarning(result, options, &check);
+  if (!residual_warning.empty()) warnings.push_back(residual_warning);
+  const std::vector<std::string> report_warnings =
+      WriteOutputs(experiment, input, options, result, profile_path, report_dir, warnings);
   if (!stretched.empty())
     std::fprintf(stderr, "rodfit fit: warning: %s (check rod.length and the held positions)%s\n",
                  stretched.front().c_str(),
                  stretched.size() > 1
-                     ? (" and " + std::to_string(stretched.size() - 1) + " more like it").c_str()
+                     ? (" and " + std::to_string(stretched.size() - 1) + " more like it" +
+                        (report_dir.empty() ? std::string() : ", all in the report's summary"))
+                           .c_str()
                      : "");
-  const rodfit::ResidualCheck check = WarnAboutResiduals(result, options);
+  if (!residual_warning.empty())
+    std::fprintf(stderr, "rodfit fit: warning: %s\n", residual_warning.c_str());
+  for (const std::string& w : report_warnings)
+    std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
   if (!quiet) {
     PrintEstimates(result);
     std::fprintf(stderr, "%d iterations, %.3f s, residual variance %.3g; wrote %s\n",

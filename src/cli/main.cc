@@ -25,6 +25,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/output_dir.h"
+#include "rodfit/io/progress.h"
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/runtime/profile.h"
 #include "rodfit/solve/case_solve.h"
@@ -62,6 +63,8 @@ int RunSimulate(int argc, char** argv) {
   app.add_option("--seed", markers.seed, "random seed of the marker noise and drops");
   app.add_flag("--keep-going", keep_going,
                "write the cases that converged and summary.csv even when one fails (exit 3)");
+  bool quiet = false;
+  app.add_flag("-q,--quiet", quiet, "no progress line");
   std::string profile_path;
   std::vector<std::string> sets;
   app.add_option("--profile", profile_path,
@@ -86,7 +89,7 @@ int RunSimulate(int argc, char** argv) {
     rodfit::UseProfileMaterial(rodfit::LoadProfile(profile_path, read), &experiment.scene);
   }
   if (experiment.scene.dynamics)
-    return SimulateMotion(experiment, scene_path, output_dir, keep_going, markers);
+    return SimulateMotion(experiment, scene_path, output_dir, keep_going, markers, quiet);
   if (markers.count > 0)
     throw std::invalid_argument("--markers is for a moving scene (a dynamics: block)");
   const rodfit::Scene& scene = experiment.scene;
@@ -99,8 +102,14 @@ int RunSimulate(int argc, char** argv) {
   std::string first_failure;
   std::vector<rodfit::CaseSolution> solutions;
   solutions.reserve(scene.cases.size());
+  // Many cases or long rods: which case it is on (a terminal only; io/progress.h).
+  rodfit::ProgressLine progress(quiet, 2);
   for (size_t k = 0; k < scene.cases.size(); ++k) {
     const rodfit::LoadCase& load_case = scene.cases[k];
+    if (progress.enabled())
+      progress.Update("simulate: solving case " + std::to_string(k + 1) + " of " +
+                          std::to_string(scene.cases.size()) + " (" + load_case.name + ")",
+                      static_cast<double>(k) / scene.cases.size());
     const std::string where = CasePlace(scene_path, experiment.cases[k].line, load_case.name);
     rodfit::CaseSolution solution;
     try {
@@ -159,6 +168,7 @@ int RunSimulate(int argc, char** argv) {
     }
     solutions.push_back(std::move(solution));
   }
+  progress.Finish();
   if (!first_failure.empty() && !keep_going) {
     std::cerr << "rodfit simulate: " << first_failure << "\n";
     return EXIT_FAILURE;

@@ -1,8 +1,12 @@
 // `rodfit rollout SCENE.yaml RECORDING.csv -o DIR`: open-loop prediction of a recorded motion
 // (solve/rollout.h) and its mean absolute coordinate error.
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 #include <stdexcept>
@@ -17,7 +21,9 @@
 #include "rodfit/io/recording.h"
 #include "rodfit/fit/fit.h"
 #include "rodfit/fit/motion_fit.h"
+#include "rodfit/io/progress.h"
 #include "rodfit/model/material_parameters.h"
+#include "rodfit/report/rollout_report.h"
 #include "rodfit/solve/rollout.h"
 #include "rodfit/version.h"
 #include "rodfit/pipeline/experiment.h"
@@ -47,12 +53,16 @@ int RunRollout(int argc, char** argv) {
   app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (" +
                                         fittable + "); their scene values are the start, > 0");
   int smooth_frames = 5;
-  bool orient_ends = false;
+  std::string held_ends = "pins";
   app.add_option("--smooth", smooth_frames,
                  "held markers' paths smoothed by a centred quadratic over +-N frames (0: as recorded)")
       ->check(CLI::Range(0, 1000));
-  app.add_flag("--orient-ends", orient_ends,
-               "held markers 1 and n-2 orient the clamps at 0 and n-1 instead of being pinned");
+  app.add_option("--held-ends", held_ends,
+                 "how the held end markers hold the rod: pins (default: a clamp at marker 0 towards "
+                 "marker 1, markers 1 and n-2 pinned), grippers (clamps at markers 0 and n-1, "
+                 "their tangents from the first frames, roll by the minimal-twist frame) or "
+                 "free-roll (as grippers, the end free to turn about its tangent)")
+      ->check(CLI::IsMember({"grippers", "free-roll", "pins"}));
   app.add_option("--max-evaluations", max_evaluations, "rollouts of every recording the fit may take")
       ->check(CLI::Range(1, 100000));
   std::string method = "lm";
@@ -71,6 +81,12 @@ int RunRollout(int argc, char** argv) {
   app.add_option("--held", held_text, "driven markers, comma separated; negative from the last (default 0,1,-2,-1)");
   app.add_option("--initial", initial, "equilibrium (default) or markers: the start shape")
       ->check(CLI::IsMember({"equilibrium", "markers"}));
+  std::string report_dir;
+  bool quiet = false;
+  app.add_option("--report", report_dir,
+                 "also write a report into DIR: index.html (error table, fitted parameters, per "
+                 "recording a 3-D view over time and each marker's path) and its figures");
+  app.add_flag("-q,--quiet", quiet, "no progress line");
   std::string parameters_path;
   app.add_option("--parameters", parameters_path,
                  "a motion_fit.json of rollout --fit on other recordings of the rod: its values "
@@ -79,6 +95,14 @@ int RunRollout(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  }
+  if (!report_dir.empty()) {
+    // Two staged directories moved onto one folder would replace each other: said before any
+    // work.
+    std::error_code ec;
+    if (std::filesystem::weakly_canonical(report_dir, ec) ==
+        std::filesystem::weakly_canonical(output_dir, ec))
+      throw std::invalid_argument("--report DIR must differ from -o DIR (" + output_dir + ")");
   }
   const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
   if (!experiment.scene.dynamics)
@@ -89,12 +113,14 @@ int RunRollout(int argc, char** argv) {
     recs.push_back(rodfit::ReadMarkerRecording(path, frame_rate, unit == "mm" ? 1e-3 : 1.0));
     rodfit::CheckRecordingScale(recs.back(), experiment.scene.rod.length,
                                 unit == "mm" ? "--unit mm is set" : "give --unit mm");
-    data.push_back({recs.back().frame_interval, recs.back().frames});
+    data.push_back({path, recs.back().frame_interval, recs.back().frames});
   }
   rodfit::RolloutOptions options;
   options.initial_equilibrium = initial == "equilibrium";
   options.smooth_frames = smooth_frames;
-  options.pin_pairs = !orient_ends;
+  options.held_ends = held_ends == "grippers"    ? rodfit::RolloutOptions::HeldEnds::kGrippers
+                      : held_ends == "free-roll" ? rodfit::RolloutOptions::HeldEnds::kFreeRoll
+                                                 : rodfit::RolloutOptions::HeldEnds::kPinnedPairs;
   options.held_markers.clear();
   {
     std::stringstream ss(held_text);
@@ -119,6 +145,10 @@ int RunRollout(int argc, char** argv) {
                 "bend_stiffness) times twist_stiffness\n",
                 scene.material.twist_damping);
   std::string fit_json;
+  // On a terminal, one updating line while the fit and the rollouts run (io/progress.h).
+  rodfit::ProgressLine progress(quiet, STDERR_FILENO);
+  std::vector<std::string> warnings;  // every warning of the run, for the report too
+  std::unique_ptr<rodfit::MotionFitResult> fitted;
   if (!fit_text.empty()) {
     SilenceCeresLogging();
     std::vector<std::string> names;
@@ -130,12 +160,24 @@ int RunRollout(int argc, char** argv) {
                                             : rodfit::MotionFitMethod::kLevenbergMarquardt;
     fit_options.max_evaluations = max_evaluations;
     fit_options.marker_sigma = marker_sigma;
+    if (progress.enabled()) {
+      progress.Update("rollout --fit: rolling out the recordings with their sensitivities");
+      fit_options.progress = [&progress](const rodfit::FitIterationInfo& i) {
+        char text[112];
+        std::snprintf(text, sizeof(text),
+                      "rollout --fit: iteration %d  cost %.4e  relative change %.1e", i.iteration,
+                      i.cost, i.relative_decrease);
+        progress.Update(text);
+      };
+    }
     rodfit::MotionFitResult fit;
     try {
       fit = rodfit::FitMotion(scene, data, names, options, experiment.statics, fit_options);
     } catch (const std::invalid_argument& e) {
+      progress.Finish();
       throw std::invalid_argument(std::string("--fit: ") + e.what());
     }
+    progress.Finish();
     // A least-squares fit that did not converge is not a result: said so, nothing written. The
     // derivative-free search has no such test (its budget is its stop) and is written as before.
     if (!fit.converged && fit_options.method == rodfit::MotionFitMethod::kLevenbergMarquardt) {
@@ -189,7 +231,10 @@ int RunRollout(int argc, char** argv) {
     std::printf("fitted over %zu recording(s) in %d rollouts (%s, %.3g s): mean error %.4g m -> %.4g m\n",
                 data.size(), fit.evaluations, fit.method.c_str(), fit.seconds, fit.error_start,
                 fit.error_fitted);
-    if (!fit.converged) std::fprintf(stderr, "rodfit rollout: --fit: %s\n", fit.message.c_str());
+    if (!fit.converged) {
+      std::fprintf(stderr, "rodfit rollout: --fit: %s\n", fit.message.c_str());
+      warnings.push_back("--fit: " + fit.message);
+    }
     for (size_t k = 0; k < names.size(); ++k) {
       std::printf("  %s: %.6g -> %.6g", names[k].c_str(), fit.start[k], fit.values[k]);
       if (fit.identifiable[k])
@@ -204,27 +249,40 @@ int RunRollout(int argc, char** argv) {
     if (marker_sigma > 0.0 && fit.residuals > static_cast<int>(names.size())) {
       const rodfit::VarianceBand band =
           rodfit::ResidualVarianceBand(fit.residuals - static_cast<int>(names.size()));
-      if (fit.residual_variance > band.high)
-        std::fprintf(stderr,
-                     "rodfit rollout: warning: residual variance %.3g x the marker noise "
-                     "(expected %.2g to %.2g for %d degrees of freedom): the model does not "
-                     "explain the recording to its noise (held points not as recorded? "
-                     "--marker-sigma too small?); the values carry model error\n",
-                     fit.residual_variance, band.low, band.high,
-                     fit.residuals - static_cast<int>(names.size()));
+      if (fit.residual_variance > band.high) {
+        char text[400];
+        std::snprintf(text, sizeof(text),
+                      "residual variance %.3g x the marker noise (expected %.2g to %.2g for %d "
+                      "degrees of freedom): the model does not explain the recording to its "
+                      "noise (held points not as recorded? --marker-sigma too small?); the "
+                      "values carry model error",
+                      fit.residual_variance, band.low, band.high,
+                      fit.residuals - static_cast<int>(names.size()));
+        std::fprintf(stderr, "rodfit rollout: warning: %s\n", text);
+        warnings.push_back(text);
+      }
     }
+    fitted = std::make_unique<rodfit::MotionFitResult>(fit);
   }
   std::string csv = "recording,frame,t,marker,s,held,observed_x,observed_y,observed_z,x,y,z\n";
   double sum_all = 0.0, sum_predicted = 0.0;
   int samples = 0;
+  rodfit::RolloutReportInput report;
+  report.scene_path = scene_path;
   for (size_t r = 0; r < recs.size(); ++r) {
     const rodfit::MarkerRecording& rec = recs[r];
     rodfit::RolloutResult result;
+    if (progress.enabled())
+      progress.Update("rollout: recording " + std::to_string(r + 1) + " of " +
+                          std::to_string(recs.size()),
+                      static_cast<double>(r) / recs.size());
     try {
       result = rodfit::Rollout(scene, rec.frame_interval, rec.frames, options, experiment.statics);
     } catch (const std::invalid_argument& e) {
+      progress.Finish();
       throw rodfit::InputError(rec.file, 0, "", e.what());
     }
+    progress.Finish();
     if (!result.ok) {
       std::cerr << "rodfit rollout: " << rec.file << ": " << result.reason << "\n";
       return EXIT_FAILURE;
@@ -243,9 +301,27 @@ int RunRollout(int argc, char** argv) {
     sum_all += result.mae_all;
     sum_predicted += result.mae_predicted;
     samples += result.samples;
-    if (result.halved_steps > 0)
+    if (result.halved_steps > 0) {
       std::cout << rec.file << ": " << result.halved_steps << " of its steps were taken in halves "
                 << "(Newton did not converge at dynamics.time_step; dynamics.max_halvings)\n";
+      warnings.push_back(rec.file + ": " + std::to_string(result.halved_steps) +
+                         " of its steps were taken in halves (Newton did not converge at "
+                         "dynamics.time_step): a smaller dynamics.time_step avoids it");
+    }
+    if (!report_dir.empty()) report.recordings.push_back({rec.file, rec.frame_interval, rec.frames, result});
+  }
+  // The report is staged beside the outputs and committed with them (nothing half-written).
+  std::unique_ptr<rodfit::StagedDirectory> report_out;
+  std::vector<std::string> report_warnings;
+  if (!report_dir.empty()) {
+    std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
+    for (const std::string& path : recording_paths) inputs.emplace_back(path, "recording");
+    if (!parameters_path.empty()) inputs.emplace_back(parameters_path, "--parameters");
+    rodfit::RefuseOverwritingInput((std::filesystem::path(report_dir) / "index.html").string(), inputs);
+    report.fit = fitted.get();
+    report.warnings = warnings;
+    report_out = std::make_unique<rodfit::StagedDirectory>(report_dir);
+    report_warnings = rodfit::WriteRolloutReport(report_out.get(), report);
   }
   rodfit::StagedDirectory out(output_dir);
   std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
@@ -256,7 +332,12 @@ int RunRollout(int argc, char** argv) {
     out.Write("motion_fit.json", fit_json, "output file name");
     rodfit::RefuseOverwritingInput(out.FinalPath("motion_fit.json"), inputs);
   }
-  out.Commit();
+  if (report_out)
+    rodfit::CommitAll({report_out.get(), &out});
+  else
+    out.Commit();
+  for (const std::string& w : report_warnings)
+    std::fprintf(stderr, "rodfit rollout: warning: %s\n", w.c_str());
   const double n = static_cast<double>(recs.size());
   char line[256];
   std::snprintf(line, sizeof(line),

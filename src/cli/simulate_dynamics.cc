@@ -12,6 +12,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
+#include "rodfit/io/progress.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/solve/case_dynamics.h"
@@ -50,7 +51,10 @@ std::string MarkersCsv(const std::vector<rodfit::CaseMotion>& motions, const Mar
 }  // namespace
 
 int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scene_path,
-                   const std::string& output_dir, bool keep_going, const MarkerSampling& markers) {
+                   const std::string& output_dir, bool keep_going, const MarkerSampling& markers,
+                   bool quiet) {
+  // A long integration shows which case it is on (a terminal only; io/progress.h).
+  rodfit::ProgressLine progress(quiet, 2);
   const rodfit::Scene& scene = experiment.scene;
   std::vector<rodfit::CaseMotion> motions;
   std::vector<rodfit::MotionSummaryRow> summary;
@@ -59,6 +63,10 @@ int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scen
   for (size_t k = 0; k < scene.cases.size(); ++k) {
     const rodfit::LoadCase& load_case = scene.cases[k];
     rodfit::CaseTrajectory trajectory;
+    if (progress.enabled())
+      progress.Update("simulate: integrating case " + std::to_string(k + 1) + " of " +
+                          std::to_string(scene.cases.size()) + " (" + load_case.name + ")",
+                      static_cast<double>(k) / scene.cases.size());
     try {
       trajectory = rodfit::SimulateCaseDynamics(scene, static_cast<int>(k), experiment.statics);
     } catch (const std::invalid_argument& e) {
@@ -88,6 +96,7 @@ int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scen
     // A case that stopped early keeps the frames up to there only with --keep-going.
     if (trajectory.ok || keep_going) motions.push_back(std::move(motion));
   }
+  progress.Finish();
   if (!first_failure.empty() && !keep_going) {
     std::cerr << "rodfit simulate: " << first_failure << "\n";
     return EXIT_FAILURE;

@@ -242,7 +242,7 @@ void BM_FitRecording500Frames(benchmark::State& st) {
   options.marker_sigma = 1e-3;
   MotionFitResult r;
   for (auto _ : st) {
-    r = FitMotion(start, {{testing::kFrameInterval, frames}}, {"bend_stiffness", "damping"},
+    r = FitMotion(start, {{"", testing::kFrameInterval, frames}}, {"bend_stiffness", "damping"},
                   RolloutOptions(), StaticsOptions(), options);
     benchmark::DoNotOptimize(r.values.data());
   }

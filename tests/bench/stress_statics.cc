@@ -4,7 +4,7 @@
 // (the continuous Kirchhoff-rod shooting solver of src/rodfit/reference, or a closed form). Each row
 // ends "ok" (converged and right, or refused with a message) or "WRONG" (an answer returned as
 // converged that is not the reference's, or stable when it is not); any WRONG row makes the
-// program exit 1. Prints a Markdown table (the README's stress table).
+// program exit 1. Prints a Markdown table (the stress table of docs/performance.md).
 // Run: build/stress_statics   (Release build, one core; ~1 minute)
 #include <chrono>
 #include <cmath>

@@ -92,9 +92,11 @@ class DocsArchive final : public SettingsArchive {
     ++keys_;
     const std::string row = RowOf(key);
     const std::vector<double> range = NumbersAfter(row, "in [", 2);
-    ASSERT_EQ(range.size(), 2u) << row;
+    ASSERT_GE(range.size(), 1u) << row;
     EXPECT_DOUBLE_EQ(range[0], lo) << row;
-    EXPECT_DOUBLE_EQ(range[1], hi) << row;
+    // An upper bound that is another setting is named by its key (min_time_step's `time_step`).
+    if (range.size() == 2) EXPECT_DOUBLE_EQ(range[1], hi) << row;
+    else EXPECT_NE(row.find(", `"), std::string::npos) << row;
   }
   void Default(const char* key, double value) {
     for (const std::string& r : required_)
@@ -123,7 +125,7 @@ TEST(SettingsDocs, EveryKeyHasItsRangeAndDefaultInTheDocs) {
   // The numeric keys were all visited (a Serialize that declares none would pass vacuously).
   EXPECT_EQ(solver.keys(), 3);
   EXPECT_EQ(fitting.keys(), 1);
-  EXPECT_EQ(moving.keys(), 4);
+  EXPECT_EQ(moving.keys(), 6);
 }
 
 }  // namespace

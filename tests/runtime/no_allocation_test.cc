@@ -4,7 +4,8 @@
 // drag (quasi-static, with and without the held orientation, and dynamic) and a poke
 // (quasi-static and dynamic) — each read back as a haptic loop does: Step(), the shape, the tool's force and torque, and the tube
 // mesh with the poke's dent into a kept buffer (Runtime::Mesh(TubeMesh*)). Every other test of
-// the program runs with the flag down.
+// the program runs with the flag down; the program's other files count through
+// allocation_counter.h (the tool-path torture test does).
 #include <atomic>
 #include <cstdlib>
 #include <cmath>
@@ -19,6 +20,7 @@
 
 #include "rodfit/runtime/profile.h"
 #include "rodfit/runtime/runtime.h"
+#include "runtime/allocation_counter.h"
 
 extern "C" {
 void* __libc_malloc(std::size_t size);
@@ -67,6 +69,20 @@ int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
 }
 void free(void* p) { __libc_free(p); }
 }
+
+namespace rodfit_test {
+
+void StartCountingAllocations() {
+  g_allocations = 0;
+  g_counting = true;
+}
+
+long StopCountingAllocations() {
+  g_counting = false;
+  return g_allocations.load();
+}
+
+}  // namespace rodfit_test
 
 namespace rodfit {
 namespace {
@@ -176,6 +192,50 @@ TEST_P(NoAllocation, InFailedSteps) {
     EXPECT_EQ(count, 0) << "malloc called " << count << " times in 20 failing ticks ("
                         << (budget ? "budget" : "iterations") << ")";
   }
+}
+
+// Nor does a tick that refuses its input or holds the grasp at the strain limit: their messages
+// name values (NaN, 1e308, a mirrored rotation, an absurd push) formatted into the runtime's own
+// buffer.
+TEST_P(NoAllocation, InRefusedAndStrainLimitedSteps) {
+  const Mode m = GetParam();
+  const Profile p = LoadProfile(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + m.profile);
+  RuntimeOptions options;
+  options.mode = m.mode;
+  options.tool = m.tool;
+  options.tool_s = m.s;
+  options.hold_orientation = m.hold_orientation;
+  Runtime rt(p, options);
+  const Vec3 home = rt.ToolPosition();
+  const double nan = std::nan("");
+  int refused = 0, limited = 0;
+  const char* last = "";
+  const long count = AllocationsDuring(
+      [&](int k) {
+        if (m.tool == ToolKind::kGrasp) {
+          const Vec3 inputs[] = {Vec3(nan, 0.0, 0.0), Vec3(0.0, 1e308, 0.0),
+                                 home + Vec3(1.0, 0.0, 0.0), home};
+          rt.SetToolPosition(inputs[k % 4]);
+        } else {
+          const Vec3 inputs[] = {Vec3(0.0, nan, 0.0), Vec3(0.0, 0.0, -1e308), Vec3(0.0, -0.01, 0.0)};
+          rt.SetToolForce(inputs[k % 3]);
+        }
+        if (m.hold_orientation && k % 8 == 7)
+          rt.SetToolOrientation(Vec3(1.0, 1.0, -1.0).asDiagonal());
+        else if (m.hold_orientation)
+          rt.SetToolOrientation(Eigen::Matrix3d::Identity());
+        const StepReport r = rt.Step();
+        refused += r.status == StepStatus::kToolRefused;
+        limited += r.status == StepStatus::kStrainLimit;
+        last = r.message;
+      },
+      40);
+  EXPECT_GT(refused, 0);
+  if (m.tool == ToolKind::kGrasp) {
+    EXPECT_GT(limited, 0);
+  }
+  EXPECT_NE(last, nullptr);
+  EXPECT_EQ(count, 0) << "malloc called " << count << " times in 40 refused or limited ticks";
 }
 
 INSTANTIATE_TEST_SUITE_P(

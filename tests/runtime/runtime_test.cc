@@ -9,6 +9,7 @@
 #include <string>
 
 #include <Eigen/Geometry>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "rodfit/runtime/profile.h"
@@ -19,6 +20,8 @@
 
 namespace rodfit {
 namespace {
+
+using ::testing::HasSubstr;
 
 Profile Bundled(const std::string& name) {
   return LoadProfile(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + name);
@@ -239,10 +242,12 @@ TEST(Runtime, FailedStepKeepsTheLastGoodState) {
   EXPECT_EQ(r.status, StepStatus::kNotConverged);
   EXPECT_EQ(rt.Shape(), good);
   EXPECT_EQ(rt.ToolForce(), good_force);
-  // A non-finite tool position from a glitching device: refused, state kept.
+  EXPECT_THAT(r.message, HasSubstr("iteration limit reached after 1 Newton iterations"));
+  // A non-finite tool position from a glitching device: refused, state kept, the value named.
   rt.SetToolPosition(Vec3(std::nan(""), 0.0, 0.0));
   r = rt.Step();
-  EXPECT_EQ(r.status, StepStatus::kNotConverged);
+  EXPECT_EQ(r.status, StepStatus::kToolRefused);
+  EXPECT_THAT(r.message, HasSubstr("tool position x = nan is not finite"));
   EXPECT_EQ(rt.Shape(), good);
   EXPECT_TRUE(std::isinf(r.tool_lag));
   // Back where the rod is in equilibrium, the loop carries on.
@@ -250,6 +255,42 @@ TEST(Runtime, FailedStepKeepsTheLastGoodState) {
   r = rt.Step();
   EXPECT_TRUE(r.ok());
   EXPECT_EQ(r.tool_lag, 0.0);
+}
+
+// A quasi-static solve cut short by its iteration cap is not thrown away nor tried again whole:
+// the next tick resumes it from where it stopped, and ends in the equilibrium a solve with
+// iterations to spare finds for the same move.
+TEST(Runtime, SolveCutShortIsResumedByTheNextTick) {
+  const Profile p = Bundled("suture.json");
+  RuntimeOptions options;
+  options.tool_s = 0.2;
+  options.max_iterations = 1;  // the move below needs more (printed)
+  Runtime rt(p, options);
+  options.max_iterations = 20;
+  Runtime reference(p, options);
+  const Vec3 target = rt.ToolPosition() + Vec3(-2e-4, 1e-4, 0.0);
+  rt.SetToolPosition(target);
+  reference.SetToolPosition(target);
+  const StepReport done = reference.Step();
+  ASSERT_TRUE(done.ok());
+  ASSERT_GT(done.iterations, 1);
+  StepReport r = rt.Step();
+  ASSERT_EQ(r.status, StepStatus::kNotConverged);
+  EXPECT_THAT(r.message, HasSubstr("the next tick resumes the solve"));
+  int ticks = 1, iterations = r.iterations;
+  while (!r.ok() && ticks < 5) {
+    r = rt.Step();
+    iterations += r.iterations;
+    ++ticks;
+  }
+  ASSERT_TRUE(r.ok()) << r.message;
+  std::printf("cut short at 1 iteration a tick: converged at tick %d after %d iterations in all "
+              "(uncut: %d)\n", ticks, iterations, done.iterations);
+  EXPECT_EQ(r.tool_lag, 0.0);
+  // One Newton iteration a tick, resumed: about the iterations of the uncut solve, not a restart
+  // per tick.
+  EXPECT_LE(iterations, done.iterations + 1);
+  EXPECT_LT((rt.Shape() - reference.Shape()).cwiseAbs().maxCoeff(), 1e-9 * p.scene.rod.length);
 }
 
 // A tool that jumps far ahead (a lost tracking frame) is followed at max_tool_move per tick:
@@ -609,8 +650,8 @@ TEST(Runtime, DynamicCyclicPokeGainsNoEnergy) {
 }
 
 // A dynamic poke's step that does not converge keeps the last good state, and the force on the
-// tool stays the last good step's; a non-finite force is refused the same way; the loop carries
-// on once the force is one the step can follow.
+// tool stays the last good step's; an absurd or non-finite force is refused, the state kept the
+// same way; the loop carries on once the force is one the step can follow.
 TEST(Runtime, FailedDynamicPokeStepKeepsTheLastGoodState) {
   const Profile p = DampedPokeProfile();
   Runtime rt(p, DynamicPoke());
@@ -619,11 +660,11 @@ TEST(Runtime, FailedDynamicPokeStepKeepsTheLastGoodState) {
   const Mat3X good = rt.Shape();
   const double good_time = rt.time(), good_kinetic = rt.KineticEnergy();
   ASSERT_GT(good_kinetic, 0.0);  // in motion
-  // An absurd push (10^4 N on a bowel weighing 0.66 N): the step's Newton iterations cannot
-  // follow it.
+  // An absurd push (10^4 N on a bowel weighing 0.66 N, above max_strain EA = 4 N): refused.
   rt.SetToolForce(Vec3(0.0, -1e4, 0.0));
   StepReport r = rt.Step();
-  EXPECT_EQ(r.status, StepStatus::kNotConverged);
+  EXPECT_EQ(r.status, StepStatus::kToolRefused);
+  EXPECT_THAT(r.message, HasSubstr("poke force |f| = 10000 N is out of range"));
   EXPECT_EQ(rt.Shape(), good);
   EXPECT_EQ(rt.ToolForce(), -kPush);
   EXPECT_EQ(rt.time(), good_time);
@@ -631,7 +672,8 @@ TEST(Runtime, FailedDynamicPokeStepKeepsTheLastGoodState) {
   // A non-finite force from a glitching device: refused, state kept.
   rt.SetToolForce(Vec3(0.0, std::nan(""), 0.0));
   r = rt.Step();
-  EXPECT_EQ(r.status, StepStatus::kNotConverged);
+  EXPECT_EQ(r.status, StepStatus::kToolRefused);
+  EXPECT_THAT(r.message, HasSubstr("poke force y = nan is not finite"));
   EXPECT_EQ(rt.Shape(), good);
   EXPECT_EQ(rt.ToolForce(), -kPush);
   // The push again: the loop carries on from the kept state.
@@ -640,6 +682,28 @@ TEST(Runtime, FailedDynamicPokeStepKeepsTheLastGoodState) {
   EXPECT_TRUE(r.ok()) << ToString(r.status);
   EXPECT_GT(rt.time(), good_time);
   EXPECT_TRUE(rt.Shape().allFinite());
+
+  // A step that cannot converge (5 Newton iterations for a push of 3 N from rest, which takes
+  // 6): the last good state kept, and the next ticks apply a quarter of the change, then half
+  // of what is left, then all of it (each converged in 4 iterations, measured), never the
+  // failed step again.
+  RuntimeOptions options = DynamicPoke();
+  options.dynamic_newton_iterations = 5;
+  Runtime capped(p, options);
+  const Mat3X rest = capped.Shape();
+  const Vec3 hard(0.0, -3.0, 0.0);
+  capped.SetToolForce(hard);
+  r = capped.Step();
+  EXPECT_EQ(r.status, StepStatus::kNotConverged);
+  EXPECT_THAT(r.message, HasSubstr("iteration limit reached after 5 Newton iterations"));
+  EXPECT_THAT(r.message, HasSubstr("the next tick applies a quarter of the change of force"));
+  EXPECT_EQ(capped.Shape(), rest);
+  EXPECT_EQ(capped.ToolForce(), Vec3::Zero());
+  for (const double part : {0.25, 0.625, 1.0}) {
+    r = capped.Step();
+    ASSERT_TRUE(r.ok()) << r.message;
+    EXPECT_NEAR((capped.ToolForce() + part * hard).norm(), 0.0, 1e-15) << part;
+  }
 }
 
 TEST(Runtime, InvalidOptionsAreRefused) {

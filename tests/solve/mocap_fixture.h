@@ -4,11 +4,13 @@
 #pragma once
 
 #include <cmath>
+#include <cstdlib>
 #include <random>
 #include <stdexcept>
 #include <vector>
 
 #include "rodfit/solve/case_dynamics.h"
+#include "rodfit/solve/rollout.h"
 
 namespace rodfit::testing {
 
@@ -80,6 +82,124 @@ inline std::vector<Eigen::Matrix3Xd> Recording(double seconds, double noise, dou
     for (int k = 0; k < kMarkers; ++k) {
       m.col(k) = f.x.col(4 * k) + Vec3(gauss(rng), gauss(rng), gauss(rng));
       // Drops: never in the first two frames (the start) nor on the held markers' every frame.
+      if (frames.size() >= 2 && uniform(rng) < drop) m.col(k).setConstant(std::nan(""));
+    }
+    frames.push_back(m);
+  }
+  return frames;
+}
+
+// Hard recordings (the rollout's corpus: issue "rollouts that never abort"): the cable of
+// Cable() between two grippers moved the way that broke fixed-step rollouts of real data.
+//  - kWhip: one gripper shaken at 4 Hz with 6 cm amplitude (1.5 m/s at the gripper; the free
+//    markers whip at up to ~3 m/s);
+//  - kPull: the grippers pulled apart from 0.5 m to 0.97 m of the cable's 1 m, nearly straight;
+//  - kLoop: the grippers brought to 0.12 m apart over 1.5 s, the cable hanging in a loop, the
+//    clamp turned to and fro;
+//  - kFold: over 1.5 s the end gripper comes to 0.1 m from the clamp and turns to face it, the
+//    cable folded back on itself.
+// The truth is integrated with adaptive steps to a tight local error (1e-6 m); markers every 4th
+// vertex at 100 Hz, with noise and drops as Recording's.
+enum class HardMotion { kWhip, kPull, kLoop, kFold };
+
+inline const char* HardMotionName(HardMotion m) {
+  switch (m) {
+    case HardMotion::kWhip: return "whip";
+    case HardMotion::kPull: return "pull";
+    case HardMotion::kLoop: return "loop";
+    case HardMotion::kFold: return "fold";
+  }
+  return "?";
+}
+
+inline std::vector<Eigen::Matrix3Xd> HardRecording(HardMotion motion, double seconds, double noise,
+                                                   double drop, unsigned seed) {
+  Scene s = Cable();
+  // Twist damped with bending's retardation time (DefaultTwistDamping, as `rodfit rollout`
+  // does): undamped, the edges' fast twist mode, once a step resolves it, grows until Newton
+  // fails (the whip at 2 ms and 0.5 ms steps: at t = 0.12-0.15 s).
+  DefaultTwistDamping(&s.material);
+  s.dynamics->time_step = kFrameInterval;
+  s.dynamics->error_tolerance = 1e-6;
+  s.dynamics->min_time_step = 1e-8;
+  s.dynamics->duration = seconds;
+  s.dynamics->output_every = static_cast<int>(std::lround(kFrameInterval / s.dynamics->time_step));
+  LoadCase c;
+  c.name = HardMotionName(motion);
+  DrivenPoint left, right;
+  left.point = "clamp";
+  right.point = "end_clamp";
+  // Smooth start and stop: the grippers' motion ramps in over the first 0.2 s.
+  auto ramp = [](double t) {
+    const double r = std::min(1.0, t / 0.2);
+    return r * r * (3.0 - 2.0 * r);
+  };
+  // The paths sampled every millisecond (they are interpolated linearly in time).
+  for (int k = 0; k <= std::lround(seconds / 1e-3); ++k) {
+    const double t = k * 1e-3, r = ramp(t);
+    Vec3 a0, b0 = Vec3(1, 0, 0), a1, b1 = Vec3(1, 0, 0);
+    switch (motion) {
+      case HardMotion::kWhip:
+        a0 = Vec3(0, 0.06 * r * std::sin(2 * M_PI * 4.0 * t), 0.03 * r * std::sin(2 * M_PI * 3.0 * t));
+        b0 = Vec3(1, 0.4 * r * std::sin(2 * M_PI * 4.0 * t + 0.5), 0);
+        a1 = Vec3(0.7, 0, 0);
+        break;
+      case HardMotion::kPull: {
+        const double gap = 0.5 + 0.47 * std::min(1.0, t / std::max(seconds - 0.1, 0.1));
+        a0 = Vec3(0, 0, 0);
+        a1 = Vec3(gap, 0.02 * std::sin(3.0 * t), 0);
+        break;
+      }
+      case HardMotion::kLoop: {
+        // The gap closes over 1.5 s (at most ~0.6 m/s), then the clamp turns to and fro.
+        const double closing = std::min(1.0, t / 1.5), c2 = closing * closing * (3.0 - 2.0 * closing);
+        const double gap = 0.7 - 0.58 * c2;
+        a0 = Vec3(0, 0, 0);
+        a1 = Vec3(gap, 0, 0);
+        b0 = Vec3(std::cos(0.8 * r * std::sin(2.0 * t)), std::sin(0.8 * r * std::sin(2.0 * t)), 0);
+        break;
+      }
+      case HardMotion::kFold: {
+        // Over 1.5 s the end gripper comes to 0.1 m from the clamp and turns to face it.
+        const double closing = std::min(1.0, t / 1.5), c2 = closing * closing * (3.0 - 2.0 * closing);
+        a0 = Vec3(0, 0, 0);
+        a1 = Vec3(0.1 + 0.6 * (1.0 - c2), 0.05 * r * std::sin(4.0 * t), 0);
+        b1 = Vec3(std::cos(M_PI * c2), std::sin(M_PI * c2), 0);
+        break;
+      }
+    }
+    left.path.t.push_back(t);
+    left.path.a.push_back(a0);
+    left.path.b.push_back(b0);
+    left.path.c.push_back(Vec3(0, 0, 1));
+    right.path.t.push_back(t);
+    right.path.a.push_back(a1);
+    right.path.b.push_back(b1);
+    right.path.c.push_back(Vec3(0, 0, 1));
+  }
+  c.clamp.position = left.path.a.front();
+  c.clamp.tangent = left.path.b.front();
+  c.clamp.normal = Vec3(0, 0, 1);
+  EndClamp end;
+  end.position = right.path.a.front();
+  end.tangent = right.path.b.front();
+  end.normal = Vec3(0, 0, 1);
+  c.end_clamp = end;
+  c.drives = {left, right};
+  s.cases = {c};
+  const CaseTrajectory truth = SimulateCaseDynamics(s, 0, StaticsOptions());
+  if (!truth.ok)
+    throw std::runtime_error(std::string("the ") + HardMotionName(motion) +
+                             " recording did not integrate: " + truth.reason);
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, noise > 0.0 ? noise : 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<Eigen::Matrix3Xd> frames;
+  for (const TrajectoryFrame& f : truth.frames) {
+    Eigen::Matrix3Xd m(3, kMarkers);
+    for (int k = 0; k < kMarkers; ++k) {
+      m.col(k) = f.x.col(4 * k);
+      if (noise > 0.0) m.col(k) += noise * Vec3(gauss(rng), gauss(rng), gauss(rng));
       if (frames.size() >= 2 && uniform(rng) < drop) m.col(k).setConstant(std::nan(""));
     }
     frames.push_back(m);

@@ -79,6 +79,14 @@ struct FitOptions {
   bool Check(std::string* why) const;
 };
 
+/// A moving case's fitted run at the times it was observed (a moving fit's report).
+struct FittedRun {
+  int case_index = 0;            ///< into Scene::cases
+  std::vector<double> s;         ///< [m] the vertices' rest arc lengths
+  std::vector<double> t;         ///< [s] ascending
+  std::vector<Mat3X> x;          ///< per time, the vertices [m]
+};
+
 struct FitResult {
   bool success = false;          ///< converged to a usable estimate
   std::string message;           ///< termination, or why the fit failed
@@ -114,6 +122,12 @@ struct FitResult {
   /// Per entry of `shapes`: the poked cross-section's ring nodes at rest and deformed at the
   /// fitted parameters [m], world (empty for a case without a poke or without a section).
   std::vector<Eigen::Matrix3Xd> rest_sections, sections;
+  /// Per entry of `shapes`: the tube surface with the poke's dent at the fitted parameters
+  /// (solve/poke.h, PokedTube; vertices [m] and triangles), empty without a poke or a section.
+  std::vector<Eigen::Matrix3Xd> tube_vertices;
+  std::vector<std::vector<Eigen::Vector3i>> tube_triangles;
+  /// A moving fit: per case with observation sequences, the fitted run at the recorded times.
+  std::vector<FittedRun> trajectories;
 };
 
 /// The range a residual variance (chi-square / dof) of a correct model with correct sigmas lies

@@ -15,12 +15,14 @@
 // vertex Jacobian chained with the trajectory's sensitivities d x / d log p.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "rodfit/fit/fit.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/fit/measurement.h"
 #include "rodfit/solve/rollout.h"
@@ -28,6 +30,7 @@
 namespace rodfit {
 
 struct MotionRecordingData {
+  std::string name;                           ///< how messages name it (its file)
   double frame_interval = 0.0;                ///< [s]
   std::vector<Eigen::Matrix3Xd> frames;       ///< 3 x markers per frame, NaN where not seen
 };
@@ -52,6 +55,9 @@ struct MotionFitOptions {
   std::vector<double> lower, upper;
   /// The covariance as the sigmas state it, not scaled by the residual variance.
   bool trusted_sigmas = false;
+  /// Called after each Levenberg–Marquardt iteration (`iteration`, `cost`, `seconds`; `budget`
+  /// is max_evaluations, `global` false): a caller's progress line.
+  std::function<void(const FitIterationInfo&)> progress;
   bool Check(std::string* why) const;
 };
 
@@ -78,6 +84,12 @@ struct MotionFitResult {
   double initial_cost = 0.0, final_cost = 0.0;
   int iterations = 0;                  ///< iterations of the search
   double seconds = 0.0;                ///< wall time of the fit
+  /// Least squares: Ceres' cost at the start ([0]) and after each iteration, and the wall time
+  /// since the fit began [s] at each (the report's convergence plot).
+  std::vector<double> cost_per_iteration, seconds_per_iteration;
+  /// [s] wall time in the runs (rollouts or case integrations, with their sensitivities when
+  /// the search needs them); the rest of `seconds` is the search and the covariance.
+  double run_seconds = 0.0;
 };
 
 /// The parameters a motion fit may change, rows of the parameter table
@@ -156,6 +168,9 @@ struct SequenceResiduals {
   bool ok = false;
   std::string reason;
   std::vector<std::vector<Eigen::Vector3d>> error;
+  /// Per case with sequences, its run at the union of their frame times (every vertex): what
+  /// the report draws over time.
+  std::vector<FittedRun> trajectories;
 };
 
 /// Fits `names` of a moving scene (Scene::dynamics set; each with a start value > 0) to

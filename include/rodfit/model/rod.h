@@ -117,6 +117,11 @@ class RodModel {
   /// Rest Voronoi length of the bending vertex i (0..n-1, and n with an end clamp) [m]; the
   /// end vertices have half a cell.
   double voronoi_length(int i) const { return voronoi_[i]; }
+  /// The intrinsic curvature (k1°, k2°, tau°) [1/m] at bending vertex i: RodSpec::rest_curvature
+  /// plus the profile's value at the vertex's arc length.
+  const Vec3& rest_curvature(int i) const { return rest_curvature_[i]; }
+  /// Whether any vertex has a rest curvature (the rod is not straight at rest).
+  bool curved_at_rest() const { return curved_; }
   /// Arc length of vertex i in the rest state [m].
   double arc_length(int i) const { return arc_[i]; }
   const std::vector<double>& arc_lengths() const { return arc_; }
@@ -248,6 +253,8 @@ class RodModel {
   int n_ = 0;
   double length_ = 0.0, min_edge_ = 0.0;
   std::vector<double> rest_edge_, voronoi_, arc_, vertex_mass_;
+  std::vector<Vec3> rest_curvature_;  // per bending vertex (rest_curvature(i))
+  bool curved_ = false;
   Vec3 clamp_p_, clamp_d3_, clamp_d1_;
   bool end_clamp_ = false, end_twist_held_ = false;
   bool symmetric_ = false;
@@ -267,5 +274,17 @@ class RodModel {
   Vec3 grasp_position_ = Vec3::Zero();
   uint64_t hessian_digest_ = 0;
 };
+
+/// The intrinsic curvature profile of a centre-line at rest (`rod.rest_shape`, docs/model.md,
+/// "Rest shape"): at each interior point the discrete curvature binormal
+/// 2 t_k-1 x t_k / (1 + t_k-1 . t_k) over the point's Voronoi length, resolved in the material
+/// frame carried along the curve by parallel transport (no rest twist) from d1 = `normal` made
+/// perpendicular to the first tangent: (k1°, k2°, 0) at the point's arc length. The arc lengths
+/// are `s` when given (one per point), else the polyline's, scaled to `length` either way. For
+/// RodSpec::rest_curvature_s / rest_curvature_profile. Throws std::invalid_argument for fewer than
+/// 3 points, coincident points, non-finite values or a normal along the first tangent.
+void RestCurvatureOfCentreline(const std::vector<double>& s, const Mat3X& points,
+                               const Vec3& normal, double length,
+                               std::vector<double>* profile_s, std::vector<Vec3>* profile);
 
 }  // namespace rodfit

@@ -25,6 +25,13 @@ struct RodSpec {
   /// Intrinsic curvature at rest (k1°, k2°, tau°) [1/m]; [0, k, 0] with k > 0 bends the unloaded
   /// rod towards the clamp's normal.
   Vec3 rest_curvature = Vec3::Zero();
+  /// The rod's natural shape as intrinsic curvature varying along it (docs/model.md, "Rest
+  /// shape"): (k1°, k2°, tau°) [1/m] at the arc lengths `rest_curvature_s` [m] (strictly
+  /// increasing, within [0, length]), linear between them and constant beyond, added to
+  /// `rest_curvature`. From `rod.rest_shape` (a centre-line at rest) or fitted (the
+  /// `rest_curvature` parameters of a motion fit). Empty: none.
+  std::vector<double> rest_curvature_s;
+  std::vector<Vec3> rest_curvature_profile;
   /// Optional arc lengths of the vertices [m], strictly increasing from 0 to `length`
   /// (segments + 1 values); empty: `segments` equal edges.
   std::vector<double> vertex_s;
@@ -178,6 +185,10 @@ struct DynamicsSpec {
   /// Implicit: a step whose Newton iterations do not converge is retried in halves, down to
   /// time_step / 2^max_halvings (DynamicsOptions::max_halvings); 0: it fails.
   int max_halvings = kDefaultMaxHalvings;
+  /// Implicit: adaptive substeps whose local error stays within this many metres
+  /// (DynamicsOptions::error_tolerance); 0: fixed steps.
+  double error_tolerance = 0.0;
+  double min_time_step = 1e-7;  ///< [s] adaptive: the shortest substep
 };
 
 /// One quasi-static load case: the rod clamped and loaded, solved to equilibrium.

@@ -19,6 +19,8 @@ extern "C" {
 
 typedef struct rodfit_runtime rodfit_runtime;
 
+/* A step that is not RODFIT_OK leaves its reason in rodfit_last_error (one line, without
+ * allocating) and the tool's lag in rodfit_step_info.tool_lag. */
 typedef enum rodfit_status {
   RODFIT_OK = 0,
   RODFIT_NOT_CONVERGED = 1,        /* step: last good state kept (rodfit_last_error says why) */
@@ -27,7 +29,12 @@ typedef enum rodfit_status {
   RODFIT_PROFILE_ERROR = 4,        /* the profile could not be read or is invalid */
   RODFIT_SOLVE_ERROR = 5,          /* the first equilibrium was not found, or a mesh failed */
   RODFIT_OUT_OF_MEMORY = 6,
-  RODFIT_INTERNAL_ERROR = 7
+  RODFIT_INTERNAL_ERROR = 7,
+  RODFIT_STRAIN_LIMIT = 8,         /* step: converged, the grasp held at the strain limit (the
+                                    * tool is out of the rod's reach; tool_lag says how far) */
+  RODFIT_TOOL_REFUSED = 9          /* step: the tool's position, orientation or force is not
+                                    * finite or out of range (the message names the value);
+                                    * last good state kept */
 } rodfit_status;
 
 enum { RODFIT_MODE_QUASI_STATIC = 0, RODFIT_MODE_DYNAMIC = 1 };
@@ -42,7 +49,7 @@ typedef struct rodfit_options {
   double gradient_tolerance;  /* relative to the rod's load scale */
   double time_budget;         /* [s] per step, 0: none */
   double time_step;           /* [s] dynamic mode */
-  int mesh_ring_vertices;     /* rodfit_get_mesh: vertices per ring */
+  int mesh_ring_vertices;     /* rodfit_get_mesh: vertices per ring, in [3, 1024] */
   int hold_orientation;       /* quasi-static grasp: 1 holds the tool's orientation (a clamp) */
 } rodfit_options;
 
@@ -51,6 +58,7 @@ typedef struct rodfit_step_info {
   int iterations;    /* Newton iterations */
   double residual;   /* [N] scaled residual at exit */
   double seconds;    /* wall time of the step */
+  double tool_lag;   /* [m] grasp: how far the grasped point is from the tool after the step */
 } rodfit_step_info;
 
 void rodfit_default_options(rodfit_options* options);
@@ -76,10 +84,19 @@ int rodfit_num_vertices(const rodfit_runtime* runtime);
 rodfit_status rodfit_get_shape(rodfit_runtime* runtime, double* xyz, size_t capacity);
 /* Force [N] and torque [N m] the rod exerts on the tool; either may be NULL. */
 rodfit_status rodfit_get_tool_force(rodfit_runtime* runtime, double force[3], double torque[3]);
+/* Where the tool is on the rod [m]: the grasped point, or the poked point of the centre-line. */
+rodfit_status rodfit_get_tool_position(rodfit_runtime* runtime, double position[3]);
+/* The rotation the grasp holds now (world from tool, 9 doubles row-major; the identity without
+ * an oriented grasp): it turns towards the tool's at most max_tool_move radians per tick. */
+rodfit_status rodfit_get_tool_orientation(rodfit_runtime* runtime, double rotation[9]);
+/* The rod's potential energy [J] (a poke's -f . x included) and kinetic energy [J] (0 in
+ * quasi-static mode); either may be NULL. */
+rodfit_status rodfit_get_energy(rodfit_runtime* runtime, double* potential, double* kinetic);
 /* The tube mesh (with a poke's dent): counts first (vertices, triangles), then, when the
  * buffers are large enough (3 doubles per vertex, 3 ints per triangle), the data. Pass NULL
  * buffers to ask for the counts only (they follow from the segments and
- * mesh_ring_vertices: nothing is built). */
+ * mesh_ring_vertices: nothing is built). A mesh whose 3 ints per triangle would not fit an int
+ * is refused (RODFIT_INVALID_ARGUMENT), never counted negative. */
 rodfit_status rodfit_get_mesh(rodfit_runtime* runtime, int* num_vertices, int* num_triangles,
                               double* vertices, size_t vertex_capacity, int* triangles,
                               size_t triangle_capacity);

@@ -73,9 +73,11 @@ DynamicState InitialDynamicState(const Scene& scene, int index, const StaticsOpt
                                  const DynamicsStepper& stepper);
 
 /// Integrates case `index` of a scene with `scene.dynamics` (which must be set). `progress`, when
-/// given, is called with the simulated time after each step.
+/// given, is called with the simulated time after each step; with adaptive steps, `schedule`
+/// (when given) records or replays them (DynamicsStepper::SetSchedule).
 CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
-                                    const std::function<void(double)>& progress = nullptr);
+                                    const std::function<void(double)>& progress = nullptr,
+                                    StepSchedule* schedule = nullptr);
 
 /// The model of a case for dynamics: its held points where the driven paths start.
 LoadCase CaseAtStart(const LoadCase& load_case);

@@ -89,6 +89,17 @@ struct DynamicsOptions {
   /// halved step's sensitivities follow its substeps (StepSensitivity). The scene YAML's
   /// default too (scene.h).
   int max_halvings = kDefaultMaxHalvings;
+  /// Implicit: adaptive steps (docs/solvers.md, "Adaptive steps"). Each time_step is covered by
+  /// substeps of variable-step BDF2 (or of the scheme chosen) whose local error estimate —
+  /// Milne's device: the converged positions against an explicit second-order prediction — stays
+  /// within this many metres at every vertex; a substep whose Newton fails or whose predictor
+  /// folds an edge is retried at a quarter of its length, and steps grow by at most
+  /// kMaxStepRatio per substep. Every time_step still ends exactly on its time (the outputs).
+  /// 0: fixed steps (a failed step halved, max_halvings).
+  double error_tolerance = 0.0;
+  /// Implicit, adaptive: the shortest substep [s]; a substep that would need less fails the
+  /// step with the time and the reason.
+  double min_time_step = 1e-7;
   /// Implicit: the wall time [s] one Step() may take (0: no limit). Newton checks it before
   /// each iteration after the first; a step past it fails with
   /// DynamicsStepSummary::out_of_time, *s unchanged and not halved (the runtime's haptic loop
@@ -191,10 +202,24 @@ struct DynamicSensitivity {
   Eigen::MatrixXd dq, dv, dlast_step, dlast_v;  ///< num_free_dofs x parameters
 };
 
+/// The substeps of adaptive stepping, recorded and replayed: a fit's objective stays smooth in
+/// the parameters when the trials and Jacobians of one iteration take the steps its base
+/// trajectory took (DynamicsStepper::SetSchedule).
+struct StepSchedule {
+  enum class Mode { kRecord, kReplay };
+  Mode mode = Mode::kRecord;
+  std::vector<double> steps;  ///< [s] every accepted substep, in order
+  size_t next = 0;            ///< replay: the next substep to take
+  bool departed = false;      ///< replay: a substep failed and the stepper adapted instead
+  void Record() { mode = Mode::kRecord, steps.clear(), next = 0, departed = false; }
+  void Replay() { mode = Mode::kReplay, next = 0, departed = false; }
+};
+
 struct DynamicsStepSummary {
   bool ok = false;
   int newton_iterations = 0;  ///< implicit: Newton iterations in this step
   int substeps = 1;           ///< substeps taken (explicit with substep; implicit halved)
+  int rejected = 0;           ///< adaptive: substeps retried (error above tolerance or failed)
   double residual = 0.0;      ///< implicit: scaled residual at exit [N]
   std::string reason;         ///< why a step failed
   bool out_of_time = false;   ///< failed because DynamicsOptions::time_budget ran out
@@ -228,6 +253,10 @@ class DynamicsStepper {
     options_.max_newton_iterations = std::max(max_newton_iterations, 1);
     options_.time_budget = std::max(time_budget, 0.0);
   }
+
+  /// Adaptive steps: record into or replay from `schedule` (null: neither). The stepper keeps
+  /// the pointer.
+  void SetSchedule(StepSchedule* schedule) { schedule_ = schedule; }
 
   /// The state at rest in the initial shape `q` (velocities zero, t = 0).
   DynamicState AtRest(const RodState& q) const;
@@ -271,6 +300,11 @@ class DynamicsStepper {
   /// each substep's start and step are appended to substeps_. On failure *s is partly advanced.
   bool StepHalving(const Drive& drive, double dt, int depth, DynamicState* s,
                    DynamicsStepSummary* summary);
+  /// Covers time_step from s->t by adaptive substeps (DynamicsOptions::error_tolerance).
+  DynamicsStepSummary StepAdaptive(const Drive& drive, DynamicState* s);
+  /// The local error estimate [m] of the substep from `before` to `after` of length dt (the
+  /// largest over the vertices).
+  double LocalError(const DynamicState& before, const DynamicState& after, double dt);
   bool OneStepSensitivity(const Drive& drive, double dt, const DynamicState& before,
                           const DynamicState& after, const std::vector<ParameterDirection>& directions,
                           DynamicSensitivity* ds, std::string* why);
@@ -309,6 +343,8 @@ class DynamicsStepper {
   // steps, and the time it ended at.
   std::vector<std::pair<DynamicState, double>> substeps_;
   double substeps_end_ = 0.0;
+  double adaptive_step_ = 0.0;  // [s] the next substep's length (adaptive stepping)
+  StepSchedule* schedule_ = nullptr;
 };
 
 }  // namespace rodfit

@@ -26,10 +26,29 @@ struct RolloutOptions {
   /// The held markers' paths are smoothed by a centred quadratic over +-this many frames
   /// (0: used as recorded).
   int smooth_frames = 5;
-  /// Held markers 1 and n-2 pinned (their positions driven, the default: on the synthetic
-  /// recordings of tests/solve/rollout_test.cc the free markers' error is 4.6 mm against 7.9 mm
-  /// with oriented ends) or orienting the end clamps (more robust to marker noise).
-  bool pin_pairs = true;
+  /// How the held end markers hold the rod (markers 0, 1 and n-2, n-1 held).
+  enum class HeldEnds {
+    /// Marker 0 a clamp whose tangent points at marker 1, markers 1 and n-2 pinned at their
+    /// recorded positions, n-1 an end pin (the default: on every synthetic recording of the
+    /// rollout tests, whose truth is a cable clamped by two moving grippers with markers every
+    /// 9 cm, it predicts best: the pinned markers carry the rod's direction at the grippers,
+    /// which the marker pairs' chords miss by 10-30 degrees where the grippers bend the cable).
+    kPinnedPairs,
+    /// Grippers as clamps: the rod clamped at marker 0 and at marker n-1, each gripper's
+    /// tangent the rod's at its marker in the first frames (a quadratic through the end marker
+    /// and its two neighbours) carried rigidly with the chord to the next marker, its roll by
+    /// the minimal-twist frame (the normal carried by parallel transport in time; the end's at
+    /// t = 0 along the first frame's marker polyline from the clamp's). Markers 1 and n-2 are
+    /// predicted. Right where markers 0, 1 (and n-2, n-1) sit on the grippers themselves.
+    kGrippers,
+    /// Both ends oriented as by kGrippers, the end free to turn about its tangent.
+    kFreeRoll,
+  };
+  HeldEnds held_ends = HeldEnds::kPinnedPairs;
+  /// [m] adaptive steps' local error bound (DynamicsOptions::error_tolerance) where the scene's
+  /// dynamics block sets none: a rollout adapts its steps instead of aborting on a fast motion
+  /// (a whip at 10 ms steps), landing on every frame.
+  double error_tolerance = 1e-4;
 };
 
 struct RolloutResult {
@@ -67,9 +86,12 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers);
 /// The material is used as given (`rodfit rollout` first applies DefaultTwistDamping).
 /// Throws std::invalid_argument for unusable input (fewer than 3 markers, a held marker missing
 /// from every frame, markers 0 and 1 missing in frame 0 or 1, ...).
+/// With adaptive steps, `schedule` (when given) records or replays them: a fit replays its base
+/// trajectory's steps so that its objective stays smooth (StepSchedule).
 RolloutResult Rollout(const Scene& scene, double frame_interval,
                       const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
-                      const StaticsOptions& statics = StaticsOptions());
+                      const StaticsOptions& statics = StaticsOptions(),
+                      StepSchedule* schedule = nullptr);
 
 /// The same rollout with the derivatives of its predictions (docs/solvers.md, "Sensitivities in
 /// time"): (*d_predicted)[k] is 3 M x directions.size() for frame k, rows 3 m .. 3 m + 2 marker
@@ -81,6 +103,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
                                        const std::vector<Eigen::Matrix3Xd>& frames,
                                        const RolloutOptions& options, const StaticsOptions& statics,
                                        const std::vector<ParameterDirection>& directions,
-                                       std::vector<Eigen::MatrixXd>* d_predicted);
+                                       std::vector<Eigen::MatrixXd>* d_predicted,
+                                       StepSchedule* schedule = nullptr);
 
 }  // namespace rodfit

@@ -307,7 +307,8 @@ void ReportCases(const FitInput& input, const std::vector<Fitted>& fitted,
     result->shapes.push_back(shape);
     const FitCase& fc = input.cases[c];
     // The poked section at the fit, for the report's measured-versus-fitted section plot.
-    Eigen::Matrix3Xd rest_ring, ring;
+    Eigen::Matrix3Xd rest_ring, ring, tube;
+    std::vector<Eigen::Vector3i> triangles;
     if (fc.load_case.poke && input.section) {
       try {
         const Material material = MaterialAt(input, fitted, logp.data());
@@ -318,6 +319,10 @@ void ReportCases(const FitInput& input, const std::vector<Fitted>& fitted,
         if (poke.ring.summary.converged) {
           rest_ring = poke.rest_world;
           ring = poke.deformed_world;
+          // The dented tube, for the report's 3-D view.
+          TubeMesh mesh = PokedTube(model, state, *input.section, poke);
+          tube = std::move(mesh.vertices);
+          triangles = std::move(mesh.triangles);
         }
       } catch (const std::invalid_argument&) {
         // No section to show; the residuals above already count this case.
@@ -325,6 +330,8 @@ void ReportCases(const FitInput& input, const std::vector<Fitted>& fitted,
     }
     result->rest_sections.push_back(rest_ring);
     result->sections.push_back(ring);
+    result->tube_vertices.push_back(std::move(tube));
+    result->tube_triangles.push_back(std::move(triangles));
     // Every measurement's misfit in its unit, from the case's weighted residuals.
     int offset = 0;
     for (const auto& meas : fc.measurements) {

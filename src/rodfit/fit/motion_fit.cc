@@ -60,6 +60,22 @@ struct Ctx {
   Eigen::MatrixXd cached_J;  // residuals x parameters, d r / d log p
   double cached_mae = 0.0;   // the mean over recordings of the predicted markers' MAE
   std::string last_failure;
+  double run_seconds = 0.0;  // wall time in `forward`
+  // Per recording, the adaptive steps of its first rollout, replayed by every later one: the
+  // objective and its Jacobian stay smooth in the parameters (a step sequence that changed with
+  // them would make the cost jump between a trial and its Jacobian).
+  std::vector<StepSchedule> schedules;
+  StepSchedule* ScheduleOf(size_t recording) {
+    if (schedules.size() != recordings->size()) schedules.assign(recordings->size(), StepSchedule());
+    StepSchedule& s = schedules[recording];
+    if (s.steps.empty()) s.Record(); else s.Replay();
+    return &s;
+  }
+  // "recording NAME: " for a message.
+  std::string Named(size_t recording) const {
+    const std::string& name = (*recordings)[recording].name;
+    return "recording " + (name.empty() ? std::to_string(recording + 1) : name) + ": ";
+  }
 };
 
 // The predicted markers' mean absolute coordinate error averaged over the recordings (the score
@@ -68,12 +84,18 @@ double MeanRolloutError(const std::vector<double>& logp, Ctx* c) {
   const Scene s = SceneAt(*c->scene, *c->names, logp.data());
   ++c->evaluations;
   double sum = 0.0;
-  for (const MotionRecordingData& r : *c->recordings) {
+  for (size_t ri = 0; ri < c->recordings->size(); ++ri) {
+    const MotionRecordingData& r = (*c->recordings)[ri];
     try {
-      const RolloutResult out = Rollout(s, r.frame_interval, r.frames, *c->options, *c->statics);
-      if (!out.ok) return 1e3;  // a run that fails is a very bad point, not an error
+      const RolloutResult out = Rollout(s, r.frame_interval, r.frames, *c->options, *c->statics,
+                                        c->ScheduleOf(ri));
+      if (!out.ok) {  // a run that fails is a very bad point, not an error
+        c->last_failure = c->Named(ri) + out.reason;
+        return 1e3;
+      }
       sum += out.mae_predicted;
-    } catch (const std::runtime_error&) {
+    } catch (const std::runtime_error& e) {
+      c->last_failure = c->Named(ri) + e.what();
       return 1e3;
     }
   }
@@ -92,7 +114,10 @@ bool EvaluateWithSensitivities(const double* logp, Ctx* c) {
   c->cached_J.setZero(c->residuals, m);
   const Scene s = SceneAt(*c->scene, *c->names, logp);
   ++c->evaluations;
-  if (!c->forward(s, c)) return false;
+  const auto run_started = Clock::now();
+  const bool ran = c->forward(s, c);
+  c->run_seconds += std::chrono::duration<double>(Clock::now() - run_started).count();
+  if (!ran) return false;
   // A residual that is not finite, or one too large to be squared and summed, is no cost Ceres
   // can compare: said so (an empty reason would leave the message's end blank).
   if (!c->cached_r.allFinite() || !std::isfinite(c->cached_r.squaredNorm())) {
@@ -118,13 +143,13 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
     RolloutResult out;
     try {
       out = RolloutWithSensitivities(s, rec.frame_interval, rec.frames, *c->options, *c->statics,
-                                     c->directions, &dp);
+                                     c->directions, &dp, c->ScheduleOf(ri));
     } catch (const std::runtime_error& e) {
-      c->last_failure = e.what();
+      c->last_failure = c->Named(ri) + e.what();
       return false;
     }
     if (!out.ok || out.predicted.size() != rec.frames.size()) {
-      c->last_failure = out.reason;
+      c->last_failure = c->Named(ri) + out.reason;
       return false;
     }
     mae += out.mae_predicted;
@@ -170,14 +195,26 @@ class MotionCost : public ceres::CostFunction {
 // start values after SOLVER_ABORT); the result then says it did not converge.
 class Budget : public ceres::IterationCallback {
  public:
-  Budget(const Ctx* ctx, int max_evaluations) : ctx_(ctx), max_(max_evaluations) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+  Budget(const Ctx* ctx, int max_evaluations,
+         const std::function<void(const FitIterationInfo&)>& progress)
+      : ctx_(ctx), max_(max_evaluations), progress_(progress) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    if (progress_) {
+      FitIterationInfo info;
+      info.iteration = it.iteration;
+      info.cost = it.cost;
+      info.relative_decrease = it.relative_decrease;
+      info.seconds = it.cumulative_time_in_seconds;
+      info.budget = max_;
+      progress_(info);
+    }
     return ctx_->evaluations >= max_ ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_CONTINUE;
   }
 
  private:
   const Ctx* ctx_;
   int max_;
+  const std::function<void(const FitIterationInfo&)>& progress_;
 };
 
 }  // namespace
@@ -316,11 +353,17 @@ bool SearchLeastSquares(Ctx* ctx, std::vector<double>* x_io, const std::vector<d
   so.parameter_tolerance = 1e-8;
   so.num_threads = 1;
   so.logging_type = ceres::SILENT;
-  Budget budget(ctx, fit_options.max_evaluations);
+  Budget budget(ctx, fit_options.max_evaluations, fit_options.progress);
   so.callbacks.push_back(&budget);
   ceres::Solver::Summary summary;
+  // Ceres' times count from its own start; the fit's began with the first run, just above.
+  const double before = ctx->run_seconds;
   ceres::Solve(so, &problem, &summary);
   result->iterations = static_cast<int>(summary.iterations.size()) - 1;
+  for (const ceres::IterationSummary& it : summary.iterations) {
+    result->cost_per_iteration.push_back(it.cost);
+    result->seconds_per_iteration.push_back(before + it.cumulative_time_in_seconds);
+  }
   result->converged = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
   if (summary.termination_type == ceres::USER_SUCCESS)
     result->message = "stopped at max_evaluations (" + std::to_string(fit_options.max_evaluations) +
@@ -451,6 +494,7 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
   }
   Uncertainty(&ctx, &x, lo, hi, fit_options, &result);
   result.seconds = std::chrono::duration<double>(Clock::now() - started).count();
+  result.run_seconds = ctx.run_seconds;
   return result;
 }
 
@@ -619,7 +663,8 @@ SequencePlan PlanSequences(const Scene& scene, const std::vector<ObservationSequ
 bool SequencesAt(const Scene& s, const SequencePlan& plan,
                  const std::vector<ObservationSequence>& sequences, const StaticsOptions& statics,
                  const std::vector<ParameterDirection>& directions, Eigen::VectorXd* r,
-                 Eigen::MatrixXd* J, std::string* why) {
+                 Eigen::MatrixXd* J, std::string* why,
+                 std::vector<CaseSamples>* samples = nullptr) {
   r->setConstant(plan.residuals, std::numeric_limits<double>::quiet_NaN());
   if (J) J->setConstant(plan.residuals, directions.size(), std::numeric_limits<double>::quiet_NaN());
   bool ok = true;
@@ -674,6 +719,7 @@ bool SequencesAt(const Scene& s, const SequencePlan& plan,
       r->segment(at.row, rows) = Eigen::Map<const VecX>(rf.data(), rows);
       if (J) J->middleRows(at.row, rows) = Eigen::Map<const RowMajor>(jf.data(), rows, m);
     }
+  if (samples) *samples = std::move(runs);
   return ok;
 }
 
@@ -761,16 +807,32 @@ MotionFitResult FitSequences(const Scene& scene, const std::vector<ObservationSe
   if (SearchLeastSquares(&ctx, &x, lo, hi, fit_options, &result))
     Uncertainty(&ctx, &x, lo, hi, fit_options, &result);
   result.seconds = std::chrono::duration<double>(Clock::now() - started).count();
+  result.run_seconds = ctx.run_seconds;
   return result;
 }
 
 SequenceResiduals EvaluateSequences(const Scene& scene,
                                     const std::vector<ObservationSequence>& sequences,
                                     const StaticsOptions& statics) {
-  const SequenceEvaluation at = EvaluateSequenceResiduals(scene, sequences, {}, statics);
+  const SequencePlan plan = PlanSequences(scene, sequences);
+  SequenceEvaluation at;
+  std::vector<CaseSamples> runs;
+  at.ok = SequencesAt(scene, plan, sequences, statics, {}, &at.residuals, nullptr, &at.reason,
+                      &runs);
   SequenceResiduals out;
   out.ok = at.ok;
   out.reason = at.reason;
+  for (size_t k = 0; k < plan.runs.size() && k < runs.size(); ++k) {
+    FittedRun trajectory;
+    trajectory.case_index = plan.runs[k].case_index;
+    trajectory.s = plan.runs[k].s;
+    // A run that stopped early has fewer states than times: the times it reached.
+    trajectory.x = runs[k].x;
+    trajectory.t.assign(plan.runs[k].t.begin(),
+                        plan.runs[k].t.begin() + std::min(plan.runs[k].t.size(), runs[k].x.size()));
+    trajectory.x.resize(trajectory.t.size());
+    out.trajectories.push_back(std::move(trajectory));
+  }
   int row = 0;
   for (const ObservationSequence& seq : sequences) {
     out.error.emplace_back(seq.num_samples(), Eigen::Vector3d::Constant(NAN));

@@ -20,6 +20,7 @@
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/model/rod_radius.h"
+#include "rodfit/solve/integrator.h"
 #include "rodfit/vision/camera_file.h"
 
 namespace rodfit {
@@ -228,9 +229,10 @@ class Reader {
 // With `density_elsewhere` (parameters.linear_density is given) the rod's linear_density must be
 // left out: one value, the parameter's. With `density_optional` (a profile supplies the
 // material) it may be left out and is NaN until the profile's rod fills it.
-RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool density_optional) {
+RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool density_optional,
+                const std::string& directory) {
   const Entries m = r.Map(f, {"length", "segments", "radius", "linear_density", "rest_curvature",
-                              "vertex_s"});
+                              "vertex_s", "rest_shape"});
   RodSpec rod;
   rod.length = r.Positive(r.Require(m, f, "length"));
   if (const Field* vs = Reader::Find(m, "vertex_s")) {
@@ -271,6 +273,29 @@ RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool de
     rod.linear_density = std::numeric_limits<double>::quiet_NaN();
   }
   if (const Field* k = Reader::Find(m, "rest_curvature")) rod.rest_curvature = r.Vector3(*k);
+  if (const Field* shape = Reader::Find(m, "rest_shape")) {
+    // A centre-line at rest (the rod's natural shape): CSV s,x,y,z or x,y,z, optionally
+    // nx,ny,nz on its first row (d1 at s = 0, which the clamp's normal is; default +z).
+    const std::string file = r.ReadablePath(*shape, directory);
+    const CsvTable table = CsvTable::Read(file);
+    if (table.num_rows() < 3)
+      throw InputError(file, 0, "", "a rest shape needs at least 3 points, got " +
+                                        std::to_string(table.num_rows()));
+    const std::vector<double> x = table.Column("x"), y = table.Column("y"), z = table.Column("z");
+    Mat3X points(3, table.num_rows());
+    for (int k = 0; k < table.num_rows(); ++k) points.col(k) = Vec3(x[k], y[k], z[k]);
+    std::vector<double> s;
+    if (table.HasColumn("s")) s = table.Column("s");
+    Vec3 normal = Vec3::UnitZ();
+    if (table.HasColumn("nx"))
+      normal = Vec3(table.Column("nx")[0], table.Column("ny")[0], table.Column("nz")[0]);
+    try {
+      RestCurvatureOfCentreline(s, points, normal, rod.length, &rod.rest_curvature_s,
+                                &rod.rest_curvature_profile);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(file, 0, "", e.what());
+    }
+  }
   return rod;
 }
 
@@ -1232,7 +1257,8 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
     density_in_parameters |= row.rod_field == &RodSpec::linear_density && params &&
                              params->node.IsMap() && params->node[row.name].IsDefined();
   ex.scene.rod =
-      ReadRod(r, r.Require(m, top, "rod"), density_in_parameters, parameters_optional);
+      ReadRod(r, r.Require(m, top, "rod"), density_in_parameters, parameters_optional,
+              ex.directory);
   if (const Field* section = Reader::Find(m, "section")) ex.scene.section = ReadSection(r, *section);
   std::vector<std::string> zone_parameters;
   if (const Field* springs = Reader::Find(m, "springs")) {

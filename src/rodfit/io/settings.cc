@@ -73,6 +73,10 @@ void Serialize(SettingsArchive* a, DynamicsSpec* d) {
   a->Check(!a->Has("max_halvings") || d->integrator != "explicit", "max_halvings",
            "is for the implicit integrators only");
   a->Count("max_halvings", &d->max_halvings, 0, kMaxStepHalvings);
+  a->Check(!a->Has("error_tolerance") || d->integrator != "explicit", "error_tolerance",
+           "is for the implicit integrators only");
+  a->Number("error_tolerance", &d->error_tolerance, 0.0, 1.0);
+  a->Number("min_time_step", &d->min_time_step, 1e-12, d->time_step);
 }
 
 }  // namespace rodfit

@@ -126,6 +126,14 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   Require(std::isfinite(rod.linear_density) && rod.linear_density >= 0,
           "rod.linear_density must be non-negative");
   Require(Finite(rod.rest_curvature), "rod.rest_curvature must be finite");
+  Require(rod.rest_curvature_s.size() == rod.rest_curvature_profile.size(),
+          "rod.rest_curvature_s and rest_curvature_profile must have one entry each");
+  for (size_t k = 0; k < rod.rest_curvature_s.size(); ++k) {
+    Require(std::isfinite(rod.rest_curvature_s[k]) && Finite(rod.rest_curvature_profile[k]),
+            "the rest curvature profile must be finite");
+    Require(k == 0 || rod.rest_curvature_s[k] > rod.rest_curvature_s[k - 1],
+            "the rest curvature profile's arc lengths must increase strictly");
+  }
   const Material& m = material;
   for (const MaterialParameterInfo& row : MaterialParameters()) {
     if (row.kind != ParameterKind::kRodStiffness) continue;
@@ -246,7 +254,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   if (load_case.tip_moment_follower.squaredNorm() > 0) {
     const Vec3& mb = load_case.tip_moment_follower;
     const Vec3 u_tip = Vec3(mb[0] / m.B1(), mb[1] / m.B2(), mb[2] / m.twist_stiffness) +
-                       rod.rest_curvature;
+                       rest_curvature_[n_ - 1];
     const Vec3 w = 0.5 * rest_edge_[n_ - 1] * u_tip;
     const double angle = w.norm();
     const Vec3 mb_tip =
@@ -362,7 +370,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   for (double v : voronoi_) mix(v);
   mix(material_.B1()), mix(material_.B2());
   mix(material_.twist_stiffness), mix(material_.stretch_stiffness);
-  mix3(rod_.rest_curvature);
+  for (const Vec3& k : rest_curvature_) mix3(k);
   mix3(clamp_p_), mix3(clamp_d3_), mix3(clamp_d1_);
   mix(end_clamp_), mix(end_twist_held_), mix3(end_d3_), mix3(end_d1_);
   mix(symmetric_), mix3(sym_point_), mix3(sym_normal_), mix(crossing_length_);
@@ -379,7 +387,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     imposed = std::max(imposed, (hv.target - straight).norm() / length_);
   }
   if (end_clamp_ || symmetric_) imposed = std::max(imposed, 1.0);  // an end frame: ~1 / L
-  imposed = std::max(imposed, rod.rest_curvature.norm() * length_);
+  for (const Vec3& k : rest_curvature_) imposed = std::max(imposed, k.norm() * length_);
   double spring_max = 0.0;
   for (int z = 0; z < num_spring_zones(); ++z) spring_max = std::max(spring_max, zone_stiffness(z));
   const double imposed_force = imposed * (B / (length_ * length_) + spring_max * length_ * length_);
@@ -409,7 +417,7 @@ std::string SymmetryProblem(const RodSpec& rod, const Vec3& gravity, const LoadC
     return "symmetry: a symmetric case holds the rod by its two clamps under gravity only (no "
            "pins, grasp, point or tip loads, poke)";
   if (has_springs) return "symmetry: not with springs";
-  if (rod.rest_curvature.squaredNorm() != 0)
+  if (rod.rest_curvature.squaredNorm() != 0 || !rod.rest_curvature_s.empty())
     return "symmetry: not with rest_curvature (a curved rod's mirror image is another rod)";
   const Clamp& clamp = c.clamp;
   if (!(Finite(clamp.position) && Finite(clamp.tangent) && Finite(clamp.normal)) ||
@@ -540,6 +548,28 @@ void RodModel::PlaceHeldPoints() {
   // With an end clamp: half a cell against its ghost. A symmetric half's last vertex has the
   // full cell it has in the whole rod, up to the middle of the crossing edge.
   voronoi_[n_] = 0.5 * (rest_edge_[n_ - 1] + (symmetric_ ? crossing_length_ : 0.0));
+  // The rest curvature of every bending vertex: the uniform part and the profile's value at the
+  // vertex's arc length (linear between its points, constant beyond).
+  rest_curvature_.assign(n_ + 1, rod_.rest_curvature);
+  if (!rod_.rest_curvature_s.empty()) {
+    const std::vector<double>& ps = rod_.rest_curvature_s;
+    const std::vector<Vec3>& pk = rod_.rest_curvature_profile;
+    for (int i = 0; i <= n_; ++i) {
+      const double si = arc_[i];
+      Vec3 k;
+      if (si <= ps.front()) {
+        k = pk.front();
+      } else if (si >= ps.back()) {
+        k = pk.back();
+      } else {
+        const size_t j = static_cast<size_t>(std::upper_bound(ps.begin(), ps.end(), si) - ps.begin());
+        const double w = (si - ps[j - 1]) / (ps[j] - ps[j - 1]);
+        k = pk[j - 1] + w * (pk[j] - pk[j - 1]);  // exact where neighbours are equal
+      }
+      rest_curvature_[i] += k;
+    }
+  }
+  for (const Vec3& k : rest_curvature_) curved_ = curved_ || k.squaredNorm() != 0.0;
 
   held_of_vertex_.assign(n_ + 1, -1);
   for (int k = 1; k <= n_; ++k) {
@@ -659,18 +689,18 @@ RodState RodModel::RestState() const {
   s.x.resize(3, n_ + 1);
   s.e.resize(3, n_);
   s.x.col(0) = clamp_p_;
-  const Vec3& k = rod_.rest_curvature;
   // Frames [d1 d2 d3] edge by edge from the ghost's, each turned by the rotation whose stencil
-  // measures are the rest curvature times the vertex's Voronoi length.
+  // measures are the vertex's rest curvature times its Voronoi length.
   std::vector<Eigen::Matrix3d> frames(n_);
   Eigen::Matrix3d F;
   F << clamp_d1_, clamp_d3_.cross(clamp_d1_), clamp_d3_;
-  std::vector<std::pair<double, Eigen::Matrix3d>> cache;  // rotations by Voronoi length
+  std::vector<std::pair<Vec3, Eigen::Matrix3d>> cache;  // rotations by turn (uniform rods repeat)
   for (int j = 0; j < n_; ++j) {
-    const double l = voronoi_[j];
-    auto hit = std::find_if(cache.begin(), cache.end(), [l](const auto& c) { return c.first == l; });
+    const Vec3 turn = voronoi_[j] * rest_curvature_[j];
+    auto hit = std::find_if(cache.begin(), cache.end(),
+                            [&turn](const auto& c) { return c.first == turn; });
     if (hit == cache.end()) {
-      cache.emplace_back(l, RestRotation(l * k));
+      cache.emplace_back(turn, RestRotation(turn));
       hit = cache.end() - 1;
     }
     F = F * hit->second;
@@ -747,6 +777,48 @@ EdgeFrame RodModel::MaterialFrame(const RodState& state, int j) const {
   f.d1 = c * u + s * v;
   f.d2 = -s * u + c * v;
   return f;
+}
+
+void RestCurvatureOfCentreline(const std::vector<double>& s_in, const Mat3X& points,
+                               const Vec3& normal, double length,
+                               std::vector<double>* profile_s, std::vector<Vec3>* profile) {
+  const int m = static_cast<int>(points.cols());
+  Require(m >= 3, "a rest shape needs at least 3 points, got " + std::to_string(m));
+  Require(points.allFinite() && Finite(normal), "a rest shape's values must be finite");
+  Require(s_in.empty() || static_cast<int>(s_in.size()) == m, "a rest shape: one s per point");
+  std::vector<double> s(m, 0.0);
+  std::vector<Vec3> t(m - 1);
+  for (int k = 0; k + 1 < m; ++k) {
+    const Vec3 e = points.col(k + 1) - points.col(k);
+    Require(e.norm() > 0.0, "a rest shape's points " + std::to_string(k + 1) + " and " +
+                                std::to_string(k + 2) + " coincide");
+    t[k] = e.normalized();
+    s[k + 1] = s_in.empty() ? s[k] + e.norm() : s_in[k + 1] - s_in[0];
+    Require(s[k + 1] > s[k], "a rest shape's s must increase strictly");
+  }
+  const double scale = length / s[m - 1];
+  Vec3 d1 = normal - normal.dot(t[0]) * t[0];
+  Require(d1.norm() > 1e-3 * normal.norm(), "a rest shape's normal is along its first tangent");
+  d1.normalize();
+  profile_s->assign(1, 0.0);
+  profile->assign(1, Vec3::Zero());
+  Vec3 d1_prev = d1;
+  for (int k = 1; k + 1 < m; ++k) {
+    // d1 carried to edge k by parallel transport (Bishop frame: no rest twist).
+    Vec3 d1_next = ParallelTransport<double, double>(t[k - 1], t[k], d1_prev);
+    d1_next = (d1_next - d1_next.dot(t[k]) * t[k]).normalized();
+    const Vec3 kb = 2.0 * t[k - 1].cross(t[k]) / (1.0 + t[k - 1].dot(t[k]));
+    const double l = 0.5 * scale * (s[k + 1] - s[k - 1]);
+    const Vec3 a1 = 0.5 * (d1_prev + d1_next);
+    const Vec3 a2 = 0.5 * (t[k - 1].cross(d1_prev) + t[k].cross(d1_next));
+    profile_s->push_back(scale * s[k]);
+    profile->push_back(Vec3(kb.dot(a1) / l, kb.dot(a2) / l, 0.0));
+    d1_prev = d1_next;
+  }
+  // Constant beyond the interior points: the ends take their neighbours' values.
+  (*profile)[0] = (*profile)[1];
+  profile_s->push_back(length);
+  profile->push_back(profile->back());
 }
 
 }  // namespace rodfit

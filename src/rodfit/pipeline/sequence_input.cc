@@ -343,6 +343,11 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
   r.residual_variance = motion.residual_variance;
   r.seconds = motion.seconds;
   r.forward_solves = motion.evaluations;
+  r.cost_per_iteration = motion.cost_per_iteration;
+  r.seconds_per_iteration = motion.seconds_per_iteration;
+  // The runs with their sensitivities: the forward solves and Jacobians together.
+  r.solve_seconds = motion.run_seconds;
+  r.trajectories = residuals.trajectories;
   r.fitted_names = motion.names;
   // Every parameter the static fit lists (the rod's and the springs'), then those only motion
   // sees (damping, the rod's mass) that the experiment gives.

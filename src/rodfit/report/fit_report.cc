@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include "rodfit/io/csv.h"
@@ -11,15 +12,28 @@
 
 namespace rodfit {
 
-void WriteFitReport(const std::string& dir, const Experiment& e, const FitInput& input,
-                    const FitResult& result) {
-  StagedDirectory out(dir);
-  WriteFitReport(&out, e, input, result);
-  out.Commit();
+std::string DisplayCaseName(const std::string& name) {
+  const size_t at = name.rfind("@t=");
+  if (at == std::string::npos) return name;
+  double t = 0.0;
+  if (!ParseDouble(name.substr(at + 3), &t)) return name;
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.6g", t);
+  return name.substr(0, at + 3) + b;
 }
 
-void WriteFitReport(StagedDirectory* out, const Experiment& e, const FitInput& input,
-                    const FitResult& result) {
+std::vector<std::string> WriteFitReport(const std::string& dir, const Experiment& e,
+                                        const FitInput& input, const FitResult& result,
+                                        const std::vector<std::string>& warnings) {
+  StagedDirectory out(dir);
+  std::vector<std::string> own = WriteFitReport(&out, e, input, result, warnings);
+  out.Commit();
+  return own;
+}
+
+std::vector<std::string> WriteFitReport(StagedDirectory* out, const Experiment& e,
+                                        const FitInput& input, const FitResult& result,
+                                        const std::vector<std::string>& warnings) {
   std::ostringstream summary, residuals;
   summary << "case,observation,type,count,rms,unit,rms_moment\n";
   residuals << "case,observation,unit,measurement,e1,e2,e3,norm,norm_sigma\n";
@@ -68,9 +82,10 @@ void WriteFitReport(StagedDirectory* out, const Experiment& e, const FitInput& i
 
   // The page and its figures (fit_report_page.h); index.html last, so that a page never
   // names a figure that was not staged.
-  const FitReportPage page = BuildFitReportPage(e, input, result);
+  const FitReportPage page = BuildFitReportPage(e, input, result, warnings);
   for (const auto& [name, svg] : page.figures) out->Write("figures/" + name, svg, "figure name");
   out->Write("index.html", page.html);
+  return page.warnings;
 }
 
 }  // namespace rodfit

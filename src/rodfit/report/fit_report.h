@@ -10,6 +10,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
@@ -17,13 +18,22 @@
 
 namespace rodfit {
 
+/// A fit case's name as a person reads it: a haptic sample's case "drag@t=0.16500000000000001"
+/// (its name keeps the log's time to the last digit, fit_input.cc) as "drag@t=0.165" (6
+/// digits: samples are far more than 1e-6 apart); any other name as it is.
+std::string DisplayCaseName(const std::string& name);
+
 /// Writes the report files into DIR all at once (a StagedDirectory): on failure DIR is left as
-/// it was. Throws InputError on I/O failure.
-void WriteFitReport(const std::string& dir, const Experiment& experiment, const FitInput& input,
-                    const FitResult& result);
+/// it was. Throws InputError on I/O failure. `warnings`: the run's warnings, each with what to
+/// do about it, listed in the page's summary. Returns the report's own warnings (e.g. written
+/// without its 3-D views), which the caller prints.
+std::vector<std::string> WriteFitReport(const std::string& dir, const Experiment& experiment,
+                                        const FitInput& input, const FitResult& result,
+                                        const std::vector<std::string>& warnings = {});
 
 /// Stages the report files in `out` (committed by the caller, e.g. together with the profile).
-void WriteFitReport(StagedDirectory* out, const Experiment& experiment, const FitInput& input,
-                    const FitResult& result);
+std::vector<std::string> WriteFitReport(StagedDirectory* out, const Experiment& experiment,
+                                        const FitInput& input, const FitResult& result,
+                                        const std::vector<std::string>& warnings = {});
 
 }  // namespace rodfit

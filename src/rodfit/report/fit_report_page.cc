@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -21,8 +22,13 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/image_files.h"
+#include "rodfit/model/rod.h"
 #include "rodfit/pipeline/observation_kind.h"
+#include "rodfit/report/fit_report.h"
+#include "rodfit/report/fit_views3d.h"
+#include "rodfit/report/plotly_library.h"
 #include "rodfit/report/svg_plot.h"
+#include "rodfit/report/view3d.h"
 #include "rodfit/version.h"
 
 namespace rodfit {
@@ -238,9 +244,14 @@ std::vector<std::vector<double>> NoisyComponents(const Measurement& obs, const M
   return out;
 }
 
-// One observation's residuals for the plots: x (measurement number or time) and the values.
+// One observation's residuals for the plots: x and the values. x is the arc length of each
+// measurement on the fitted rod for centre-line entries (markers at their s, points and pixels
+// at their closest point's), the angle around the section for a poke's surface points, and the
+// reading's number for forces and moments.
 struct ResidualSeries {
+  enum class Along { kArc, kAngle, kReading };
   std::string label;
+  Along along = Along::kArc;
   std::vector<double> x, sigmas;  // one entry per noisy component
 };
 
@@ -333,8 +344,13 @@ const char* AxisName(int i) { return i == 0 ? "x" : i == 1 ? "y" : "z"; }
 
 class Builder {
  public:
-  Builder(const Experiment& e, const FitInput& in, const FitResult& r)
-      : e_(e), in_(in), r_(r), shapes_ok_(r.shapes.size() == in.cases.size()) {}
+  Builder(const Experiment& e, const FitInput& in, const FitResult& r,
+          const std::vector<std::string>& warnings)
+      : e_(e), in_(in), r_(r), shapes_ok_(r.shapes.size() == in.cases.size()),
+        warnings_(warnings), plotly_(FindPlotlyLibrary()) {
+    if (!plotly_.missing.empty()) own_warnings_.push_back(plotly_.missing);
+    warnings_.insert(warnings_.end(), own_warnings_.begin(), own_warnings_.end());
+  }
 
   FitReportPage Build() {
     Head();
@@ -343,12 +359,24 @@ class Builder {
     Cases();
     AllResiduals();
     Convergence();
+    // The 3-D views' library and script last, so the tables and figures show at once.
+    if (views_ > 0) {
+      if (!plotly_.script.empty()) {
+        std::string library = plotly_.script;
+        // Inside <script> nothing may read as its end tag.
+        for (size_t at = library.find("</"); at != std::string::npos; at = library.find("</", at + 3))
+          library.insert(at + 1, "\\");
+        page_.html << "<script>/* plotly.js, from " << Escape(FileName(plotly_.path))
+                   << " (MIT license) */\n" << library << "\n</script>\n";
+      }
+      page_.html << view3d::ViewScript();
+    }
     page_.html << "<footer>Tables beside this page: <a href=\"summary.csv\">summary.csv</a> (RMS "
                   "per observation), <a href=\"residuals.csv\">residuals.csv</a> (every "
                   "measurement's residual); each figure as SVG in <code>figures/</code>. Written "
                   "by rodfit "
                << Escape(RODFIT_VERSION) << ".</footer>\n</body>\n</html>\n";
-    return {page_.html.str(), std::move(page_.figures)};
+    return {page_.html.str(), std::move(page_.figures), own_warnings_};
   }
 
  private:
@@ -392,7 +420,21 @@ class Builder {
                   "table.correlation td{text-align:center;min-width:64px}\n"
                   ".warn{color:#b30000;font-weight:bold}\n"
                   "nav a{margin-right:12px}footer{margin-top:40px;font-size:13px;color:#555}\n"
-               << "</style>\n</head>\n<body>\n"
+                  "div.view3d{border:1px solid #ddd;margin:8px 0 16px;background:#fff}\n"
+                  "p.view3d-note{padding:8px;margin:0}\n"
+                  "ul.warnings li{margin-bottom:6px}\n"
+                  ".colour-legend{display:flex;align-items:center;gap:8px;font-size:13px}\n"
+                  ".colour-legend span.bar{display:inline-block;width:240px;height:14px;"
+                  "border:1px solid #999;background:linear-gradient(to right,rgb(31,119,180),"
+                  "#fff,rgb(214,39,40))}\n"
+                  // Save as PDF: the tables and the SVG figures, one figure never split over
+                  // two pages; the interactive 3-D views and the navigation stay on screen.
+                  "@media print{body{max-width:none;margin:0;font-size:11px}nav,div.view3d,"
+                  "a.svg-file{display:none}.figures{display:block}figure{break-inside:avoid;"
+                  "page-break-inside:avoid;margin-bottom:8px;border:none}h2,h3{break-after:avoid}"
+                  "table{break-inside:auto}tr{break-inside:avoid}.print-only{display:block}}\n"
+                  ".print-only{display:none}\n"
+               << "</style>\n" << view3d::ErrorRecorderScript() << "</head>\n<body>\n"
                << "<h1>Fit report: <code>" << Escape(name) << "</code></h1>\n"
                << "<p class=\"meta\">Experiment <code>" << Escape(e_.path) << "</code>; "
                << e_.cases.size() << " case" << (e_.cases.size() == 1 ? "" : "s")
@@ -428,7 +470,16 @@ class Builder {
     h << (e_.fit.trusted_sigmas ? "; sigmas trusted (covariance not rescaled)" : "")
       << "</td></tr>\n";
     h << "<tr><th>wall time</th><td class=\"num\">" << Duration(r_.seconds) << "</td></tr>\n";
-    h << "</table>\n</section>\n";
+    h << "</table>\n";
+    // Every warning of the run, with what to do about it: what a terminal showed on stderr.
+    if (!warnings_.empty()) {
+      h << "<h3 class=\"warn\">Warnings (" << warnings_.size() << ")</h3>\n<ul class=\"warnings\">\n";
+      for (const std::string& w : warnings_) h << "<li>" << Escape(w) << "</li>\n";
+      h << "</ul>\n";
+    } else {
+      h << "<p class=\"no-warnings\">No warnings.</p>\n";
+    }
+    h << "</section>\n";
   }
 
   void Parameters() {
@@ -505,7 +556,9 @@ class Builder {
         }
         h << "</tr>\n";
       }
-      h << "</table>\n";
+      h << "</table>\n<div class=\"colour-legend\">correlation: <span>−1</span><span "
+           "class=\"bar\" title=\"blue: negative, white: none, red: positive\"></span><span>+1"
+           "</span> (|ρ| near 1: the data tell the two apart poorly)</div>\n";
     }
     h << "</section>\n";
   }
@@ -516,7 +569,12 @@ class Builder {
       // A moving experiment has no static fit cases: its cases are seen through sequences.
       for (size_t c = 0; c < e_.cases.size(); ++c) {
         page_.html << "<h3 class=\"case\" id=\"case-" << c << "\">Case <code>"
-                   << Escape(e_.scene.cases[c].name) << "</code></h3>\n<div class=\"figures\">\n";
+                   << Escape(e_.scene.cases[c].name) << "</code></h3>\n";
+        view3d::View view;
+        if (MovingCaseView(e_, r_, c, RecordedSamples(c), RecordedForces(c),
+                           "view3d-case-" + std::to_string(c), &view))
+          View(view);
+        page_.html << "<div class=\"figures\">\n";
         SequenceViews(c);
         page_.html << "</div>\n";
       }
@@ -528,7 +586,14 @@ class Builder {
                     "parameters: their shapes are not shown.</p>\n";
     for (size_t c = 0; c < e_.cases.size() && c < in_.cases.size(); ++c) {
       page_.html << "<h3 class=\"case\" id=\"case-" << c << "\">Case <code>"
-                 << Escape(e_.scene.cases[c].name) << "</code></h3>\n<div class=\"figures\">\n";
+                 << Escape(e_.scene.cases[c].name) << "</code></h3>\n";
+      if (shapes_ok_) {
+        std::vector<size_t> samples;  // the case's haptic samples (grasped fit cases)
+        for (size_t ci = e_.cases.size(); ci < in_.cases.size(); ++ci)
+          if (ExperimentCase(ci) == static_cast<int>(c)) samples.push_back(ci);
+        View(StaticCaseView(e_, in_, r_, c, samples, "view3d-case-" + std::to_string(c)));
+      }
+      page_.html << "<div class=\"figures\">\n";
       if (shapes_ok_) {
         CameraViews(c);
         ShapeViews(c);
@@ -539,6 +604,91 @@ class Builder {
       page_.html << "</div>\n";
     }
     page_.html << "</section>\n";
+  }
+
+  // A 3-D view in the page (drawn by the script Build() adds once there is one).
+  void View(const view3d::View& view) {
+    page_.html << view3d::RenderView(view)
+               << "<p class=\"print-only\">(The interactive 3-D view of this case is in the "
+                  "page on screen.)</p>\n";
+    ++views_;
+  }
+
+  // A moving case's 3-D samples (markers and points, not pixels), with the fitted run's.
+  std::vector<RecordedSample> RecordedSamples(size_t c) const {
+    std::vector<RecordedSample> out;
+    const std::string& case_name = e_.scene.cases[c].name;
+    for (const ObservationSpec& spec : e_.cases[c].observations) {
+      const ReportView view = KindOf(spec).view;
+      if (view != ReportView::kMarkers3d && view != ReportView::kPoints3d) continue;
+      const std::string label = EntryLabel(spec);
+      std::vector<SequenceSample> samples;
+      try {
+        samples = SequenceSamples(spec);
+      } catch (const InputError&) {
+        continue;  // the file changed since the fit read it
+      }
+      std::vector<const MeasurementResidual*> errors(samples.size(), nullptr);
+      for (const MeasurementResidual& mr : r_.measurement_residuals)
+        if (mr.case_name == case_name && mr.observation == label && mr.measurement >= 0 &&
+            static_cast<size_t>(mr.measurement) < errors.size())
+          errors[mr.measurement] = &mr;
+      for (size_t k = 0; k < samples.size(); ++k) {
+        RecordedSample rs;
+        rs.t = samples[k].t;
+        rs.s = samples[k].s;
+        rs.observed = samples[k].value;
+        if (errors[k]) {
+          rs.model = samples[k].value + errors[k]->error;
+          rs.sigma = errors[k]->sigma;
+        }
+        rs.entry = label;
+        out.push_back(rs);
+      }
+    }
+    return out;
+  }
+
+  // A moving case's load cell readings (its `reaction` entries), with the fitted run's force.
+  std::vector<RecordedForce> RecordedForces(size_t c) const {
+    std::vector<RecordedForce> out;
+    const std::string& case_name = e_.scene.cases[c].name;
+    for (const ObservationSpec& spec : e_.cases[c].observations) {
+      if (KindOf(spec).view != ReportView::kReaction) continue;
+      const std::string label = EntryLabel(spec);
+      std::map<double, Vec3> recorded;  // as ReactionSequenceViews reads them
+      try {
+        const CsvTable table = CsvTable::Read(spec.file);
+        const bool by_time = table.HasColumn("t");
+        const std::vector<double> key = table.Column(by_time ? "t" : "frame");
+        std::vector<std::vector<std::string>> text;
+        for (const char* col : {"fx", "fy", "fz"}) text.push_back(table.TextColumn(col));
+        for (int row = 0; row < table.num_rows(); ++row) {
+          Vec3 f;
+          bool taken = true;
+          for (int i = 0; i < 3; ++i) taken = taken && ParseDouble(text[i][row], &f[i]);
+          if (taken) recorded[by_time ? key[row] : key[row] / spec.frame_rate] = f;
+        }
+      } catch (const InputError&) {
+        continue;
+      }
+      std::vector<const MeasurementResidual*> force(recorded.size(), nullptr);
+      for (const MeasurementResidual& mr : r_.measurement_residuals)
+        if (mr.case_name == case_name && mr.observation == label && mr.unit == "N" &&
+            mr.measurement >= 0 && static_cast<size_t>(mr.measurement) < force.size())
+          force[mr.measurement] = &mr;
+      size_t k = 0;
+      for (const auto& [t, value] : recorded) {
+        RecordedForce rf;
+        rf.t = t;
+        rf.point = spec.point;
+        rf.measured = value;
+        if (force[k]) rf.model = value + force[k]->error;
+        out.push_back(rf);
+        ++k;
+      }
+    }
+    return out;
   }
 
   // One figure per camera of the case: the image (or a blank frame) zoomed to the thread, the
@@ -859,6 +1009,11 @@ class Builder {
     };
     add_ring(rest, "rest section", "#888888", true);
     add_ring(ring, "fitted deformed section", kFitted, false);
+    // A dent of a fraction of a millimetre on a ring of centimetres: also drawn magnified.
+    const double k = DentMagnification(rest, ring);
+    if (k > 1)
+      add_ring(rest + k * (ring - rest),
+               "fitted dent magnified × " + svg::FormatTick(k, k), "#9467bd", false);
     for (const SurfacePointSet* sp : surface) {
       svg::Series s;
       s.label = "measured " + sp->label().substr(sp->label().find(' ') + 1);
@@ -878,6 +1033,11 @@ class Builder {
                  std::string("The poked cross-section in its plane (equal scales): the ring at "
                              "rest (dashed), the ring deformed at the fitted parameters, and the "
                              "measured surface points.") +
+                     (DentMagnification(rest, ring) > 1
+                          ? " The dent is small against the ring: its displacement is also drawn "
+                            "magnified (purple), to show its shape; the measured points compare "
+                            "with the unmagnified ring."
+                          : "") +
                      (aligned ? "" : " Axes: the world's " + std::string(AxisName(ia)) + " and " +
                                          AxisName(ib) + " projected on the section's plane, "
                                          "which the rod's tangent tilts."));
@@ -971,7 +1131,7 @@ class Builder {
         f.y.label = std::string(axis_name) + " [" + unit + "]";
         for (size_t i = 0; i < shown.size(); ++i) {
           svg::Series recorded, fitted;
-          recorded.label = "s = " + ArcLabel(shown[i]);
+          recorded.label = ArcLabel(shown[i]);
           recorded.colour = fitted.colour = Colour(i);
           recorded.line = false;
           recorded.marker = svg::Marker::kCircle;
@@ -1254,50 +1414,95 @@ class Builder {
     }
   }
 
-  // The case's residuals in sigmas (all its entries, haptic samples included), per entry.
+  // The case's residuals in sigmas (all its entries, haptic samples included), per entry; for a
+  // moving case every recorded sample's (its sequences).
   std::vector<ResidualSeries> ResidualsOfCase(size_t c) const {
     std::vector<ResidualSeries> out;
     std::map<std::string, size_t> index;
-    auto series = [&](const std::string& label) -> ResidualSeries& {
+    auto series = [&](const std::string& label, ResidualSeries::Along along) -> ResidualSeries& {
       auto it = index.find(label);
       if (it == index.end()) {
         it = index.emplace(label, out.size()).first;
-        out.push_back({label, {}, {}});
+        out.push_back({label, along, {}, {}});
       }
       return out[it->second];
     };
+    if (e_.scene.dynamics) {
+      // Every sample's error over its sigma: the components of markers and readings, the two of
+      // pixels (along the order the reader numbered them).
+      for (const MeasurementResidual& mr : r_.measurement_residuals) {
+        if (mr.case_name != e_.scene.cases[c].name) continue;
+        const std::string label = mr.unit == "N m" ? mr.observation + " (moments)" : mr.observation;
+        ResidualSeries& s = series(label, ResidualSeries::Along::kReading);
+        const int dims = mr.unit == "px" ? 2 : 3;
+        for (int i = 0; i < dims; ++i) {
+          s.x.push_back(mr.measurement + 1);
+          s.sigmas.push_back(mr.error[i] / mr.sigma);
+        }
+      }
+      return out;
+    }
     for (size_t ci = 0; ci < in_.cases.size(); ++ci) {
       if (ExperimentCase(ci) != static_cast<int>(c)) continue;
       const FitCase& fc = in_.cases[ci];
       if (shapes_ok_) {
+        const Mat3X& shape = r_.shapes[ci];
+        const std::vector<double> arc = VertexArcLengths(fc, shape.cols());
         for (const auto& meas : fc.measurements) {
           if (!meas->reads_vertices_only()) continue;  // listed below, from the fit
-          ResidualSeries& s = series(meas->label());
-          const auto comps = NoisyComponents(*meas, r_.shapes[ci]);
-          for (size_t m = 0; m < comps.size(); ++m)
+          ResidualSeries& s = series(meas->label(), ResidualSeries::Along::kArc);
+          const auto comps = NoisyComponents(*meas, shape);
+          const std::vector<double> where = MeasurementArcLengths(*meas, shape, arc);
+          for (size_t m = 0; m < comps.size() && m < where.size(); ++m)
             for (double v : comps[m]) {
-              s.x.push_back(static_cast<double>(m + 1));
+              s.x.push_back(where[m]);
               s.sigmas.push_back(v);
             }
         }
       }
-      // Forces, moments and surface points.
-      std::map<std::string, int> counter;
+      // Forces, moments and surface points. A force or moment reading is drawn at the arc
+      // length of the held point it was read at (the k-th reading of an entry in the case is its
+      // k-th ForceMeasurement).
+      std::map<std::pair<std::string, std::string>, int> readings;  // (entry, unit) -> count
       for (const MeasurementResidual& mr : r_.measurement_residuals) {
         if (mr.case_index != static_cast<int>(ci)) continue;
         const std::string label = mr.unit == "N m" ? mr.observation + " (moments)" : mr.observation;
-        ResidualSeries& s = series(label);
         const Eigen::Vector3d e = mr.error / mr.sigma;
-        const double x = static_cast<double>(s.x.empty() ? 1 : s.x.back() + 1);
         std::vector<double> comps;
+        double x = NAN;
+        ResidualSeries::Along along = ResidualSeries::Along::kReading;
+        if (mr.unit == "N" || mr.unit == "N m") {
+          int k = readings[{mr.observation, mr.unit}]++;
+          for (const auto& meas : fc.measurements) {
+            const auto* forces = dynamic_cast<const ForceReadings*>(meas.get());
+            if (!forces || forces->label() != mr.observation) continue;
+            for (const ForceMeasurement& fm : forces->readings()) {
+              if (k-- != 0) continue;
+              x = HeldArcLength(fc.load_case, fm.point);
+              if (std::isfinite(x)) along = ResidualSeries::Along::kArc;
+              break;
+            }
+            break;
+          }
+        }
         if (mr.unit == "m" && shapes_ok_ && ci < r_.sections.size() && r_.sections[ci].cols() > 2) {
-          // A surface point: across the ring, as the centre-line points.
+          // A surface point: across the ring, as the centre-line points, at its angle around
+          // the section.
           for (const auto& meas : fc.measurements)
             if (const auto* sp = dynamic_cast<const SurfacePointSet*>(meas.get()))
               if (sp->label() == mr.observation &&
-                  mr.measurement < static_cast<int>(sp->points().size()))
-                AcrossComponents(Closed(r_.sections[ci]), sp->points()[mr.measurement], e, &comps);
+                  mr.measurement < static_cast<int>(sp->points().size())) {
+                const Eigen::Vector3d& q = sp->points()[mr.measurement];
+                AcrossComponents(Closed(r_.sections[ci]), q, e, &comps);
+                x = AngleAroundSection(r_.rest_sections[ci], q);
+                along = ResidualSeries::Along::kAngle;
+              }
         }
+        ResidualSeries& s = series(label, along);
+        if (along == ResidualSeries::Along::kReading)
+          x = static_cast<double>(s.x.empty() ? 1 : s.x.back() + 1);
+        else if (s.along != along)
+          continue;  // an entry drawn against another axis (cannot happen: one kind per entry)
         if (comps.empty()) comps.assign(e.data(), e.data() + mr.components);
         for (double v : comps) {
           s.x.push_back(x);
@@ -1308,64 +1513,163 @@ class Builder {
     return out;
   }
 
+  // The arc length [m] of a case's held point as a ForceMeasurement names it (clamp, end_clamp,
+  // end_pin, pins[k], grasp); NaN for another.
+  double HeldArcLength(const LoadCase& lc, const std::string& point) const {
+    if (point == "clamp") return 0.0;
+    if (point == "end_clamp" || point == "end_pin") return in_.rod.length;
+    if (point == "grasp" && lc.grasp) return lc.grasp->s;
+    if (point.rfind("pins[", 0) == 0) {
+      const size_t k = std::strtoul(point.c_str() + 5, nullptr, 10);
+      if (k < lc.pins.size()) return lc.pins[k].s;
+    }
+    return NAN;
+  }
+
+  // The rest arc lengths of a fit case's fitted vertices: its rod model's (held points move the
+  // vertex nearest them), or spread evenly when the model's count differs.
+  std::vector<double> VertexArcLengths(const FitCase& fc, Eigen::Index n) const {
+    try {
+      LoadCase whole = fc.load_case;
+      whole.symmetry.reset();
+      const RodModel model(in_.rod, in_.material, in_.gravity, whole, in_.springs);
+      if (static_cast<Eigen::Index>(model.arc_lengths().size()) == n) return model.arc_lengths();
+    } catch (const std::invalid_argument&) {
+    }
+    std::vector<double> s(n);
+    for (Eigen::Index i = 0; i < n; ++i) s[i] = in_.rod.length * i / std::max<Eigen::Index>(1, n - 1);
+    return s;
+  }
+
+  // Where on the rod each measurement of a centre-line observation lies [m]: a marker's s, a
+  // point's or pixel's closest point on the fitted centre-line (projected, for pixels).
+  static std::vector<double> MeasurementArcLengths(const Measurement& obs, const Mat3X& shape,
+                                                   const std::vector<double>& arc) {
+    std::vector<double> out;
+    auto at_foot = [&](const PolylineFoot& foot) {
+      if (foot.vertex >= 0 && static_cast<size_t>(foot.vertex) < arc.size()) return arc[foot.vertex];
+      if (foot.edge < 0 || static_cast<size_t>(foot.edge + 1) >= arc.size())
+        return std::numeric_limits<double>::quiet_NaN();
+      return arc[foot.edge] + foot.t * (arc[foot.edge + 1] - arc[foot.edge]);
+    };
+    if (const auto* m = ModelOf<Markers3dObservation>(obs)) {
+      for (const Marker3d& k : m->markers()) out.push_back(k.s);
+    } else if (const auto* m = ModelOf<ImageMarkersObservation>(obs)) {
+      for (const MarkerPixel& k : m->markers()) out.push_back(k.s);
+    } else if (const auto* p = ModelOf<Points3dObservation>(obs)) {
+      for (const Eigen::Vector3d& q : p->samples())
+        out.push_back(at_foot(ClosestPointOnPolyline<3>(shape, q)));
+    } else if (const auto* curve = ModelOf<ImageCurveObservation>(obs)) {
+      Eigen::Matrix2Xd uv(2, shape.cols());
+      bool projected = true;
+      for (int i = 0; i < shape.cols() && projected; ++i) {
+        Eigen::Vector2d p;
+        projected = Project(curve->camera(), Eigen::Vector3d(shape.col(i)), &p);
+        uv.col(i) = p;
+      }
+      for (const Eigen::Vector2d& q : curve->pixels())
+        out.push_back(projected ? at_foot(ClosestPointOnPolyline<2>(uv, q)) : NAN);
+    } else {
+      out.assign(obs.num_measurements(), NAN);
+    }
+    return out;
+  }
+
+  // A surface point's angle around the poked section [deg], from the rest ring's first node
+  // (the d1 direction) towards its second.
+  static double AngleAroundSection(const Eigen::Matrix3Xd& rest, const Eigen::Vector3d& q) {
+    if (rest.cols() < 3) return NAN;
+    const Eigen::Vector3d centre = rest.rowwise().mean();
+    const Eigen::Vector3d a = (rest.col(0) - centre).normalized();
+    const Eigen::Vector3d n = a.cross(rest.col(1) - centre).normalized();
+    const Eigen::Vector3d b = n.cross(a);
+    const Eigen::Vector3d d = q - centre;
+    double angle = std::atan2(d.dot(b), d.dot(a)) * 180.0 / kPi;
+    return angle < 0 ? angle + 360.0 : angle;
+  }
+
   void CaseResiduals(size_t c) {
     const std::vector<ResidualSeries> all = ResidualsOfCase(c);
-    if (all.empty()) return;
-    svg::Figure f;
-    f.title = e_.scene.cases[c].name + ": residuals in sigmas";
-    f.width = 660;
-    f.height = 380;
-    f.x.label = "measurement (per entry)";
-    f.y.label = "residual, model − measured [σ]";
-    f.bands.push_back({-3, 3, "#2ca02c", 0.08, "±3 σ"});
-    f.bands.push_back({-1, 1, "#2ca02c", 0.18, "±1 σ"});
-    const svg::Marker shapes[] = {svg::Marker::kCircle, svg::Marker::kSquare,
-                                  svg::Marker::kTriangle, svg::Marker::kDiamond};
-    // A few gross outliers (hundreds of sigmas) would flatten everything else to a line: the
-    // axis stops at kMaxSigmasShown and such points sit on its edge, as their own series.
-    double extent = 4.0;
-    for (const ResidualSeries& rs : all)
-      for (double v : rs.sigmas)
-        if (std::isfinite(v)) extent = std::max(extent, std::min(kMaxSigmasShown, std::abs(v)));
-    extent *= 1.05;
-    f.y.min = -extent;
-    f.y.max = extent;
-    svg::Series beyond;
-    beyond.colour = "#000000";
-    beyond.line = false;
-    beyond.marker = svg::Marker::kTriangle;
-    beyond.hollow = true;
-    beyond.marker_size = 5;
-    for (size_t i = 0; i < all.size(); ++i) {
-      svg::Series s;
-      s.label = all[i].label;
-      s.colour = Colour(i);
-      s.line = false;
-      s.marker = shapes[i % 4];
-      s.marker_size = 3.5;
-      for (size_t k = 0; k < all[i].sigmas.size(); ++k) {
-        const double v = all[i].sigmas[k];
-        if (std::abs(v) > kMaxSigmasShown) {
-          beyond.x.push_back(all[i].x[k]);
-          beyond.y.push_back(std::copysign(extent, v));
-        } else {
-          s.x.push_back(all[i].x[k]);
-          s.y.push_back(v);
-        }
+    // One figure per kind of x: along the rod (centre-line entries, and force readings at
+    // their held point), around the section (surface points).
+    for (const ResidualSeries::Along along :
+         {ResidualSeries::Along::kArc, ResidualSeries::Along::kAngle}) {
+      std::vector<const ResidualSeries*> shown;
+      for (const ResidualSeries& rs : all)
+        if (rs.along == along && !rs.sigmas.empty()) shown.push_back(&rs);
+      if (shown.empty()) continue;
+      const bool arc = along == ResidualSeries::Along::kArc;
+      svg::Figure f;
+      f.title = e_.scene.cases[c].name + (arc ? ": residuals along the rod"
+                                              : ": surface residuals around the section");
+      f.width = 660;
+      f.height = 380;
+      f.x.label = arc ? "arc length s [m]" : "angle around the section from d1 [°]";
+      if (arc) {  // a little beyond the rod, so that markers at its ends are not on the frame
+        f.x.min = -0.03 * in_.rod.length;
+        f.x.max = 1.03 * in_.rod.length;
+      } else {
+        f.x.min = 0.0;
+        f.x.max = 360.0;
       }
-      f.series.push_back(s);
+      f.y.label = "residual, model − measured [σ]";
+      f.bands.push_back({-3, 3, "#2ca02c", 0.08, "±3 σ"});
+      f.bands.push_back({-1, 1, "#2ca02c", 0.18, "±1 σ"});
+      const svg::Marker shapes[] = {svg::Marker::kCircle, svg::Marker::kSquare,
+                                    svg::Marker::kTriangle, svg::Marker::kDiamond};
+      // A few gross outliers (hundreds of sigmas) would flatten everything else to a line: the
+      // axis stops at kMaxSigmasShown and such points sit on its edge, as their own series.
+      double extent = 4.0;
+      for (const ResidualSeries* rs : shown)
+        for (double v : rs->sigmas)
+          if (std::isfinite(v)) extent = std::max(extent, std::min(kMaxSigmasShown, std::abs(v)));
+      extent *= 1.05;
+      f.y.min = -extent;
+      f.y.max = extent;
+      svg::Series beyond;
+      beyond.colour = "#000000";
+      beyond.line = false;
+      beyond.marker = svg::Marker::kTriangle;
+      beyond.hollow = true;
+      beyond.marker_size = 5;
+      for (size_t i = 0; i < shown.size(); ++i) {
+        svg::Series s;
+        s.label = shown[i]->label;
+        s.colour = Colour(i);
+        s.line = false;
+        s.marker = shapes[i % 4];
+        s.marker_size = 3.5;
+        for (size_t k = 0; k < shown[i]->sigmas.size(); ++k) {
+          const double v = shown[i]->sigmas[k];
+          if (std::abs(v) > kMaxSigmasShown) {
+            beyond.x.push_back(shown[i]->x[k]);
+            beyond.y.push_back(std::copysign(extent, v));
+          } else {
+            s.x.push_back(shown[i]->x[k]);
+            s.y.push_back(v);
+          }
+        }
+        f.series.push_back(s);
+      }
+      if (!beyond.x.empty()) {
+        beyond.label = std::to_string(beyond.x.size()) + " beyond ±" +
+                       svg::FormatTick(kMaxSigmasShown, 1) + " σ (at the edge)";
+        f.series.push_back(beyond);
+      }
+      page_.Figure(f, "residual-plot",
+                   std::string(arc ? "residuals_" : "surface_residuals_") + e_.scene.cases[c].name,
+                   " data-case=\"" + Escape(e_.scene.cases[c].name) + "\"",
+                   arc ? "Every residual component of the case divided by its entry's sigma, "
+                         "against where on the rod it was measured (a marker's s; a point's or "
+                         "pixel's closest point on the fitted centre-line; a force reading at its "
+                         "held point; "
+                         "closest-point entries: the components across the curve only). About 68 % "
+                         "should lie in the ±1 σ band and nearly all in ±3 σ when the model and "
+                         "the sigmas are right; a trend along s is a model error there."
+                       : "Every surface point's residual across the fitted section in sigmas, "
+                         "against its angle around the section. A trend with the angle is a "
+                         "section model error (e.g. at the instrument's contact).");
     }
-    if (!beyond.x.empty()) {
-      beyond.label = std::to_string(beyond.x.size()) + " beyond ±" +
-                     svg::FormatTick(kMaxSigmasShown, 1) + " σ (at the edge)";
-      f.series.push_back(beyond);
-    }
-    page_.Figure(f, "residual-plot", "residuals_" + e_.scene.cases[c].name,
-                 " data-case=\"" + Escape(e_.scene.cases[c].name) + "\"",
-                 "Every residual component of the case divided by its entry's sigma, by "
-                 "measurement number within the entry (closest-point entries: the components "
-                 "across the curve only). About 68 % should lie in the ±1 σ band and nearly all "
-                 "in ±3 σ when the model and the sigmas are right.");
   }
 
   void AllResiduals() {
@@ -1428,7 +1732,7 @@ class Builder {
     h << "<h3>RMS per observation entry</h3>\n<table class=\"rms\">\n<tr><th>case</th>"
          "<th>entry</th><th>type</th><th>count</th><th>RMS</th></tr>\n";
     for (const ObservationFit& o : r_.observations) {
-      h << "<tr><td>" << Escape(o.case_name) << "</td><td>" << Escape(o.label) << "</td><td>"
+      h << "<tr><td>" << Escape(DisplayCaseName(o.case_name)) << "</td><td>" << Escape(o.label) << "</td><td>"
         << Escape(o.type) << "</td><td class=\"num\">" << o.num_measurements
         << "</td><td class=\"num\">" << WithUnit(o.rms, o.unit, 3);
       if (std::isfinite(o.rms_moment)) h << "; moments " << WithUnit(o.rms_moment, "N m", 3);
@@ -1473,6 +1777,16 @@ class Builder {
         << "</td></tr>\n";
     };
     row("whole fit (wall time)", r_.seconds);
+    if (e_.scene.dynamics) {
+      // A moving fit integrates each case with its sensitivities per evaluation: the forward
+      // solves and the Jacobians are one run.
+      row("runs of the moving cases with their sensitivities (" + std::to_string(r_.forward_solves) +
+              " evaluations)",
+          r_.solve_seconds);
+      row("Ceres, covariance and the rest", std::max(0.0, r_.seconds - r_.solve_seconds));
+      h << "</table>\n</section>\n";
+      return;
+    }
     if (r_.global_seconds > 0)
       row("global search (NLopt; its evaluations are in the rows below)", r_.global_seconds);
     row("forward solves (" + std::to_string(r_.forward_solves) + ")", r_.solve_seconds);
@@ -1489,14 +1803,18 @@ class Builder {
   const FitInput& in_;
   const FitResult& r_;
   const bool shapes_ok_;  // one fitted shape per fit case (else shape figures are left out)
+  std::vector<std::string> warnings_;      // the run's and the page's own
+  std::vector<std::string> own_warnings_;  // the page's own (returned to the caller)
+  const PlotlyLibrary& plotly_;
+  int views_ = 0;  // 3-D views on the page
   Page page_;
 };
 
 }  // namespace
 
 FitReportPage BuildFitReportPage(const Experiment& experiment, const FitInput& input,
-                                 const FitResult& result) {
-  return Builder(experiment, input, result).Build();
+                                 const FitResult& result, const std::vector<std::string>& warnings) {
+  return Builder(experiment, input, result, warnings).Build();
 }
 
 }  // namespace rodfit

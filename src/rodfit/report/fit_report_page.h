@@ -19,11 +19,15 @@ struct FitReportPage {
   std::string html;  ///< index.html
   /// (file name, SVG) of every figure on the page, e.g. ("camera_flat_cam_front.svg", "<svg...").
   std::vector<std::pair<std::string, std::string>> figures;
+  /// The page's own warnings (e.g. no plotly.js for the 3-D views), also in its summary.
+  std::vector<std::string> warnings;
 };
 
 /// Builds the page. Reads the camera images of `images` entries (InputError when one cannot be
 /// read) and the haptic logs of `grasp_force` entries (for their full force-versus-time curves).
+/// `warnings`: the run's warnings, each with what to do about it, listed in the summary.
 FitReportPage BuildFitReportPage(const Experiment& experiment, const FitInput& input,
-                                 const FitResult& result);
+                                 const FitResult& result,
+                                 const std::vector<std::string>& warnings = {});
 
 }  // namespace rodfit

@@ -155,6 +155,27 @@ struct Box {  // [px] a text's extent, for overlap tests
   bool Overlaps(const Box& o) const {
     return x < o.x + o.w && o.x < x + w && y < o.y + o.h && o.y < y + h;
   }
+  bool Contains(double px, double py) const {
+    return px >= x && px <= x + w && py >= y && py <= y + h;
+  }
+  // Whether the segment (ax, ay)-(bx, by) passes through the box (Liang–Barsky clipping).
+  bool Crosses(double ax, double ay, double bx, double by) const {
+    double t0 = 0.0, t1 = 1.0;
+    const double dx = bx - ax, dy = by - ay;
+    const double p[4] = {-dx, dx, -dy, dy};
+    const double q[4] = {ax - x, x + w - ax, ay - y, y + h - ay};
+    for (int i = 0; i < 4; ++i) {
+      if (p[i] == 0.0) {
+        if (q[i] < 0.0) return false;
+        continue;
+      }
+      const double r = q[i] / p[i];
+      if (p[i] < 0.0) t0 = std::max(t0, r);
+      else t1 = std::min(t1, r);
+      if (t0 > t1) return false;
+    }
+    return true;
+  }
 };
 
 struct LegendEntry {
@@ -439,6 +460,32 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
 
   // Series: bars, lines, markers, point labels.
   std::vector<Box> labels;  // point labels placed so far
+  std::vector<std::pair<double, double>> labelled_points;  // [px] the points they label
+  // Every drawn line segment and marker [px], so that a point label is put where it covers
+  // none of them (a label struck through by a curve cannot be read).
+  struct Segment {
+    double ax, ay, bx, by;
+  };
+  std::vector<Segment> drawn_segments;
+  std::vector<std::pair<double, double>> drawn_markers;
+  for (const Series& s : f.series) {
+    const size_t n = std::min(s.x.size(), s.y.size());
+    bool have = false;
+    double lx = 0, ly = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (!Drawable(f.x, s.x[i]) || !Drawable(f.y, s.y[i])) {
+        have = false;
+        continue;
+      }
+      const double x = sx.Px(s.x[i]), y = sy.Px(s.y[i]);
+      if (s.line && !s.bars && have) drawn_segments.push_back({lx, ly, x, y});
+      if (s.marker != Marker::kNone) drawn_markers.emplace_back(x, y);
+      lx = x;
+      ly = y;
+      have = true;
+    }
+  }
+  const Box plot_box{left, top, plot_w, plot_bottom - top};
   for (const Series& s : f.series) {
     const size_t n = std::min(s.x.size(), s.y.size());
     std::vector<double> px(n, kNaN), py(n, kNaN);
@@ -493,15 +540,61 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
         << "\" stroke=\"#ffffff\" stroke-width=\"3\" paint-order=\"stroke\">";
       for (size_t i = 0; i < n && i < s.point_labels.size(); ++i) {
         if (!std::isfinite(px[i]) || s.point_labels[i].empty()) continue;
-        // A label that would overlap one already placed is left out (dense markers).
-        // (the width estimate generous by a few pixels: a near miss reads as an overlap)
-        const Box box{px[i] + 6, py[i] - 6 - kTickFont,
-                      (kCharWidth + 0.6) * s.point_labels[i].size() + 4, kTickFont + 4.0};
-        if (std::any_of(labels.begin(), labels.end(),
-                        [&](const Box& b) { return b.Overlaps(box); }))
+        // The first of sixteen places around the point (the width estimate generous by a few
+        // pixels: a near miss reads as an overlap) that lies inside the plot and covers no
+        // other label, line or marker; a label with no such place is left out (dense markers).
+        const double w = (kCharWidth + 0.6) * s.point_labels[i].size() + 4, h = kTickFont + 4.0;
+        // Near the point first, then a ring farther out.
+        double places[16][2];
+        for (int ring = 0; ring < 2; ++ring) {
+          const double gap = 6.0 + s.marker_size + 12.0 * ring;
+          const double ring_places[8][2] = {
+              {gap, -gap - h},      {gap, gap},         {-gap - w, -gap - h}, {-gap - w, gap},
+              {gap, -0.5 * h},      {-gap - w, -0.5 * h}, {-0.5 * w, -gap - h}, {-0.5 * w, gap}};
+          for (int k = 0; k < 8; ++k) {
+            places[8 * ring + k][0] = ring_places[k][0];
+            places[8 * ring + k][1] = ring_places[k][1];
+          }
+        }
+        // Where no place is clear of the lines and markers (a point in a corner that its line
+        // leaves), the first inside the plot that covers no other label: the label's white halo
+        // keeps it legible over a line.
+        // A point on (or next to) one already labelled gets none: two labels beside one dot
+        // would not say which is whose.
+        const double near = 2.0 * s.marker_size + 2.0;
+        if (std::any_of(labelled_points.begin(), labelled_points.end(), [&](const auto& q) {
+              return std::hypot(q.first - px[i], q.second - py[i]) < near;
+            }))
           continue;
+        bool placed = false;
+        Box box{};
+        for (int pass = 0; pass < 2 && !placed; ++pass) {
+          for (const auto& d : places) {
+            box = Box{px[i] + d[0], py[i] + d[1], w, h};
+            if (box.x < plot_box.x || box.y < plot_box.y ||
+                box.x + box.w > plot_box.x + plot_box.w || box.y + box.h > plot_box.y + plot_box.h)
+              continue;
+            if (std::any_of(labels.begin(), labels.end(), [&](const Box& b) { return b.Overlaps(box); }))
+              continue;
+            if (pass == 0 &&
+                std::any_of(drawn_segments.begin(), drawn_segments.end(), [&](const Segment& g) {
+                  return box.Crosses(g.ax, g.ay, g.bx, g.by);
+                }))
+              continue;
+            if (pass == 0 &&
+                std::any_of(drawn_markers.begin(), drawn_markers.end(), [&](const auto& m) {
+                  return Box{box.x - 3, box.y - 3, box.w + 6, box.h + 6}.Contains(m.first, m.second);
+                }))
+              continue;
+            placed = true;
+            break;
+          }
+        }
+        if (!placed) continue;
         labels.push_back(box);
-        o << "<text x=\"" << Num(px[i] + 6) << "\" y=\"" << Num(py[i] - 6) << "\">"
+        labelled_points.emplace_back(px[i], py[i]);
+        // The box's baseline: its bottom less the descent.
+        o << "<text x=\"" << Num(box.x + 2) << "\" y=\"" << Num(box.y + box.h - 3) << "\">"
           << Escape(s.point_labels[i]) << "</text>";
       }
       o << "</g>";

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <memory>
 #include <exception>
+#include <limits>
 #include <new>
 #include <stdexcept>
 #include <string>
@@ -16,7 +17,8 @@
 struct rodfit_runtime {
   std::unique_ptr<rodfit::Runtime> runtime;
   std::string last_error;
-  // A step's failure is reported with a static text: the step path allocates nothing.
+  // A step's failure is reported with the runtime's message (a fixed text or one formatted in
+  // the runtime's own buffer): the step path allocates nothing.
   const char* step_error = nullptr;
   rodfit::TubeMesh mesh;  // rodfit_get_mesh's, its storage reused from call to call
 };
@@ -162,16 +164,22 @@ rodfit_status rodfit_set_tool_orientation(rodfit_runtime* h, const double r[9]) 
 rodfit_status rodfit_step(rodfit_runtime* h, rodfit_step_info* info) {
   return Guard(h, [&] {
     const rodfit::StepReport r = h->runtime->Step();
-    rodfit_status status = RODFIT_OK;
-    if (r.status == rodfit::StepStatus::kNotConverged) status = RODFIT_NOT_CONVERGED;
-    if (r.status == rodfit::StepStatus::kTimeBudget) status = RODFIT_TIME_BUDGET;
+    rodfit_status status = RODFIT_INTERNAL_ERROR;
+    switch (r.status) {
+      case rodfit::StepStatus::kConverged: status = RODFIT_OK; break;
+      case rodfit::StepStatus::kNotConverged: status = RODFIT_NOT_CONVERGED; break;
+      case rodfit::StepStatus::kTimeBudget: status = RODFIT_TIME_BUDGET; break;
+      case rodfit::StepStatus::kStrainLimit: status = RODFIT_STRAIN_LIMIT; break;
+      case rodfit::StepStatus::kToolRefused: status = RODFIT_TOOL_REFUSED; break;
+    }
     if (info) {
       info->status = status;
       info->iterations = r.iterations;
       info->residual = r.residual;
       info->seconds = r.seconds;
+      info->tool_lag = r.tool_lag;
     }
-    if (status != RODFIT_OK) h->step_error = rodfit::ToString(r.status);
+    if (status != RODFIT_OK) h->step_error = r.message;
     return status;
   });
 }
@@ -202,15 +210,49 @@ rodfit_status rodfit_get_tool_force(rodfit_runtime* h, double force[3], double t
   });
 }
 
+rodfit_status rodfit_get_tool_position(rodfit_runtime* h, double p[3]) {
+  return Guard(h, [&] {
+    if (!p) return Fail(h, RODFIT_INVALID_ARGUMENT, "position is null");
+    const rodfit::Vec3 x = h->runtime->ToolPosition();
+    for (int c = 0; c < 3; ++c) p[c] = x[c];
+    return RODFIT_OK;
+  });
+}
+
+rodfit_status rodfit_get_tool_orientation(rodfit_runtime* h, double r[9]) {
+  return Guard(h, [&] {
+    if (!r) return Fail(h, RODFIT_INVALID_ARGUMENT, "rotation is null");
+    const Eigen::Matrix3d rotation = h->runtime->ToolOrientation();
+    for (int k = 0; k < 9; ++k) r[k] = rotation(k / 3, k % 3);
+    return RODFIT_OK;
+  });
+}
+
+rodfit_status rodfit_get_energy(rodfit_runtime* h, double* potential, double* kinetic) {
+  return Guard(h, [&] {
+    if (potential) *potential = h->runtime->Energy();
+    if (kinetic) *kinetic = h->runtime->KineticEnergy();
+    return RODFIT_OK;
+  });
+}
+
 rodfit_status rodfit_get_mesh(rodfit_runtime* h, int* num_vertices, int* num_triangles,
                               double* vertices, size_t vertex_capacity, int* triangles,
                               size_t triangle_capacity) {
   return Guard(h, [&] {
     // The counts follow from the shape (a ring per vertex, two triangles per quad), so a call
     // for the counts builds nothing.
+    // ring_vertices is at most kMaxMeshRingVertices (RuntimeOptions::Check) and the rings are
+    // the rod's vertices, so the products do not overflow a size_t; an int holds them only up
+    // to INT_MAX / 3 (the callers size their buffers as 3 * count).
     const size_t rings = static_cast<size_t>(h->runtime->Shape().cols());
     const size_t ring_vertices = static_cast<size_t>(h->runtime->options().mesh_ring_vertices);
     const size_t nv = rings * ring_vertices, nt = 2 * (rings - 1) * ring_vertices;
+    constexpr size_t kMaxCount = static_cast<size_t>(std::numeric_limits<int>::max() / 3);
+    if (nv > kMaxCount || nt > kMaxCount)
+      return Fail(h, RODFIT_INVALID_ARGUMENT,
+                  "mesh too large: 3 x its vertex or triangle count does not fit an int (fewer "
+                  "segments or mesh_ring_vertices)");
     if (num_vertices) *num_vertices = static_cast<int>(nv);
     if (num_triangles) *num_triangles = static_cast<int>(nt);
     if (!vertices && !triangles) return RODFIT_OK;  // counts only
@@ -240,6 +282,8 @@ const char* rodfit_status_name(rodfit_status status) {
     case RODFIT_SOLVE_ERROR: return "RODFIT_SOLVE_ERROR";
     case RODFIT_OUT_OF_MEMORY: return "RODFIT_OUT_OF_MEMORY";
     case RODFIT_INTERNAL_ERROR: return "RODFIT_INTERNAL_ERROR";
+    case RODFIT_STRAIN_LIMIT: return "RODFIT_STRAIN_LIMIT";
+    case RODFIT_TOOL_REFUSED: return "RODFIT_TOOL_REFUSED";
   }
   return "RODFIT_UNKNOWN_STATUS";
 }

@@ -9,9 +9,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -30,8 +33,47 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The smallest fraction of max_tool_move a tick falls back to after failed ticks.
-constexpr double kMinMoveScale = 1.0 / 64.0;
+// After a failed tick the next moves a quarter as far (a poke: applies a quarter of the change of
+// force), and each converged tick doubles it back up to 1: a failed step is never tried again
+// unchanged. The smallest fraction, after ten failures in a row, is a millionth of the move: by
+// then a tick that does not move at all converges at once, from the last good equilibrium.
+constexpr double kMoveCut = 0.25;
+constexpr double kMinMoveScale = 1.0 / (1 << 20);
+// A quasi-static solve stopped by its iteration cap or the time budget is resumed by the next
+// tick from where it stopped (its target kept), at most this many ticks in a row: a snap of a
+// slack thread may need more Newton iterations than one tick has. Then the tick falls back to
+// the last good state and a shorter move.
+constexpr int kMaxResumedTicks = 4;
+// Dynamic mode: after this many failed steps in a row the rod is caught at rest (its rates
+// zeroed, BDF2's history dropped): a step that cannot be taken from a fast motion can from rest,
+// and the rod's energy only falls by it.
+constexpr int kFailuresBeforeRest = 3;
+// Dynamic mode: the grasped point's move per tick changes by at most this fraction of the
+// largest move (max_tool_move l_min) from one tick to the next. A held point that starts or
+// stops at full speed in one step is an impulse the implicit step cannot follow in its Newton
+// iterations (measured: the suture at rest, its tip moved 1 mm towards the clamp in one step,
+// fails; a quarter of that does not). A steady drag changes its move far less per tick and is
+// followed exactly; a tool that jumped is caught up with a ramp up and down.
+constexpr double kMoveChange = 0.25;
+// The grasp's reach: the tool is pulled to (1 + kReachStrain max_strain) times the arc length from
+// each other held point, so that a span pulled taut ends just within max_strain: its own
+// curvature and its kink at a clamp add ~1e-4 to the strain of its chord (measured on the suture
+// at 10 %), which the strain guard would otherwise cut at every tick at the reach.
+constexpr double kReachStrain = 0.99;
+// The strain guard: a move that took the rod's largest edge strain past max_strain sets a wall
+// across it where the strain (linear in a tick's small move) reaches this fraction of the way
+// from where it was to the limit, and a quasi-static tick is taken again to the wall; the wall
+// is lifted when the strain is back below this fraction of the limit.
+constexpr double kStrainAim = 0.9;
+// The grasp's reach (RuntimeOptions::max_strain) is the intersection of a ball per held point;
+// the tool is pulled into it by this many rounds of projections onto the balls at most (one
+// round for a rod held at one point besides the grasp, the bundled profiles' case).
+constexpr int kReachRounds = 8;
+// The residual's round-off floor (ResidualFloor: eps EA per edge, at rest) is an estimate: a rod
+// pulled taut sums larger forces, and its residual stalls a few times above it (measured: the
+// suture held at 10 % strain stalled at 2.8e-9 N against a floor of 2.1e-9 N). A solve stopped
+// within this many floors is at round-off.
+constexpr double kFloorMargin = 10.0;
 // A chord step that cut the residual by less than this is followed by a Newton iteration, which
 // renews the kept factor: the next ticks' predictor is made with it.
 constexpr double kChordRefresh = 1e-3;
@@ -88,7 +130,12 @@ bool RuntimeOptions::Check(std::string* why) const {
   if (!(time_step > 0.0)) return *why = "time_step must be > 0", false;
   if (!(max_tool_move > 0.0)) return *why = "max_tool_move must be > 0", false;
   if (dynamic_newton_iterations < 1) return *why = "dynamic_newton_iterations must be >= 1", false;
-  if (mesh_ring_vertices < 3) return *why = "mesh_ring_vertices must be >= 3", false;
+  if (mesh_ring_vertices < 3 || mesh_ring_vertices > kMaxMeshRingVertices)
+    return *why = "mesh_ring_vertices must be in [3, " + std::to_string(kMaxMeshRingVertices) + "]",
+           false;
+  if (!(max_strain > 0.0 && max_strain <= 1.0))
+    return *why = "max_strain must be in (0, 1]", false;
+  if (!(max_tool_move <= 1.0)) return *why = "max_tool_move must be <= 1", false;
   if (hold_orientation && (tool != ToolKind::kGrasp || mode != RuntimeMode::kQuasiStatic))
     return *why = "hold_orientation is for a quasi-static grasp only", false;
   return true;
@@ -99,6 +146,8 @@ const char* ToString(StepStatus status) {
     case StepStatus::kConverged: return "converged";
     case StepStatus::kNotConverged: return "not converged (last good state kept)";
     case StepStatus::kTimeBudget: return "time budget exceeded (last good state kept)";
+    case StepStatus::kStrainLimit: return "at the strain limit (the tool is out of reach)";
+    case StepStatus::kToolRefused: return "tool input refused (last good state kept)";
   }
   return "unknown";
 }
@@ -109,11 +158,51 @@ struct Runtime::Impl {
   std::unique_ptr<RodModel> model;
   int tool_vertex = -1;  // grasp: the held vertex; poke: the lower vertex of the bracket
   double poke_weight = 0.0;
-  Vec3 tool = Vec3::Zero();        // grasp target [m]
-  Vec3 target = Vec3::Zero();      // this tick's: the tool, or max_tool_move towards it [m]
+  Vec3 tool = Vec3::Zero();        // grasp: the tool's position, as set [m]
+  // This tick's target of the grasped point: the goal, or max_tool_move towards it [m]; between
+  // ticks, where the state holds the grasped point (the dynamic drive reads it).
+  Vec3 target = Vec3::Zero();
+  // The tool pulled into the grasp's reach (RuntimeOptions::max_strain) [m], and whether it was.
+  Vec3 goal = Vec3::Zero();
+  bool strain_limited = false;
+  // The strain guard (a grasp): the largest edge strain of the state; a wall the goal may not
+  // pass, set where a move took the strain past max_strain (a point and the move's direction),
+  // lifted once the strain is back below kStrainAim of the limit; whether this tick's guard
+  // acted, and the strain and edge it saw.
+  double strain_now = 0.0;
+  bool wall = false;
+  Vec3 wall_point = Vec3::Zero(), wall_normal = Vec3::Zero();
+  bool strain_guarded = false;
+  double strain_seen = 0.0;
+  int strain_edge = 0;
   double move_scale = 1.0;         // of max_tool_move: cut after a failed tick, regrown after
-  Vec3 tool_force = Vec3::Zero();  // poke force [N]
+  Vec3 tool_force = Vec3::Zero();  // poke: the tool's force, as set [N]
+  // Poke: the force of this tick's step, and between ticks the force the state is in balance
+  // with (the last good step's): a failed or refused tick restores it [N].
+  Vec3 applied_force = Vec3::Zero();
+  Vec3 last_good_force = Vec3::Zero();
+  double max_poke_force = 0.0;     // [N] max_strain EA: a larger push is refused
   Vec3 reaction = Vec3::Zero();    // last good force on the tool [N]
+  // The grasp's reach: each other held point (the clamp first) and the distance the grasped
+  // point may have from it, (1 + max_strain) times the rod between them [m].
+  struct Reach {
+    Vec3 centre = Vec3::Zero();
+    double radius = 0.0;
+    double s = 0.0;  // the held point's arc length [m]
+  };
+  std::vector<Reach> reach;
+  const Reach* reach_limit = nullptr;  // the ball that limited this tick's goal, if one did
+  // Why the last tick is not OK (StepReport::message), formatted here: no allocation.
+  char message[320] = "";
+  Termination termination = Termination::kConverged;  // quasi-static: the last solve's
+  // Quasi-static: a solve the last tick did not finish (iteration cap or time budget), resumed by
+  // the next from where it stopped, with its target and the held orientation.
+  RodState pending;
+  Vec3 pending_target = Vec3::Zero();
+  Vec3 pending_force = Vec3::Zero();
+  Eigen::Matrix3d pending_rotation = Eigen::Matrix3d::Identity();
+  int resumed_ticks = 0;  // how many ticks in a row resumed it (or ended with it kept)
+  int failures = 0;       // failed ticks in a row (not the time budget's)
   double force_tolerance = 0.0;    // [N]
   double floor_tolerance = 0.0;    // [N] the residual's round-off floor
   // Quasi-static scratch, sized once.
@@ -133,6 +222,13 @@ struct Runtime::Impl {
   // earlier one's): the predictor and the chord steps may use it; a chord step that does not
   // contract fast enough refactors.
   bool factor_near_state = false;
+  // The factor was made at a state of this converged branch, shifted or not: it serves the
+  // next ticks' predictor all the same. A shifted factor is made where the Hessian is indefinite
+  // (a thread pushed towards its clamp, near buckling) and still predicts the stiff part of the
+  // rod's response, the part Newton cannot recover within a tick from the grasped vertex moved
+  // alone (measured: the suture's tip pushed 2.5 cm towards the clamp lost 11 ticks of 3000
+  // without it, none with it).
+  bool factor_on_branch = false;
   // The grasp's reaction at the state of the last residual check (its hold-free rows), and
   // whether that check was at the final state.
   Vec3 checked_force = Vec3::Zero();
@@ -222,7 +318,7 @@ struct Runtime::Impl {
   double PokeWork(const RodState& s) const {
     if (options.tool != ToolKind::kPoke) return 0.0;
     const Vec3 x = (1.0 - poke_weight) * s.x.col(tool_vertex) + poke_weight * s.x.col(tool_vertex + 1);
-    return tool_force.dot(x);
+    return applied_force.dot(x);
   }
   double Energy(const RodState& s) const { return PotentialEnergy(*model, s) - PokeWork(s); }
   // The same for a state whose frames `f` are fresh (as ApplyStep leaves them): no transports.
@@ -239,7 +335,7 @@ struct Runtime::Impl {
       const double w = k == 0 ? 1.0 - poke_weight : poke_weight;
       for (int c = 0; c < 3; ++c) {
         const int dof = RodModel::VertexDof(i) + c;
-        if (!held[dof]) (*gradient)[dof] -= w * tool_force[c];
+        if (!held[dof]) (*gradient)[dof] -= w * applied_force[c];
       }
     }
   }
@@ -258,11 +354,54 @@ struct Runtime::Impl {
     if (options.tool == ToolKind::kGrasp) {
       GraspLoads(s, &reaction, &torque);
     } else {
-      reaction = -tool_force;
+      reaction = -applied_force;
       torque.setZero();
     }
   }
+  // The tick's inputs checked (finite, in range): false with the message when one is not.
+  bool CheckInputs();
+  // The goal of a grasp: the tool, pulled into the reach of every other held point.
+  void UpdateGoal();
+  // This tick's target: the grasped point at `from` moved towards the goal by at most
+  // max_tool_move (times the move scale) [m].
+  Vec3 LimitedMove(const Vec3& from) const;
+  // Dynamic mode: the same, with the move changing by at most kMoveChange from the last tick's
+  // (held_move), and slowing down in time to stop at the goal.
+  // `goal_move`: the goal's own move since the last tick (at most the largest move).
+  Vec3 DynamicMove(const Vec3& from, const Vec3& goal_move) const;
+  Vec3 held_move = Vec3::Zero();  // dynamic grasp: the last good tick's move of the grasped point [m]
+  Vec3 last_goal = Vec3::Zero();  // grasp: the last tick's goal [m]
+  Vec3 goal_move = Vec3::Zero();  // grasp: the goal's move since (at most the largest move) [m]
+  // A poke's force for this tick: the tool's, or after failed ticks a part of the change.
+  void ApplyForce();
+  // The message of a tick that is not OK (StepReport::message).
+  void Describe(StepReport* report);
   StepReport StepQuasiStatic(Clock::time_point start);
+  // Ends a quasi-static tick that failed: the last good state back, a shorter next move, and the
+  // solve kept for the next tick to resume when it stopped short (cap, budget) at a finite state.
+  StepReport GiveUp(StepStatus status, StepReport report);
+  // The tick in the runtime's mode.
+  StepReport Advance(Clock::time_point start) {
+    return options.mode == RuntimeMode::kDynamic ? StepDynamic() : StepQuasiStatic(start);
+  }
+  // The largest edge strain |e_j| / l_j - 1 of a state, and its edge.
+  double MaxStrain(const RodState& s, int* edge) const {
+    double worst = -1.0;
+    for (int j = 0; j < model->num_edges(); ++j) {
+      const double strain = s.e.col(j).norm() / model->rest_edge_length(j) - 1.0;
+      if (strain > worst) worst = strain, *edge = j;
+    }
+    return worst;
+  }
+  const RodState& Current() const {
+    return options.mode == RuntimeMode::kDynamic ? dynamic.q : state;
+  }
+  // A grasp's tick whose move took the rod's strain past max_strain (and higher than it was):
+  // a wall across the move stops the grasp from then on; a quasi-static tick is taken again from
+  // its start to the wall (and keeps its start if that too overstrains the rod).
+  void GuardStrain(Clock::time_point start, StepReport* report);
+  // Quasi-static: the state at the tick's start again (the tick's solve discarded).
+  void RestoreTickStart();
   // The minimizer from `state` until converged, `max_iterations` or the time budget from
   // `start`. `predicted`: the state is this tick's prediction from the kept factor (within the
   // linear response of the equilibrium), so its first Newton step is taken whole and checked by
@@ -270,6 +409,8 @@ struct Runtime::Impl {
   StepStatus Newton(Clock::time_point start, int max_iterations, bool predicted,
                     StepReport* report);
   StepReport StepDynamic();
+  // Dynamic mode: the rod at rest where it is (rates zero, BDF2's history dropped).
+  void CatchAtRest();
 };
 
 // A quasi-static tick as a Newton problem (solve/newton_minimizer.h): Pi of the rod with its held
@@ -308,7 +449,10 @@ class Runtime::Impl::TickProblem : public RodNewtonProblem {
   NewtonTolerances Tolerances() override { return {m_.force_tolerance, m_.floor_tolerance}; }
   LinearSolver& Solver() override { return *m_.solver; }
   // An unshifted factor may serve later chord steps and the next ticks' predictor.
-  void OnFactor(bool shifted) override { m_.factor_near_state = !shifted; }
+  void OnFactor(bool shifted) override {
+    m_.factor_near_state = !shifted;
+    m_.factor_on_branch = true;
+  }
 
  private:
   Impl& m_;
@@ -365,6 +509,8 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   if (options.tool == ToolKind::kGrasp) {
     m.tool_vertex = model.grasp_vertex();
     m.tool = model.grasp_position();
+    m.target = m.tool;
+    m.goal = m.tool;
     if (options.hold_orientation) {
       m.oriented = true;
       m.edge_vertex = m.tool_vertex - 1;
@@ -395,12 +541,29 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.last_good = m.state;
   m.trial = m.state;
   m.moved = m.state;
+  m.pending = m.state;
+  m.strain_now = m.MaxStrain(m.state, &m.strain_edge);
+  if (options.tool == ToolKind::kGrasp) {
+    // The grasp's reach: a ball about the clamp and about every other held point (an oriented
+    // grasp's own edge aside), of (1 + max_strain) times the rod between.
+    const double s_grasp = model.arc_length(m.tool_vertex);
+    const double stretch = 1.0 + kReachStrain * options.max_strain;
+    m.reach.push_back({m.state.x.col(0), stretch * s_grasp, 0.0});
+    for (const HeldVertex& h : model.held()) {
+      if (h.kind == HeldVertex::Kind::kGrasp || (m.oriented && h.vertex == m.edge_vertex))
+        continue;
+      m.reach.push_back(
+          {h.target, stretch * std::abs(s_grasp - h.s), h.s});
+    }
+  }
+  m.max_poke_force = options.max_strain * model.material().stretch_stiffness;
   EnergyTerms free_terms;
   free_terms.hold = false;
   AssembleHessian(model, m.state, free_terms, &m.g, &m.hessian_full);
   m.hessian = m.hessian_full;
   ApplyHeldRows(m.held_rows, &m.g, &m.hessian);
   m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
+  m.factor_on_branch = m.factor_near_state;
   m.tick = std::make_unique<Impl::TickProblem>(&m);
   m.solver = std::make_unique<BandedCholeskySolver>(&m.hessian, &m.factor);
   NewtonOptions& newton = m.minimizer.options();
@@ -423,8 +586,8 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     for (size_t k = 0; k < model.held().size(); ++k)
       if (model.held()[k].kind == HeldVertex::Kind::kGrasp) held_index = static_cast<int>(k);
     m.drive = options.tool == ToolKind::kPoke
-                  ? std::make_unique<ToolDrive>(m.tool_vertex, m.poke_weight, &m.tool_force)
-                  : std::make_unique<ToolDrive>(held_index, &m.tool);
+                  ? std::make_unique<ToolDrive>(m.tool_vertex, m.poke_weight, &m.applied_force)
+                  : std::make_unique<ToolDrive>(held_index, &m.target);
     DynamicsOptions dyn;
     dyn.time_step = options.time_step;
     dyn.integrator = Integrator::kBdf2;
@@ -443,28 +606,20 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     // of the load scale) sizes every buffer of the stepper (a step at rest converges before it
     // factors anything); the rod is then put back at rest.
     m.dynamic_good = m.dynamic;
-    const Vec3 home = m.tool;
+    const Vec3 home = m.target;
     if (options.tool == ToolKind::kPoke)
-      m.tool_force = Vec3::Constant(1e-6 * model.force_scale());
+      m.applied_force = Vec3::Constant(1e-6 * model.force_scale());
     else
-      m.tool += Vec3::Constant(1e-6 * model.length());
+      m.target += Vec3::Constant(1e-6 * model.length());
     const DynamicsStepSummary warm = m.stepper->Step(*m.drive, &m.dynamic);
-    m.tool = home;
-    m.tool_force.setZero();
+    m.target = home;
+    m.applied_force.setZero();
     if (!warm.ok) throw std::runtime_error("the first dynamic step failed (reduce time_step)");
     // Back at rest, the history's buffers kept at their size (BDF2 starts with a backward
     // Euler step without history).
     m.dynamic.q = m.dynamic_good.q;
-    m.dynamic.v = m.dynamic_good.v;
     m.dynamic.t = m.dynamic_good.t;
-    m.dynamic.has_history = false;
-    m.dynamic.last_step.setZero();
-    m.dynamic.last_v.setZero();
-    m.dynamic.has_older = false;
-    m.dynamic.older_v.setZero(m.dynamic.v.size());
-    m.dynamic.num_corrections = 0;
-    m.dynamic.last_correction.setZero(m.dynamic.v.size());
-    m.dynamic.older_correction.setZero(m.dynamic.v.size());
+    m.CatchAtRest();
     m.dynamic_good = m.dynamic;
     // The ticks' limits (not the throwaway step's: it must not fail on a slow start).
     m.stepper->SetNewtonLimits(options.dynamic_newton_iterations, options.time_budget);
@@ -477,10 +632,10 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     // Mesh(TubeMesh*) allocates nothing later.
     const double R = scene.section->radius;
     const Vec3 d1 = SectionAt(model, m.state, options.tool_s).d1;
-    m.tool_force = 1e-3 * scene.material.ring_bend_stiffness / (R * R) * d1;
+    m.applied_force = 1e-3 * scene.material.ring_bend_stiffness / (R * R) * d1;
     TubeMesh throwaway;
     m.BuildMesh(&m.mesh_scratch, &throwaway);
-    m.tool_force.setZero();
+    m.applied_force.setZero();
     m.mesh_scratch.ring_warm = false;
   }
   m.UpdateReaction();
@@ -491,58 +646,384 @@ Runtime::~Runtime() = default;
 void Runtime::SetToolPosition(const Vec3& position_world) { impl_->tool = position_world; }
 void Runtime::SetToolForce(const Vec3& force_world) { impl_->tool_force = force_world; }
 
+bool Runtime::Impl::CheckInputs() {
+  static const char* const kAxis[3] = {"x", "y", "z"};
+  if (options.tool == ToolKind::kGrasp) {
+    // Component by component, so that the message names the value (and no norm overflows).
+    const double reach_m = kMaxToolReach * model->length();
+    const Vec3& clamp = reach.front().centre;
+    for (int c = 0; c < 3; ++c) {
+      if (!std::isfinite(tool[c])) {
+        std::snprintf(message, sizeof(message), "tool position %s = %g is not finite: refused, last good state kept", kAxis[c],
+                      tool[c]);
+        return false;
+      }
+      if (std::abs(tool[c] - clamp[c]) > reach_m) {
+        std::snprintf(message, sizeof(message),
+                      "tool position %s = %g m is out of range (more than %g rod lengths, %g m, "
+                      "from the clamp): refused, last good state kept",
+                      kAxis[c], tool[c], kMaxToolReach, reach_m);
+        return false;
+      }
+    }
+  }
+  if (oriented) {
+    for (int k = 0; k < 9; ++k) {
+      if (!std::isfinite(tool_rotation(k / 3, k % 3))) {
+        std::snprintf(message, sizeof(message),
+                      "tool orientation R[%d][%d] = %g is not finite: refused, last good state "
+                      "kept",
+                      k / 3, k % 3,
+                      tool_rotation(k / 3, k % 3));
+        return false;
+      }
+    }
+    const double det = tool_rotation.determinant();
+    const double off =
+        (tool_rotation.transpose() * tool_rotation - Eigen::Matrix3d::Identity())
+            .cwiseAbs()
+            .maxCoeff();
+    if (!(det > 0.0) || off > kRotationTolerance) {
+      std::snprintf(message, sizeof(message),
+                    "tool orientation is not a rotation: det R = %g (%s), largest |R^T R - I| "
+                    "entry %g (at most %g): refused, last good state kept",
+                    det,
+                    det == 0.0  ? "singular"
+                    : det < 0.0 ? "mirrored"
+                                : "scaled or sheared",
+                    off, kRotationTolerance);
+      return false;
+    }
+  }
+  if (options.tool == ToolKind::kPoke) {
+    for (int c = 0; c < 3; ++c) {
+      if (!std::isfinite(tool_force[c])) {
+        std::snprintf(message, sizeof(message), "poke force %s = %g is not finite: refused, last good state kept", kAxis[c],
+                      tool_force[c]);
+        return false;
+      }
+    }
+    const double f = tool_force.stableNorm();  // 1e308 stays 1e308, not inf
+    if (f > max_poke_force) {
+      std::snprintf(message, sizeof(message),
+                    "poke force |f| = %g N is out of range (at most max_strain EA = %g N): "
+                    "refused, last good state kept",
+                    f,
+                    max_poke_force);
+      return false;
+    }
+  }
+  return true;
+}
+
+void Runtime::Impl::UpdateGoal() {
+  last_goal = goal;
+  goal = tool;
+  strain_limited = false;
+  reach_limit = nullptr;
+  for (int round = 0; round < kReachRounds; ++round) {
+    bool moved = false;
+    for (const Reach& r : reach) {
+      const Vec3 d = goal - r.centre;
+      const double distance = d.norm();
+      if (distance > r.radius) {
+        goal = r.centre + (r.radius / distance) * d;
+        moved = true;
+        strain_limited = true;
+        reach_limit = &r;
+      }
+    }
+    if (!moved) break;
+  }
+  if (wall) {
+    // Not past the strain guard's wall: the goal's part beyond it taken off.
+    const double beyond = (goal - wall_point).dot(wall_normal);
+    if (beyond > 0.0) {
+      goal -= beyond * wall_normal;
+      strain_limited = true;
+      reach_limit = nullptr;  // the wall, not a reach, limits it
+    }
+  }
+  goal_move = goal - last_goal;
+  const double largest = options.max_tool_move * model->min_rest_edge_length();
+  const double goal_move_norm = goal_move.norm();
+  if (goal_move_norm > largest) goal_move *= largest / goal_move_norm;
+}
+
+Vec3 Runtime::Impl::DynamicMove(const Vec3& from, const Vec3& goal_move) const {
+  const double largest = options.max_tool_move * model->min_rest_edge_length();
+  const double v_max = largest * move_scale;  // [m per tick]
+  const double a = kMoveChange * v_max;       // [m per tick^2]
+  const Vec3 to_goal = goal - from;
+  const double distance = to_goal.norm();
+  // Onto the goal when that move is within this tick's, changes the last move by at most a, and
+  // leaves a move within a of the goal's own for the next tick: a steady drag is followed
+  // exactly, and a catch-up ends without a jolt.
+  if (distance <= v_max && (to_goal - held_move).norm() <= a && (to_goal - goal_move).norm() <= a)
+    return goal;
+  // Catching up, in the frame that moves with the goal: towards it at the speed from which it
+  // can still stop there (moves falling by a per tick sum to s^2 / 2a + s / 2 before they
+  // stop), the move changed by at most a.
+  const double speed =
+      std::min({v_max, distance, -0.5 * a + std::sqrt(0.25 * a * a + 2.0 * a * distance)});
+  Vec3 wanted = goal_move;
+  if (distance > 0.0) wanted += (speed / distance) * to_goal;
+  const double wanted_norm = wanted.norm();
+  if (wanted_norm > v_max) wanted *= v_max / wanted_norm;
+  Vec3 change = wanted - held_move;
+  const double change_norm = change.norm();
+  if (change_norm > a) change *= a / change_norm;
+  // After a failed tick the move is cut to this tick's largest at once: the failed step is not
+  // taken again.
+  Vec3 move = held_move + change;
+  const double move_norm = move.norm();
+  if (move_norm > v_max) move *= v_max / move_norm;
+  return from + move;
+}
+
+Vec3 Runtime::Impl::LimitedMove(const Vec3& from) const {
+  Vec3 d = goal - from;
+  const double d_norm = d.norm();
+  const double max_move = options.max_tool_move * move_scale * model->min_rest_edge_length();
+  if (d_norm > max_move) d *= max_move / d_norm;
+  return from + d;
+}
+
+void Runtime::Impl::ApplyForce() {
+  if (options.tool != ToolKind::kPoke) return;
+  // The whole change at once while ticks converge (exactly the tool's force), a part of it
+  // after failed ticks.
+  applied_force = move_scale >= 1.0 ? tool_force
+                                    : Vec3(applied_force + move_scale * (tool_force - applied_force));
+}
+
+void Runtime::Impl::Describe(StepReport* report) {
+  const double lag_mm = 1e3 * report->tool_lag;
+  switch (report->status) {
+    case StepStatus::kConverged:
+    case StepStatus::kToolRefused:  // CheckInputs wrote it
+      break;
+    case StepStatus::kStrainLimit:
+      if (strain_guarded) {
+        std::snprintf(message, sizeof(message),
+                      "strain limit: this tick's move took the rod's strain to %.3g at edge %d "
+                      "(max_strain %g): the grasp stops short of that move; the tool %.4g mm "
+                      "from the grasped point",
+                      strain_seen, strain_edge, options.max_strain, lag_mm);
+      } else if (reach_limit) {
+        std::snprintf(message, sizeof(message),
+                      "strain limit: the tool is %.4g mm from the grasped point, out of the rod's "
+                      "reach at max_strain = %g (%.4g m from the held point at s = %g m)",
+                      lag_mm, options.max_strain, reach_limit->radius, reach_limit->s);
+      } else {
+        std::snprintf(message, sizeof(message),
+                      "strain limit: the grasp is held where a move took the rod's strain past "
+                      "max_strain = %g; the tool %.4g mm from the grasped point",
+                      options.max_strain, lag_mm);
+      }
+      break;
+    case StepStatus::kNotConverged:
+    case StepStatus::kTimeBudget: {
+      const bool resume = options.mode == RuntimeMode::kQuasiStatic && resumed_ticks > 0;
+      const char* why = "";
+      char reason[96];
+      if (options.mode == RuntimeMode::kQuasiStatic) {
+        why = TerminationMessage(termination);
+      } else if (report->status == StepStatus::kTimeBudget) {
+        why = TerminationMessage(Termination::kTimeBudget);
+      } else {
+        // The stepper's summary gives no termination (solve/dynamics.h): its iteration count
+        // tells the cap from an earlier failure.
+        std::snprintf(reason, sizeof(reason), "%s",
+                      report->iterations >= options.dynamic_newton_iterations
+                          ? TerminationMessage(Termination::kIterationCap)
+                          : "the implicit step failed before its iteration limit");
+        why = reason;
+      }
+      char lag[64];
+      if (options.tool == ToolKind::kGrasp)
+        std::snprintf(lag, sizeof(lag), "the tool %.4g mm from the grasped point", lag_mm);
+      else
+        std::snprintf(lag, sizeof(lag), "the push applied %.4g N short of the tool's",
+                      (tool_force - applied_force).norm());
+      const char* next = resume ? "the next tick resumes the solve"
+                         : report->status == StepStatus::kTimeBudget &&
+                                 options.mode == RuntimeMode::kDynamic
+                             ? "the next tick catches up without the budget"
+                         : options.tool == ToolKind::kPoke
+                             ? "the next tick applies a quarter of the change of force"
+                             : "the next tick moves a quarter as far";
+      std::snprintf(message, sizeof(message),
+                    "%s step: %s after %d Newton iterations (residual %.3g N); last good state "
+                    "kept, %s; %s",
+                    options.mode == RuntimeMode::kDynamic ? "dynamic" : "quasi-static", why,
+                    report->iterations, report->residual, lag, next);
+      break;
+    }
+  }
+  report->message = message;
+}
+
 StepReport Runtime::Step() {
   const Clock::time_point start = Clock::now();
-  StepReport report = impl_->options.mode == RuntimeMode::kDynamic ? impl_->StepDynamic()
-                                                                   : impl_->StepQuasiStatic(start);
+  Impl& m = *impl_;
+  StepReport report;
+  m.strain_guarded = false;
+  if (!m.CheckInputs()) {
+    report.status = StepStatus::kToolRefused;
+  } else {
+    if (m.options.tool == ToolKind::kGrasp) m.UpdateGoal();
+    report = m.Advance(start);
+    if (m.options.tool == ToolKind::kGrasp && report.ok()) m.GuardStrain(start, &report);
+  }
   if (report.ok()) {
     // A quasi-static tick that ended on its residual check has the grasp's reaction from that
     // check's gradient; otherwise it is evaluated at the state.
-    if (impl_->options.mode == RuntimeMode::kQuasiStatic && impl_->reaction_current &&
-        impl_->options.tool == ToolKind::kGrasp)
-    {
-      impl_->reaction = impl_->checked_force;
-      impl_->torque = impl_->checked_torque;
-    } else
-      impl_->UpdateReaction();
+    if (m.options.mode == RuntimeMode::kQuasiStatic && m.reaction_current &&
+        m.options.tool == ToolKind::kGrasp) {
+      m.reaction = m.checked_force;
+      m.torque = m.checked_torque;
+    } else {
+      m.UpdateReaction();
+    }
+    if (m.strain_limited || m.strain_guarded) report.status = StepStatus::kStrainLimit;
   }
-  if (impl_->options.tool == ToolKind::kGrasp)
-    report.tool_lag = impl_->tool.allFinite() ? (impl_->tool - ToolPosition()).norm()
-                                              : std::numeric_limits<double>::infinity();
-  if (impl_->oriented)
+  if (m.options.tool == ToolKind::kGrasp)
+    report.tool_lag = m.tool.allFinite() ? (m.tool - ToolPosition()).norm()
+                                         : std::numeric_limits<double>::infinity();
+  if (m.oriented)
     report.tool_turn_lag =
-        !impl_->tool_rotation.allFinite() ? std::numeric_limits<double>::infinity()
-        : impl_->tool_rotation == impl_->rotation
+        !m.tool_rotation.allFinite() ? std::numeric_limits<double>::infinity()
+        : m.tool_rotation == m.rotation
             ? 0.0
-            : Eigen::AngleAxisd(impl_->tool_rotation * impl_->rotation.transpose()).angle();
+            : Eigen::AngleAxisd(m.tool_rotation * m.rotation.transpose()).angle();
+  if (!report.ok()) m.Describe(&report);
   report.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return report;
+}
+
+void Runtime::Impl::RestoreTickStart() {
+  state = last_good;  // same sizes: no allocation
+  rotation = rotation_good;
+  applied_force = last_good_force;
+  target = state.x.col(tool_vertex);
+  factor_near_state = false;  // the factor may belong to the discarded state
+  factor_on_branch = false;
+  corrections = 0;
+  resumed_ticks = 0;
+  reaction_current = false;
+}
+
+void Runtime::Impl::GuardStrain(Clock::time_point start, StepReport* report) {
+  int edge = 0;
+  const double strain = MaxStrain(Current(), &edge);
+  const Vec3 from =
+      (options.mode == RuntimeMode::kDynamic ? dynamic_good.q : last_good).x.col(tool_vertex);
+  const Vec3 move = target - from;
+  if (wall && strain < kStrainAim * options.max_strain) wall = false;
+  if (!(strain > options.max_strain && strain > strain_now) || move.isZero(0.0)) {
+    strain_now = strain;
+    return;
+  }
+  // This tick's move took the strain past the limit: the strain being linear in a tick's small
+  // move, the wall goes where it reaches kStrainAim of the way from where it was to the limit,
+  // across the move.
+  strain_guarded = true;
+  strain_seen = strain;
+  strain_edge = edge;
+  const double alpha = std::min(
+      1.0, std::max(0.0, kStrainAim * (options.max_strain - strain_now) / (strain - strain_now)));
+  wall = true;
+  wall_normal = move.normalized();
+  wall_point = from + alpha * move;
+  if (options.mode == RuntimeMode::kDynamic) {
+    // A dynamic step is kept: its time has passed, and its overshoot is partly the rod's own
+    // motion, which a shorter move would not undo. The next ticks stop the grasp at the wall.
+    strain_now = strain;
+    return;
+  }
+  // Quasi-static: the tick again from its start, to the wall; if that too overstrains the rod,
+  // the tick keeps its start, the last good equilibrium, within the limit.
+  const int iterations = report->iterations;
+  RestoreTickStart();
+  UpdateGoal();
+  *report = Advance(start);
+  report->iterations += iterations;
+  if (!report->ok()) return;
+  const double again = MaxStrain(Current(), &edge);
+  if (again > options.max_strain && again > strain_now) {
+    RestoreTickStart();
+    wall_point = from;
+    return;
+  }
+  strain_now = again;
+}
+
+StepReport Runtime::Impl::GiveUp(StepStatus status, StepReport report) {
+  const bool resumable = (termination == Termination::kIterationCap ||
+                          termination == Termination::kTimeBudget) &&
+                         resumed_ticks < kMaxResumedTicks && state.x.allFinite();
+  if (resumable) {
+    std::swap(pending, state);  // the solve's iterate, for the next tick (a swap: no copy)
+    pending_target = target;
+    pending_rotation = rotation;
+    pending_force = applied_force;
+    ++resumed_ticks;
+  } else {
+    resumed_ticks = 0;
+  }
+  state = last_good;  // same sizes: no allocation
+  rotation = rotation_good;
+  applied_force = last_good_force;
+  target = state.x.col(std::max(tool_vertex, 0));
+  // The next fresh tick tries a smaller move: a tick lost to the budget leaves the tool further
+  // ahead, and trying the whole way again would lose the next one too.
+  move_scale = std::max(move_scale * kMoveCut, kMinMoveScale);
+  factor_near_state = false;  // the factor may belong to a state far from last_good
+  factor_on_branch = false;
+  corrections = 0;
+  report.status = status;
   return report;
 }
 
 StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   StepReport report;
   const RodModel& m = *model;
-  auto give_up = [&](StepStatus status) {
-    state = last_good;  // same sizes: no allocation
-    rotation = rotation_good;
-    // The next tick tries a smaller move: a tick lost to the budget leaves the tool further
-    // ahead, and trying the whole way again would lose the next one too.
-    move_scale = std::max(move_scale * 0.25, kMinMoveScale);
-    factor_near_state = false;  // the factor may belong to a state far from last_good
-    corrections = 0;
-    report.status = status;
-    return report;
-  };
   last_good = state;
   rotation_good = rotation;
+  last_good_force = applied_force;
   reaction_current = false;
+  correction.setZero();
+  // A solve the last tick stopped short is resumed while its target still leads towards the tool
+  // (the tool may have moved back since: then a fresh tick, a shorter move from the last good
+  // state, goes where it is now).
+  if (resumed_ticks > 0) {
+    const bool towards =
+        options.tool == ToolKind::kGrasp
+            ? (goal - pending_target).norm() < (goal - state.x.col(tool_vertex)).norm()
+            : (tool_force - pending_force).norm() < (tool_force - applied_force).norm();
+    if (!towards) resumed_ticks = 0;
+  }
+  if (resumed_ticks > 0) {
+    // The last tick's solve stopped short (its iteration cap or the budget): on from where it
+    // stopped, towards its target, instead of throwing its iterations away. Its merit only fell
+    // on the way, so the solve goes on as if it had not been cut.
+    std::swap(state, pending);
+    target = pending_target;
+    rotation = pending_rotation;
+    applied_force = pending_force;
+    const StepStatus status = Newton(start, options.max_iterations, false, &report);
+    if (status != StepStatus::kConverged) return GiveUp(status, report);
+    resumed_ticks = 0;
+    corrections = 0;
+    move_scale = std::min(1.0, 2.0 * move_scale);
+    report.status = StepStatus::kConverged;
+    return report;
+  }
+  ApplyForce();
   bool predicted_start = false;
   Vec3 move = Vec3::Zero();  // the grasp's move this tick [m]
   bool turned = false;       // an oriented grasp turned this tick
-  correction.setZero();
-  const bool finite_tool =
-      tool.allFinite() && tool_force.allFinite() && tool_rotation.allFinite();
-  if (!finite_tool) return give_up(StepStatus::kNotConverged);
   if (options.tool == ToolKind::kGrasp) {
     // Predict the rod's answer to the tool's move d from the factor kept at the last
     // equilibrium: x_free += -K_ff^-1 K_fh d, the linear response with the held dofs as a
@@ -563,18 +1044,13 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
         rotation = turn.toRotationMatrix() * rotation;
       }
     }
-    Vec3 d = tool - state.x.col(v);
-    double d_norm = d.norm();
-    const double max_move = options.max_tool_move * move_scale * m.min_rest_edge_length();
-    if (d_norm > max_move) {
-      d *= max_move / d_norm;
-      d_norm = max_move;
-    }
-    target = state.x.col(v) + d;
+    target = LimitedMove(state.x.col(v));
+    const Vec3 d = target - state.x.col(v);
+    const double d_norm = d.norm();
     move = d;
     turned = turn.angle() > 0.0;
     bool predicted = false;
-    if (factor_near_state && factor.valid() && (d_norm > 0.0 || turn.angle() > 0.0)) {
+    if (factor_on_branch && factor.valid() && (d_norm > 0.0 || turn.angle() > 0.0)) {
       // K_fh d from the kept Hessian's columns of the grasped vertex (held rows left in), the
       // Hessian the kept factor was made from: the band couples them to 2 blocks either side.
       // Held moves: the grasped vertex's d; an oriented grasp's far vertex and its twist (to
@@ -645,22 +1121,26 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     }
     if (!predicted) {
       // No usable factor: the grasped vertex alone moves, Newton brings the rest along.
-      if (!MoveGrasp(last_good, target, &trial)) return give_up(StepStatus::kNotConverged);
+      if (!MoveGrasp(last_good, target, &trial)) {
+        termination = Termination::kRetractionFailed;
+        return GiveUp(StepStatus::kNotConverged, report);
+      }
       state = trial;
     }
   }
   StepStatus status = Newton(start, options.max_iterations, predicted_start, &report);
   bool retried = false;
-  if (status == StepStatus::kNotConverged && predicted_start) {
+  if (status == StepStatus::kNotConverged && predicted_start &&
+      report.iterations < options.max_iterations) {
     retried = true;
     // The prediction led Newton astray (a move too large for the linear response): again from
     // the grasped vertex moved alone, with the iterations left.
-    if (MoveGrasp(last_good, target, &state))
+    if (MoveGrasp(last_good, target, &trial)) {
+      std::swap(state, trial);
       status = Newton(start, options.max_iterations - report.iterations, false, &report);
-    else
-      status = StepStatus::kNotConverged;
+    }
   }
-  if (status != StepStatus::kConverged) return give_up(status);
+  if (status != StepStatus::kConverged) return GiveUp(status, report);
   if (predicted_start && !retried && !turned && report.iterations <= kSmoothTick) {
     // This tick's correction becomes the last, the last the older (swaps: no copies).
     std::swap(older_correction, last_correction);
@@ -707,18 +1187,37 @@ StepStatus Runtime::Impl::Newton(Clock::time_point start, int max_iterations, bo
   report->iterations += r.iterations;
   report->residual = r.residual_norm;
   reaction_current = r.residual_at_solution;
-  if (r.termination == Termination::kTimeBudget) return StepStatus::kTimeBudget;
-  if (!r.converged()) return StepStatus::kNotConverged;
-  return state.x.allFinite() ? StepStatus::kConverged : StepStatus::kNotConverged;
+  termination = r.termination;
+  if (!state.x.allFinite()) {
+    termination = Termination::kNonFinite;
+    return StepStatus::kNotConverged;
+  }
+  if (r.converged()) return StepStatus::kConverged;
+  // A solve stopped (by its cap, the budget or a line search that found nothing lower) at a
+  // state whose residual, evaluated there, is within the tolerance or at the round-off floor is
+  // the solution as exactly as doubles make it: the balance of forces the tick renders is then
+  // exact to that floor. A soft mode (a slack thread near buckling) can keep Newton's steps
+  // large there, which the minimizer's step tests need; a tick does not roll such a state back
+  // (measured: the suture's tip pushed 2.5 cm towards the clamp stalled at residuals of
+  // 7e-12 N, a floor of 2e-9 N and a tolerance of 4e-13 N, every tick).
+  if (r.residual_at_solution &&
+      r.residual_norm <= std::max(force_tolerance, kFloorMargin * floor_tolerance)) {
+    termination = Termination::kRoundOff;
+    return StepStatus::kConverged;
+  }
+  return r.termination == Termination::kTimeBudget ? StepStatus::kTimeBudget
+                                                   : StepStatus::kNotConverged;
 }
 
 StepReport Runtime::Impl::StepDynamic() {
   StepReport report;
   dynamic_good = dynamic;  // same sizes: no allocation
-  if (!tool.allFinite() || !tool_force.allFinite()) {
-    report.status = StepStatus::kNotConverged;
-    return report;
-  }
+  last_good_force = applied_force;
+  ApplyForce();
+  // The grasp's drive holds the grasped vertex at this tick's target: at most max_tool_move
+  // towards the goal, as in quasi-static mode (a held point jumping centimetres in one step
+  // would need forces of its mass times the jump over dt^2, which no Newton of a step follows).
+  if (options.tool == ToolKind::kGrasp) target = DynamicMove(dynamic.q.x.col(tool_vertex), goal_move);
   // A tick lost to the budget leaves the rod a step behind the tool, whose next move is then
   // the larger: under the same budget that tick would likely be lost too, and so on (measured:
   // 768 of 1000 ticks of the suture's loop after one preempted tick). The tick after a lost one
@@ -730,13 +1229,44 @@ StepReport Runtime::Impl::StepDynamic() {
   report.residual = s.residual;
   if (!s.ok || !dynamic.q.x.allFinite() || !dynamic.v.allFinite()) {
     dynamic = dynamic_good;
+    applied_force = last_good_force;
+    if (options.tool == ToolKind::kGrasp) target = dynamic.q.x.col(tool_vertex);
     dynamic_catch_up = s.out_of_time;
+    if (!s.out_of_time) {
+      // The step the integrator could not take is not tried again: the next moves a quarter
+      // as far (a poke: applies a quarter of the change of force); after a few failures in a
+      // row the rod is caught at rest, from which a short move is a gentle step.
+      move_scale = std::max(move_scale * kMoveCut, kMinMoveScale);
+      if (++failures >= kFailuresBeforeRest) {
+        CatchAtRest();
+        held_move.setZero();
+        failures = 0;
+      }
+    }
     report.status = s.out_of_time ? StepStatus::kTimeBudget : StepStatus::kNotConverged;
     return report;
   }
+  failures = 0;
   dynamic_catch_up = false;
+  move_scale = std::min(1.0, 2.0 * move_scale);
+  if (options.tool == ToolKind::kGrasp) held_move = target - dynamic_good.q.x.col(tool_vertex);
   report.status = StepStatus::kConverged;
   return report;
+}
+
+void Runtime::Impl::CatchAtRest() {
+  // Every buffer at the rates' size (the history's too, for the steps to come): after the
+  // constructor sizes them, no allocation.
+  const Eigen::Index n = dynamic.v.size();
+  dynamic.v.setZero(n);
+  dynamic.has_history = false;
+  dynamic.last_step.setZero(n);
+  dynamic.last_v.setZero(n);
+  dynamic.has_older = false;
+  dynamic.older_v.setZero(n);
+  dynamic.num_corrections = 0;
+  dynamic.last_correction.setZero(n);
+  dynamic.older_correction.setZero(n);
 }
 
 const Mat3X& Runtime::Shape() const { return state().x; }
@@ -771,7 +1301,7 @@ void Runtime::Impl::BuildMesh(MeshScratch* w, TubeMesh* mesh) const {
   const double radius = section ? section->radius : model->rod().radius;
   if (!(radius > 0.0)) throw std::invalid_argument("the profile's rod has no radius for a mesh");
   RodVertexFrames(*model, s, &w->frames);
-  if (options.tool != ToolKind::kPoke || !section || tool_force.isZero(0.0)) {
+  if (options.tool != ToolKind::kPoke || !section || applied_force.isZero(0.0)) {
     BuildTube(w->frames, radius, options.mesh_ring_vertices, mesh);
     return;
   }
@@ -788,7 +1318,7 @@ void Runtime::Impl::BuildMesh(MeshScratch* w, TubeMesh* mesh) const {
                       model->material().ring_stretch_stiffness},
         ring_options);
   }
-  w->ring_solver->Solve(ProjectToSection(tool_force, placement),
+  w->ring_solver->Solve(ProjectToSection(applied_force, placement),
                         w->ring_warm ? &w->ring.nodes : nullptr, &w->ring);
   w->ring_warm = w->ring.summary.IsUsable();
   if (!w->ring.summary.IsUsable()) {

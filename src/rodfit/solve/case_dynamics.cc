@@ -296,12 +296,14 @@ DynamicState InitialDynamicState(const Scene& scene, int index, const StaticsOpt
 }
 
 CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
-                                    const std::function<void(double)>& progress) {
+                                    const std::function<void(double)>& progress,
+                                    StepSchedule* schedule) {
   const DynamicsSpec& spec = *scene.dynamics;
   const LoadCase start_case = CaseAtStart(scene.cases[index]);
   const RodModel model(scene.rod, scene.material, scene.gravity, start_case, scene.springs);
   const DynamicsOptions options = DynamicsOptionsFrom(spec);
   DynamicsStepper stepper(model, options);
+  stepper.SetSchedule(schedule);
   const LoadCase driven =
       model.symmetric() ? HalfDrives(model, scene.cases[index]) : scene.cases[index];
   const CaseDrive drive(model, driven);  // keeps pointers into `driven`'s paths

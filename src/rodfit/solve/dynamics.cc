@@ -53,6 +53,14 @@ bool DynamicsOptions::Check(std::string* why) const {
     *why = "max_halvings must be in [0, " + std::to_string(kMaxStepHalvings) + "]";
     return false;
   }
+  if (!(error_tolerance >= 0.0) || !std::isfinite(error_tolerance)) {
+    *why = "error_tolerance must be a number of metres >= 0";
+    return false;
+  }
+  if (!(min_time_step > 0.0) || !std::isfinite(min_time_step)) {
+    *why = "min_time_step must be a positive number of seconds";
+    return false;
+  }
   if (!(time_budget >= 0.0) || !std::isfinite(time_budget)) {
     *why = "time_budget must be a number of seconds >= 0";
     return false;
@@ -501,6 +509,7 @@ DynamicsStepSummary DynamicsStepper::Step(const Drive& drive, DynamicState* s) {
       deadline_ = std::chrono::steady_clock::now() +
                   std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                       std::chrono::duration<double>(options_.time_budget));
+    if (options_.error_tolerance > 0.0) return StepAdaptive(drive, s);
     DynamicsStepSummary summary = StepImplicit(drive, options_.time_step, s);
     if (summary.ok || summary.out_of_time || options_.max_halvings == 0) return summary;
     // Newton did not converge: the same interval in halves, each halved again as it needs.
@@ -604,6 +613,144 @@ DynamicsStepSummary DynamicsStepper::StepExplicit(const Drive& drive, double dt,
     s->v[k] = held_[k] ? 0.0 : step_[k] - 0.5 * dt * (force_[k] + cv_[k]) / mass_[k];
   std::swap(s->q, trial_);
   force_time_ = s->t + dt;
+  summary.ok = true;
+  return summary;
+}
+
+namespace {
+// Adaptive stepping's controller (StepAdaptive): the next substep is the last times
+// kStepSafety (error / tolerance)^(-1/3) (BDF2's local error grows as dt^3), within
+// [kMinStepChange, kMaxStepRatio] of it; a failed substep is retried at kFailedStepShrink of it.
+constexpr double kStepSafety = 0.9;
+constexpr double kMinStepChange = 0.2;
+constexpr double kFailedStepShrink = 0.25;
+}  // namespace
+
+double DynamicsStepper::LocalError(const DynamicState& before, const DynamicState& after,
+                                   double dt) {
+  // Milne's device: the converged positions against an explicit prediction of the same order,
+  //   x_p = x_n + dt v_n + dt^2 / 2 a_n,  a_n = (v_n - v_n-1) / dt_n-1,
+  // whose error is C_p dt^3 x(3) with C_p = 1/6 + 1/(4w) (w = dt / dt_n-1; the rates' backward
+  // difference is first order), against BDF2's C dt^3 x(3) with C = (1 + w)^2 / (6 w (1 + 2w))
+  // (2/9 at w = 1; Hairer, Norsett & Wanner I, III.5): the error is C / (C + C_p) of their
+  // distance. Without history (a first step, backward Euler) both are first order with
+  // constants 1/2: half the distance to x_n + dt v_n.
+  // The rod is stiff (its stretch and twist modes are far faster than its motion), and there the
+  // explicit prediction is no estimate: BDF2 damps those modes, the prediction extrapolates them,
+  // and their difference would shrink the step until it resolves them. The difference is
+  // filtered as Hairer & Wanner II, IV.8 filter RADAU5's, e <- (a M + K)^-1 a M e with the
+  // step's Newton matrix: the identity on the modes the step resolves (omega^2 << a), a / omega^2
+  // on those it does not.
+  const int n = model_.num_edges();
+  const int N = model_.num_free_dofs();
+  const bool history = before.has_history && before.last_v.size() == N && before.last_dt > 0.0;
+  double factor = 0.5;
+  double reach = 0.0;  // dt^2 / 2 / dt_n-1
+  if (history) {
+    const double w = dt / before.last_dt;
+    const double C = (1.0 + w) * (1.0 + w) / (6.0 * w * (1.0 + 2.0 * w));
+    const double Cp = 1.0 / 6.0 + 1.0 / (4.0 * w);
+    factor = C / (C + Cp);
+    reach = 0.5 * dt * dt / before.last_dt;
+  }
+  VecX& e = step_;  // scratch
+  e.setZero(N);
+  for (int i = 1; i <= n; ++i) {
+    if (model_.held_at_vertex(i) >= 0) continue;
+    const int k = RodModel::VertexDof(i);
+    Vec3 predicted = before.q.x.col(i) + dt * before.v.segment<3>(k);
+    if (history) predicted += reach * (before.v.segment<3>(k) - before.last_v.segment<3>(k));
+    e.segment<3>(k) = after.q.x.col(i) - predicted;
+  }
+  const double a = scheme_->Weights(before, dt).a;
+  for (int k = 0; k < N; ++k) e[k] *= a * mass_[k];
+  for (int r : scratch_->held_rows) e[r] = 0.0;
+  if (scratch_->factor.valid() && scratch_->factor.size() == N) {
+    scratch_->factor.SolveInPlace(e);
+  } else {
+    for (int k = 0; k < N; ++k) e[k] /= a * mass_[k];
+  }
+  double worst = 0.0;
+  for (int i = 1; i <= n; ++i)
+    if (model_.held_at_vertex(i) < 0) worst = std::max(worst, e.segment<3>(RodModel::VertexDof(i)).norm());
+  return factor * worst;
+}
+
+// One function, though long: the controller's loop (choose the substep, take it, judge it,
+// retry or accept) shares the step length, the schedule and the summary between its stages.
+DynamicsStepSummary DynamicsStepper::StepAdaptive(const Drive& drive, DynamicState* s) {
+  const double dt = options_.time_step;
+  const double t_end = s->t + dt;
+  const DynamicState start = *s;
+  substeps_.clear();
+  DynamicsStepSummary summary;
+  summary.substeps = 0;
+  double h = adaptive_step_ > 0.0 ? std::min(adaptive_step_, dt) : dt;
+  std::string last_failure;
+  DynamicState before;
+  const bool replay = schedule_ && schedule_->mode == StepSchedule::Mode::kReplay;
+  while (t_end - s->t > 1e-12 * dt) {
+    const double left = t_end - s->t;
+    double step;
+    bool replayed = false;
+    if (replay && !schedule_->departed && schedule_->next < schedule_->steps.size()) {
+      step = std::min(schedule_->steps[schedule_->next], left);
+      replayed = true;
+    } else {
+      // Equal substeps through what is left of the interval: its end is an output time.
+      const double count = std::ceil(left / h - 1e-9);
+      step = left / std::max(count, 1.0);
+    }
+    if (step < options_.min_time_step) {
+      const double t_failed = s->t;
+      *s = start;
+      substeps_.clear();
+      force_valid_ = false;
+      if (options_.failure_reasons)
+        summary.reason = "the adaptive step fell below min_time_step (" +
+                         std::to_string(options_.min_time_step) + " s) at t = " +
+                         std::to_string(t_failed) + " s: " + last_failure;
+      return summary;
+    }
+    before = *s;
+    const DynamicsStepSummary one = StepImplicit(drive, step, s);
+    summary.newton_iterations += one.newton_iterations;
+    summary.residual = one.residual;
+    if (one.out_of_time) {
+      *s = start;
+      substeps_.clear();
+      summary.out_of_time = true;
+      summary.reason = one.reason;
+      return summary;
+    }
+    double error = 0.0;
+    if (one.ok) error = LocalError(before, *s, step) / options_.error_tolerance;
+    // A replayed substep is taken as it was (a fit's objective stays smooth in the parameters),
+    // unless it fails outright.
+    const bool accept = one.ok && (replayed || error <= 1.0);
+    if (!accept) {
+      *s = before;
+      ++summary.rejected;
+      if (replayed) schedule_->departed = true;
+      last_failure = one.ok ? "local error above error_tolerance" : one.reason;
+      h = one.ok ? step * std::max(kMinStepChange, kStepSafety * std::cbrt(1.0 / error))
+                 : step * kFailedStepShrink;
+      continue;
+    }
+    substeps_.emplace_back(before, step);
+    ++summary.substeps;
+    if (replayed) {
+      ++schedule_->next;
+    } else if (schedule_ && schedule_->mode == StepSchedule::Mode::kRecord) {
+      schedule_->steps.push_back(step);
+    }
+    const double change = error > 0.0 ? kStepSafety * std::cbrt(1.0 / error) : kMaxStepRatio;
+    h = step * std::clamp(change, kMinStepChange, kMaxStepRatio);
+  }
+  s->t = t_end;
+  substeps_end_ = t_end;
+  adaptive_step_ = h;
+  force_valid_ = false;
   summary.ok = true;
   return summary;
 }

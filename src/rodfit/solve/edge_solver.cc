@@ -43,12 +43,12 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
   c.B1 = terms.bend1 * m.B1();
   c.B2 = terms.bend2 * m.B2();
   c.GJ = terms.twist * m.twist_stiffness;
-  c.rest_curvature = model.rod().rest_curvature;
   const int nb = NumBendingVertices(model);
   const std::vector<RodFrames::Edge>& fr = frames.edges;
   VecX theta_gradient = VecX::Zero(size_);  // dPi/dtheta, for the holonomy
   for (int i = 0; i < nb; ++i) {
     c.voronoi_length = model.voronoi_length(i);
+    c.rest_curvature = model.rest_curvature(i);
     const RodFrames::Edge &e = fr[i], &f = fr[i + 1];
     StencilFrames sf;
     sf.te = e.t, sf.d1e = e.d1, sf.d2e = e.d2, sf.len_e = e.len;

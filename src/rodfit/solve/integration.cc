@@ -11,6 +11,8 @@ DynamicsOptions DynamicsOptionsFrom(const DynamicsSpec& spec) {
   options.time_step = spec.time_step;
   options.substep = spec.substep;
   options.max_halvings = spec.max_halvings;
+  options.error_tolerance = spec.error_tolerance;
+  options.min_time_step = spec.min_time_step;
   if (!ParseIntegrator(spec.integrator, &options.integrator))
     throw std::invalid_argument("unknown integrator " + spec.integrator);
   return options;

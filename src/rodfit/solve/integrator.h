@@ -18,6 +18,11 @@
 
 namespace rodfit {
 
+/// The largest ratio of a step to the step before that variable-step BDF2 takes: it is
+/// zero-stable below 1 + sqrt(2) (Grigorieff 1983); the adaptive stepper grows steps by at most
+/// this factor, and a larger jump restarts the history (backward Euler).
+inline constexpr double kMaxStepRatio = 2.0;
+
 /// One step's weights and the state of its history (set by TimeIntegrator::Weights).
 struct StepWeights {
   double a = 0.0;  ///< [1/s^2] the inertia's weight
@@ -25,8 +30,10 @@ struct StepWeights {
   /// The unknown is the midpoint q_n+1/2: the held points take the pose halfway through the
   /// step, and the state at its end is carried on by the same increment (implicit midpoint).
   bool midpoint = false;
-  /// BDF2 with the step before of the same length (its formulas, not backward Euler's).
+  /// BDF2 with the step before (its formulas, not backward Euler's), at the step ratio
+  /// dt / dt_n-1 (variable-step BDF2; at most kMaxStepRatio).
   bool bdf2 = false;
+  double ratio = 0.0;
   /// The predictor is BDF2's third-order extrapolation of the rates (y_ab holds it).
   bool third_order = false;
 };

@@ -1,17 +1,23 @@
 // BDF2 (integrator.h): second order and L-stable, it damps the unresolved stretch modes: the
-// robust choice for driven and stiff rods. With the step before of the same length (its first
-// step, and the first after a change of step, are backward Euler's):
-//   y = d_n-1 / 3 + 2 dt (4 v_n - v_n-1) / 9, z = d_n-1 / 3, a = 9 / (4 dt^2), c = 3 / (2 dt);
-//   v_n+1 = c (d - z), d_n-1 = q_n - q_n-1.
+// robust choice for driven and stiff rods. Steps of any length: with the step ratio
+// w = dt / dt_n-1 (Hairer, Norsett & Wanner I, III.5, variable-step BDF2),
+//   v_n+1 = c (d - z),   c = (1 + 2w) / ((1 + w) dt),   z = w^2 / (1 + 2w) d_n-1,
+// and the same formula for the rates gives the acceleration c (v_n+1 - v_n - z_v), so that
+// M a = f becomes Phi's a/2 |d - y|^2_M with
+//   a = c^2,   y = z + (v_n + w^2 / (1 + 2w) (v_n - v_n-1)) / c.
+// At w = 1: a = 9 / (4 dt^2), c = 3 / (2 dt), z = d_n-1 / 3, y = d_n-1 / 3 + 2 dt (4 v_n - v_n-1)
+// / 9. Variable-step BDF2 is zero-stable for w < 1 + sqrt(2) (Grigorieff 1983): beyond
+// kMaxStepRatio the history is dropped and the step is backward Euler's, as the first step is.
+//   d_n-1 = q_n - q_n-1.
 // Newton starts from an extrapolation of the rates (the step's equations do not depend on where
-// it starts): q_n + dt (3 v_n - v_n-1) / 2, second order in dt as BDF2, leaves about a third of
-// the residual that q_n + y leaves (3.02 iterations per step fall to 2.78 on the runtime's
-// dragged bowel); with the rates of one more step, the third-order (Adams–Bashforth)
-// dt (23 v_n - 16 v_n-1 + 5 v_n-2) / 12 starts nearer still (2.78 to 2.57). What Newton then adds
-// to the predictor, the correction, is smooth in time along a steady motion too
-// (DynamicsOptions::extrapolate_corrections): the last two corrections, extrapolated linearly,
-// start it nearer still (on the runtime's dragged suture, 100 segments at 1 ms, 2.57 solves per
-// step to 2.28).
+// it starts): q_n + dt (v_n + w (v_n - v_n-1) / 2), second order in dt as BDF2 (dt (3 v_n -
+// v_n-1) / 2 at w = 1), leaves about a third of the residual that q_n + y leaves (3.02
+// iterations per step fall to 2.78 on the runtime's dragged bowel); with the rates of one more
+// step of the same length, the third-order (Adams–Bashforth) dt (23 v_n - 16 v_n-1 + 5 v_n-2) /
+// 12 starts nearer still (2.78 to 2.57). What Newton then adds to the predictor, the correction,
+// is smooth in time along a steady motion too (DynamicsOptions::extrapolate_corrections): the
+// last two corrections, extrapolated linearly, start it nearer still (on the runtime's dragged
+// suture, 100 segments at 1 ms, 2.57 solves per step to 2.28).
 #include "rodfit/solve/integrator.h"
 
 #include <algorithm>
@@ -38,19 +44,24 @@ class Bdf2 : public TimeIntegrator {
   StepWeights Weights(const DynamicState& s, double dt) const override {
     const int N = static_cast<int>(s.v.size());
     StepWeights w;
-    w.bdf2 = s.has_history && s.last_step.size() == N && s.last_v.size() == N &&
-             SameStep(s.last_dt, dt);
-    w.a = w.bdf2 ? 9.0 / (4.0 * dt * dt) : 1.0 / (dt * dt);
-    w.c = w.bdf2 ? 1.5 / dt : 1.0 / dt;
-    w.third_order = w.bdf2 && s.has_older && s.older_v.size() == N;
+    const bool history = s.has_history && s.last_step.size() == N && s.last_v.size() == N &&
+                         s.last_dt > 0.0;
+    const double ratio = history ? dt / s.last_dt : 0.0;
+    w.bdf2 = history && ratio <= kMaxStepRatio;
+    w.ratio = w.bdf2 ? ratio : 0.0;
+    w.c = w.bdf2 ? (1.0 + 2.0 * ratio) / ((1.0 + ratio) * dt) : 1.0 / dt;
+    w.a = w.c * w.c;
+    // The third-order start needs the two steps before of this same length.
+    w.third_order = w.bdf2 && SameStep(s.last_dt, dt) && s.has_older && s.older_v.size() == N;
     return w;
   }
   void Targets(const DynamicState& s, double dt, const StepWeights& w,
                const DynamicsOptions& options, StepTargets* t) const override {
     const int N = static_cast<int>(s.v.size());
     if (w.bdf2) {
-      t->y = s.last_step / 3.0 + (2.0 * dt / 9.0) * (4.0 * s.v - s.last_v);
-      t->z = s.last_step / 3.0;
+      const double r = w.ratio, beta = r * r / (1.0 + 2.0 * r);
+      t->z = beta * s.last_step;
+      t->y = t->z + (s.v + beta * (s.v - s.last_v)) / w.c;
     } else {
       t->y = dt * s.v;
       t->z.setZero();
@@ -65,7 +76,7 @@ class Bdf2 : public TimeIntegrator {
           t->predictor += 2.0 * s.last_correction - s.older_correction;
       }
     } else if (w.bdf2) {
-      t->predictor = dt * (1.5 * s.v - 0.5 * s.last_v);
+      t->predictor = dt * (s.v + (0.5 * w.ratio) * (s.v - s.last_v));
     } else {
       t->predictor = t->y;
     }
@@ -73,8 +84,9 @@ class Bdf2 : public TimeIntegrator {
   void Finish(const StepWeights& w, const VecX& d, const StepTargets& t, double dt,
               const std::vector<int>& held_rows, DynamicState* s) const override {
     // v_n-1 becomes v_n-2 when this step continued a history of the same step.
-    if (w.bdf2) std::swap(s->older_v, s->last_v);  // v_n-1 is now in last_v, overwritten below
-    s->has_older = w.bdf2;
+    const bool same = w.bdf2 && SameStep(s->last_dt, dt);
+    if (same) std::swap(s->older_v, s->last_v);  // v_n-1 is now in last_v, overwritten below
+    s->has_older = same;
     // This step's correction, if it started from the third-order predictor (swaps and
     // assignments into vectors of the same size: no allocation).
     if (w.third_order) {

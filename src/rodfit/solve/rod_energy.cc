@@ -253,7 +253,6 @@ VertexStencilConstants StencilStiffness(const RodModel& model, const EnergyTerms
   c.B1 = terms.bend1 * m.B1();
   c.B2 = terms.bend2 * m.B2();
   c.GJ = terms.twist * m.twist_stiffness;
-  c.rest_curvature = model.rod().rest_curvature;
   return c;
 }
 
@@ -281,7 +280,7 @@ void GatherVertexStencil(const RodModel& model, const RodState& state, int i, do
   c->B1 = m.B1();
   c->B2 = m.B2();
   c->GJ = m.twist_stiffness;
-  c->rest_curvature = model.rod().rest_curvature;
+  c->rest_curvature = model.rest_curvature(i);
   c->ref_twist_old = state.ref_twist[i];
   Vec3 x_prev, x_next;
   if (i == 0) {  // ghost edge behind the clamp carrying the clamp frame
@@ -353,6 +352,7 @@ double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
     for (int i = 0; i < nb; ++i) {
       const FreshStencilGeometry g(fr[i], fr[i + 1]);
       c.voronoi_length = model.voronoi_length(i);
+      c.rest_curvature = model.rest_curvature(i);
       const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
       const double theta_f = (i == n) ? state.end_theta : state.theta[i];
       energy += StencilEnergy<double>(c, g.te, g.tf, g.kb, g.d1e + g.d1f, g.d2e + g.d2f,
@@ -403,6 +403,7 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
     if (fresh) {
       c = stiffness;
       c.voronoi_length = model.voronoi_length(i);
+      c.rest_curvature = model.rest_curvature(i);
     } else {
       GatherVertexStencil(model, state, i, q, &c, &dof);
       c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
@@ -538,7 +539,7 @@ std::vector<char> HeldPositionDofs(const RodModel& model) {
 
 bool TwistCanBeEliminated(const RodModel& model) {
   const Material& m = model.material();
-  return m.B1() == m.B2() && model.rod().rest_curvature == Vec3::Zero() &&
+  return m.B1() == m.B2() && !model.curved_at_rest() &&
          model.edge_moments().empty() && !(model.has_end_ghost() && model.end_twist_held());
 }
 

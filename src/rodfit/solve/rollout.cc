@@ -59,6 +59,39 @@ void Smooth(TimeSeries* path, double frame_interval, int half_window) {
   }
 }
 
+// The rod's tangent at marker `end` (0 or M-1) in frames 0 and 1, averaged, from the quadratic
+// through it and its two neighbours in arc length (the chord to the next marker is off by half
+// the turn of the rod between them, several degrees where a gripper bends a cable): pointing
+// along the rod at the clamp (end 0) and out of it at the far end (M-1). Only the first two
+// frames are read, as the start is.
+Vec3 EndTangent(const std::vector<Eigen::Matrix3Xd>& frames, const std::vector<double>& marker_s,
+                int end) {
+  const int M = static_cast<int>(marker_s.size());
+  const int step = end == 0 ? 1 : -1;
+  const int i0 = end, i1 = end + step, i2 = end + 2 * step;
+  const double s1 = std::abs(marker_s[i1] - marker_s[i0]);
+  const double s2 = std::abs(marker_s[i2] - marker_s[i0]);
+  // Derivatives at s = 0 of the Lagrange basis on (0, s1, s2).
+  const double l0 = -(s1 + s2) / (s1 * s2), l1 = s2 / (s1 * (s2 - s1)),
+               l2 = -s1 / (s2 * (s2 - s1));
+  Vec3 sum = Vec3::Zero();
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Matrix3Xd& f = frames[k];
+    sum += (l0 * f.col(i0) + l1 * f.col(i1) + l2 * f.col(i2)).normalized();
+  }
+  (void)M;
+  return (end == 0 ? 1.0 : -1.0) * sum.normalized();
+}
+
+// A frame [d1 d2 d3] from a tangent and a normal (made perpendicular).
+Eigen::Matrix3d FrameOf(const Vec3& tangent, const Vec3& normal) {
+  const Vec3 t = tangent.normalized();
+  const Vec3 d1 = (normal - normal.dot(t) * t).normalized();
+  Eigen::Matrix3d F;
+  F << d1, t.cross(d1), t;
+  return F;
+}
+
 // The rollout's scene (its one case: the clamp, pins and end driven along the held markers'
 // paths, the start) and the vertex of each marker; fills out->held and out->marker_s. Shared by
 // Rollout and RolloutWithSensitivities, so both integrate the same problem.
@@ -124,10 +157,22 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   Smooth(&clamp_drive.path, frame_interval, options.smooth_frames);
   // Marker 1 held: it orients the clamp (its tangent points at marker 1) rather than pinning a
   // second point 1 marker gap away, which noise in the two would stretch against EA.
-  const bool clamp_oriented = out.held[1] && !options.pin_pairs;
+  const bool pinned_pairs = options.held_ends == RolloutOptions::HeldEnds::kPinnedPairs;
+  const bool clamp_oriented = out.held[1] && !pinned_pairs;
+  // A gripper's frame at t = 0 relative to its marker pair's chord frame (the chord to the
+  // next marker, its normal carried by parallel transport): the rod's tangent there from the first
+  // frames (EndTangent), held rigidly in the chord frame as it moves.
+  const bool grippers = options.held_ends != RolloutOptions::HeldEnds::kPinnedPairs;
+  Eigen::Matrix3d clamp_offset = Eigen::Matrix3d::Identity();
+  if (grippers && out.held[1] && M >= 3) {
+    const Vec3 t_fit = EndTangent(frames, out.marker_s, 0);
+    clamp_offset = FrameOf(t0, n0).transpose() * FrameOf(t_fit, n0);
+    c.clamp.tangent = t_fit;
+    c.clamp.normal = FrameOf(t_fit, n0).col(0);
+  }
   {
     // The clamp's frame over time: its tangent towards marker 1 (interpolated over frames where
-    // either is missing), its normal carried by parallel transport.
+    // either is missing), its normal carried by parallel transport, the gripper's offset on top.
     TimeSeries p1 = MarkerPath(frames, 1, frame_interval);
     Smooth(&p1, frame_interval, options.smooth_frames);
     Vec3 normal = n0, tangent = t0;
@@ -138,14 +183,16 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
       normal = ParallelTransport<double, double>(tangent, tn, normal);
       normal = (normal - normal.dot(tn) * tn).normalized();
       tangent = tn;
-      cp.b.push_back(tangent);
-      cp.c.push_back(normal);
+      const Eigen::Matrix3d F = FrameOf(tangent, normal) * clamp_offset;
+      cp.b.push_back(F.col(2));
+      cp.c.push_back(F.col(0));
     }
   }
   c.drives.push_back(clamp_drive);
   // Markers n-2 and n-1 both held: an end clamp at n-1 along n-2 -> n-1, free to turn about its
   // tangent (the same reason as at the clamp).
-  const bool end_oriented = out.held[M - 1] && out.held[M - 2] && M - 2 > 1 && !options.pin_pairs;
+  const bool end_oriented = out.held[M - 1] && out.held[M - 2] && M - 2 > 1 && !pinned_pairs;
+  const bool end_roll_held = end_oriented && options.held_ends == RolloutOptions::HeldEnds::kGrippers;
   for (int m = clamp_oriented ? 2 : 1; m < M; ++m) {
     if (!out.held[m] || (end_oriented && m == M - 2)) continue;
     DrivenPoint d;
@@ -154,11 +201,39 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     if (m == M - 1 && end_oriented) {
       TimeSeries before = MarkerPath(frames, M - 2, frame_interval);
       Smooth(&before, frame_interval, options.smooth_frames);
+      // The chords n-2 -> n-1 over time, and the end gripper's normal at t = 0: the clamp's
+      // carried along the first frame's marker polyline (the rod untwisted at rest).
+      std::vector<Vec3> chords;
       for (size_t k = 0; k < d.path.t.size(); ++k)
-        d.path.b.push_back((d.path.a[k] - At(before, d.path.t[k])).normalized());
+        chords.push_back((d.path.a[k] - At(before, d.path.t[k])).normalized());
+      Vec3 normal = n0, tangent = t0;
+      for (int k = 1; k < M; ++k) {
+        const Vec3 chord = (frames[0].col(k) - frames[0].col(k - 1)).normalized();
+        normal = ParallelTransport<double, double>(tangent, chord, normal);
+        tangent = chord;
+      }
+      normal = ParallelTransport<double, double>(tangent, chords.front(), normal);
+      tangent = chords.front();
+      Eigen::Matrix3d end_offset = Eigen::Matrix3d::Identity();
+      if (M >= 3) {
+        const Vec3 t_fit = EndTangent(frames, out.marker_s, M - 1);
+        end_offset = FrameOf(tangent, normal).transpose() * FrameOf(t_fit, normal);
+      }
+      // Over time the chord frame's normal is carried by parallel transport, the gripper's offset
+      // on top; without the roll held (kFreeRoll) only the tangent is.
+      for (size_t k = 0; k < chords.size(); ++k) {
+        const Vec3 tn = chords[k];
+        normal = ParallelTransport<double, double>(tangent, tn, normal);
+        normal = (normal - normal.dot(tn) * tn).normalized();
+        tangent = tn;
+        const Eigen::Matrix3d F = FrameOf(tangent, normal) * end_offset;
+        d.path.b.push_back(F.col(2));
+        if (end_roll_held) d.path.c.push_back(F.col(0));
+      }
       EndClamp end;
       end.position = d.path.a.front();
       end.tangent = d.path.b.front();
+      if (end_roll_held) end.normal = d.path.c.front();
       c.end_clamp = end;
       d.point = "end_clamp";
     } else if (m == M - 1) {
@@ -190,6 +265,7 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     throw std::invalid_argument("dynamics.time_step must divide the frame interval (" +
                                 std::to_string(frame_interval) + " s)");
   sc.dynamics->output_every = per_frame;
+  if (sc.dynamics->error_tolerance == 0.0) sc.dynamics->error_tolerance = options.error_tolerance;
   sc.dynamics->duration = (frames.size() - 1) * frame_interval;
 
   return {sc, marker_vertex};
@@ -245,11 +321,11 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers) {
 
 RolloutResult Rollout(const Scene& scene, double frame_interval,
                       const std::vector<Eigen::Matrix3Xd>& frames, const RolloutOptions& options,
-                      const StaticsOptions& statics) {
+                      const StaticsOptions& statics, StepSchedule* schedule) {
   RolloutResult out;
   const RolloutProblem problem = SetUpRollout(scene, frame_interval, frames, options, &out);
   const int M = static_cast<int>(frames[0].cols());
-  const CaseTrajectory traj = SimulateCaseDynamics(problem.scene, 0, statics);
+  const CaseTrajectory traj = SimulateCaseDynamics(problem.scene, 0, statics, nullptr, schedule);
   out.seconds = traj.seconds;
   out.halved_steps = traj.halved_steps;
   out.ok = traj.ok;
@@ -267,7 +343,8 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
                                        const std::vector<Eigen::Matrix3Xd>& frames,
                                        const RolloutOptions& options, const StaticsOptions& statics,
                                        const std::vector<ParameterDirection>& directions,
-                                       std::vector<Eigen::MatrixXd>* d_predicted) {
+                                       std::vector<Eigen::MatrixXd>* d_predicted,
+                                       StepSchedule* schedule) {
   RolloutResult out;
   const RolloutProblem problem = SetUpRollout(scene, frame_interval, frames, options, &out);
   const Scene& sc = problem.scene;
@@ -279,6 +356,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
   const DynamicsSpec& spec = *sc.dynamics;
   const RodModel model(sc.rod, sc.material, sc.gravity, CaseAtStart(sc.cases[0]), sc.springs);
   DynamicsStepper stepper(model, DynamicsOptionsFrom(spec));
+  stepper.SetSchedule(schedule);
   const CaseDrive drive(model, sc.cases[0]);
   DynamicState s = InitialDynamicState(sc, 0, statics, stepper);
   DynamicSensitivity ds;
