@@ -15,7 +15,8 @@
 
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
+#include "rodfit/pipeline/fit_input.h"
+#include "rodfit/pipeline/experiment.h"
 
 int main() {
   const char* path = "calibration/suture_cantilever/experiment.yaml";
@@ -33,10 +34,10 @@ int main() {
     }
     std::printf("%d iterations, residual variance %.3f (about 1: the sigmas are right)\n",
                 result.iterations, result.residual_variance);
-    for (const rodfit::ParameterEstimate& p : result.parameters) {
+    for (const rodfit::Parameter& p : result.parameters) {
       std::printf("%-18s %.6e", p.name.c_str(), p.value);
       if (p.std) std::printf(" ± %.2e", *p.std);
-      std::printf(" %s%s", p.unit.c_str(), p.fitted ? "" : "  (held)");
+      std::printf(" %s%s", p.unit(), p.fit ? "" : "  (held)");
       if (!p.identifiable) std::printf("  NOT IDENTIFIABLE: %s", p.reason.c_str());
       std::printf("\n");
     }

@@ -16,6 +16,7 @@
 
 #include "rodfit/io/experiment.h"
 #include "rodfit/solve/case_dynamics.h"
+#include "rodfit/pipeline/experiment.h"
 
 int main() {
   const char* path = "data/scenes/suture_swing.yaml";

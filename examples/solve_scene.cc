@@ -14,6 +14,7 @@
 
 #include "rodfit/io/experiment.h"
 #include "rodfit/solve/case_solve.h"
+#include "rodfit/pipeline/experiment.h"
 
 int main() {
   const char* path = "data/scenes/cantilever.yaml";

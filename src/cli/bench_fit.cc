@@ -18,8 +18,10 @@
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
+#include "rodfit/pipeline/fit_input.h"
 #include "rodfit/synth/synth.h"
+#include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/synthesize.h"
 
 namespace bench {
 namespace {
@@ -97,8 +99,8 @@ std::vector<Row> FitRecovery(bool quick, const std::string& calibration_dir) {
       base.iterations = result.iterations;
       base.converged = result.success;
       base.stable = result.success;
-      for (const rodfit::ParameterEstimate& p : result.parameters) {
-        if (!p.fitted) continue;
+      for (const rodfit::Parameter& p : result.parameters) {
+        if (!p.fit) continue;
         const auto truth = protocol.parameters.find(p.name);
         if (truth == protocol.parameters.end()) continue;
         Row row = base;

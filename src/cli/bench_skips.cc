@@ -17,10 +17,11 @@
 #include "bench.h"
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
+#include "rodfit/pipeline/fit_input.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/dynamics.h"
 #include "rodfit/solve/statics.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace bench {
 namespace {

@@ -18,7 +18,7 @@
 #include "commands.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/io/image_observations.h"
+#include "rodfit/pipeline/image_observations.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/synth/synth.h"

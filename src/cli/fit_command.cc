@@ -19,13 +19,14 @@
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/io/fit_input.h"
-#include "rodfit/io/marker_sequences.h"
+#include "rodfit/pipeline/fit_input.h"
+#include "rodfit/pipeline/sequence_input.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/report/fit_report.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/io/profile.h"
 #include "rodfit/io/progress.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace {
 
@@ -86,11 +87,11 @@ std::vector<std::string> WriteOutputs(const rodfit::Experiment& experiment,
 
 // The fitted parameters as the summary lists them.
 void PrintEstimates(const rodfit::FitResult& result) {
-  for (const rodfit::ParameterEstimate& p : result.parameters) {
-    if (!p.fitted) continue;
+  for (const rodfit::Parameter& p : result.parameters) {
+    if (!p.fit) continue;
     if (p.identifiable)
       std::fprintf(stderr, "%-18s %.6g +- %.2g %s\n", p.name.c_str(), p.value, *p.std,
-                   p.unit.c_str());
+                   p.unit());
     else
       std::fprintf(stderr, "%-18s NOT IDENTIFIABLE: %s\n", p.name.c_str(), p.reason.c_str());
   }
@@ -133,8 +134,8 @@ std::string ResidualWarning(const rodfit::FitResult& result, const rodfit::FitOp
 
 // The exit status of a fit that wrote its profile (docs/cli.md, "Exit status").
 int FitStatus(const rodfit::FitResult& result, const rodfit::ResidualCheck& check) {
-  for (const rodfit::ParameterEstimate& p : result.parameters)
-    if (p.fitted && !p.identifiable) return kNotAllDetermined;
+  for (const rodfit::Parameter& p : result.parameters)
+    if (p.fit && !p.identifiable) return kNotAllDetermined;
   if (check.gross) return kResidualsNotExplained;
   return EXIT_SUCCESS;
 }
@@ -185,10 +186,7 @@ int RunSequenceFit(const rodfit::Experiment& experiment, const std::string& expe
       rodfit::EvaluateSequences(fitted, input.sequences, experiment.statics);
   const rodfit::FitResult result = rodfit::SequenceFitResult(experiment, input, motion, residuals);
   rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
-  // The report reads the parameters' starts and bounds from a FitInput; it has no static cases.
-  rodfit::FitInput report_input;
-  for (const auto& [name, spec] : experiment.parameters)
-    report_input.parameters.push_back({name, spec.value, spec.fit, spec.min, spec.max});
+  const rodfit::FitInput report_input;  // a moving experiment has no static cases
   rodfit::ResidualCheck check;
   std::vector<std::string> warnings;
   if (std::string w = ResidualWarning(result, options, &check); !w.empty()) warnings.push_back(w);

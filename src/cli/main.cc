@@ -30,6 +30,7 @@
 #include "rodfit/runtime/profile.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/version.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace {
 

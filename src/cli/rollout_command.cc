@@ -26,6 +26,7 @@
 #include "rodfit/report/rollout_report.h"
 #include "rodfit/solve/rollout.h"
 #include "rodfit/version.h"
+#include "rodfit/pipeline/experiment.h"
 
 int RunRollout(int argc, char** argv) {
   CLI::App app(
@@ -42,14 +43,15 @@ int RunRollout(int argc, char** argv) {
   double frame_rate = 0.0;
   app.add_option("scene", scene_path, "scene YAML with a dynamics: block (docs/formats.md)")->required();
   app.add_option("recordings", recording_paths, "markers CSV(s): frame,marker,x,y,z or t,marker,x,y,z (or one row per frame: t,x0,y0,z0,x1,...)")->required();
-  // What a motion sees: the rod's stiffness and damping rows of the parameter table, and the
-  // rod's linear density (not a material row).
+  // What a motion sees: the rod's stiffness, damping and mass rows of the parameter table.
   std::string fittable;
+  using rodfit::ParameterKind;
   for (const rodfit::MaterialParameterInfo& row : rodfit::MaterialParameters())
-    if (row.kind == rodfit::ParameterKind::kRodStiffness || row.kind == rodfit::ParameterKind::kDamping)
+    if (row.kind == ParameterKind::kRodStiffness || row.kind == ParameterKind::kDamping ||
+        row.kind == ParameterKind::kMass)
       fittable += (fittable.empty() ? "" : ", ") + std::string(row.name);
-  app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (" + fittable +
-                 ", linear_density); their scene values are the start, > 0");
+  app.add_option("--fit", fit_text, "parameters to fit to the recordings, comma separated (" +
+                                        fittable + "); their scene values are the start, > 0");
   int smooth_frames = 5;
   std::string held_ends = "pins";
   app.add_option("--smooth", smooth_frames,

@@ -12,6 +12,8 @@
 #include "commands.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/synth/synth.h"
+#include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/synthesize.h"
 
 int RunSynth(int argc, char** argv) {
   CLI::App app(

@@ -29,14 +29,15 @@
 
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
-#include "rodfit/io/marker_sequences.h"
+#include "rodfit/pipeline/fit_input.h"
+#include "rodfit/pipeline/sequence_input.h"
 #include "rodfit/fit/motion_fit.h"
 #include "rodfit/solve/case_dynamics.h"
 #include "rodfit/solve/rollout.h"
 #include "rodfit/solve/statics.h"
 #include "rodfit/vision/camera_file.h"
 #include "solve/mocap_fixture.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {
@@ -115,12 +116,12 @@ FitInput Protocol(int num_cases, int markers, std::string* error) {
     }
     FitCase fc;
     fc.load_case = load;
-    fc.observations.push_back(std::make_shared<Markers3dObservation>(arc, observed, sigma));
-    fc.labels.push_back("markers3d " + load.name);
+    fc.measurements.push_back(MakeShapeMeasurement("markers3d", "markers3d " + load.name,
+                                                   Markers3dObservation(arc, observed, sigma)));
     in.cases.push_back(fc);
   }
   for (const char* name : {"bend_stiffness", "bend_stiffness_2"}) {
-    FitParameter p;
+    Parameter p;
     p.name = name;
     p.value = 3.0e-6;
     p.fit = true;
@@ -155,8 +156,8 @@ void TimeFit(benchmark::State& st, const FitInput& in, int threads) {
     st.SkipWithError(("fit failed: " + r.message).c_str());
     return;
   }
-  for (const ParameterEstimate& p : r.parameters) {
-    if (p.fitted && !p.identifiable) {
+  for (const Parameter& p : r.parameters) {
+    if (p.fit && !p.identifiable) {
       st.SkipWithError((p.name + " not identifiable: " + p.reason).c_str());
       return;
     }
@@ -282,10 +283,12 @@ void BM_FitPixelSequences(benchmark::State& st) {
       Project(camera, Eigen::Vector3d(0.5 * (run.x[k].col(j) + run.x[k].col(j + 1))), &uv);
       pixels.push_back(uv + Eigen::Vector2d(noise(rng), noise(rng)));
     }
-    seq.frames.push_back({t[k],
-                          std::make_shared<ImageCurveObservation>(static_cast<int>(arc.size()),
-                                                                  camera, pixels, 0.5),
-                          nullptr, {}});
+    seq.frames.push_back(
+        {t[k],
+         MakeShapeMeasurement(
+             "image_points", "image_points",
+             ImageCurveObservation(static_cast<int>(arc.size()), camera, pixels, 0.5)),
+         {}});
   }
   const std::vector<std::string> names = FittedNames(experiment);
   const MotionFitOptions options = SequenceFitOptionsOf(experiment, names);

@@ -27,6 +27,7 @@
 
 #include "rodfit/io/experiment.h"
 #include "rodfit/solve/case_solve.h"
+#include "rodfit/pipeline/experiment.h"
 
 extern char** environ;
 

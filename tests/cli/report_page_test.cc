@@ -21,6 +21,7 @@
 
 #include "rodfit/io/experiment.h"
 #include "run_cli.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit::test {
 namespace {

@@ -22,6 +22,7 @@
 #include "run_cli.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/experiment.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {

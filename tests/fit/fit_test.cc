@@ -44,7 +44,7 @@ Mat3X Solve(const FitInput& in, const LoadCase& c) {
 }
 
 // Markers at `count` evenly spaced s in (0, L], Gaussian noise sigma (0 = exact).
-std::shared_ptr<const Observation> Markers(const FitInput& in, const Mat3X& x, int count,
+std::shared_ptr<const Measurement> Markers(const FitInput& in, const Mat3X& x, int count,
                                            double sigma, double noise, std::mt19937* rng) {
   std::normal_distribution<double> N(0.0, 1.0);
   const RodModel model(in.rod, in.material, in.gravity, LoadCase());
@@ -60,13 +60,14 @@ std::shared_ptr<const Observation> Markers(const FitInput& in, const Mat3X& x, i
     if (noise > 0) m.p_world += noise * Vec3(N(*rng), N(*rng), N(*rng));
     markers.push_back(m);
   }
-  return std::make_shared<Markers3dObservation>(VertexArcLengths(model), markers, sigma);
+  return MakeShapeMeasurement("markers3d", "markers3d",
+                              Markers3dObservation(VertexArcLengths(model), markers, sigma));
 }
 
 void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double start_factor) {
   const Material& m = in->material;
   auto add = [&](const std::string& name, double v) {
-    FitParameter p;
+    Parameter p;
     p.name = name;
     p.fit = std::find(fitted.begin(), fitted.end(), name) != fitted.end();
     p.value = p.fit ? v * start_factor : v;
@@ -78,7 +79,7 @@ void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double 
   add("stretch_stiffness", m.stretch_stiffness);
 }
 
-const ParameterEstimate& Estimate(const FitResult& r, const std::string& name) {
+const Parameter& Estimate(const FitResult& r, const std::string& name) {
   for (const auto& p : r.parameters)
     if (p.name == name) return p;
   throw std::runtime_error("no parameter " + name);
@@ -99,7 +100,7 @@ FitInput Protocol(const FitInput& truth_material, double noise, std::mt19937* rn
   for (const LoadCase& c : cases) {
     FitCase fc;
     fc.load_case = c;
-    fc.observations.push_back(Markers(in, Solve(in, c), markers, sigma, noise, rng));
+    fc.measurements.push_back(Markers(in, Solve(in, c), markers, sigma, noise, rng));
     in.cases.push_back(fc);
   }
   return in;
@@ -167,7 +168,7 @@ FitInput TwistedProtocol(const FitInput& truth, std::mt19937* rng) {
   c.tip_force = Vec3(0, 0, -3e-5);
   FitCase fc;
   fc.load_case = c;
-  fc.observations.push_back(Markers(in, Solve(in, c), 10, 3e-4, 0.0, rng));
+  fc.measurements.push_back(Markers(in, Solve(in, c), 10, 3e-4, 0.0, rng));
   in.cases.push_back(fc);
   return in;
 }
@@ -197,7 +198,7 @@ TEST(Fit, TwistOfAnIsotropicRodUnderDeadLoadsIsNotIdentifiable) {
   std::mt19937 rng(4);
   FitInput in = TwistedProtocol(truth, &rng);
   AddParameters(&in, {"bend_stiffness", "twist_stiffness"}, 1.8);
-  for (FitParameter& p : in.parameters)
+  for (Parameter& p : in.parameters)
     if (p.name == "twist_stiffness") p.value = 8e-7, p.min = 4e-7, p.max = 1.6e-6;
   FitOptions options;
   options.trusted_sigmas = true;  // noise-free data: the residual variance would be 0
@@ -217,7 +218,7 @@ TEST(Fit, RecoversStretchFromAStretchedCase) {
   c.tip_force = Vec3(0, 0, -0.1);  // 2 % strain
   FitCase fc;
   fc.load_case = c;
-  fc.observations.push_back(Markers(in, Solve(in, c), 10, 1e-5, 0.0, &rng));
+  fc.measurements.push_back(Markers(in, Solve(in, c), 10, 1e-5, 0.0, &rng));
   in.cases.push_back(fc);
   AddParameters(&in, {"stretch_stiffness"}, 3.0);
   const FitResult r = Fit(in, FitOptions());
@@ -242,7 +243,8 @@ TEST(Fit, RecoversBendingFromUnorderedPoints) {
     }
     FitCase fc;
     fc.load_case = c;
-    fc.observations.push_back(std::make_shared<Points3dObservation>(n + 1, samples, 3e-4));
+    fc.measurements.push_back(
+        MakeShapeMeasurement("points3d", "points3d", Points3dObservation(n + 1, samples, 3e-4)));
     in.cases.push_back(fc);
   }
   AddParameters(&in, {"bend_stiffness"}, 2.0);
@@ -262,7 +264,7 @@ TEST(Fit, NoisyEstimatesLieWithinThreeStd) {
   for (const auto& [name, truth_value] :
        std::vector<std::pair<std::string, double>>{{"bend_stiffness", 1.0e-6},
                                                     {"bend_stiffness_2", 1.4e-6}}) {
-    const ParameterEstimate& e = Estimate(r, name);
+    const Parameter& e = Estimate(r, name);
     ASSERT_TRUE(e.std.has_value()) << name << ": " << e.reason;
     EXPECT_LT(std::abs(e.value - truth_value), 3.0 * *e.std) << name;
   }
@@ -279,7 +281,7 @@ TEST(Fit, ReportedStdMatchesTheSpreadOverSeeds) {
     AddParameters(&in, {"bend_stiffness"}, 1.5);
     const FitResult r = Fit(in, FitOptions());
     ASSERT_TRUE(r.success) << r.message;
-    const ParameterEstimate& e = Estimate(r, "bend_stiffness");
+    const Parameter& e = Estimate(r, "bend_stiffness");
     ASSERT_TRUE(e.std.has_value());
     estimates.push_back(std::log(e.value));
     stds.push_back(*e.std / e.value);
@@ -299,11 +301,11 @@ TEST(Fit, TorsionFromAPlaneIsNotIdentifiable) {
   in.cases.resize(2);  // planar sag only: nothing twists the rod
   AddParameters(&in, {"bend_stiffness", "twist_stiffness"}, 1.5);
   const FitResult r = Fit(in, FitOptions());
-  const ParameterEstimate& gj = Estimate(r, "twist_stiffness");
+  const Parameter& gj = Estimate(r, "twist_stiffness");
   EXPECT_FALSE(gj.identifiable);
   EXPECT_FALSE(gj.std.has_value());
   EXPECT_FALSE(gj.reason.empty());
-  const ParameterEstimate& b = Estimate(r, "bend_stiffness");
+  const Parameter& b = Estimate(r, "bend_stiffness");
   EXPECT_TRUE(b.identifiable) << b.reason;
   EXPECT_NEAR(b.value, 1e-6, 0.005e-6);
 }

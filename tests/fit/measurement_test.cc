@@ -14,7 +14,6 @@ namespace {
 ForceMeasurement Reading(const std::string& observation, const std::string& point, Vec3 force,
                          double sigma) {
   ForceMeasurement f;
-  f.observation = observation;
   f.label = observation + " #" + point;
   f.point = point;
   f.force = force;
@@ -24,30 +23,31 @@ ForceMeasurement Reading(const std::string& observation, const std::string& poin
 
 // Four vertices on x; markers at both ends; two force entries (the first with a moment reading
 // on the clamp) and one surface point set.
-FitCase MixedCase() {
-  FitCase fc;
-  fc.load_case.name = "mixed";
+MeasurementList MixedCase() {
+  MeasurementList list;
   const std::vector<double> s = {0.0, 1.0, 2.0, 3.0};
-  fc.observations.push_back(std::make_shared<Markers3dObservation>(
-      s, std::vector<Marker3d>{{0.0, Vec3(0, 0, 0)}, {3.0, Vec3(3, 0, 0.1)}}, 0.01));
-  fc.labels.push_back("markers3d m.csv");
+  list.push_back(MakeShapeMeasurement(
+      "markers3d", "markers3d m.csv",
+      Markers3dObservation(s, std::vector<Marker3d>{{0.0, Vec3(0, 0, 0)}, {3.0, Vec3(3, 0, 0.1)}},
+                           0.01)));
   ForceMeasurement clamp = Reading("reaction clamp.csv", "clamp", Vec3(1, 0, 0), 0.5);
-  clamp.type = "reaction";
   clamp.moment = Vec3(0, 0.2, 0);
   clamp.sigma_moment = 0.1;
-  fc.grasp_forces.push_back(clamp);
-  fc.grasp_forces.push_back(Reading("grasp_force log.csv", "grasp", Vec3(0, 2, 0), 0.25));
-  fc.grasp_forces.push_back(Reading("grasp_force log.csv", "grasp", Vec3(0, 1, 0), 0.25));
-  SurfacePoints sp;
-  sp.points = {Vec3(0.0, 1.2, 0.0), Vec3(0.0, 0.1, 0.7)};  // a vertex foot, an edge foot
-  sp.sigma = 0.1;
-  sp.label = "surface_points dent.csv";
-  fc.surface_points.push_back(sp);
-  return fc;
+  list.push_back(std::make_shared<ForceReadings>("reaction", "reaction clamp.csv",
+                                                 std::vector<ForceMeasurement>{clamp}));
+  list.push_back(std::make_shared<ForceReadings>(
+      "grasp_force", "grasp_force log.csv",
+      std::vector<ForceMeasurement>{Reading("grasp_force log.csv", "grasp", Vec3(0, 2, 0), 0.25),
+                                    Reading("grasp_force log.csv", "grasp", Vec3(0, 1, 0), 0.25)}));
+  // A vertex foot, an edge foot.
+  list.push_back(std::make_shared<SurfacePointSet>(
+      "surface_points", "surface_points dent.csv",
+      std::vector<Vec3>{Vec3(0.0, 1.2, 0.0), Vec3(0.0, 0.1, 0.7)}, 0.1));
+  return list;
 }
 
 TEST(CaseMeasurementsTest, EveryKindInResidualOrderWithItsCounts) {
-  const auto list = CaseMeasurements(MixedCase());
+  const MeasurementList list = MixedCase();
   ASSERT_EQ(list.size(), 4u);
   EXPECT_EQ(list[0]->type(), "markers3d");
   EXPECT_EQ(list[0]->label(), "markers3d m.csv");
@@ -81,7 +81,7 @@ TEST(CaseMeasurementsTest, EveryKindInResidualOrderWithItsCounts) {
 }
 
 TEST(CaseMeasurementsTest, ForceReadingsAgainstTheReactionsAndTheirDerivatives) {
-  const auto list = CaseMeasurements(MixedCase());
+  const MeasurementList list = MixedCase();
   std::vector<HeldReaction> reactions(2);
   reactions[0].point = "clamp";
   reactions[0].force = Vec3(1.5, 0, 0);
@@ -138,7 +138,7 @@ TEST(CaseMeasurementsTest, ForceReadingsAgainstTheReactionsAndTheirDerivatives) 
 // The surface residual's Jacobian is the foot's derivative as the ring moves: compare it with
 // central differences of the residuals over a ring moved along the given node derivatives.
 TEST(CaseMeasurementsTest, SurfacePointJacobianMatchesFiniteDifferences) {
-  const auto list = CaseMeasurements(MixedCase());
+  const MeasurementList list = MixedCase();
   const int nodes = 12;
   auto ring_at = [&](double t) {
     Eigen::Matrix3Xd ring(3, nodes);

@@ -64,14 +64,16 @@ ObservationSequence Observe(const Scene& truth, Kind kind, double sigma, unsigne
       markers.push_back({s, uv});
       pixels.push_back(uv);
     }
-    std::shared_ptr<const Observation> frame;
+    std::shared_ptr<const Measurement> frame;
     if (kind == Kind::kPixelMarkers)
-      frame = std::make_shared<ImageMarkersObservation>(arc, camera, markers, sigma);
+      frame = MakeShapeMeasurement("image_points", "image_points",
+                                   ImageMarkersObservation(arc, camera, markers, sigma));
     else if (kind == Kind::kPixelCurve)
-      frame = std::make_shared<ImageCurveObservation>(nv, camera, pixels, sigma);
+      frame = MakeShapeMeasurement("image_points", "image_points",
+                                   ImageCurveObservation(nv, camera, pixels, sigma));
     else
-      frame = std::make_shared<Points3dObservation>(nv, points, sigma);
-    seq.frames.push_back({t[k], frame, nullptr, {}});
+      frame = MakeShapeMeasurement("points3d", "points3d", Points3dObservation(nv, points, sigma));
+    seq.frames.push_back({t[k], frame, {}});
   }
   return seq;
 }
@@ -176,14 +178,15 @@ TEST(PixelSequences, RefusesFramesItCannotPlace) {
   }
   {
     ObservationSequence coarse = seq;  // a frame on another rod's vertices
-    coarse.frames[3].observation = std::make_shared<Points3dObservation>(
-        5, std::vector<Eigen::Vector3d>{Eigen::Vector3d::Zero()}, 1e-3);
+    coarse.frames[3].measurement = MakeShapeMeasurement(
+        "points3d", "points3d",
+        Points3dObservation(5, std::vector<Eigen::Vector3d>{Eigen::Vector3d::Zero()}, 1e-3));
     EXPECT_THROW(FitSequences(truth, {coarse}, names, StaticsOptions(), MotionFitOptions()),
                  std::invalid_argument);
   }
   {
     ObservationSequence numbered = seq;  // sample numbers in one frame only
-    numbered.frames[0].sample.assign(numbered.frames[0].observation->num_measurements(), 0);
+    numbered.frames[0].sample.assign(numbered.frames[0].measurement->num_measurements(), 0);
     EXPECT_THROW(FitSequences(truth, {numbered}, names, StaticsOptions(), MotionFitOptions()),
                  std::invalid_argument);
   }

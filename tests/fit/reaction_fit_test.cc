@@ -85,7 +85,8 @@ FitCase Measured(const FitInput& truth, const LoadCase& c, const std::vector<std
       f.moment = r.moment;
       f.sigma_moment = 1e-5;
     }
-    fc.grasp_forces.push_back(f);
+    fc.measurements.push_back(
+        std::make_shared<ForceReadings>("reaction", f.label, std::vector<ForceMeasurement>{f}));
   }
   return fc;
 }
@@ -106,7 +107,7 @@ TEST(ReactionFit, JacobianMatchesCentralDifferencesOfTheForwardMap) {
   AddParameters(&in, 1.3);
   in.statics.gradient_tolerance = 1e-12;
   std::vector<double> lp;
-  for (const FitParameter& p : in.parameters)
+  for (const Parameter& p : in.parameters)
     if (p.fit) lp.push_back(std::log(p.value));
   VecX r;
   Eigen::MatrixXd J;
@@ -139,8 +140,8 @@ TEST(ReactionFit, RecoversBendingAndTwistFromReactionsAlone) {
   options.trusted_sigmas = true;  // noise-free data
   const FitResult r = Fit(in, options);
   ASSERT_TRUE(r.success) << r.message;
-  for (const ParameterEstimate& e : r.parameters) {
-    if (!e.fitted) continue;
+  for (const Parameter& e : r.parameters) {
+    if (!e.fit) continue;
     const double t = e.name == "bend_stiffness"     ? truth.material.bend_stiffness
                      : e.name == "bend_stiffness_2" ? *truth.material.bend_stiffness_2
                                                     : truth.material.twist_stiffness;

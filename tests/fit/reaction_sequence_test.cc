@@ -1,9 +1,9 @@
-// Force logs over time in a motion fit (fit/motion_fit.h, ReactionReading): a load cell at the
-// clamp of a suture swinging down under its weight reads the force and moment the rod exerts on
-// it. The residuals' Jacobian equals central differences of the residuals; and with its markers
-// the log identifies the linear density besides the bending stiffness and the drag (markers
-// alone see only their ratios: gravity moves every mass alike), each recovered within 3 of its
-// standard deviations.
+// Force logs over time in a motion fit (fit/motion_fit.h, a ForceReadings per frame): a load cell
+// at the clamp of a suture swinging down under its weight reads the force and moment the rod exerts
+// on it. The residuals' Jacobian equals central differences of the residuals; and with its markers
+// the log identifies the linear density besides the bending stiffness and the drag (markers alone
+// see only their ratios: gravity moves every mass alike), each recovered within 3 of its standard
+// deviations.
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -27,6 +27,15 @@ std::vector<double> Times() {
   return t;
 }
 
+// A frame's reading as a measurement, and back.
+std::shared_ptr<const Measurement> AsFrame(const ForceMeasurement& reading) {
+  return std::make_shared<ForceReadings>("reaction", "reaction clamp",
+                                         std::vector<ForceMeasurement>{reading});
+}
+ForceMeasurement ReadingOf(const ObservationSequence::Frame& frame) {
+  return dynamic_cast<const ForceReadings&>(*frame.measurement).readings().front();
+}
+
 // The clamp's readings every 10 ms with Gaussian noise of sigma [N] and sigma_moment [N m] per
 // component (none when add_noise is false).
 ObservationSequence ClampLog(const Scene& truth, double sigma, double sigma_moment, unsigned seed,
@@ -38,19 +47,18 @@ ObservationSequence ClampLog(const Scene& truth, double sigma, double sigma_mome
   std::normal_distribution<double> gauss(0.0, 1.0);
   ObservationSequence seq;
   for (size_t k = 0; k < run.reactions.size(); ++k) {
-    auto reading = std::make_shared<ReactionReading>();
-    reading->point = "clamp";
-    reading->sigma = sigma;
-    reading->sigma_moment = sigma_moment;
-    reading->has_moment = true;
+    ForceMeasurement reading;
+    reading.point = "clamp";
+    reading.sigma = sigma;
+    reading.sigma_moment = sigma_moment;
     const HeldReaction& clamp = run.reactions[k][0];
     const double on = add_noise ? 1.0 : 0.0;
-    reading->force = clamp.force + on * sigma * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
-    reading->moment =
+    reading.force = clamp.force + on * sigma * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    reading.moment =
         clamp.moment + on * sigma_moment * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
     ObservationSequence::Frame frame;
     frame.t = t[k];
-    frame.reading = reading;
+    frame.measurement = AsFrame(reading);
     seq.frames.push_back(frame);
   }
   return seq;
@@ -71,7 +79,8 @@ ObservationSequence Markers(const Scene& truth, double sigma, unsigned seed) {
       seen.push_back({s[m], run.x[k].col(m) + Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng))});
     ObservationSequence::Frame frame;
     frame.t = t[k];
-    frame.observation = std::make_shared<Markers3dObservation>(arc, seen, sigma);
+    frame.measurement =
+        MakeShapeMeasurement("markers3d", "markers3d", Markers3dObservation(arc, seen, sigma));
     seq.frames.push_back(frame);
   }
   return seq;
@@ -157,14 +166,14 @@ TEST(ReactionSequence, ForcesAndMarkersIdentifyTheDensityWithCredibleStd) {
 TEST(ReactionSequence, RefusesAReadingAtAPointTheCaseDoesNotHold) {
   const Scene truth = Swing();
   ObservationSequence log = ClampLog(truth, 1e-6, 1e-7, 1);
-  auto at_pin = std::make_shared<ReactionReading>(*log.frames[0].reading);
-  at_pin->point = "end_pin";
-  for (auto& frame : log.frames) frame.reading = at_pin;
+  ForceMeasurement at_pin = ReadingOf(log.frames[0]);
+  at_pin.point = "end_pin";
+  for (auto& frame : log.frames) frame.measurement = AsFrame(at_pin);
   EXPECT_THROW(EvaluateSequenceResiduals(truth, {log}, {}, StaticsOptions()), std::invalid_argument);
   ObservationSequence mixed = ClampLog(truth, 1e-6, 1e-7, 1);
-  auto other_sigma = std::make_shared<ReactionReading>(*mixed.frames[1].reading);
-  other_sigma->sigma = 2e-6;
-  mixed.frames[1].reading = other_sigma;
+  ForceMeasurement other_sigma = ReadingOf(mixed.frames[1]);
+  other_sigma.sigma = 2e-6;
+  mixed.frames[1].measurement = AsFrame(other_sigma);
   EXPECT_THROW(EvaluateSequenceResiduals(truth, {mixed}, {}, StaticsOptions()), std::invalid_argument);
 }
 
@@ -178,10 +187,10 @@ TEST(ReactionSequence, ResidualsThatOverflowFailTheFitSayingWhy) {
   for (const bool one_huge : {true, false}) {
     ObservationSequence log = ClampLog(truth, 1e-6, 1e-7, 1);
     for (size_t k = 0; k < log.frames.size(); ++k) {
-      auto reading = std::make_shared<ReactionReading>(*log.frames[k].reading);
-      if (one_huge && k == 3) reading->force.x() = 1e303;
-      if (!one_huge) reading->sigma = 1e-170;
-      log.frames[k].reading = reading;
+      ForceMeasurement reading = ReadingOf(log.frames[k]);
+      if (one_huge && k == 3) reading.force.x() = 1e303;
+      if (!one_huge) reading.sigma = 1e-170;
+      log.frames[k].measurement = AsFrame(reading);
     }
     const MotionFitResult r =
         FitSequences(truth, {log}, {"linear_density"}, StaticsOptions(), MotionFitOptions());

@@ -44,8 +44,8 @@ LoadCase PokeCase(const std::string& name, const Vec3& force) {
 }
 
 // Points on the true deformed ring, a fraction along each edge, plus Gaussian noise.
-SurfacePoints Surface(const FitInput& in, const LoadCase& c, double sigma, double noise,
-                      std::mt19937* rng) {
+std::shared_ptr<const SurfacePointSet> Surface(const FitInput& in, const LoadCase& c,
+                                               double sigma, double noise, std::mt19937* rng) {
   const RodModel model(in.rod, in.material, in.gravity, c, in.springs);
   RodState state = model.StraightState();
   EXPECT_TRUE(SolveStatics(model, StaticsOptions(), &state).converged);
@@ -54,17 +54,16 @@ SurfacePoints Surface(const FitInput& in, const LoadCase& c, double sigma, doubl
                 {in.material.ring_bend_stiffness, in.material.ring_stretch_stiffness});
   EXPECT_TRUE(poke.ring.summary.converged);
   std::normal_distribution<double> N(0.0, 1.0);
-  SurfacePoints sp;
-  sp.sigma = sigma;
-  sp.label = "surface_points " + c.name;
+  std::vector<Vec3> points;
   const int n = static_cast<int>(poke.deformed_world.cols());
   for (int k = 0; k < n; ++k) {
     const Vec3 a = poke.deformed_world.col(k), b = poke.deformed_world.col((k + 1) % n);
     Vec3 p = a + 0.37 * (b - a);
     if (noise > 0) p += noise * Vec3(N(*rng), N(*rng), N(*rng));
-    sp.points.push_back(p);
+    points.push_back(p);
   }
-  return sp;
+  return std::make_shared<SurfacePointSet>("surface_points", "surface_points " + c.name, points,
+                                           sigma);
 }
 
 void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double factor) {
@@ -80,7 +79,7 @@ void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double 
   add("ring_stretch_stiffness", in->material.ring_stretch_stiffness);
 }
 
-const ParameterEstimate& Get(const FitResult& r, const std::string& name) {
+const Parameter& Get(const FitResult& r, const std::string& name) {
   for (const auto& p : r.parameters)
     if (p.name == name) return p;
   throw std::runtime_error(name);
@@ -92,7 +91,7 @@ TEST(RingFit, SurfaceJacobianMatchesCentralDifferences) {
   for (const Vec3& f : {Vec3(0, -0.02, 0), Vec3(0, 0.01, -0.015)}) {
     FitCase fc;
     fc.load_case = PokeCase("poke", f);
-    fc.surface_points.push_back(Surface(in, fc.load_case, 1e-4, 3e-4, &rng));
+    fc.measurements.push_back(Surface(in, fc.load_case, 1e-4, 3e-4, &rng));
     in.cases.push_back(fc);
   }
   AddParameters(&in, {"ring_bend_stiffness", "ring_stretch_stiffness"}, 1.0);
@@ -124,16 +123,16 @@ TEST(RingFit, RecoversRingBendStiffnessFromNoisySurfacePoints) {
   for (const Vec3& f : {Vec3(0, -0.03, 0), Vec3(0, 0.015, -0.02)}) {
     FitCase fc;
     fc.load_case = PokeCase("poke", f);
-    fc.surface_points.push_back(Surface(in, fc.load_case, sigma, sigma, &rng));
+    fc.measurements.push_back(Surface(in, fc.load_case, sigma, sigma, &rng));
     in.cases.push_back(fc);
   }
   AddParameters(&in, {"ring_bend_stiffness"}, 3.0);
   FitOptions options;
   const FitResult result = Fit(in, options);
   ASSERT_TRUE(result.success) << result.message;
-  const ParameterEstimate& kb = Get(result, "ring_bend_stiffness");
+  const Parameter& kb = Get(result, "ring_bend_stiffness");
   ASSERT_TRUE(kb.std.has_value()) << kb.reason;
-  EXPECT_EQ(kb.unit, "N m^2");
+  EXPECT_STREQ(kb.unit(), "N m^2");
   EXPECT_LT(std::abs(kb.value - 2e-5), 3 * *kb.std) << kb.value << " +- " << *kb.std;
   EXPECT_LT(*kb.std, 0.1 * 2e-5);
   EXPECT_NEAR(result.residual_variance, 1.0, 0.5);
@@ -154,7 +153,7 @@ TEST(RingFit, RefusesRodParametersWithSurfacePoints) {
   std::mt19937 rng(5);
   FitCase fc;
   fc.load_case = PokeCase("poke", Vec3(0, -0.02, 0));
-  fc.surface_points.push_back(Surface(in, fc.load_case, 1e-4, 0.0, &rng));
+  fc.measurements.push_back(Surface(in, fc.load_case, 1e-4, 0.0, &rng));
   in.cases.push_back(fc);
   AddParameters(&in, {"ring_bend_stiffness", "spring_stiffness"}, 1.0);
   try {
@@ -176,8 +175,8 @@ TEST(RingFit, RefusesRingParameterWithoutSurfacePoints) {
   fc.load_case = PokeCase("poke", Vec3(0, -0.02, 0));
   const RodModel model(in.rod, in.material, in.gravity, fc.load_case, in.springs);
   std::vector<Marker3d> markers = {{0.15, Vec3(0.15, 0, 0)}, {0.1, Vec3(0.1, 0, 0)}};
-  fc.observations.push_back(
-      std::make_shared<Markers3dObservation>(VertexArcLengths(model), markers, 1e-3));
+  fc.measurements.push_back(MakeShapeMeasurement(
+      "markers3d", "markers3d", Markers3dObservation(VertexArcLengths(model), markers, 1e-3)));
   in.cases.push_back(fc);
   AddParameters(&in, {"ring_stretch_stiffness"}, 1.0);
   try {
@@ -194,7 +193,7 @@ TEST(RingFit, RefusesSurfacePointsWithoutPokeOrSection) {
   std::mt19937 rng(5);
   FitCase fc;
   fc.load_case = PokeCase("poke", Vec3(0, -0.02, 0));
-  fc.surface_points.push_back(Surface(in, fc.load_case, 1e-4, 0.0, &rng));
+  fc.measurements.push_back(Surface(in, fc.load_case, 1e-4, 0.0, &rng));
   fc.load_case.poke.reset();
   in.cases.push_back(fc);
   AddParameters(&in, {"ring_bend_stiffness"}, 1.0);
@@ -213,7 +212,7 @@ TEST(RingFit, FittedSectionIsRecordedPerCase) {
   for (const Vec3& f : {Vec3(0, -0.03, 0), Vec3(0, 0.015, -0.02)}) {
     FitCase fc;
     fc.load_case = PokeCase("poke", f);
-    fc.surface_points.push_back(Surface(in, fc.load_case, 3e-5, 0.0, &rng));
+    fc.measurements.push_back(Surface(in, fc.load_case, 3e-5, 0.0, &rng));
     in.cases.push_back(fc);
   }
   AddParameters(&in, {"ring_bend_stiffness"}, 3.0);
@@ -230,7 +229,8 @@ TEST(RingFit, FittedSectionIsRecordedPerCase) {
     Eigen::Matrix3Xd closed(3, ring.cols() + 1);
     closed << ring, ring.col(0);
     double worst = 0.0;
-    for (const Vec3& q : in.cases[c].surface_points[0].points) {
+    const auto& set = dynamic_cast<const SurfacePointSet&>(*in.cases[c].measurements[0]);
+    for (const Vec3& q : set.points()) {
       const PolylineFoot foot = ClosestPointOnPolyline<3>(closed, q);
       worst = std::max(worst, std::sqrt(foot.distance_squared));
     }

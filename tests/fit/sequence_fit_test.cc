@@ -41,7 +41,9 @@ ObservationSequence Record(const Scene& truth, double sigma, unsigned seed, bool
       seen.push_back({s[m], run.x[k].col(m) + (add_noise ? noise : Eigen::Vector3d::Zero())});
     }
     if (!seen.empty())
-      seq.frames.push_back({t[k], std::make_shared<Markers3dObservation>(arc, seen, sigma), nullptr,
+      seq.frames.push_back({t[k],
+                            MakeShapeMeasurement("markers3d", "markers3d",
+                                                 Markers3dObservation(arc, seen, sigma)),
                             {}});
   }
   return seq;

@@ -47,7 +47,7 @@ RodState Solve(const FitInput& in, const LoadCase& c, RodModel** keep = nullptr)
   return state;
 }
 
-std::shared_ptr<const Observation> Markers(const FitInput& in, const Mat3X& x, double sigma,
+std::shared_ptr<const Measurement> Markers(const FitInput& in, const Mat3X& x, double sigma,
                                            double noise, std::mt19937* rng) {
   std::normal_distribution<double> N(0.0, 1.0);
   const RodModel model(in.rod, in.material, in.gravity, Case("m"), in.springs);
@@ -57,7 +57,8 @@ std::shared_ptr<const Observation> Markers(const FitInput& in, const Mat3X& x, d
     if (noise > 0) p += noise * Vec3(N(*rng), N(*rng), N(*rng));
     markers.push_back({model.arc_length(i), p});
   }
-  return std::make_shared<Markers3dObservation>(VertexArcLengths(model), markers, sigma);
+  return MakeShapeMeasurement("markers3d", "markers3d",
+                              Markers3dObservation(VertexArcLengths(model), markers, sigma));
 }
 
 void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double factor) {
@@ -72,7 +73,7 @@ void AddParameters(FitInput* in, const std::vector<std::string>& fitted, double 
   add("mesentery", in->material.spring_parameters.at("mesentery"));
 }
 
-const ParameterEstimate& Get(const FitResult& r, const std::string& name) {
+const Parameter& Get(const FitResult& r, const std::string& name) {
   for (const auto& p : r.parameters)
     if (p.name == name) return p;
   throw std::runtime_error(name);
@@ -99,7 +100,7 @@ TEST(TissueFit, SingleSpringStiffnessFromMarkers) {
   for (const LoadCase& c : {Case("rest"), GraspCases()[0]}) {
     FitCase fc;
     fc.load_case = c;
-    fc.observations.push_back(Markers(in, Solve(in, c).x, 2e-4, 2e-4, &rng));
+    fc.measurements.push_back(Markers(in, Solve(in, c).x, 2e-4, 2e-4, &rng));
     in.cases.push_back(fc);
   }
   auto add = [&](const std::string& name, double v, bool fit) {
@@ -111,7 +112,7 @@ TEST(TissueFit, SingleSpringStiffnessFromMarkers) {
   add("spring_stiffness", 150, true);
   const FitResult r = Fit(in, FitOptions());
   ASSERT_TRUE(r.success) << r.message;
-  const ParameterEstimate& k = Get(r, "spring_stiffness");
+  const Parameter& k = Get(r, "spring_stiffness");
   ASSERT_TRUE(k.std.has_value()) << k.reason;
   EXPECT_LT(std::abs(k.value - 150), 3 * *k.std) << k.value << " +- " << *k.std;
 }
@@ -122,7 +123,7 @@ TEST(TissueFit, TwoZoneStiffnessesFromMarkers) {
   for (const LoadCase& c : {Case("rest"), GraspCases()[0], GraspCases()[2]}) {
     FitCase fc;
     fc.load_case = c;
-    fc.observations.push_back(Markers(in, Solve(in, c).x, 2e-4, 2e-4, &rng));
+    fc.measurements.push_back(Markers(in, Solve(in, c).x, 2e-4, 2e-4, &rng));
     in.cases.push_back(fc);
   }
   AddParameters(&in, {"spring_stiffness", "mesentery"}, 0.4);
@@ -130,10 +131,10 @@ TEST(TissueFit, TwoZoneStiffnessesFromMarkers) {
   ASSERT_TRUE(r.success) << r.message;
   for (const auto& [name, truth] :
        std::vector<std::pair<std::string, double>>{{"spring_stiffness", 150}, {"mesentery", 400}}) {
-    const ParameterEstimate& k = Get(r, name);
+    const Parameter& k = Get(r, name);
     ASSERT_TRUE(k.std.has_value()) << name << ": " << k.reason;
     EXPECT_LT(std::abs(k.value - truth), 3 * *k.std) << name << " " << k.value << " +- " << *k.std;
-    EXPECT_EQ(k.unit, "N/m^2");
+    EXPECT_STREQ(k.unit(), "N/m^2");
   }
 }
 
@@ -152,7 +153,8 @@ FitInput ForceOnly(double noise, std::mt19937* rng) {
     m.force = f;
     m.sigma = 0.01;
     m.label = "grasp_force log " + c.name;
-    fc.grasp_forces.push_back(m);
+    fc.measurements.push_back(std::make_shared<ForceReadings>(
+        "grasp_force", m.label, std::vector<ForceMeasurement>{m}));
     in.cases.push_back(fc);
   }
   return in;
@@ -190,7 +192,7 @@ TEST(TissueFit, SpringStiffnessFromAForceLogAlone) {
   ASSERT_TRUE(r.success) << r.message;
   for (const auto& [name, truth] :
        std::vector<std::pair<std::string, double>>{{"spring_stiffness", 150}, {"mesentery", 400}}) {
-    const ParameterEstimate& k = Get(r, name);
+    const Parameter& k = Get(r, name);
     ASSERT_TRUE(k.std.has_value()) << name << ": " << k.reason;
     EXPECT_LT(std::abs(k.value - truth), 3 * *k.std) << name << " " << k.value << " +- " << *k.std;
   }

@@ -12,6 +12,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/output_dir.h"
 #include "temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {
@@ -380,13 +381,13 @@ cases:
   EXPECT_EQ(ex.path, path);
   EXPECT_EQ(ex.directory, dir_.File("lab"));
 
-  const ParameterSpec& b1 = ex.parameters.at("bend_stiffness");
+  const Parameter& b1 = ex.parameters.at("bend_stiffness");
   EXPECT_EQ(b1.value, 1.0e-6);
   EXPECT_TRUE(b1.fit);
   EXPECT_EQ(b1.min, 1.0e-9);
   EXPECT_EQ(b1.max, 1.0e-3);
   EXPECT_EQ(b1.line, 8);
-  const ParameterSpec& b2 = ex.parameters.at("bend_stiffness_2");
+  const Parameter& b2 = ex.parameters.at("bend_stiffness_2");
   EXPECT_TRUE(b2.fit);
   EXPECT_FALSE(b2.min.has_value());
   EXPECT_FALSE(b2.max.has_value());

@@ -13,9 +13,11 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
+#include "rodfit/pipeline/fit_input.h"
 #include "rodfit/synth/synth.h"
 #include "temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/synthesize.h"
 
 namespace rodfit {
 namespace {
@@ -81,10 +83,12 @@ void WriteLogs(TempDir* dir, std::string* scene_path, std::string* device_path) 
 std::vector<ForceMeasurement> Forces(const FitInput& input, std::vector<Vec3>* tools) {
   std::vector<ForceMeasurement> out;
   for (const FitCase& c : input.cases) {
-    for (const ForceMeasurement& f : c.grasp_forces) {
-      out.push_back(f);
-      tools->push_back(c.load_case.grasp->position);
-    }
+    for (const auto& meas : c.measurements)
+      if (const auto* forces = dynamic_cast<const ForceReadings*>(meas.get()))
+        for (const ForceMeasurement& f : forces->readings()) {
+          out.push_back(f);
+          tools->push_back(c.load_case.grasp->position);
+        }
   }
   return out;
 }

@@ -9,6 +9,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
 #include "temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {

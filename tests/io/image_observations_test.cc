@@ -2,7 +2,7 @@
 // synth/synth.h: extracted centre-line pixels lie within a pixel of the projected true centre-line
 // and start at the clamped end; two views triangulate to the true centre-line within the stereo
 // error of the sample cameras; unreadable or mis-sized images are one-line InputErrors.
-#include "rodfit/io/image_observations.h"
+#include "rodfit/pipeline/image_observations.h"
 
 #include <algorithm>
 #include <array>
@@ -21,6 +21,8 @@
 #include "rodfit/synth/synth.h"
 #include "rodfit/vision/camera_file.h"
 #include "temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/synthesize.h"
 
 namespace rodfit {
 namespace {

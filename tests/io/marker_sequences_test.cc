@@ -3,7 +3,7 @@
 // sequence files (t or frame column, missing samples; markers3d, points3d and image_points with
 // and without s, one static observation per frame); every bad input is a one-line InputError
 // naming the file, the 1-based line and the key or column.
-#include "rodfit/io/marker_sequences.h"
+#include "rodfit/pipeline/sequence_input.h"
 
 #include <cmath>
 #include <filesystem>
@@ -14,6 +14,7 @@
 
 #include "rodfit/io/errors.h"
 #include "temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {
@@ -143,7 +144,7 @@ TEST_F(MarkerSequencesTest, ReadsFramesAndMissingSamples) {
   EXPECT_EQ(seq.frames[2].t, 0.02);
   // Each frame is the static markers3d observation of the samples seen then, on the case's
   // vertices, numbered in the file's order.
-  const auto* last = dynamic_cast<const Markers3dObservation*>(seq.frames[2].observation.get());
+  const auto* last = ModelOf<Markers3dObservation>(*seq.frames[2].measurement);
   ASSERT_NE(last, nullptr);
   EXPECT_EQ(last->sigma(), 5.0e-4);
   EXPECT_EQ(last->num_vertices(), 11);
@@ -283,7 +284,7 @@ TEST_F(PixelSequencesTest, ReadsPixelMarkersPerFrame) {
   ASSERT_EQ(seq.frames.size(), 2u);  // nothing seen in frame 1
   EXPECT_EQ(seq.frames[1].t, 0.02);
   EXPECT_EQ(seq.num_samples(), 3);
-  const auto* first = dynamic_cast<const ImageMarkersObservation*>(seq.frames[0].observation.get());
+  const auto* first = ModelOf<ImageMarkersObservation>(*seq.frames[0].measurement);
   ASSERT_NE(first, nullptr);
   EXPECT_STREQ(first->unit(), "px");
   EXPECT_EQ(first->sigma(), 0.5);
@@ -310,7 +311,7 @@ TEST_F(PixelSequencesTest, ReadsCentreLinePixelsAndPoints) {
   const ObservationSequence curve =
       Read(Pixels(""), "t,u,v\n0.05,700,540\n0,700,512\n0,800,512\n", &label);
   ASSERT_EQ(curve.frames.size(), 2u);
-  const auto* at_0 = dynamic_cast<const ImageCurveObservation*>(curve.frames[0].observation.get());
+  const auto* at_0 = ModelOf<ImageCurveObservation>(*curve.frames[0].measurement);
   ASSERT_NE(at_0, nullptr);
   EXPECT_EQ(at_0->pixels().size(), 2u);
   EXPECT_EQ(at_0->num_noise_residuals(), 2);  // one per pixel: across the curve
@@ -322,7 +323,7 @@ TEST_F(PixelSequencesTest, ReadsCentreLinePixelsAndPoints) {
            "t,x,y,z\n0,0.05,0,0\n0,0.1,0,0\n0.01,0.1,0,-0.001\n0.01,,,\n", &label);
   EXPECT_EQ(label, "points3d seq.csv");
   ASSERT_EQ(points.frames.size(), 2u);
-  const auto* p = dynamic_cast<const Points3dObservation*>(points.frames[1].observation.get());
+  const auto* p = ModelOf<Points3dObservation>(*points.frames[1].measurement);
   ASSERT_NE(p, nullptr);
   ASSERT_EQ(p->samples().size(), 1u);
   EXPECT_EQ(p->samples()[0].z(), -0.001);

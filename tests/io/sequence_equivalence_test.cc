@@ -18,8 +18,9 @@
 #include "rodfit/fit/motion_fit.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/marker_sequences.h"
+#include "rodfit/pipeline/sequence_input.h"
 #include "rodfit/solve/case_dynamics.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {

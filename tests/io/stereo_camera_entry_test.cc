@@ -9,10 +9,11 @@
 
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
+#include "rodfit/pipeline/fit_input.h"
 #include "rodfit/observe/observations.h"
 #include "rodfit/vision/camera_file.h"
 #include "temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {
@@ -52,9 +53,8 @@ TEST(StereoCameraEntry, ImagePointsProjectThroughTheIndexedCamera) {
               CameraData("stereo_k.yaml") + "[" + std::to_string(index) + "]");
     const FitInput input = BuildFitInput(e);
     ASSERT_EQ(input.cases.size(), 1u);
-    ASSERT_EQ(input.cases[0].observations.size(), 1u);
-    const auto* obs =
-        dynamic_cast<const ImageMarkersObservation*>(input.cases[0].observations[0].get());
+    ASSERT_EQ(input.cases[0].measurements.size(), 1u);
+    const auto* obs = ModelOf<ImageMarkersObservation>(*input.cases[0].measurements[0]);
     ASSERT_NE(obs, nullptr);
     const Camera& expected = index == 1 ? pair.first : pair.second;
     EXPECT_EQ(obs->camera().K.fx, expected.K.fx);

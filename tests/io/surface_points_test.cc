@@ -10,12 +10,14 @@
 
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
+#include "rodfit/pipeline/fit_input.h"
 #include "rodfit/synth/synth.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/solve/poke.h"
 #include "rodfit/solve/statics.h"
 #include "temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/synthesize.h"
 
 namespace rodfit {
 namespace {
@@ -97,14 +99,21 @@ TEST(SurfacePointsIo, SynthWritesPointsOnTheRingAndBuildFitInputLoadsThem) {
   ASSERT_TRUE(in.section.has_value());
   EXPECT_EQ(in.section->nodes, 16);
   ASSERT_EQ(in.cases.size(), 2u);
-  ASSERT_EQ(in.cases[0].surface_points.size(), 1u);
-  const SurfacePoints& sp = in.cases[0].surface_points[0];
-  EXPECT_EQ(sp.points.size(), 20u);
-  EXPECT_DOUBLE_EQ(sp.sigma, 3e-5);
-  EXPECT_EQ(sp.label, "surface_points side.csv");
-  EXPECT_TRUE(in.cases[1].surface_points.empty());
+  // A case's surface point sets among its measurements.
+  auto surface_points = [](const FitCase& c) {
+    std::vector<const SurfacePointSet*> sets;
+    for (const auto& m : c.measurements)
+      if (const auto* set = dynamic_cast<const SurfacePointSet*>(m.get())) sets.push_back(set);
+    return sets;
+  };
+  ASSERT_EQ(surface_points(in.cases[0]).size(), 1u);
+  const SurfacePointSet& sp = *surface_points(in.cases[0])[0];
+  EXPECT_EQ(sp.points().size(), 20u);
+  EXPECT_DOUBLE_EQ(sp.sample_sigma(0), 3e-5);
+  EXPECT_EQ(sp.label(), "surface_points side.csv");
+  EXPECT_TRUE(surface_points(in.cases[1]).empty());
   bool ring_fitted = false;
-  for (const FitParameter& p : in.parameters)
+  for (const Parameter& p : in.parameters)
     if (p.name == "ring_bend_stiffness") ring_fitted = p.fit;
   EXPECT_TRUE(ring_fitted);
 
@@ -115,7 +124,7 @@ TEST(SurfacePointsIo, SynthWritesPointsOnTheRingAndBuildFitInputLoadsThem) {
   ASSERT_TRUE(SolveStatics(model, StaticsOptions(), &state).converged);
   const PokeResult poke = SolvePoke(model, state, *scene.section, {2e-5, 5.0});
   const int n = static_cast<int>(poke.deformed_world.cols());
-  for (const Eigen::Vector3d& q : sp.points) {
+  for (const Eigen::Vector3d& q : sp.points()) {
     EXPECT_NEAR((q - poke.placement.centre).dot(poke.placement.normal()), 0.0, 1e-12);
     double best = 1e9;
     for (int k = 0; k < n; ++k) {

@@ -6,6 +6,7 @@
 
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
+#include "rodfit/pipeline/experiment.h"
 
 namespace rodfit {
 namespace {

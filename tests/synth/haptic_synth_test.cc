@@ -19,12 +19,14 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/fit_input.h"
+#include "rodfit/pipeline/fit_input.h"
 #include "rodfit/synth/synth.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/statics.h"
 #include "io/temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/synthesize.h"
 
 namespace rodfit {
 namespace {

@@ -26,6 +26,8 @@
 #include "rodfit/solve/statics.h"
 #include "rodfit/vision/camera_file.h"
 #include "io/temp_dir.h"
+#include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/synthesize.h"
 
 namespace rodfit {
 namespace {

@@ -17,57 +17,17 @@
 
 #include <Eigen/Core>
 
+#include "rodfit/fit/measurement.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
-#include "rodfit/observe/observations.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
 
-/// One material parameter as the experiment declares it.
-struct FitParameter {
-  std::string name;              ///< bend_stiffness, bend_stiffness_2, twist_stiffness, ...
-  double value = 0.0;            ///< start (and the value when not fitted)
-  bool fit = false;
-  std::optional<double> min, max;
-};
-
-/// A measured force (and optionally moment) on a holder of the case: the instrument at its
-/// grasp (a quasi-static haptic sample), a pin, an end clamp or end pin, or the clamp.
-struct ForceMeasurement {
-  Vec3 force = Vec3::Zero();  ///< the force the rod exerts on the holder [N]
-  double sigma = 1.0;         ///< [N]
-  std::string label;          ///< e.g. "grasp_force drag_log.csv t=1.25"
-  /// The observation the reading belongs to, e.g. "reaction end.csv": the RMS table has one
-  /// entry per observation, over its readings (consecutive readings with the same name).
-  std::string observation;
-  std::string type = "grasp_force";  ///< the observation's type: grasp_force or reaction
-  std::string point = "grasp";  ///< HeldReaction::point: clamp, end_clamp, end_pin, pins[k], grasp
-  std::optional<Vec3> moment;   ///< [N m] about the held point, for clamps
-  double sigma_moment = 1.0;    ///< [N m]
-  /// [s] the haptic log's time of a `grasp_force` sample (for the report's force-versus-time
-  /// plot); NaN for readings without a time.
-  double time = std::numeric_limits<double>::quiet_NaN();
-  int num_residuals() const { return moment ? 6 : 3; }
-};
-
-/// Points tracked on the tissue surface around a poke, in the poked cross-section's plane (a
-/// laser profile or tracked dots on the dented section) [m]. Residual per point: the 3-D vector
-/// from the point to its closest point on the deformed ring (the closed polyline of
-/// PokeResult::deformed_world) over sigma, with observe/observations.h's foot rules.
-struct SurfacePoints {
-  std::vector<Eigen::Vector3d> points;  ///< [m], world
-  double sigma = 1.0;                   ///< [m]
-  std::string label;                    ///< e.g. "surface_points dent.csv"
-};
-
-/// A load case with its loaded observations.
+/// A load case with its measurements, in residual order (rodfit/fit/measurement.h).
 struct FitCase {
   LoadCase load_case;
-  std::vector<std::shared_ptr<const Observation>> observations;
-  std::vector<std::string> labels;  ///< one per observation, e.g. "markers3d flat_markers.csv"
-  std::vector<ForceMeasurement> grasp_forces;  ///< forces on the case's held points
-  /// Surface point sets (`surface_points`); need load_case.poke and FitInput::section.
-  std::vector<SurfacePoints> surface_points;
+  MeasurementList measurements;
 };
 
 struct FitInput {
@@ -76,7 +36,8 @@ struct FitInput {
   Vec3 gravity = Vec3(0, 0, -9.81);
   std::vector<SpringZone> springs;  ///< attachment zones (tissue)
   std::optional<SectionSpec> section;  ///< the cross-section model, for surface_points
-  std::vector<FitParameter> parameters;
+  /// Every parameter the static fit sees, fitted or not (name, value, fit, min, max).
+  std::vector<Parameter> parameters;
   std::vector<FitCase> cases;
   StaticsOptions statics;  ///< solver settings of every forward solve
 };
@@ -118,44 +79,6 @@ struct FitOptions {
   bool Check(std::string* why) const;
 };
 
-struct ParameterEstimate {
-  std::string name;
-  std::string unit;
-  double value = 0.0;            ///< the estimate; for a parameter not identifiable, where the
-                                 ///< fit stopped: not determined by the data (see reason)
-  double start = 0.0;            ///< the value the fit started from (the experiment's value)
-  bool fitted = false;
-  std::optional<double> std;     ///< present only for a fitted, identifiable parameter
-  bool identifiable = true;
-  std::string reason;            ///< why not identifiable
-  bool at_bound = false;
-};
-
-struct ObservationFit {
-  int case_index = 0;            ///< into FitInput::cases
-  std::string case_name;
-  std::string label;
-  std::string type;
-  int num_measurements = 0;
-  double rms = 0.0;  ///< [m], [px] or [N]: the RMS of the residual vector's norm
-  std::string unit;  ///< of rms: m, px or N
-  /// Reactions with moments: the RMS of the moment residual's norm [N m] (NaN without).
-  double rms_moment = std::numeric_limits<double>::quiet_NaN();
-};
-
-/// One measurement's residual at the fit that is not a centre-line observation (a force or
-/// moment reading, a surface point): the error vector (model minus measurement) in its unit and
-/// the sigma it was weighted with, for the report's residuals.csv.
-struct MeasurementResidual {
-  int case_index = 0;
-  std::string case_name;
-  std::string observation;  ///< the entry's label, as in ObservationFit::label
-  std::string unit;         ///< "N", "N m" or "m"
-  int measurement = 0;      ///< index within the entry (per unit)
-  Eigen::Vector3d error = Eigen::Vector3d::Zero();
-  double sigma = 1.0;
-};
-
 /// A moving case's fitted run at the times it was observed (a moving fit's report).
 struct FittedRun {
   int case_index = 0;            ///< into Scene::cases
@@ -186,7 +109,9 @@ struct FitResult {
   /// observation models; the rest of `seconds` is Ceres and the covariance.
   double solve_seconds = 0.0, jacobian_seconds = 0.0, observation_seconds = 0.0;
   int forward_solves = 0;
-  std::vector<ParameterEstimate> parameters;  ///< every parameter of the model
+  /// Every parameter of the input with its estimate: value, start, std, identifiable, reason,
+  /// at_bound (a parameter not fitted: its value).
+  std::vector<Parameter> parameters;
   std::vector<std::string> fitted_names;
   Eigen::MatrixXd correlation;   ///< among fitted parameters (in log space)
   std::vector<ObservationFit> observations;

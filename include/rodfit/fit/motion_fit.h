@@ -24,7 +24,7 @@
 
 #include "rodfit/fit/fit.h"
 #include "rodfit/model/scene.h"
-#include "rodfit/observe/observations.h"
+#include "rodfit/fit/measurement.h"
 #include "rodfit/solve/rollout.h"
 
 namespace rodfit {
@@ -92,13 +92,10 @@ struct MotionFitResult {
   double run_seconds = 0.0;
 };
 
-/// The material parameters a motion fit may change: bend_stiffness (B2 follows when tied),
-/// bend_stiffness_2, twist_stiffness, stretch_stiffness, damping, bend_damping, twist_damping,
-/// stretch_damping. Throws std::invalid_argument for another name.
-void SetMaterialParameter(const std::string& name, double value, Material* material);
-double MaterialParameter(const std::string& name, const Material& material);
-
-/// Those and linear_density (the rod's, not the material's): the parameters FitMotion takes.
+/// The parameters a motion fit may change, rows of the parameter table
+/// (rodfit/model/material_parameters.h) of the rod's stiffness (bend_stiffness moves B2 too when
+/// tied), damping and mass (linear_density, set on the rod): those FitMotion takes. Throws
+/// std::invalid_argument for another name.
 void SetMotionParameter(const std::string& name, double value, Scene* scene);
 double MotionParameter(const std::string& name, const Scene& scene);
 
@@ -111,45 +108,31 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
                           const std::vector<std::string>& names, const RolloutOptions& options,
                           const StaticsOptions& statics, const MotionFitOptions& fit_options);
 
-/// One reading of a load cell at a held point of a moving case: a frame of a `reaction`
-/// sequence (docs/formats.md, "Observation sequences"). The force [N] — and at a clamp
-/// optionally the moment [N m] about the held point — the rod exerts on the holder, as
-/// reactions.csv (solve/case_dynamics.h, MovingReactions).
-struct ReactionReading {
-  std::string point;          ///< HeldReaction::point on the case's whole rod ("clamp", "end_pin", ...)
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();
-  double sigma = 0.0;         ///< [N] of each force component
-  bool has_moment = false;
-  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
-  double sigma_moment = 0.0;  ///< [N m] of each moment component
-  /// The force, and the moment apart: 3 residuals each.
-  int num_measurements() const { return has_moment ? 2 : 1; }
-};
-
 /// An observation entry of a moving case over time (docs/formats.md, "Observation sequences"):
-/// at each of its frames, the static model of what was seen then (observe/observations.h:
-/// markers3d, points3d, image_points with or without s) on the vertices of the case's whole rod
-/// (CaseVertexArcLengths), or a load cell's reading at one of its held points. Every frame's
-/// model is of one type, unit and sigma (a reading's: of one point, sigma and sigma_moment).
+/// at each of its frames, the measurement of what was seen then (fit/measurement.h: markers3d,
+/// points3d, image_points with or without s on the vertices of the case's whole rod,
+/// CaseVertexArcLengths; or a load cell's reading at one of its held points, ForceReadings with
+/// one reading). Every frame's measurement is of one type, unit and sigma (a reading's: of one
+/// point, sigma and sigma_moment); none may need the whole state (needs_state) or a section.
 struct ObservationSequence {
   struct Frame {
-    double t = 0.0;                                  ///< [s]
-    /// What was seen at t; or, for a `reaction` sequence, null and `reading` set.
-    std::shared_ptr<const Observation> observation;
-    std::shared_ptr<const ReactionReading> reading;
-    /// Per measurement of `observation`: its index among the entry's samples (the report lists
-    /// the samples in that order, e.g. the file's rows that were seen). Empty in every frame:
-    /// the frames' measurements in turn.
+    double t = 0.0;  ///< [s]
+    std::shared_ptr<const Measurement> measurement;  ///< what was seen at t
+    /// Per sample of `measurement` (Measurement::num_samples): its index among the entry's
+    /// samples (the report lists the samples in that order, e.g. the file's rows that were
+    /// seen). Empty in every frame: the frames' samples in turn.
     std::vector<int> sample;
   };
   int case_index = 0;         ///< into Scene::cases
   std::vector<Frame> frames;  ///< t ascending, each within [0, dynamics.duration]
 
-  /// The measurements of all frames (the entry's recorded samples; a reading's force and
-  /// moment count as two).
+  /// The samples of all frames (the entry's recorded samples; a reading's force and moment
+  /// count as two).
   int num_samples() const;
   /// A `reaction` sequence (its frames hold readings).
-  bool is_reaction() const { return !frames.empty() && frames.front().reading != nullptr; }
+  bool is_reaction() const {
+    return !frames.empty() && frames.front().measurement->needs_reactions();
+  }
 };
 
 /// The rest arc lengths [m] of the vertices a sequence of case `index` is observed on: those of
@@ -165,7 +148,7 @@ struct SequenceEvaluation {
   std::string reason;           ///< the first case or frame that could not be evaluated
   Eigen::VectorXd residuals;    ///< NaN rows where a case's run or a frame's model failed
   Eigen::MatrixXd jacobian;     ///< residuals x names (empty without names)
-  int noise_residuals = 0;      ///< rows that carry noise (Observation::num_noise_residuals)
+  int noise_residuals = 0;      ///< rows that carry noise (Measurement::num_noise_residuals)
 };
 
 /// Runs each case that has sequences once from its initial state (SampleCaseDynamics at every

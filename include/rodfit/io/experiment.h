@@ -13,6 +13,8 @@
 #include <vector>
 
 #include "rodfit/fit/fit.h"
+#include "rodfit/io/settings.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/solve/statics.h"
@@ -32,40 +34,12 @@ inline constexpr int kMaxSamples = 100000;     ///< an observation's count (synt
 inline constexpr int kMaxDragSteps = 1000;     ///< grasp_force count (cases of the fit)
 inline constexpr double kMaxBlurPx = 100.0;    ///< images: blur [px]
 inline constexpr double kMaxNoiseGrey = 255.0; ///< images: noise [grey levels]
-inline constexpr int kMaxFitIterations = 10000;  ///< fit.max_iterations
 
-/// One entry of `parameters:`. Parameters are fitted in log space (docs/solvers.md, "The fit"), so
-/// a fitted value and any bound are > 0.
-struct ParameterSpec {
-  double value = 0.0;         ///< in the parameter's SI unit (see Material)
-  bool fit = false;           ///< fitted, or held at value
-  std::optional<double> min;  ///< lower bound for the fit, < max, <= value
-  std::optional<double> max;  ///< upper bound for the fit, >= value
-  int line = 0;               ///< 1-based line of the parameter's key
-  int fit_line = 0;           ///< 1-based line of its `fit:` value (0 when absent)
-};
-
-/// One entry of a case's `observations:` (docs/formats.md, "Observation entries"). Which keys a
-/// type allows:
-///   markers3d:    file, sigma [m],  s | count, outliers; in a scene with `dynamics:` a
-///                 sequence over time (file t,s,x,y,z or frame,s,x,y,z): file, sigma [m],
-///                 s | count, frame_rate [Hz], drop (no outliers)
-///   points3d:     file, sigma [m],  count, outliers
-///   image_points: file, sigma [px], camera, s | count, outliers
-///   images:       file, sigma [px], camera, blur, noise, roi [px], mask
-///   grasp_force:  file (haptic log t,tool_x,tool_y,tool_z,fx,fy,fz), sigma [N], s (the grasped
-///                 arc length, one value), max_speed [m/s], count (fit: quasi-static samples
-///                 used; synth: the steps of the synthesized drag)
-///   surface_points: file (x,y,z: points on the tissue surface in the poked section's plane),
-///                 sigma [m], count (synth: points, default the section's nodes); only in a case
-///                 with a `poke`
-///   reaction:     file (fx,fy,fz[,mx,my,mz]: repeated readings of the force [N] and moment
-///                 [N m] the rod exerts on a holder), point (clamp, end_clamp, end_pin, pins[k],
-///                 grasp), sigma [N], sigma_moment [N m] (with moment columns; clamps only),
-///                 count (synth: readings, default 1)
+/// One entry of a case's `observations:` (docs/formats.md, "Observation entries"). Which keys an
+/// entry takes is declared by its kind (rodfit/pipeline/observation_kind.h, through EntryKeys
+/// below); this struct holds every key any kind reads.
 struct ObservationSpec {
-  std::string type;       ///< markers3d | points3d | image_points | images | grasp_force |
-                          ///< surface_points
+  std::string type;       ///< the observation kind (ObservationKinds())
   std::string file;       ///< data file (CSV or image), resolved against the YAML's folder
   std::string camera;     ///< camera file, resolved likewise; empty for 3-D types
   /// Which camera of a stereo calibration file `camera` is (1 or 2; docs/formats.md, "Camera
@@ -101,7 +75,67 @@ struct ObservationSpec {
   Eigen::Matrix3d device_rotation = Eigen::Matrix3d::Identity();  ///< R: device to scene axes
   Vec3 device_translation = Vec3::Zero();                  ///< t [m]: device origin in the scene
   double force_sign = 1.0;  ///< +1: the log holds the force on the instrument; -1: on the tissue
+  /// The numeric keys of a kind that no other kind reads, by key (roll_markers' sigma_roll).
+  std::map<std::string, double> kind_values;
   int line = 0;           ///< 1-based line of the entry
+};
+
+/// The keys of one observation entry, declared once per observation kind: the kind's `keys`
+/// function (rodfit/pipeline/observation_kind.h) calls these for every key its entries take, in
+/// the order messages list them, and the experiment reader implements them over the entry's
+/// YAML mapping, each with its check and an InputError naming the file, line and key. A key the
+/// kind does not declare is an error ("not allowed for type ..."), as is a required key missing.
+class EntryKeys {
+ public:
+  virtual ~EntryKeys() = default;
+  /// The entry is read in a moving scene (a dynamics: block): it is a sequence over time.
+  virtual bool moving() const = 0;
+  /// The case the entry belongs to (its poke, its held points) and the rod.
+  virtual const LoadCase& load_case() const = 0;
+  virtual const RodSpec& rod() const = 0;
+
+  /// A file path, relative to the YAML file's folder.
+  virtual void Path(const char* key, std::string* path, bool required) = 0;
+  /// A number > 0.
+  virtual void Positive(const char* key, double* value, bool required) = 0;
+  /// A number in [lo, hi].
+  virtual void Number(const char* key, double* value, double lo, double hi) = 0;
+  /// A fraction in [0, 1).
+  virtual void Fraction(const char* key, double* value) = 0;
+  /// An integer in [lo, hi].
+  virtual void Integer(const char* key, int* value, int lo, int hi) = 0;
+  /// A non-empty list of arc lengths [m] in [0, L].
+  virtual void ArcLengths(const char* key, std::vector<double>* s) = 0;
+  /// One arc length [m] in [0, L] away from the clamp (a grasped point), appended to *s.
+  virtual void GraspArcLength(const char* key, std::vector<double>* s) = 0;
+  /// [x0, y0, x1, y1] pixel corners (x1, y1 exclusive).
+  virtual void Roi(const char* key, std::optional<std::array<int, 4>>* roi) = 0;
+  /// One word of `choices`, setting *value to its number; otherwise `expected` (e.g. "must be
+  /// m or mm") and what was given.
+  virtual void Choice(const char* key, double* value,
+                      const std::vector<std::pair<std::string, double>>& choices,
+                      const std::string& expected) = 0;
+  /// {rotation: 3 rows of 3, translation: [x, y, z]}: a proper rotation and a shift [m].
+  virtual void Frame(const char* key, Eigen::Matrix3d* rotation, Vec3* translation) = 0;
+  /// One of the case's held points: clamp, end_clamp, end_pin, pins[k] or grasp.
+  virtual void HeldPoint(const char* key, std::string* point, bool required) = 0;
+  /// At most one of the two keys.
+  virtual void Exclusive(const char* key, const char* other) = 0;
+  /// Unless `ok`: an error at `key` (at the entry when it does not hold the key).
+  virtual void Check(bool ok, const char* key, const std::string& message) = 0;
+};
+
+/// The observation kinds the reader knows (rodfit/pipeline/observation_kind.h implements this
+/// with its registry): their names and the keys each declares.
+class ObservationEntryKinds {
+ public:
+  virtual ~ObservationEntryKinds() = default;
+  /// Every kind's name, or those that may be observed over time (`moving`), in order.
+  virtual std::vector<std::string> Names(bool moving) const = 0;
+  /// Declares the keys of an entry of kind `type` (one of Names(false)) on `keys`, reading
+  /// them into `spec` when `keys` reads.
+  virtual void DeclareKeys(const std::string& type, EntryKeys* keys,
+                           ObservationSpec* spec) const = 0;
 };
 
 /// The camera an image entry names, as a key and a label: its file, with "[1]" or "[2]" for a
@@ -118,23 +152,21 @@ struct CaseSpec {
   int line = 0;  ///< 1-based line of the case's entry
 };
 
-/// The optional top-level `fit:` block; defaults apply when it or a key is absent.
-struct FitSpec {
-  RobustLoss loss = RobustLoss::kNone;  ///< robust loss: none | huber | cauchy | soft_l1
-  double loss_scale = 1.0;          ///< residual (in sigmas) where the loss turns robust, > 0
-  bool global = false;              ///< NLopt global search before Ceres
-  int max_iterations = 100;         ///< Ceres iterations, >= 1
-  bool trusted_sigmas = false;      ///< covariance unscaled by the residual variance
-  int line = 0;                     ///< 1-based line of `fit:`, 0 when absent
+/// The optional top-level `fit:` block: FitOptions' settings as the file gives them (their
+/// defaults where it does not; rodfit/io/settings.h declares the keys).
+struct FitSpec : FitOptions {
+  int line = 0;  ///< 1-based line of `fit:`, 0 when absent
 };
 
 struct Experiment {
   std::string path;       ///< the YAML file as given
   std::string directory;  ///< its folder; relative paths inside the file are resolved here
   Scene scene;            ///< rod, material (the parameters' values), gravity, cases
-  /// Keyed by parameter name; only names present in the file (bend_stiffness,
-  /// bend_stiffness_2, twist_stiffness, stretch_stiffness, spring_stiffness).
-  std::map<std::string, ParameterSpec> parameters;
+  /// The `parameters:` block, keyed by name: only the names present in the file (rows of the
+  /// parameter table, rodfit/model/material_parameters.h, and the spring zones' own). Each
+  /// value is in the parameter's SI unit; a fitted value and its bounds are > 0 (fitted in log
+  /// space, docs/solvers.md, "The fit"), min < max, min <= value <= max.
+  std::map<std::string, Parameter> parameters;
   std::vector<CaseSpec> cases;  ///< parallel to scene.cases
   FitSpec fit;
   /// 1-based line of `dynamics.integrator` (of `dynamics:` when the key is absent), 0 without a
@@ -145,16 +177,14 @@ struct Experiment {
   StaticsOptions statics;
 };
 
-/// Reads and validates an experiment / scene YAML. Throws InputError (rodfit/io/errors.h).
-/// Absent optional keys: rest_curvature, tip_force, tip_moment = 0; gravity = (0, 0, -9.81);
-/// spring_stiffness = 0; bend_stiffness_2 = bend_stiffness; case name = "case<index>".
-/// Data files are not opened here (synth writes them), only their paths resolved.
-/// `parameters_optional`: the `parameters:` block may be absent (a profile supplies the
-/// material: `simulate --profile`); the material is then left at its defaults.
-Experiment LoadExperiment(const std::string& path, bool parameters_optional = false);
+/// Reads and validates an experiment / scene YAML, its observation entries by `kinds`: what
+/// rodfit/pipeline/experiment.h's LoadExperiment does with the registry of observation kinds
+/// (see there). Throws InputError (rodfit/io/errors.h).
+Experiment LoadExperiment(const std::string& path, const ObservationEntryKinds& kinds,
+                          bool parameters_optional = false);
 
 /// The file text variant; `path` names the file in messages and anchors relative paths.
 Experiment ParseExperiment(const std::string& text, const std::string& path,
-                           bool parameters_optional = false);
+                           const ObservationEntryKinds& kinds, bool parameters_optional = false);
 
 }  // namespace rodfit

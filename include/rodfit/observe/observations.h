@@ -152,47 +152,46 @@ void FillNaN(int count, T* residuals) {
 // ---------------------------------------------------------------------------------------------
 // The models.
 
-/// Common interface of the double path, for the fit to hold a case's observations in one list.
-class Observation {
+/// What the observation models share: the rod's vertex count, the measurement sigma and the
+/// checks of both. Not an interface: the fit holds every kind of measurement behind one
+/// (rodfit/fit/measurement.h), which wraps these models; each model is a concrete class with the
+/// same members (num_measurements, num_residuals, num_noise_residuals, unit, Evaluate, RmsError).
+class ObservationModel {
  public:
-  virtual ~Observation() = default;
-
-  /// The YAML type: "markers3d", "points3d" or "image_points".
-  virtual const char* type() const = 0;
-  virtual int num_measurements() const = 0;
-  virtual int num_residuals() const = 0;
-  /// Residuals that carry noise: a closest-point residual is perpendicular to the curve, so a
-  /// 3-D point carries 2 of its 3 and a pixel of an image curve 1 of its 2. The residual
-  /// variance 2 cost / (N - m) counts these, or it underestimates the noise.
-  virtual int num_noise_residuals() const { return num_residuals(); }
-  /// The measurement's unit: "m" (3-D) or "px" (pixels).
-  virtual const char* unit() const { return "m"; }
+  /// Names the model in messages: "markers3d", "points3d" or "image_points".
+  const char* type() const { return type_; }
   int num_vertices() const { return num_vertices_; }
   /// Measurement standard deviation [m] or [px].
   double sigma() const { return sigma_; }
 
-  /// Residuals (model - measured) / sigma and, when d_r_d_x is given, their closed-form
-  /// Jacobian. x has num_vertices() columns [m] (throws std::invalid_argument otherwise).
-  /// Returns false when the model cannot be observed (a point at or behind a camera; for the
-  /// closest-point models also non-finite vertices, which leave no foot): the residuals are then
-  /// NaN, the Jacobian unspecified, and the caller must fail the evaluation.
-  virtual bool Evaluate(const Mat3X& x, VecX* residuals,
-                        VertexJacobian* d_r_d_x = nullptr) const = 0;
-
-  /// Root mean square of the unweighted misfit per measurement, sqrt(sum_k |e_k|^2 / M), in the
-  /// measurement's unit ([m] or [px]); e_k = model - measured is the 3-D or 2-D error vector
-  /// (its norm is the distance for the closest-point models). False when Evaluate fails.
-  bool RmsError(const Mat3X& x, double* rms) const;
-
  protected:
   /// Throws std::invalid_argument unless num_vertices >= 2 and sigma is positive and finite.
-  Observation(const char* type, int num_vertices, double sigma);
+  ObservationModel(const char* type, int num_vertices, double sigma);
+  /// Throws std::invalid_argument unless x has num_vertices() columns.
   void CheckVertices(const Mat3X& x) const;
 
  private:
+  const char* type_;
   int num_vertices_;
   double sigma_;
 };
+
+// Each model's members, documented once here:
+//   num_measurements(), num_residuals()
+//   num_noise_residuals(): residuals that carry noise: a closest-point residual is perpendicular
+//     to the curve, so a 3-D point carries 2 of its 3 and a pixel of an image curve 1 of its 2.
+//     The residual variance 2 cost / (N - m) counts these, or it underestimates the noise.
+//   unit(): the measurement's unit, "m" (3-D) or "px" (pixels).
+//   Evaluate(x, residuals, d_r_d_x): residuals (model - measured) / sigma and, when d_r_d_x is
+//     given, their closed-form Jacobian. x has num_vertices() columns [m] (throws
+//     std::invalid_argument otherwise). Returns false when the model cannot be observed (a point
+//     at or behind a camera; for the closest-point models also non-finite vertices, which leave
+//     no foot): the residuals are then NaN, the Jacobian unspecified, and the caller must fail
+//     the evaluation.
+//   RmsError(x, rms): root mean square of the unweighted misfit per measurement,
+//     sqrt(sum_k |e_k|^2 / M), in the measurement's unit ([m] or [px]); e_k = model - measured is
+//     the 3-D or 2-D error vector (its norm is the distance for the closest-point models). False
+//     when Evaluate fails.
 
 /// A 3-D marker at rest arc length s.
 struct Marker3d {
@@ -202,7 +201,7 @@ struct Marker3d {
 
 /// `markers3d`: 3 residuals per marker, (x(s) - p) / sigma with x(s) the linear interpolation
 /// of the vertices at the rest arc length s.
-class Markers3dObservation final : public Observation {
+class Markers3dObservation final : public ObservationModel {
  public:
   /// vertex_arc_length: rest arc lengths of the vertices (VertexArcLengths). Throws
   /// std::invalid_argument for no markers, a non-finite point, a marker with s outside [0, L]
@@ -210,16 +209,18 @@ class Markers3dObservation final : public Observation {
   Markers3dObservation(const std::vector<double>& vertex_arc_length,
                        std::vector<Marker3d> markers, double sigma);
 
-  const char* type() const override { return "markers3d"; }
-  int num_measurements() const override { return static_cast<int>(markers_.size()); }
-  int num_residuals() const override { return 3 * num_measurements(); }
+  int num_measurements() const { return static_cast<int>(markers_.size()); }
+  int num_residuals() const { return 3 * num_measurements(); }
+  int num_noise_residuals() const { return num_residuals(); }
+  const char* unit() const { return "m"; }
   const std::vector<Marker3d>& markers() const { return markers_; }
 
   /// x_flat: 3 num_vertices() values (VerticesView); residuals: num_residuals() values.
   template <typename T>
   bool Residuals(const T* x_flat, T* residuals) const;
   bool Evaluate(const Mat3X& x, VecX* residuals,
-                VertexJacobian* d_r_d_x = nullptr) const override;
+                VertexJacobian* d_r_d_x = nullptr) const;
+  bool RmsError(const Mat3X& x, double* rms) const;
 
  private:
   std::vector<Marker3d> markers_;
@@ -228,22 +229,23 @@ class Markers3dObservation final : public Observation {
 
 /// `points3d`: unordered 3-D centre-line samples; 3 residuals per sample, (p(x) - q) / sigma with
 /// p the closest point of the model polyline (file comment).
-class Points3dObservation final : public Observation {
+class Points3dObservation final : public ObservationModel {
  public:
   /// Throws std::invalid_argument for no samples, a non-finite sample, num_vertices < 2 or a
   /// sigma [m] that is not positive.
   Points3dObservation(int num_vertices, std::vector<Eigen::Vector3d> samples, double sigma);
 
-  const char* type() const override { return "points3d"; }
-  int num_measurements() const override { return static_cast<int>(samples_.size()); }
-  int num_residuals() const override { return 3 * num_measurements(); }
-  int num_noise_residuals() const override { return 2 * num_measurements(); }
+  int num_measurements() const { return static_cast<int>(samples_.size()); }
+  int num_residuals() const { return 3 * num_measurements(); }
+  int num_noise_residuals() const { return 2 * num_measurements(); }
+  const char* unit() const { return "m"; }
   const std::vector<Eigen::Vector3d>& samples() const { return samples_; }
 
   template <typename T>
   bool Residuals(const T* x_flat, T* residuals) const;
   bool Evaluate(const Mat3X& x, VecX* residuals,
-                VertexJacobian* d_r_d_x = nullptr) const override;
+                VertexJacobian* d_r_d_x = nullptr) const;
+  bool RmsError(const Mat3X& x, double* rms) const;
 
  private:
   std::vector<Eigen::Vector3d> samples_;  ///< [m]
@@ -257,24 +259,25 @@ struct MarkerPixel {
 
 /// `image_points` with s: 2 residuals per marker, (Project(x(s)) - uv) / sigma.
 /// Fails (false) when any marker's point is at or behind the camera.
-class ImageMarkersObservation final : public Observation {
+class ImageMarkersObservation final : public ObservationModel {
  public:
   /// Throws std::invalid_argument as Markers3dObservation, and for a camera failing
   /// Camera::Check. sigma in [px].
   ImageMarkersObservation(const std::vector<double>& vertex_arc_length, const Camera& camera,
                           std::vector<MarkerPixel> markers, double sigma_px);
 
-  const char* type() const override { return "image_points"; }
-  int num_measurements() const override { return static_cast<int>(markers_.size()); }
-  int num_residuals() const override { return 2 * num_measurements(); }
-  const char* unit() const override { return "px"; }
+  int num_measurements() const { return static_cast<int>(markers_.size()); }
+  int num_residuals() const { return 2 * num_measurements(); }
+  int num_noise_residuals() const { return num_residuals(); }
+  const char* unit() const { return "px"; }
   const std::vector<MarkerPixel>& markers() const { return markers_; }
   const Camera& camera() const { return camera_; }
 
   template <typename T>
   bool Residuals(const T* x_flat, T* residuals) const;
   bool Evaluate(const Mat3X& x, VecX* residuals,
-                VertexJacobian* d_r_d_x = nullptr) const override;
+                VertexJacobian* d_r_d_x = nullptr) const;
+  bool RmsError(const Mat3X& x, double* rms) const;
 
  private:
   Camera camera_;
@@ -286,25 +289,25 @@ class ImageMarkersObservation final : public Observation {
 /// point of the 2-D polyline through the projected vertices (file comment). Every vertex must
 /// project: the evaluation fails (false) when any vertex is at or behind the camera, since a
 /// polyline with a vertex behind the camera has no meaningful image.
-class ImageCurveObservation final : public Observation {
+class ImageCurveObservation final : public ObservationModel {
  public:
   /// Throws std::invalid_argument for no pixels, a non-finite pixel, num_vertices < 2, a
   /// sigma [px] that is not positive or a camera failing Camera::Check.
   ImageCurveObservation(int num_vertices, const Camera& camera,
                         std::vector<Eigen::Vector2d> pixels, double sigma_px);
 
-  const char* type() const override { return "image_points"; }
-  int num_measurements() const override { return static_cast<int>(pixels_.size()); }
-  int num_residuals() const override { return 2 * num_measurements(); }
-  int num_noise_residuals() const override { return num_measurements(); }
-  const char* unit() const override { return "px"; }
+  int num_measurements() const { return static_cast<int>(pixels_.size()); }
+  int num_residuals() const { return 2 * num_measurements(); }
+  int num_noise_residuals() const { return num_measurements(); }
+  const char* unit() const { return "px"; }
   const std::vector<Eigen::Vector2d>& pixels() const { return pixels_; }
   const Camera& camera() const { return camera_; }
 
   template <typename T>
   bool Residuals(const T* x_flat, T* residuals) const;
   bool Evaluate(const Mat3X& x, VecX* residuals,
-                VertexJacobian* d_r_d_x = nullptr) const override;
+                VertexJacobian* d_r_d_x = nullptr) const;
+  bool RmsError(const Mat3X& x, double* rms) const;
 
  private:
   Camera camera_;

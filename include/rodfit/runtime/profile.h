@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
 
 namespace rodfit {
@@ -39,17 +40,6 @@ struct ProfileReadOptions {
   std::map<std::string, double> overrides;
 };
 
-/// One entry of `parameters` as read (after overrides).
-struct ProfileParameter {
-  std::string name;
-  std::string unit;
-  double value = 0.0;             ///< what the rod uses
-  std::optional<double> std;      ///< standard deviation, when the fit gave one
-  bool fitted = false;
-  bool identifiable = true;       ///< as the profile states it
-  bool overridden = false;        ///< value came from ProfileReadOptions::overrides
-  std::string tied_to;            ///< "bend_stiffness" for an isotropic B2
-};
 
 struct Profile {
   std::string path;
@@ -59,8 +49,11 @@ struct Profile {
   /// profile: clamp, end clamp or end pin, pins, cuts; no loads). Version 1 profiles have no
   /// held ends, zones or section: the clamp at the origin along x with d1 = z, no springs.
   Scene scene;
-  std::vector<ProfileParameter> parameters;  ///< in the profile's order
-  const ProfileParameter* Find(const std::string& name) const;
+  /// `parameters` as read, in the profile's order (after overrides): value (what the rod uses),
+  /// std (when the fit gave one), fit (the profile's `fitted`), identifiable, tied_to
+  /// ("bend_stiffness" for an isotropic B2), overridden (by ProfileReadOptions::overrides).
+  std::vector<Parameter> parameters;
+  const Parameter* Find(const std::string& name) const;
 };
 
 /// Reads and validates a profile file. Throws ProfileError.

@@ -20,17 +20,15 @@ namespace {
 void CheckSurfacePoints(const FitInput& in, const std::vector<Fitted>& fitted) {
   bool any = false;
   for (const FitCase& c : in.cases) {
-    if (c.surface_points.empty()) continue;
+    bool has = false;
+    for (const auto& meas : c.measurements) has = has || meas->needs_section();
+    if (!has) continue;
     any = true;
     if (!c.load_case.poke)
       throw std::invalid_argument("case " + c.load_case.name + ": surface_points without a poke");
     if (!in.section)
       throw std::invalid_argument("case " + c.load_case.name +
                                   ": surface_points need the cross-section model (section:)");
-    for (const SurfacePoints& sp : c.surface_points)
-      if (!(sp.sigma > 0) || sp.points.empty())
-        throw std::invalid_argument("case " + c.load_case.name + ": " + sp.label +
-                                    ": needs points and sigma > 0");
   }
   for (const Fitted& f : fitted) {
     if (f.ring != 0 && !any)
@@ -59,7 +57,7 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
   std::vector<Fitted> out;
   const bool tied = !in.material.bend_stiffness_2.has_value();
   for (size_t k = 0; k < in.parameters.size(); ++k) {
-    const FitParameter& p = in.parameters[k];
+    const Parameter& p = in.parameters[k];
     if (!p.fit) continue;
     Fitted f;
     f.input_index = static_cast<int>(k);
@@ -68,8 +66,10 @@ std::vector<Fitted> FittedParameters(const FitInput& in) {
     const bool zone_parameter = in.material.spring_parameters.count(p.name) > 0;
     if (!row && !zone_parameter)
       throw std::invalid_argument(p.name + ": not a parameter of the rod model");
-    if (row && row->kind == ParameterKind::kDamping)
-      throw std::invalid_argument(p.name + ": damping is seen only in motion, not by a static fit");
+    if (row && (row->kind == ParameterKind::kDamping || row->kind == ParameterKind::kMass))
+      throw std::invalid_argument(p.name + ": " +
+                                  (row->kind == ParameterKind::kMass ? "the rod's mass" : "damping") +
+                                  " is seen only in motion, not by a static fit");
     if (row && row->kind == ParameterKind::kRodStiffness) {
       if (row->tied_to && tied)
         throw std::invalid_argument(p.name + ": fitted but tied to " + row->tied_to);
@@ -144,12 +144,13 @@ std::unique_ptr<ceres::LossFunction> MakeLoss(RobustLoss loss, double scale) {
 
 CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fitted> fitted,
               const ceres::LossFunction* loss)
-    : in_(in), case_(in.cases[case_index]), measurements_(CaseMeasurements(case_)),
+    : in_(in), case_(in.cases[case_index]), measurements_(case_.measurements),
       fitted_(std::move(fitted)), loss_(loss), statics_(in.statics) {
   for (const auto& meas : measurements_) {
     num_residuals_ += meas->num_residuals();
     needs_reactions_ = needs_reactions_ || meas->needs_reactions();
     needs_section_ = needs_section_ || meas->needs_section();
+    needs_state_ = needs_state_ || meas->needs_state();
   }
 }
 
@@ -198,7 +199,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     return false;
   }
   const int m = num_parameters();
-  Eigen::MatrixXd dx;
+  Eigen::MatrixXd dx, dq_all;
   // Per measured holder: d(reaction) / d log p, 6 x m (force rows, then moment rows).
   std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
   if (jacobian) {
@@ -246,6 +247,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     }
     terms.resize(fitted_terms);
     dx = VertexSensitivities(*model, dq);
+    if (needs_state_) dq_all = dq;
     if (needs_reactions_) {
       // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
       // included), the equilibrium's dq, and which spring zones each parameter stiffens.
@@ -271,12 +273,15 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
   if (needs_section_ && !SolveSection(*model, state, material, &poke, jacobian ? &d_ring : nullptr))
     return false;
   SolvedCase view;
+  view.x = &state.x;
+  view.model = model.get();
   view.state = &state;
   view.reactions = &solved.reactions;
   view.poke = &poke;
   view.num_parameters = m;
   if (jacobian) {
     view.d_x = &dx;
+    view.d_q = &dq_all;
     view.d_reactions = &d_reactions;
     view.d_ring = &d_ring;
   }

@@ -108,8 +108,8 @@ class CaseEvaluator {
 
   const FitInput& in_;
   const FitCase& case_;
-  std::vector<std::shared_ptr<const CaseMeasurement>> measurements_;  // in residual order
-  bool needs_reactions_ = false, needs_section_ = false;
+  const MeasurementList& measurements_;  // in residual order
+  bool needs_reactions_ = false, needs_section_ = false, needs_state_ = false;
   std::vector<Fitted> fitted_;
   const ceres::LossFunction* loss_;
   int num_residuals_ = 0;

@@ -51,7 +51,11 @@ class ProgressCallback final : public ceres::IterationCallback {
 
 // Every measured reaction names a point the case holds.
 void CheckHeldPoints(const FitInput& in, const FitCase& c) {
-  if (c.grasp_forces.empty()) return;
+  std::vector<const ForceMeasurement*> readings;
+  for (const auto& meas : c.measurements)
+    if (const auto* forces = dynamic_cast<const ForceReadings*>(meas.get()))
+      for (const ForceMeasurement& f : forces->readings()) readings.push_back(&f);
+  if (readings.empty()) return;
   std::vector<std::string> points = {"clamp"};
   try {
     const RodModel model(in.rod, in.material, in.gravity, c.load_case, in.springs);
@@ -59,12 +63,12 @@ void CheckHeldPoints(const FitInput& in, const FitCase& c) {
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("case " + c.load_case.name + ": " + e.what());
   }
-  for (const ForceMeasurement& f : c.grasp_forces) {
-    if (std::find(points.begin(), points.end(), f.point) == points.end())
-      throw std::invalid_argument("case " + c.load_case.name + ": " + f.label + ": the case holds no " +
-                                  f.point);
-    if (f.moment && f.point != "clamp" && f.point != "end_clamp")
-      throw std::invalid_argument("case " + c.load_case.name + ": " + f.label +
+  for (const ForceMeasurement* f : readings) {
+    if (std::find(points.begin(), points.end(), f->point) == points.end())
+      throw std::invalid_argument("case " + c.load_case.name + ": " + f->label +
+                                  ": the case holds no " + f->point);
+    if (f->moment && f->point != "clamp" && f->point != "end_clamp")
+      throw std::invalid_argument("case " + c.load_case.name + ": " + f->label +
                                   ": a moment is measured only at a clamp");
   }
 }
@@ -96,7 +100,7 @@ void WarmStartsAtTheStart(const FitInput& in, const std::vector<Fitted>& fitted,
 }
 
 // Log-space search box of a fitted parameter: its bounds, or three decades around the start.
-void SearchBox(const FitParameter& p, double* lo, double* hi) {
+void SearchBox(const Parameter& p, double* lo, double* hi) {
   *lo = p.min ? std::log(*p.min) : std::log(p.value) - 3.0 * std::log(10.0);
   *hi = p.max ? std::log(*p.max) : std::log(p.value) + 3.0 * std::log(10.0);
 }
@@ -104,7 +108,7 @@ void SearchBox(const FitParameter& p, double* lo, double* hi) {
 // Residual counts of a fit: all rows, and those that carry noise.
 struct ResidualCounts {
   int total = 0;
-  // Those that carry noise (Observation::num_noise_residuals; a surface point, the closest
+  // Those that carry noise (Measurement::num_noise_residuals; a surface point, the closest
   // point on the ring, carries 2 of its 3): without this the residual variance would
   // underestimate the noise and the reported std by up to sqrt(3/2) (points) or sqrt(2)
   // (pixels).
@@ -114,7 +118,7 @@ struct ResidualCounts {
 ResidualCounts CountResiduals(const FitInput& input) {
   ResidualCounts n;
   for (const FitCase& c : input.cases) {
-    for (const auto& meas : CaseMeasurements(c)) {
+    for (const auto& meas : c.measurements) {
       n.total += meas->num_residuals();
       n.effective += meas->num_noise_residuals();
     }
@@ -126,7 +130,7 @@ ResidualCounts CountResiduals(const FitInput& input) {
 std::vector<double> StartLogValues(const FitInput& input, const std::vector<Fitted>& fitted) {
   std::vector<double> logp;
   for (const Fitted& f : fitted) {
-    const FitParameter& p = input.parameters[f.input_index];
+    const Parameter& p = input.parameters[f.input_index];
     if (!(p.value > 0)) throw std::invalid_argument(p.name + ": start value must be > 0");
     if (p.min && p.max && !(*p.min < *p.max))
       throw std::invalid_argument(p.name + ": min must be < max");
@@ -260,13 +264,14 @@ void ReportParameters(const FitInput& input, const std::vector<Fitted>& fitted,
   const Eigen::MatrixXd& cov_log = id.cov_log;
   const Material final_material = MaterialAt(input, fitted, logp.data());
   for (size_t k = 0; k < input.parameters.size(); ++k) {
-    const FitParameter& p = input.parameters[k];
-    ParameterEstimate e;
+    const Parameter& p = input.parameters[k];
+    Parameter e;
     e.name = p.name;
-    e.unit = MaterialParameterUnit(p.name);
     e.value = p.value;
     e.start = p.value;
-    e.fitted = p.fit;
+    e.fit = p.fit;
+    e.min = p.min;
+    e.max = p.max;
     for (int f = 0; f < m; ++f) {
       if (fitted[f].input_index != static_cast<int>(k)) continue;
       e.value = std::exp(logp[f]);
@@ -329,7 +334,7 @@ void ReportCases(const FitInput& input, const std::vector<Fitted>& fitted,
     result->tube_triangles.push_back(std::move(triangles));
     // Every measurement's misfit in its unit, from the case's weighted residuals.
     int offset = 0;
-    for (const auto& meas : CaseMeasurements(fc)) {
+    for (const auto& meas : fc.measurements) {
       ObservationFit of;
       of.case_index = static_cast<int>(c);
       of.case_name = fc.load_case.name;
@@ -434,7 +439,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   ceres::Problem problem(problem_options);
   problem.AddParameterBlock(logp.data(), m);
   for (int k = 0; k < m; ++k) {
-    const FitParameter& p = input.parameters[fitted[k].input_index];
+    const Parameter& p = input.parameters[fitted[k].input_index];
     if (p.min) problem.SetParameterLowerBound(logp.data(), k, std::log(*p.min));
     if (p.max) problem.SetParameterUpperBound(logp.data(), k, std::log(*p.max));
   }

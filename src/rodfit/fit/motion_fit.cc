@@ -251,24 +251,17 @@ class Budget : public ceres::IterationCallback {
 
 namespace {
 
-// The rows a motion sees: the rod's stiffnesses and its damping (springs and the ring are not
-// part of a moving thread's model).
+// The rows a motion sees: the rod's stiffnesses, its damping and its mass (springs and the ring
+// are not part of a moving thread's model).
 const MaterialParameterInfo& MotionRow(const std::string& name) {
   const MaterialParameterInfo* row = FindMaterialParameter(name);
-  if (!row || (row->kind != ParameterKind::kRodStiffness && row->kind != ParameterKind::kDamping))
+  if (!row || (row->kind != ParameterKind::kRodStiffness && row->kind != ParameterKind::kDamping &&
+               row->kind != ParameterKind::kMass))
     throw std::invalid_argument("a motion fit cannot fit '" + name.substr(0, 60) + "'");
   return *row;
 }
 
 }  // namespace
-
-void SetMaterialParameter(const std::string& name, double value, Material* m) {
-  AssignMaterialParameter(MotionRow(name).name, value, m);
-}
-
-double MaterialParameter(const std::string& name, const Material& m) {
-  return EffectiveMaterialParameter(m, MotionRow(name).name);
-}
 
 bool MotionFitOptions::Check(std::string* why) const {
   if (max_evaluations < 1) {
@@ -290,19 +283,13 @@ bool MotionFitOptions::Check(std::string* why) const {
   return true;
 }
 
-// linear_density is the rod's (RodSpec), not a row of the material table: the one name the
-// motion fit adds to SetMaterialParameter's.
+// Where the row says: the material, or the rod (linear_density).
 void SetMotionParameter(const std::string& name, double value, Scene* scene) {
-  if (name == "linear_density") {
-    scene->rod.linear_density = value;
-  } else {
-    SetMaterialParameter(name, value, &scene->material);
-  }
+  AssignMaterialParameter(MotionRow(name).name, value, &scene->material, &scene->rod);
 }
 
 double MotionParameter(const std::string& name, const Scene& scene) {
-  return name == "linear_density" ? scene.rod.linear_density
-                                  : MaterialParameter(name, scene.material);
+  return EffectiveMaterialParameter(scene.material, MotionRow(name).name, &scene.rod);
 }
 
 namespace {
@@ -563,21 +550,32 @@ struct SequencePlan {
   int residuals = 0, noise_residuals = 0;
 };
 
-// A frame's rows, those that carry noise, and its measurements: its observation's, or a
-// reading's force (and moment), 3 rows each.
-int FrameRows(const ObservationSequence::Frame& f) {
-  return f.observation ? f.observation->num_residuals() : 3 * f.reading->num_measurements();
-}
+// A frame's rows, those that carry noise, and its samples (Measurement::num_samples).
+int FrameRows(const ObservationSequence::Frame& f) { return f.measurement->num_residuals(); }
 int FrameNoiseRows(const ObservationSequence::Frame& f) {
-  return f.observation ? f.observation->num_noise_residuals() : FrameRows(f);
+  return f.measurement->num_noise_residuals();
 }
-int FrameMeasurements(const ObservationSequence::Frame& f) {
-  return f.observation ? f.observation->num_measurements() : f.reading->num_measurements();
+int FrameSamples(const ObservationSequence::Frame& f) { return f.measurement->num_samples(); }
+
+// Whether two frames' measurements are of one type, point and sigma.
+bool SameEntry(const Measurement& a, const Measurement& b) {
+  if (a.type() != b.type() || a.num_samples() < 1 || b.num_samples() < 1 ||
+      a.sample_sigma(0) != b.sample_sigma(0))
+    return false;
+  const auto* ra = dynamic_cast<const ForceReadings*>(&a);
+  const auto* rb = dynamic_cast<const ForceReadings*>(&b);
+  if ((ra == nullptr) != (rb == nullptr)) return false;
+  if (!ra) return true;
+  const ForceMeasurement& fa = ra->readings().front();
+  const ForceMeasurement& fb = rb->readings().front();
+  return fa.point == fb.point && fa.moment.has_value() == fb.moment.has_value() &&
+         (!fa.moment || fa.sigma_moment == fb.sigma_moment);
 }
-// The sigma of a frame's measurement k (in its unit).
-double FrameSigma(const ObservationSequence::Frame& f, int k) {
-  if (f.observation) return f.observation->sigma();
-  return k == 0 ? f.reading->sigma : f.reading->sigma_moment;
+
+// The point a reaction sequence reads (its readings' one point), or "" for another sequence.
+std::string ReadPoint(const Measurement& m) {
+  const auto* readings = dynamic_cast<const ForceReadings*>(&m);
+  return readings ? readings->readings().front().point : std::string();
 }
 
 // The held points of case `index` as the sequences' runs see them (the whole rod, the held
@@ -609,48 +607,48 @@ SequencePlan PlanSequences(const Scene& scene, const std::vector<ObservationSequ
       run = static_cast<int>(plan.runs.size());
       plan.runs.push_back({seq.case_index, CaseVertexArcLengths(scene, seq.case_index), {}});
     }
-    const ObservationSequence::Frame& first_frame = seq.frames.front();
-    const Observation* first = first_frame.observation.get();
-    const ReactionReading* first_reading = first_frame.reading.get();
+    for (const ObservationSequence::Frame& frame : seq.frames)
+      if (!frame.measurement)
+        throw std::invalid_argument("a frame of an observation sequence must hold a measurement");
+    const Measurement& first = *seq.frames.front().measurement;
     const bool numbered = !seq.frames.front().sample.empty();
     std::vector<char> numbered_once(seq.num_samples() > 0 ? seq.num_samples() : 0, 0);
-    if (first_reading) {
+    const std::string first_point = ReadPoint(first);
+    if (first.needs_state() || first.needs_section())
+      throw std::invalid_argument("a " + first.type() + " sequence: its measurement needs more "
+                                  "of the rod than a moving case's vertices and reactions");
+    if (first.needs_reactions()) {
       plan.runs[run].reactions = true;
       const std::vector<std::string> points = CaseHeldPoints(scene, seq.case_index);
-      if (std::find(points.begin(), points.end(), first_reading->point) == points.end())
-        throw std::invalid_argument("a reaction sequence's case holds no '" + first_reading->point +
-                                    "'");
+      if (std::find(points.begin(), points.end(), first_point) == points.end())
+        throw std::invalid_argument("a reaction sequence's case holds no '" + first_point + "'");
     }
     for (size_t f = 0; f < seq.frames.size(); ++f) {
       const ObservationSequence::Frame& frame = seq.frames[f];
-      const Observation* obs = frame.observation.get();
-      const ReactionReading* reading = frame.reading.get();
-      if ((obs == nullptr) == (reading == nullptr))
-        throw std::invalid_argument("a frame of an observation sequence must hold an observation "
-                                    "or a reading (one of them)");
-      if ((first == nullptr) != (obs == nullptr))
-        throw std::invalid_argument("the frames of an observation sequence differ in type");
-      if (reading) {
-        if (reading->point != first_reading->point || reading->sigma != first_reading->sigma ||
-            reading->has_moment != first_reading->has_moment ||
-            reading->sigma_moment != first_reading->sigma_moment)
+      const Measurement& meas = *frame.measurement;
+      if (first.needs_reactions()) {
+        const auto* readings = dynamic_cast<const ForceReadings*>(&meas);
+        if (!readings || readings->readings().size() != 1 || !SameEntry(first, meas))
           throw std::invalid_argument("the readings of a reaction sequence differ in point or sigma");
-        if (!(reading->sigma > 0.0) || (reading->has_moment && !(reading->sigma_moment > 0.0)))
+        const ForceMeasurement& reading = readings->readings().front();
+        if (!(reading.sigma > 0.0) || (reading.moment && !(reading.sigma_moment > 0.0)))
           throw std::invalid_argument("a reading's sigma (and sigma_moment) must be > 0");
-        if (reading->has_moment && reading->point != "clamp" && reading->point != "end_clamp")
-          throw std::invalid_argument("a moment is read only at a clamp, not at " + reading->point);
+        if (reading.moment && reading.point != "clamp" && reading.point != "end_clamp")
+          throw std::invalid_argument("a moment is read only at a clamp, not at " + reading.point);
       } else {
-        if (obs->num_vertices() != static_cast<int>(plan.runs[run].s.size()))
+        if (meas.needs_reactions())
+          throw std::invalid_argument("the frames of an observation sequence differ in type");
+        if (meas.num_vertices() != static_cast<int>(plan.runs[run].s.size()))
           throw std::invalid_argument("a frame's observation is not on the case's " +
                                       std::to_string(plan.runs[run].s.size()) + " vertices");
-        if (std::string(obs->type()) != first->type() || obs->sigma() != first->sigma())
+        if (!SameEntry(first, meas))
           throw std::invalid_argument("the frames of an observation sequence differ in type or sigma");
       }
       if (!(frame.t >= 0.0 && frame.t <= duration * (1.0 + 1e-12)) ||
           (f > 0 && !(frame.t >= seq.frames[f - 1].t)))
         throw std::invalid_argument("frame times must ascend within [0, dynamics.duration]");
       if (numbered != !frame.sample.empty() ||
-          (numbered && static_cast<int>(frame.sample.size()) != FrameMeasurements(frame)))
+          (numbered && static_cast<int>(frame.sample.size()) != FrameSamples(frame)))
         throw std::invalid_argument("a frame's sample numbers must be given per measurement, in "
                                     "every frame or in none");
       for (const int k : frame.sample) {
@@ -673,7 +671,8 @@ SequencePlan PlanSequences(const Scene& scene, const std::vector<ObservationSequ
     int point = -1;
     if (seq.is_reaction()) {
       const std::vector<std::string> points = CaseHeldPoints(scene, seq.case_index);
-      point = static_cast<int>(std::find(points.begin(), points.end(), seq.frames[0].reading->point) -
+      point = static_cast<int>(std::find(points.begin(), points.end(),
+                                         ReadPoint(*seq.frames[0].measurement)) -
                                points.begin());
     }
     for (const ObservationSequence::Frame& frame : seq.frames) {
@@ -716,38 +715,39 @@ bool SequencesAt(const Scene& s, const SequencePlan& plan,
     }
     if (!runs[k].ok) fail(name + ": " + runs[k].reason);
   }
-  VecX rf;
-  VertexJacobian jf;
+  const int m = static_cast<int>(directions.size());
+  std::vector<double> rf, jf;
   for (size_t q = 0; q < sequences.size(); ++q)
     for (size_t f = 0; f < sequences[q].frames.size(); ++f) {
       const SequencePlan::FrameAt& at = plan.frames[q][f];
       const CaseSamples& run = runs[at.run];
       if (at.time >= static_cast<int>(run.x.size())) continue;  // the run stopped before it
       const ObservationSequence::Frame& frame = sequences[q].frames[f];
-      if (frame.reading) {
-        // The reaction at the held point at the frame's time, and its derivatives.
-        const ReactionReading& reading = *frame.reading;
-        const HeldReaction& model = run.reactions[at.time][at.point];
-        r->segment<3>(at.row) = (model.force - reading.force) / reading.sigma;
-        if (J) J->middleRows<3>(at.row) = run.d_reactions[at.time][at.point].topRows<3>() / reading.sigma;
-        if (reading.has_moment) {
-          r->segment<3>(at.row + 3) = (model.moment - reading.moment) / reading.sigma_moment;
-          if (J)
-            J->middleRows<3>(at.row + 3) =
-                run.d_reactions[at.time][at.point].bottomRows<3>() / reading.sigma_moment;
-        }
-        continue;
+      const Measurement& meas = *frame.measurement;
+      // The case's whole rod at the frame's time: its vertices and, for a reading, its held
+      // points' reactions, with their derivatives.
+      SolvedCase solved;
+      solved.x = &run.x[at.time];
+      solved.num_parameters = m;
+      if (J) solved.d_x = &run.dx[at.time];
+      if (meas.needs_reactions()) {
+        solved.reactions = &run.reactions[at.time];
+        if (J) solved.d_reactions = &run.d_reactions[at.time];
       }
-      const Observation& obs = *frame.observation;
-      if (!obs.Evaluate(run.x[at.time], &rf, J ? &jf : nullptr)) {
+      const int rows = meas.num_residuals();
+      rf.assign(rows, 0.0);
+      jf.assign(J ? static_cast<size_t>(rows) * m : 0, 0.0);
+      std::string reason;
+      if (!meas.Evaluate(solved, rf.data(), J ? jf.data() : nullptr, &reason)) {
         char when[48];
         std::snprintf(when, sizeof(when), " at t = %.9g s", frame.t);
-        fail(s.cases[sequences[q].case_index].name + ": " + obs.type() + when +
+        fail(s.cases[sequences[q].case_index].name + ": " + meas.type() + when +
              ": the rod cannot be observed (a point at or behind the camera)");
         continue;
       }
-      r->segment(at.row, rf.size()) = rf;
-      if (J) J->middleRows(at.row, rf.size()) = jf.Multiply(run.dx[at.time]);
+      using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+      r->segment(at.row, rows) = Eigen::Map<const VecX>(rf.data(), rows);
+      if (J) J->middleRows(at.row, rows) = Eigen::Map<const RowMajor>(jf.data(), rows, m);
     }
   if (samples) *samples = std::move(runs);
   return ok;
@@ -762,12 +762,12 @@ bool SequencesForward(const Scene& s, Ctx* c) {
   double sum_abs = 0.0;
   for (size_t q = 0; q < c->sequences->size(); ++q)
     for (size_t f = 0; f < (*c->sequences)[q].frames.size(); ++f) {
-      const ObservationSequence::Frame& frame = (*c->sequences)[q].frames[f];
-      const int measurements = FrameMeasurements(frame);
-      const int dim = FrameRows(frame) / measurements;
-      for (int k = 0; k < measurements; ++k)
-        sum_abs += FrameSigma(frame, k) *
-                   c->cached_r.segment(c->plan->frames[q][f].row + dim * k, dim).lpNorm<1>();
+      const Measurement& meas = *(*c->sequences)[q].frames[f].measurement;
+      for (int k = 0, row = c->plan->frames[q][f].row; k < meas.num_samples(); ++k) {
+        const int dim = meas.sample_rows(k);
+        sum_abs += meas.sample_sigma(k) * c->cached_r.segment(row, dim).lpNorm<1>();
+        row += dim;
+      }
     }
   c->cached_mae = sum_abs / static_cast<double>(c->residuals);
   return true;
@@ -784,7 +784,7 @@ void CheckIntegrator(const Scene& scene) {
 int ObservationSequence::num_samples() const {
   int n = 0;
   for (const Frame& frame : frames)
-    if (frame.observation || frame.reading) n += FrameMeasurements(frame);
+    if (frame.measurement) n += FrameSamples(frame);
   return n;
 }
 
@@ -868,12 +868,13 @@ SequenceResiduals EvaluateSequences(const Scene& scene,
     out.error.emplace_back(seq.num_samples(), Eigen::Vector3d::Constant(NAN));
     int next = 0;  // the sample of a measurement when the frames give no numbers
     for (const ObservationSequence::Frame& frame : seq.frames) {
-      const int measurements = FrameMeasurements(frame);
-      const int dim = FrameRows(frame) / measurements;
-      for (int k = 0; k < measurements; ++k, ++next) {
+      const Measurement& meas = *frame.measurement;
+      for (int k = 0, k_row = row; k < meas.num_samples(); ++k, ++next) {
+        const int dim = meas.sample_rows(k);
         Eigen::Vector3d e = Eigen::Vector3d::Zero();
-        e.head(dim) = FrameSigma(frame, k) * at.residuals.segment(row + dim * k, dim);
+        e.head(dim) = meas.sample_sigma(k) * at.residuals.segment(k_row, dim);
         out.error.back()[frame.sample.empty() ? next : frame.sample[k]] = e;
+        k_row += dim;
       }
       row += FrameRows(frame);
     }

@@ -33,16 +33,6 @@ namespace fs = std::filesystem;
 constexpr double kMinClampSine = 1e-3;
 constexpr size_t kMaxCaseNameLength = 100;
 
-// Damping (dynamics only): >= 0, fitted only from the motion of a moving scene.
-bool IsDampingParameter(const std::string& name) {
-  const MaterialParameterInfo* row = FindMaterialParameter(name);
-  return row && row->kind == ParameterKind::kDamping;
-}
-
-const std::vector<std::string> kObservationTypes = {"markers3d",   "points3d", "image_points",
-                                                    "images",      "grasp_force",
-                                                    "surface_points", "reaction"};
-
 std::string Join(const std::vector<std::string>& words) {
   std::string out;
   for (const auto& w : words) out += (out.empty() ? "" : ", ") + w;
@@ -309,21 +299,30 @@ RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool de
   return rod;
 }
 
-ParameterSpec ReadParameter(const Reader& r, const Field& f, const std::string& name) {
+// One entry of `parameters:`. A damping's `fit: true` needs motion (a dynamics: block), as does
+// linear_density at all (elsewhere it is rod.linear_density, a weight, not a parameter).
+Parameter ReadParameter(const Reader& r, const Field& f, const std::string& name, bool moving) {
   if (!f.node.IsMap()) r.Fail(f, "expected a mapping {value: ..., fit: ..., min: ..., max: ...}");
+  const MaterialParameterInfo* row = FindMaterialParameter(name);
+  if (row && row->kind == ParameterKind::kMass && !moving)
+    r.Fail(f.key_line, f.key,
+           "only in a moving scene (a dynamics: block), where motion and forces determine it; "
+           "elsewhere give rod." + name);
   const Entries m = r.Map(f, {"value", "fit", "min", "max"});
-  ParameterSpec p;
+  Parameter p;
+  p.name = name;
   p.line = f.key_line;
   const Field& value = r.Require(m, f, "value");
   // spring_stiffness = 0 means no springs and zero damping none (docs/model.md, "What a scene
   // builds"); every stiffness of the rod is > 0. A zone's own parameter is a spring stiffness.
-  const MaterialParameterInfo* row = FindMaterialParameter(name);
   p.value = row && row->positive ? r.Positive(value) : r.NonNegative(value);
+  p.start = p.value;
   if (const Field* fit = Reader::Find(m, "fit")) {
     p.fit = r.Bool(*fit);
-    // Whether a fitted damping has motion to be fitted to is checked once the dynamics: block
-    // is read (ParseExperiment).
-    p.fit_line = fit->line;
+    if (p.fit && row && row->kind == ParameterKind::kDamping && !moving)
+      r.Fail(fit->line, fit->key,
+             "damping is identified from motion: fitting it needs a dynamics: block and "
+             "observation sequences (else give its value, fit: false)");
   }
   if (p.fit && !(p.value > 0.0)) {
     r.Fail(value, "a fitted parameter must be > 0 (fitted in log space)");
@@ -345,14 +344,9 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
   std::vector<std::string> allowed;
   for (const MaterialParameterInfo& row : MaterialParameters()) allowed.push_back(row.name);
   allowed.insert(allowed.end(), zone_parameters.begin(), zone_parameters.end());
-  allowed.push_back("linear_density");  // a moving scene's, fitted to motion and forces
   const Entries m = r.Map(f, allowed);
-  for (const auto& [name, field] : m) ex->parameters[name] = ReadParameter(r, field, name);
-  if (const Field* density = Reader::Find(m, "linear_density")) {
-    // The rod's, not the material's: it sets the masses and weights.
-    const Entries spec = r.Map(*density, {"value", "fit", "min", "max"});
-    ex->scene.rod.linear_density = r.Positive(r.Require(spec, *density, "value"));
-  }
+  const bool moving = ex->scene.dynamics.has_value();
+  for (const auto& [name, field] : m) ex->parameters[name] = ReadParameter(r, field, name, moving);
   for (const std::string& name : zone_parameters) r.Require(m, f, name);
   const bool section = ex->scene.section.has_value();
   for (const MaterialParameterInfo& row : MaterialParameters()) {
@@ -360,11 +354,12 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
     if (row.needs_section && !section) continue;
     if (row.required) r.Require(m, f, row.name);
   }
-  for (const auto& [name, spec] : ex->parameters) {
-    if (name == "linear_density") continue;
+  // Each value where its row says (the rod's density into the rod: it sets the masses and
+  // weights).
+  for (const auto& [name, p] : ex->parameters) {
     const MaterialParameterInfo* row = FindMaterialParameter(name);
     if (row && row->needs_section && !section) continue;
-    AssignMaterialParameter(name, spec.value, &ex->scene.material);
+    AssignMaterialParameter(name, p.value, &ex->scene.material, &ex->scene.rod);
   }
 }
 
@@ -386,188 +381,212 @@ Clamp ReadClamp(const Reader& r, const Field& f) {
   return clamp;
 }
 
-// A haptic device's log as recorded: its length and force units, its frame in the scene and
-// which body's force it holds (docs/formats.md, "Haptic logs as recorded").
-void ReadDeviceConvention(const Reader& r, const Entries& m, ObservationSpec* o) {
-  if (const Field* u = Reader::Find(m, "unit")) {
-    const std::string unit = r.Text(*u);
-    if (unit != "m" && unit != "mm") r.Fail(*u, "must be m or mm, got '" + ClipForMessage(unit) + "'");
-    o->position_scale = unit == "mm" ? 1e-3 : 1.0;
+// An observation entry's keys as its kind declares them (EntryKeys), over the entry's YAML
+// mapping. Collecting, it only records the keys declared (the kind's allowed keys); reading, it
+// checks and reads each key the entry holds.
+class YamlEntryKeys final : public EntryKeys {
+ public:
+  YamlEntryKeys(const Reader& r, const Field& entry, const Entries& keys, const Experiment& ex,
+                const LoadCase& load_case, const std::vector<std::string>& points, bool moving,
+                bool reading)
+      : r_(r), entry_(entry), keys_(keys), ex_(ex), load_case_(load_case), points_(points),
+        moving_(moving), reading_(reading) {}
+
+  const std::vector<std::string>& declared() const { return declared_; }
+
+  bool moving() const override { return moving_; }
+  const LoadCase& load_case() const override { return load_case_; }
+  const RodSpec& rod() const override { return ex_.scene.rod; }
+
+  void Path(const char* key, std::string* path, bool required) override {
+    if (const Field* f = Take(key, required)) *path = r_.Path(*f, ex_.directory);
   }
-  if (const Field* u = Reader::Find(m, "force_unit")) {
-    const std::string unit = r.Text(*u);
-    if (unit != "N" && unit != "mN") r.Fail(*u, "must be N or mN, got '" + ClipForMessage(unit) + "'");
-    o->force_scale = unit == "mN" ? 1e-3 : 1.0;
+  void Positive(const char* key, double* value, bool required) override {
+    if (const Field* f = Take(key, required)) *value = r_.Positive(*f);
   }
-  if (const Field* on = Reader::Find(m, "force_on")) {
-    const std::string body = r.Text(*on);
-    if (body != "instrument" && body != "tissue")
-      r.Fail(*on, "must be instrument (the force on the tool) or tissue (the force the tool "
-                  "applies), got '" + ClipForMessage(body) + "'");
-    o->force_sign = body == "tissue" ? -1.0 : 1.0;
+  void Number(const char* key, double* value, double lo, double hi) override {
+    if (const Field* f = Take(key, false)) *value = r_.InRange(*f, lo, hi);
   }
-  const Field* frame = Reader::Find(m, "device_frame");
-  if (!frame) return;
-  const Entries fm = r.Map(*frame, {"rotation", "translation"});
-  if (const Field* t = Reader::Find(fm, "translation")) o->device_translation = r.Vector3(*t);
-  if (const Field* rot = Reader::Find(fm, "rotation")) {
-    const std::vector<Field> rows = r.Sequence(*rot);
-    if (rows.size() != 3) r.Fail(*rot, "expected 3 rows of 3 numbers (the device's axes in the scene, row by row)");
-    Eigen::Matrix3d R;
-    for (int i = 0; i < 3; ++i) R.row(i) = r.Vector3(rows[i]).transpose();
-    // A rotation to the file's precision: orthonormal (a scaled or sheared matrix would change
-    // the forces' size) with determinant +1 (no mirror image).
-    const double off = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-    if (!(off <= 1e-6) || !(R.determinant() > 0.0)) {
-      r.Fail(*rot, "is not a rotation (R^T R differs from I by " + Show(off) +
-                       ", det R = " + Show(R.determinant()) + ")");
+  void Fraction(const char* key, double* value) override {
+    if (const Field* f = Take(key, false)) {
+      *value = r_.Number(*f);
+      if (*value < 0.0 || *value >= 1.0) r_.Fail(*f, "must be in [0, 1), got " + Show(*value));
     }
-    o->device_rotation = R;
   }
+  void Integer(const char* key, int* value, int lo, int hi) override {
+    if (const Field* f = Take(key, false)) *value = r_.IntegerIn(*f, lo, hi);
+  }
+  void ArcLengths(const char* key, std::vector<double>* s) override {
+    if (const Field* f = Take(key, false)) {
+      const std::vector<Field> items = r_.Sequence(*f);
+      if (items.empty()) r_.Fail(*f, "must not be empty");
+      for (const Field& item : items) s->push_back(r_.InRange(item, 0.0, ex_.scene.rod.length));
+    }
+  }
+  void GraspArcLength(const char* key, std::vector<double>* s) override {
+    const Field* f = Take(key, true);
+    if (!f) return;
+    if (!f->node.IsScalar()) r_.Fail(*f, "expected one arc length [m] (the grasped point)");
+    const double v = r_.InRange(*f, 0.0, ex_.scene.rod.length);
+    if (v < 0.5 * ex_.scene.rod.length / ex_.scene.rod.segments)
+      r_.Fail(*f, "the grasp is at the clamp (s rounds to vertex 0)");
+    s->push_back(v);
+  }
+  // `roi: [x0, y0, x1, y1]` (docs/formats.md, "Observation entries"): pixel corners, x1 and y1
+  // exclusive. Whether it fits the image is known only when the image is read (the extraction
+  // names the image then).
+  void Roi(const char* key, std::optional<std::array<int, 4>>* roi) override {
+    const Field* f = Take(key, false);
+    if (!f) return;
+    if (!f->node.IsSequence() || f->node.size() != 4) {
+      r_.Fail(*f, "expected [x0, y0, x1, y1] (4 pixel corners)" +
+                      (f->node.IsSequence() ? ", got " + std::to_string(f->node.size()) + " values"
+                                            : std::string()));
+    }
+    const std::vector<Field> items = r_.Sequence(*f);
+    std::array<int, 4> corners{};
+    for (int k = 0; k < 4; ++k) corners[k] = r_.IntegerIn(items[k], 0, kMaxImageSidePx);
+    if (corners[2] <= corners[0])
+      r_.Fail(items[2], "x1 must exceed x0 (" + std::to_string(corners[0]) + ")");
+    if (corners[3] <= corners[1])
+      r_.Fail(items[3], "y1 must exceed y0 (" + std::to_string(corners[1]) + ")");
+    *roi = corners;
+  }
+  void Choice(const char* key, double* value,
+              const std::vector<std::pair<std::string, double>>& choices,
+              const std::string& expected) override {
+    const Field* f = Take(key, false);
+    if (!f) return;
+    const std::string word = r_.Text(*f);
+    for (const auto& [name, number] : choices)
+      if (word == name) {
+        *value = number;
+        return;
+      }
+    r_.Fail(*f, expected + ", got '" + ClipForMessage(word) + "'");
+  }
+  void Frame(const char* key, Eigen::Matrix3d* rotation, Vec3* translation) override {
+    const Field* frame = Take(key, false);
+    if (!frame) return;
+    const Entries fm = r_.Map(*frame, {"rotation", "translation"});
+    if (const Field* t = Reader::Find(fm, "translation")) *translation = r_.Vector3(*t);
+    if (const Field* rot = Reader::Find(fm, "rotation")) {
+      const std::vector<Field> rows = r_.Sequence(*rot);
+      if (rows.size() != 3)
+        r_.Fail(*rot, "expected 3 rows of 3 numbers (the device's axes in the scene, row by row)");
+      Eigen::Matrix3d R;
+      for (int i = 0; i < 3; ++i) R.row(i) = r_.Vector3(rows[i]).transpose();
+      // A rotation to the file's precision: orthonormal (a scaled or sheared matrix would change
+      // the forces' size) with determinant +1 (no mirror image).
+      const double off = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+      if (!(off <= 1e-6) || !(R.determinant() > 0.0)) {
+        r_.Fail(*rot, "is not a rotation (R^T R differs from I by " + Show(off) +
+                          ", det R = " + Show(R.determinant()) + ")");
+      }
+      *rotation = R;
+    }
+  }
+  void HeldPoint(const char* key, std::string* point, bool required) override {
+    const Field* f = Take(key, required);
+    if (!f) return;
+    *point = r_.Text(*f);
+    if (!Contains(points_, *point))
+      r_.Fail(*f, "this case holds no '" + ClipForMessage(*point) + "' (it holds: " +
+                      Join(points_) + ")");
+  }
+  void Exclusive(const char* key, const char* other) override {
+    if (!reading_) return;
+    const Field* a = Reader::Find(keys_, key);
+    const Field* b = Reader::Find(keys_, other);
+    if (a && b) r_.Fail(b->key_line, b->key, "give either " + std::string(key) + " or " + other +
+                                                 ", not both");
+  }
+  void Check(bool ok, const char* key, const std::string& message) override {
+    if (!reading_ || ok) return;
+    if (const Field* f = Reader::Find(keys_, key)) r_.Fail(*f, message);
+    r_.Fail(entry_, message);
+  }
+
+ private:
+  // Declares `key`; reading, its field when the entry holds it (a required key it does not hold
+  // is an error at the entry's line), else null.
+  const Field* Take(const char* key, bool required) {
+    declared_.push_back(key);
+    if (!reading_) return nullptr;
+    const Field* f = Reader::Find(keys_, key);
+    if (!f && required) r_.Require(keys_, entry_, key);
+    return f;
+  }
+
+  const Reader& r_;
+  const Field& entry_;
+  const Entries& keys_;
+  const Experiment& ex_;
+  const LoadCase& load_case_;
+  const std::vector<std::string>& points_;
+  bool moving_, reading_;
+  std::vector<std::string> declared_;
+};
+
+// "a, b and c".
+std::string JoinAnd(const std::vector<std::string>& words) {
+  std::string out;
+  for (size_t k = 0; k < words.size(); ++k)
+    out += (k == 0 ? "" : k + 1 == words.size() ? " and " : ", ") + words[k];
+  return out;
 }
 
-// An `images` entry's `roi: [x0, y0, x1, y1]` (docs/formats.md, "Observation entries"): pixel
-// corners, x1 and y1 exclusive. Whether it fits the image is known only when the image is read
-// (the extraction names the image then).
-std::array<int, 4> ReadRoi(const Reader& r, const Field& f) {
-  if (!f.node.IsSequence() || f.node.size() != 4) {
-    r.Fail(f, "expected [x0, y0, x1, y1] (4 pixel corners)" +
-                  (f.node.IsSequence() ? ", got " + std::to_string(f.node.size()) + " values"
-                                       : std::string()));
-  }
-  const std::vector<Field> items = r.Sequence(f);
-  std::array<int, 4> roi{};
-  for (int k = 0; k < 4; ++k) roi[k] = r.IntegerIn(items[k], 0, kMaxImageSidePx);
-  if (roi[2] <= roi[0]) r.Fail(items[2], "x1 must exceed x0 (" + std::to_string(roi[0]) + ")");
-  if (roi[3] <= roi[1]) r.Fail(items[3], "y1 must exceed y0 (" + std::to_string(roi[1]) + ")");
-  return roi;
-}
-
+// An entry of a case's `observations:`: its type names its kind, whose declared keys (in this
+// scene, static or moving) are the only ones allowed and are read here.
 ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experiment& ex,
-                                bool case_has_poke, const std::vector<std::string>& case_points) {
-  const std::vector<std::string> all = {"type",     "file",  "camera", "sigma",
-                                        "s",        "count", "outliers", "blur",
-                                        "noise",    "max_speed", "point", "sigma_moment",
-                                        "unit",     "force_unit", "device_frame", "force_on",
-                                        "camera_index", "frame_rate", "drop", "roi", "mask"};
+                                const LoadCase& load_case, const std::vector<std::string>& points,
+                                const ObservationEntryKinds& kinds) {
+  const bool moving = ex.scene.dynamics.has_value();
+  const std::vector<std::string> names = kinds.Names(false);
+  // Every key some kind takes, static or moving: any other is unknown.
+  std::vector<std::string> all = {"type"};
+  static const Entries kNoKeys;  // collecting reads none
+  for (const std::string& name : names)
+    for (const bool mode : {false, true}) {
+      ObservationSpec scratch;
+      YamlEntryKeys collect(r, f, kNoKeys, ex, load_case, points, mode, false);
+      kinds.DeclareKeys(name, &collect, &scratch);
+      for (const std::string& key : collect.declared())
+        if (!Contains(all, key)) all.push_back(key);
+    }
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
   const Field& type = r.Require(m, f, "type");
   o.type = r.Text(type);
-  if (!Contains(kObservationTypes, o.type)) {
-    r.Fail(type,
-           "unknown observation type '" + ClipForMessage(o.type) +
-               "' (allowed: " + Join(kObservationTypes) + ")");
+  if (!Contains(names, o.type)) {
+    r.Fail(type, "unknown observation type '" + ClipForMessage(o.type) +
+                     "' (allowed: " + Join(names) + ")");
   }
-  // A moving scene is observed over time: its centre-line entries are sequences, one static
-  // observation per frame (the types its fit reads, docs/formats.md, "Observation sequences").
-  const bool moving = ex.scene.dynamics.has_value();
-  if (moving && o.type != "markers3d" && o.type != "points3d" && o.type != "image_points" &&
-      o.type != "reaction")
-    r.Fail(type, "a moving scene (dynamics:) is observed by markers3d, points3d, image_points and "
-                 "reaction sequences only, not " + o.type);
-  for (const char* key : {"frame_rate", "drop"})
-    if (const Field* k = Reader::Find(m, key); k && !moving)
-      r.Fail(k->key_line, k->key, "only for a sequence (a scene with a dynamics: block)");
-  const bool image = o.type == "image_points" || o.type == "images";
-  std::vector<std::string> allowed = {"type", "file", "sigma"};
-  const bool force = o.type == "grasp_force";
-  const bool surface = o.type == "surface_points";
-  if (surface && !case_has_poke) {
-    r.Fail(type, "surface_points are tracked around a poke, but this case has no poke (add "
-                 "poke: {s, force} to the case)");
-  }
-  if (image) allowed.insert(allowed.end(), {"camera", "camera_index"});
-  if (o.type != "points3d" && o.type != "images" && !surface) allowed.push_back("s");
-  if (o.type != "images") allowed.push_back("count");
-  if (o.type != "images" && !force && !surface && !moving) allowed.push_back("outliers");
-  if (moving) allowed.insert(allowed.end(), {"frame_rate", "drop"});
-  if (o.type == "images") allowed.insert(allowed.end(), {"blur", "noise", "roi", "mask"});
-  if (force) allowed.insert(allowed.end(),
-                            {"max_speed", "unit", "force_unit", "device_frame", "force_on"});
-  const bool reaction = o.type == "reaction";
-  if (reaction) {
-    // Over time a log's readings are its rows (synth: every written frame, or frame_rate).
-    allowed = {"type", "file", "sigma", "point", "sigma_moment"};
-    if (moving) allowed.insert(allowed.end(), {"frame_rate", "drop"});
-    else allowed.push_back("count");
-  }
+  // A moving scene is observed over time: its entries are sequences, one measurement per frame
+  // (the kinds that may move, docs/formats.md, "Observation sequences").
+  if (moving && !Contains(kinds.Names(true), o.type))
+    r.Fail(type, "a moving scene (dynamics:) is observed by " + JoinAnd(kinds.Names(true)) +
+                     " sequences only, not " + o.type);
+  ObservationSpec scratch;
+  YamlEntryKeys here(r, f, m, ex, load_case, points, moving, false);
+  kinds.DeclareKeys(o.type, &here, &scratch);
+  YamlEntryKeys there(r, f, m, ex, load_case, points, !moving, false);
+  kinds.DeclareKeys(o.type, &there, &scratch);
+  std::vector<std::string> allowed = {"type"};
+  allowed.insert(allowed.end(), here.declared().begin(), here.declared().end());
+  // A sequence's key in a static scene, in the order the kind declares them, then any other.
+  if (!moving)
+    for (const std::string& name : there.declared())
+      if (const Field* field = Reader::Find(m, name); field && !Contains(allowed, name))
+        r.Fail(field->key_line, field->key, "only for a sequence (a scene with a dynamics: block)");
   for (const auto& [name, field] : m) {
-    if (!Contains(allowed, name)) {
+    if (!Contains(allowed, name))
       r.Fail(field.key_line, field.key,
              "not allowed for type " + o.type + " (allowed: " + Join(allowed) + ")");
-    }
   }
-
-  o.file = r.Path(r.Require(m, f, "file"), ex.directory);
-  if (image) o.camera = r.Path(r.Require(m, f, "camera"), ex.directory);
-  if (const Field* index = Reader::Find(m, "camera_index")) o.camera_index = r.IntegerIn(*index, 1, 2);
-  o.sigma = r.Positive(r.Require(m, f, "sigma"));
-  if (reaction) {
-    const Field& point = r.Require(m, f, "point");
-    o.point = r.Text(point);
-    if (std::find(case_points.begin(), case_points.end(), o.point) == case_points.end())
-      r.Fail(point, "this case holds no '" + ClipForMessage(o.point) +
-                        "' (it holds: " + Join(case_points) + ")");
-    if (const Field* sm = Reader::Find(m, "sigma_moment")) {
-      o.sigma_moment = r.Positive(*sm);
-      if (o.point != "clamp" && o.point != "end_clamp")
-        r.Fail(*sm, "a moment is measured only at a clamp (clamp or end_clamp), not at " + o.point);
-    }
-    if (const Field* count = Reader::Find(m, "count")) {
-      o.count = r.IntegerIn(*count, 1, kMaxSamples);
-    }
-    if (const Field* rate = Reader::Find(m, "frame_rate")) o.frame_rate = r.Positive(*rate);
-    if (const Field* drop = Reader::Find(m, "drop")) {
-      o.drop = r.Number(*drop);
-      if (o.drop < 0.0 || o.drop >= 1.0) r.Fail(*drop, "must be in [0, 1), got " + Show(o.drop));
-    }
-    return o;
-  }
-  const Field* s = Reader::Find(m, "s");
-  const Field* count = Reader::Find(m, "count");
-  if (force) {  // one grasped arc length; count caps the quasi-static samples used
-    if (!s) r.Require(m, f, "s");
-    if (s->node.IsScalar()) {
-      const double v = r.InRange(*s, 0.0, ex.scene.rod.length);
-      if (v < 0.5 * ex.scene.rod.length / ex.scene.rod.segments)
-        r.Fail(*s, "the grasp is at the clamp (s rounds to vertex 0)");
-      o.s.push_back(v);
-    } else {
-      r.Fail(*s, "expected one arc length [m] (the grasped point)");
-    }
-    if (count) {
-      o.count = r.IntegerIn(*count, 1, kMaxDragSteps);
-    }
-    if (const Field* v = Reader::Find(m, "max_speed")) o.max_speed = r.Positive(*v);
-    ReadDeviceConvention(r, m, &o);
-    return o;
-  }
-  if (s && count) r.Fail(count->key_line, count->key, "give either s or count, not both");
-  if (s) {
-    const std::vector<Field> items = r.Sequence(*s);
-    if (items.empty()) r.Fail(*s, "must not be empty");
-    for (const Field& item : items) o.s.push_back(r.InRange(item, 0.0, ex.scene.rod.length));
-  }
-  if (count) {
-    o.count = r.IntegerIn(*count, 1, kMaxSamples);
-  }
-  if (const Field* outliers = Reader::Find(m, "outliers")) {
-    o.outliers = r.Number(*outliers);
-    if (o.outliers < 0.0 || o.outliers >= 1.0) {
-      r.Fail(*outliers, "must be in [0, 1), got " + Show(o.outliers));
-    }
-  }
-  if (const Field* rate = Reader::Find(m, "frame_rate")) o.frame_rate = r.Positive(*rate);
-  if (const Field* drop = Reader::Find(m, "drop")) {
-    o.drop = r.Number(*drop);
-    if (o.drop < 0.0 || o.drop >= 1.0) r.Fail(*drop, "must be in [0, 1), got " + Show(o.drop));
-  }
-  if (const Field* blur = Reader::Find(m, "blur")) o.blur = r.InRange(*blur, 0.0, kMaxBlurPx);
-  if (const Field* noise = Reader::Find(m, "noise")) o.noise = r.InRange(*noise, 0.0, kMaxNoiseGrey);
-  if (const Field* roi = Reader::Find(m, "roi")) o.roi = ReadRoi(r, *roi);
-  if (const Field* mask = Reader::Find(m, "mask")) o.mask = r.Path(*mask, ex.directory);
+  YamlEntryKeys read(r, f, m, ex, load_case, points, moving, true);
+  kinds.DeclareKeys(o.type, &read, &o);
   return o;
 }
 
@@ -909,7 +928,7 @@ void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, int inde
 // One function, though long: a case's keys are read in the order the format lists them
 // (docs/formats.md), each with its own one-line check; splitting them would scatter that list.
 void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
-              std::map<std::string, int>* name_lines) {
+              std::map<std::string, int>* name_lines, const ObservationEntryKinds& kinds) {
   const Entries m =
       r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "tip_moment_follower", "point_forces",
                 "point_moments", "cut", "grasp", "poke", "end_clamp", "end_pin", "pins", "start",
@@ -1074,108 +1093,91 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   if (c.grasp) points.push_back("grasp");
   if (const Field* obs = Reader::Find(m, "observations")) {
     for (const Field& item : r.Sequence(*obs)) {
-      spec.observations.push_back(ReadObservation(r, item, *ex, c.poke.has_value(), points));
+      spec.observations.push_back(ReadObservation(r, item, *ex, c, points, kinds));
     }
   }
   ex->scene.cases.push_back(c);
   ex->cases.push_back(spec);
 }
 
-StaticsOptions ReadSolver(const Reader& r, const Field& f) {
-  const Entries m =
-      r.Map(f, {"max_iterations", "gradient_tolerance", "step_tolerance", "escape_saddles"});
-  StaticsOptions o;
-  if (const Field* it = Reader::Find(m, "max_iterations")) {
-    o.max_iterations = r.IntegerIn(*it, 1, 100000);
-  }
-  if (const Field* g = Reader::Find(m, "gradient_tolerance")) {
-    o.gradient_tolerance = r.InRange(*g, 1e-16, 1e-2);
-  }
-  if (const Field* st = Reader::Find(m, "step_tolerance")) {
-    o.step_tolerance = r.InRange(*st, 1e-16, 1e-2);
-  }
-  if (const Field* e = Reader::Find(m, "escape_saddles")) o.escape_saddles = r.Bool(*e);
-  return o;
-}
+// A settings block (`solver:`, `fit:`, `dynamics:`) as its configuration declares it
+// (rodfit/io/settings.h). Collecting, it records the keys declared (the block's allowed keys);
+// reading, it checks and reads each key the block holds.
+class YamlSettings final : public SettingsArchive {
+ public:
+  YamlSettings(const Reader& r, const Field& block, const Entries& keys, bool reading)
+      : r_(r), block_(block), keys_(keys), reading_(reading) {}
 
-// Steps a run may take in all (duration / time_step): beyond it the run would take hours.
-constexpr double kMaxDynamicSteps = 1e8;
+  const std::vector<std::string>& declared() const { return declared_; }
 
-DynamicsSpec ReadDynamics(const Reader& r, const Field& f, int* integrator_line) {
-  const Entries m =
-      r.Map(f, {"time_step", "duration", "integrator", "output_every", "substep", "max_halvings",
-                "error_tolerance", "min_time_step"});
-  DynamicsSpec d;
-  const Field& dt = r.Require(m, f, "time_step");
-  d.time_step = r.InRange(dt, 1e-12, 10.0);
-  d.duration = r.InRange(r.Require(m, f, "duration"), 0.0, 1e6);
-  if (d.duration / d.time_step > kMaxDynamicSteps)
-    r.Fail(dt, "gives " + Show(d.duration / d.time_step) + " steps, above the limit of " +
-                   Show(kMaxDynamicSteps));
-  *integrator_line = f.key_line;
-  if (const Field* integrator = Reader::Find(m, "integrator")) {
-    *integrator_line = integrator->line;
-    d.integrator = r.Text(*integrator);
-    // `implicit`: the default implicit integrator (BDF2, docs/solvers.md, "Dynamics").
-    if (d.integrator == "implicit") d.integrator = "bdf2";
-    if (!FindIntegrator(d.integrator)) {
-      std::string names = "implicit";
-      for (const std::string& name : IntegratorNames()) names += ", " + name;
-      r.Fail(*integrator, "must be one of " + names + ", got '" + ClipForMessage(d.integrator) + "'");
+  bool reading() const override { return reading_; }
+  void Integer(const char* key, int* value, int lo, int hi) override {
+    if (const Field* f = Take(key)) *value = r_.IntegerIn(*f, lo, hi);
+  }
+  void Count(const char* key, int* value, int lo, int hi) override {
+    if (const Field* f = Take(key)) {
+      *value = r_.Integer(*f);
+      if (*value < lo || *value > hi)
+        r_.Fail(*f, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+                        std::to_string(*value));
     }
   }
-  if (const Field* every = Reader::Find(m, "output_every")) {
-    d.output_every = r.Integer(*every);
-    if (d.output_every < 1 || d.output_every > 100000000)
-      r.Fail(*every, "must be in [1, 1e8], got " + std::to_string(d.output_every));
+  void Number(const char* key, double* value, double lo, double hi) override {
+    if (const Field* f = Take(key)) *value = r_.InRange(*f, lo, hi);
   }
-  if (const Field* sub = Reader::Find(m, "substep")) d.substep = r.Bool(*sub);
-  if (d.substep && d.integrator != "explicit") r.Fail(*Reader::Find(m, "substep"), "is for the explicit integrator only");
-  if (const Field* halvings = Reader::Find(m, "max_halvings")) {
-    if (d.integrator == "explicit") r.Fail(*halvings, "is for the implicit integrators only");
-    d.max_halvings = r.Integer(*halvings);
-    if (d.max_halvings < 0 || d.max_halvings > kMaxStepHalvings)
-      r.Fail(*halvings, "must be in [0, " + std::to_string(kMaxStepHalvings) + "], got " +
-                            std::to_string(d.max_halvings));
+  void Positive(const char* key, double* value) override {
+    if (const Field* f = Take(key)) *value = r_.Positive(*f);
   }
-  if (const Field* tol = Reader::Find(m, "error_tolerance")) {
-    if (d.integrator == "explicit") r.Fail(*tol, "is for the implicit integrators only");
-    d.error_tolerance = r.InRange(*tol, 0.0, 1.0);
+  void Bool(const char* key, bool* value) override {
+    if (const Field* f = Take(key)) *value = r_.Bool(*f);
   }
-  if (const Field* floor = Reader::Find(m, "min_time_step")) {
-    d.min_time_step = r.InRange(*floor, 1e-12, d.time_step);
-  }
-  return d;
-}
-
-FitSpec ReadFit(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"loss", "loss_scale", "global", "max_iterations", "trusted_sigmas"});
-  FitSpec fit;
-  fit.line = f.key_line;
-  if (const Field* loss = Reader::Find(m, "loss")) {
-    const std::string name = r.Text(*loss);
-    bool known = false;
-    for (RobustLoss t :
-         {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy, RobustLoss::kSoftL1}) {
-      if (name == RobustLossName(t)) {
-        fit.loss = t;
-        known = true;
+  void Choice(const char* key, int* index, const std::vector<std::string>& words,
+              const std::string& expected) override {
+    const Field* f = Take(key);
+    if (!f) return;
+    const std::string word = r_.Text(*f);
+    for (size_t k = 0; k < words.size(); ++k)
+      if (word == words[k]) {
+        *index = static_cast<int>(k);
+        return;
       }
-    }
-    if (!known) {
-      r.Fail(*loss, "unknown loss '" + ClipForMessage(name) +
-                        "' (allowed: none, huber, cauchy, soft_l1)");
-    }
+    r_.Fail(*f, expected + ", got '" + ClipForMessage(word) + "'");
   }
-  if (const Field* scale = Reader::Find(m, "loss_scale")) fit.loss_scale = r.Positive(*scale);
-  if (const Field* global = Reader::Find(m, "global")) fit.global = r.Bool(*global);
-  if (const Field* iterations = Reader::Find(m, "max_iterations")) {
-    fit.max_iterations = r.IntegerIn(*iterations, 1, kMaxFitIterations);
+  void Require(const char* key) override {
+    if (reading_) r_.Require(keys_, block_, key);
   }
-  if (const Field* trusted = Reader::Find(m, "trusted_sigmas")) {
-    fit.trusted_sigmas = r.Bool(*trusted);
+  bool Has(const char* key) const override { return Reader::Find(keys_, key) != nullptr; }
+  void Check(bool ok, const char* key, const std::string& message) override {
+    if (!reading_ || ok) return;
+    if (const Field* f = Reader::Find(keys_, key)) r_.Fail(*f, message);
+    r_.Fail(block_, message);
   }
-  return fit;
+
+ private:
+  const Field* Take(const char* key) {
+    declared_.push_back(key);
+    return reading_ ? Reader::Find(keys_, key) : nullptr;
+  }
+
+  const Reader& r_;
+  const Field& block_;
+  const Entries& keys_;
+  bool reading_;
+  std::vector<std::string> declared_;
+};
+
+// Reads a settings block into `config` (its defaults where the block says nothing); returns the
+// block's entries.
+template <class Config>
+Entries ReadSettings(const Reader& r, const Field& f, Config* config) {
+  static const Entries kNoKeys;
+  Config scratch;
+  YamlSettings keys(r, f, kNoKeys, /*reading=*/false);
+  Serialize(&keys, &scratch);
+  const Entries m = r.Map(f, keys.declared());
+  YamlSettings read(r, f, m, /*reading=*/true);
+  Serialize(&read, config);
+  return m;
 }
 
 // Before yaml-cpp sees the text: no control characters (binary data; yaml-cpp's messages for
@@ -1229,7 +1231,7 @@ void CheckYamlNodes(const YAML::Node& root, const std::string& path) {
 
 
 Experiment ParseExperiment(const std::string& text, const std::string& path,
-                           bool parameters_optional) {
+                           const ObservationEntryKinds& kinds, bool parameters_optional) {
   CheckYamlText(text, path);
   YAML::Node root;
   try {
@@ -1249,8 +1251,11 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
       top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit", "solver",
             "dynamics"});
   const Field* params = Reader::Find(m, "parameters");
-  const bool density_in_parameters =
-      params && params->node.IsMap() && params->node["linear_density"].IsDefined();
+  // The rod's density given as a parameter (a row of the rod's, in a moving scene).
+  bool density_in_parameters = false;
+  for (const MaterialParameterInfo& row : MaterialParameters())
+    density_in_parameters |= row.rod_field == &RodSpec::linear_density && params &&
+                             params->node.IsMap() && params->node[row.name].IsDefined();
   ex.scene.rod =
       ReadRod(r, r.Require(m, top, "rod"), density_in_parameters, parameters_optional,
               ex.directory);
@@ -1259,24 +1264,23 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   if (const Field* springs = Reader::Find(m, "springs")) {
     zone_parameters = ReadSprings(r, *springs, &ex);
   }
+  // Before the parameters: whether the scene moves decides which of them may be fitted.
+  if (const Field* dynamics = Reader::Find(m, "dynamics")) {
+    ex.scene.dynamics.emplace();
+    const Entries block = ReadSettings(r, *dynamics, &*ex.scene.dynamics);
+    // Where a fit that cannot use the integrator points: its key, or the block's.
+    const Field* integrator = Reader::Find(block, "integrator");
+    ex.integrator_line = integrator ? integrator->line : dynamics->key_line;
+  }
   // With a profile supplying the material (`simulate --profile`) the block may be left out.
   if (params || !parameters_optional)
     ReadParameters(r, params ? *params : r.Require(m, top, "parameters"), &ex, zone_parameters);
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
-  if (const Field* fit = Reader::Find(m, "fit")) ex.fit = ReadFit(r, *fit);
-  if (const Field* solver = Reader::Find(m, "solver")) ex.statics = ReadSolver(r, *solver);
-  if (const Field* dynamics = Reader::Find(m, "dynamics"))
-    ex.scene.dynamics = ReadDynamics(r, *dynamics, &ex.integrator_line);
-  if (const auto it = ex.parameters.find("linear_density");
-      it != ex.parameters.end() && !ex.scene.dynamics)
-    r.Fail(it->second.line, "parameters.linear_density",
-           "only in a moving scene (a dynamics: block), where motion and forces determine it; "
-           "elsewhere give rod.linear_density");
-  for (const auto& [name, p] : ex.parameters)
-    if (p.fit && IsDampingParameter(name) && !ex.scene.dynamics)
-      r.Fail(p.fit_line, "parameters." + name + ".fit",
-             "damping is identified from motion: fitting it needs a dynamics: block and "
-             "observation sequences (else give its value, fit: false)");
+  if (const Field* fit = Reader::Find(m, "fit")) {
+    ReadSettings(r, *fit, static_cast<FitOptions*>(&ex.fit));
+    ex.fit.line = fit->key_line;
+  }
+  if (const Field* solver = Reader::Find(m, "solver")) ReadSettings(r, *solver, &ex.statics);
   if (ex.scene.dynamics && ex.fit.line > 0) {
     // A moving scene's fit is plain least squares on the sequences (docs/formats.md,
     // "Observation sequences"): the static fit's robust losses and global search are not part
@@ -1295,14 +1299,15 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   if (items.empty()) r.Fail(cases, "no cases");
   std::map<std::string, int> name_lines;
   for (size_t k = 0; k < items.size(); ++k) {
-    ReadCase(r, items[k], static_cast<int>(k), &ex, &name_lines);
+    ReadCase(r, items[k], static_cast<int>(k), &ex, &name_lines, kinds);
   }
   return ex;
 }
 
-Experiment LoadExperiment(const std::string& path, bool parameters_optional) {
+Experiment LoadExperiment(const std::string& path, const ObservationEntryKinds& kinds,
+                          bool parameters_optional) {
   // Bounded before yaml-cpp sees it: a regular file of at most kMaxInputFileBytes.
-  return ParseExperiment(ReadInputFile(path, "a YAML file", kMaxYamlBytes), path,
+  return ParseExperiment(ReadInputFile(path, "a YAML file", kMaxYamlBytes), path, kinds,
                          parameters_optional);
 }
 

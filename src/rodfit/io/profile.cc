@@ -11,37 +11,67 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/model/material_parameters.h"
+#include "rodfit/runtime/profile_format.h"
 #include "rodfit/version.h"
 
 namespace rodfit {
 namespace {
 
 
+namespace pf = profile_format;
+
 nlohmann::json Vec(const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
 
-// The held boundary of the rod as mounted: the first case's clamp, end clamp or end pin,
-// interior pins and cuts. An instrument's grasp or poke is the simulator's tool, not the rod's.
-nlohmann::json HeldJson(const LoadCase& c) {
-  using nlohmann::json;
-  json held;
-  held["case"] = c.name;
-  held["clamp"] = {{"position", Vec(c.clamp.position)},
-                   {"tangent", Vec(c.clamp.tangent)},
-                   {"normal", Vec(c.clamp.normal)}};
-  if (c.end_clamp) {
-    json end = {{"position", Vec(c.end_clamp->position)}, {"tangent", Vec(c.end_clamp->tangent)}};
-    if (c.end_clamp->normal) end["normal"] = Vec(*c.end_clamp->normal);
-    held["end_clamp"] = end;
+// The writer's archive of rodfit/runtime/profile_format.h: each key the format declares, with
+// its value, into one JSON object (an optional one only when it holds a value).
+class ProfileWriter {
+ public:
+  explicit ProfileWriter(nlohmann::json* object) : v_(*object) {}
+
+  bool reading() const { return false; }
+  void Number(const char* key, double* v, pf::Bound, pf::Need = pf::kRequired) { v_[key] = *v; }
+  void Integer(const char* key, int* v, int, int) { v_[key] = *v; }
+  void Vector(const char* key, Vec3* v, pf::Need = pf::kRequired) { v_[key] = Vec(*v); }
+  void Direction(const char* key, Vec3* v) { v_[key] = Vec(*v); }
+  void OptionalDirection(const char* key, std::optional<Vec3>* v) {
+    if (*v) v_[key] = Vec(**v);
   }
-  if (c.end_pin) held["end_pin"] = Vec(*c.end_pin);
-  json pins = json::array();
-  for (const Pin& pin : c.pins) pins.push_back({{"s", pin.s}, {"position", Vec(pin.position)}});
-  held["pins"] = pins;
-  json cuts = json::array();
-  for (const Interval& cut : c.cuts) cuts.push_back({{"from", cut.from}, {"to", cut.to}});
-  held["cuts"] = cuts;
-  return held;
-}
+  void OptionalVector(const char* key, std::optional<Vec3>* v) {
+    if (*v) v_[key] = Vec(**v);
+  }
+  void Text(const char* key, std::string* v, pf::Need need = pf::kRequired) {
+    if (need == pf::kRequired || !v->empty()) v_[key] = *v;
+  }
+  void NumberList(const char* key, std::vector<double>* v) {
+    if (!v->empty()) v_[key] = *v;
+  }
+  template <class T, class F>
+  void List(const char* key, std::vector<T>* v, F visit) {
+    nlohmann::json list = nlohmann::json::array();
+    for (T& item : *v) {
+      nlohmann::json object = nlohmann::json::object();
+      ProfileWriter o(&object);
+      visit(o, item);
+      list.push_back(object);
+    }
+    v_[key] = list;
+  }
+  template <class F>
+  void Object(const char* key, F visit) {
+    nlohmann::json object = nlohmann::json::object();
+    ProfileWriter o(&object);
+    visit(o);
+    v_[key] = object;
+  }
+  template <class T, class F>
+  void OptionalObject(const char* key, std::optional<T>* v, F visit) {
+    if (*v) Object(key, [&](ProfileWriter& o) { visit(o, **v); });
+  }
+  void Check(bool, const char*, const std::string&) {}
+
+ private:
+  nlohmann::json& v_;
+};
 
 // Engineering constants of a solid round section (DeriveRoundSection), or null with the reason
 // when a stiffness they need is not determined.
@@ -49,7 +79,12 @@ nlohmann::json DerivedJson(const Material& m, const RodSpec& rod,
                            const std::set<std::string>& undetermined) {
   using nlohmann::json;
   json derived;
-  derived["mass_density"] = rod.radius > 0.0 && !undetermined.count("linear_density")
+  // The rod's density row, when a fit left it undetermined, leaves the mass density unknown.
+  bool density_known = rod.radius > 0.0;
+  for (const MaterialParameterInfo& row : MaterialParameters())
+    if (row.rod_field == &RodSpec::linear_density && undetermined.count(row.name))
+      density_known = false;
+  derived["mass_density"] = density_known
                                 ? json(rod.linear_density / (M_PI * rod.radius * rod.radius))
                                 : json(nullptr);
   for (const MaterialParameterInfo& row : MaterialParameters()) {
@@ -98,66 +133,61 @@ std::string FileDigest(const std::string& path) {
 nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const FitResult& r) {
   using nlohmann::json;
   json p;
-  p["format"] = "rodfit-profile";
-  p["version"] = kProfileVersion;
-  p["rodfit_version"] = RODFIT_VERSION;
+  p[pf::kFormat] = pf::kFormatName;
+  p[pf::kVersion] = kProfileVersion;
+  p[pf::kRodfitVersion] = RODFIT_VERSION;
   const Scene& scene = e.scene;
-  // The rod as fitted: a moving experiment may fit its linear density (a parameter the data do
-  // not determine keeps its start here, and its row says it is not a measurement).
+  ProfileWriter doc(&p);
+  // The rod as fitted: a moving experiment may fit a row of the rod, its linear density (a
+  // parameter the data do not determine keeps its start here, and its row says it is not a
+  // measurement).
   RodSpec rod = scene.rod;
-  for (const ParameterEstimate& est : r.parameters)
-    if (est.name == "linear_density" && (!est.fitted || est.identifiable))
-      rod.linear_density = est.value;
-  p["rod"] = {{"length", rod.length},
-              {"segments", rod.segments},
-              {"radius", rod.radius},
-              {"linear_density", rod.linear_density},
-              {"rest_curvature", Vec(rod.rest_curvature)}};
-  if (!rod.vertex_s.empty()) p["rod"]["vertex_s"] = rod.vertex_s;
-  p["gravity"] = Vec(scene.gravity);
-  if (!scene.cases.empty()) p["held"] = HeldJson(scene.cases.front());
-  json springs = json::array();
-  for (const SpringZone& z : scene.springs) {
-    json zone = {{"from", z.from}, {"to", z.to}};
-    if (!z.parameter.empty()) zone["parameter"] = z.parameter;
-    springs.push_back(zone);
+  for (const Parameter& est : r.parameters) {
+    const MaterialParameterInfo* row = FindMaterialParameter(est.name);
+    if (row && row->rod_field && (!est.fit || est.identifiable)) rod.*(row->rod_field) = est.value;
   }
-  p["springs"] = springs;
-  if (scene.section) {
-    const SectionSpec& sec = *scene.section;
-    p["section"] = {{"radius", sec.radius},
-                    {"nodes", sec.nodes},
-                    {"h_factor", sec.h_factor},
-                    {"stop_factor", sec.stop_factor}};
+  doc.Object(pf::kRod, [&](ProfileWriter& a) { pf::VisitRod(a, rod); });
+  p[pf::kGravity] = Vec(scene.gravity);
+  // The held boundary of the rod as mounted: the first case's clamp, end clamp or end pin,
+  // interior pins and cuts. An instrument's grasp or poke is the simulator's tool, not the rod's.
+  if (!scene.cases.empty()) {
+    LoadCase held = scene.cases.front();
+    doc.Object(pf::kHeld, [&](ProfileWriter& a) { pf::VisitHeld(a, held, rod.length); });
   }
+  std::vector<SpringZone> springs = scene.springs;
+  doc.List(pf::kSprings, &springs,
+           [&](ProfileWriter& a, SpringZone& zone) { pf::VisitSpringZone(a, zone, rod.length); });
+  std::optional<SectionSpec> section = scene.section;
+  doc.OptionalObject(pf::kSection, &section,
+                     [](ProfileWriter& a, SectionSpec& s) { pf::VisitSection(a, s); });
 
   // The material as fitted: a parameter the data do not determine has no value.
   Material fitted = scene.material;
   std::set<std::string> undetermined;
   json params = json::object();
   std::set<std::string> listed;
-  for (const ParameterEstimate& est : r.parameters) {
+  for (const Parameter& est : r.parameters) {
     // A parameter the data do not determine has no value: where the fit stopped (often a bound)
     // would be imported as if measured. Its start is kept apart, under "start".
-    const bool determined = !est.fitted || est.identifiable;
-    json q = {{"value", determined ? json(est.value) : json(nullptr)},
-              {"std", est.std ? json(*est.std) : json(nullptr)},
-              {"fitted", est.fitted},
-              {"identifiable", determined},
-              {"unit", MaterialParameterUnit(est.name)}};
-    if (est.fitted) {
-      q["start"] = est.start;
-      if (!est.identifiable) q["reason"] = est.reason;
-      if (est.at_bound) q["at_bound"] = true;
+    const bool determined = !est.fit || est.identifiable;
+    json q = {{pf::kValue, determined ? json(est.value) : json(nullptr)},
+              {pf::kStd, est.std ? json(*est.std) : json(nullptr)},
+              {pf::kFitted, est.fit},
+              {pf::kIdentifiable, determined},
+              {pf::kUnit, est.unit()}};
+    if (est.fit) {
+      q[pf::kStart] = est.start;
+      if (!est.identifiable) q[pf::kReason] = est.reason;
+      if (est.at_bound) q[pf::kAtBound] = true;
     }
     params[est.name] = q;
     listed.insert(est.name);
-    if (est.name == "linear_density") {
+    const MaterialParameterInfo* row = FindMaterialParameter(est.name);
+    if (row && row->rod_field) {
       if (!determined) undetermined.insert(est.name);  // the rod's: set above
     } else if (determined) {
       // A tied row (bend_stiffness_2 absent) is listed at its row's value but stays tied.
-      const MaterialParameterInfo* row = FindMaterialParameter(est.name);
-      if (!row || !row->tied_to || MaterialParameterValue(scene.material, est.name) || est.fitted)
+      if (!row || !row->tied_to || MaterialParameterValue(scene.material, est.name) || est.fit)
         AssignMaterialParameter(est.name, est.value, &fitted);
     } else {
       undetermined.insert(est.name);
@@ -167,26 +197,28 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
     if (!row.tied_to || params.contains(row.name) || !params.contains(row.tied_to)) continue;
     // Absent in the experiment: tied (isotropic, docs/model.md, "Stiffnesses").
     json q = params[row.tied_to];
-    q["fitted"] = false;
-    q["tied_to"] = row.tied_to;
-    q.erase("start");
-    q.erase("reason");
-    q.erase("at_bound");
+    q[pf::kFitted] = false;
+    q[pf::kTiedTo] = row.tied_to;
+    q.erase(pf::kStart);
+    q.erase(pf::kReason);
+    q.erase(pf::kAtBound);
     params[row.name] = q;
     listed.insert(row.name);
     if (undetermined.count(row.tied_to)) undetermined.insert(row.name);
   }
   // Every other row of the parameter table the model reads, at the scene's value: a simulator
-  // gets damping and the rest explicitly rather than by a default of its own.
+  // gets damping and the rest explicitly rather than by a default of its own. A row of the rod
+  // (its density) is in `rod`, and listed here only when a fit estimated it.
   for (const MaterialParameterInfo& row : MaterialParameters()) {
-    if (listed.count(row.name) || (row.needs_section && !scene.section)) continue;
+    if (listed.count(row.name) || (row.needs_section && !scene.section) || row.rod_field)
+      continue;
     const std::optional<double> v = MaterialParameterValue(scene.material, row.name);
     if (!v) continue;
-    params[row.name] = {{"value", *v}, {"std", nullptr}, {"fitted", false},
-                        {"identifiable", true}, {"unit", row.unit}};
+    params[row.name] = {{pf::kValue, *v}, {pf::kStd, nullptr}, {pf::kFitted, false},
+                        {pf::kIdentifiable, true}, {pf::kUnit, row.unit}};
   }
-  p["parameters"] = params;
-  p["derived"] = DerivedJson(fitted, rod, undetermined);
+  p[pf::kParameters] = params;
+  p[pf::kDerived] = DerivedJson(fitted, rod, undetermined);
   json fit;
   fit["success"] = r.success;
   fit["termination"] = r.message;
@@ -217,6 +249,10 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
       entry["rms_moment"] = o.rms_moment;
       entry["unit_moment"] = "N m";
     }
+    if (std::isfinite(o.rms_roll)) {
+      entry["rms_roll"] = o.rms_roll;
+      entry["unit_roll"] = "deg";
+    }
     rms.push_back(entry);
   }
   fit["rms"] = rms;
@@ -235,7 +271,7 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
       add(o.camera);
     }
   fit["inputs"] = inputs;
-  p["fit"] = fit;
+  p[pf::kFit] = fit;
   return p;
 }
 

@@ -10,27 +10,30 @@ const std::vector<MaterialParameterInfo>& MaterialParameters() {
   using K = ParameterKind;
   static const std::vector<MaterialParameterInfo> rows = {
       {"bend_stiffness", "N m^2", true, true, false, K::kRodStiffness, 0, nullptr,
-       &Material::bend_stiffness, "B1, bending about d1"},
+       &Material::bend_stiffness, nullptr, "B1, bending about d1"},
       {"bend_stiffness_2", "N m^2", true, false, false, K::kRodStiffness, 1, "bend_stiffness",
-       nullptr, "B2, bending about d2 (absent: B1)"},
+       nullptr, nullptr, "B2, bending about d2 (absent: B1)"},
       {"twist_stiffness", "N m^2", true, true, false, K::kRodStiffness, 2, nullptr,
-       &Material::twist_stiffness, "GJ, torsion"},
+       &Material::twist_stiffness, nullptr, "GJ, torsion"},
       {"stretch_stiffness", "N", true, true, false, K::kRodStiffness, 3, nullptr,
-       &Material::stretch_stiffness, "EA, stretch"},
+       &Material::stretch_stiffness, nullptr, "EA, stretch"},
       {"spring_stiffness", "N/m^2", false, false, false, K::kSpring, -1, nullptr,
-       &Material::spring_stiffness, "K, tissue springs of zones without a parameter of their own"},
+       &Material::spring_stiffness, nullptr,
+       "K, tissue springs of zones without a parameter of their own"},
       {"ring_bend_stiffness", "N m^2", true, true, true, K::kRing, 1, nullptr,
-       &Material::ring_bend_stiffness, "kb, bending of the section ring"},
+       &Material::ring_bend_stiffness, nullptr, "kb, bending of the section ring"},
       {"ring_stretch_stiffness", "N", true, true, true, K::kRing, 2, nullptr,
-       &Material::ring_stretch_stiffness, "ks, stretch of the section ring"},
+       &Material::ring_stretch_stiffness, nullptr, "ks, stretch of the section ring"},
       {"damping", "N s/m^2", false, false, false, K::kDamping, -1, nullptr, &Material::damping,
-       "c, external viscous drag per length"},
+       nullptr, "c, external viscous drag per length"},
       {"bend_damping", "N m^2 s", false, false, false, K::kDamping, -1, nullptr,
-       &Material::bend_damping, "eta_B, viscosity of the bending rates"},
+       &Material::bend_damping, nullptr, "eta_B, viscosity of the bending rates"},
       {"twist_damping", "N m^2 s", false, false, false, K::kDamping, -1, nullptr,
-       &Material::twist_damping, "eta_GJ, viscosity of the twist rate"},
+       &Material::twist_damping, nullptr, "eta_GJ, viscosity of the twist rate"},
       {"stretch_damping", "N s", false, false, false, K::kDamping, -1, nullptr,
-       &Material::stretch_damping, "eta_EA, viscosity of the stretch rate"},
+       &Material::stretch_damping, nullptr, "eta_EA, viscosity of the stretch rate"},
+      {"linear_density", "kg/m", true, false, false, K::kMass, -1, nullptr, nullptr,
+       &RodSpec::linear_density, "rho A, the rod's mass per length (a moving scene's parameter)"},
   };
   return rows;
 }
@@ -43,35 +46,47 @@ const MaterialParameterInfo* FindMaterialParameter(const std::string& name) {
 
 const char* MaterialParameterUnit(const std::string& name) {
   const MaterialParameterInfo* row = FindMaterialParameter(name);
-  if (row) return row->unit;
-  // The rod's mass per length: a moving experiment's fitted parameter besides the material's.
-  return name == "linear_density" ? "kg/m" : "N/m^2";
+  return row ? row->unit : "N/m^2";  // a spring zone's own stiffness
 }
 
-std::optional<double> MaterialParameterValue(const Material& material, const std::string& name) {
-  if (const MaterialParameterInfo* row = FindMaterialParameter(name))
+std::optional<double> MaterialParameterValue(const Material& material, const std::string& name,
+                                             const RodSpec* rod) {
+  if (const MaterialParameterInfo* row = FindMaterialParameter(name)) {
+    if (row->rod_field) return rod ? std::optional<double>(rod->*(row->rod_field)) : std::nullopt;
     return row->field ? std::optional<double>(material.*(row->field)) : material.bend_stiffness_2;
+  }
   const auto it = material.spring_parameters.find(name);
   if (it != material.spring_parameters.end()) return it->second;
   return std::nullopt;
 }
 
-double EffectiveMaterialParameter(const Material& material, const std::string& name) {
+double EffectiveMaterialParameter(const Material& material, const std::string& name,
+                                  const RodSpec* rod) {
   if (name == "bend_stiffness_2") return material.B2();
-  const std::optional<double> v = MaterialParameterValue(material, name);
+  const std::optional<double> v = MaterialParameterValue(material, name, rod);
   if (!v) throw std::invalid_argument("'" + name.substr(0, 60) + "' is not a material parameter");
   return *v;
 }
 
-void AssignMaterialParameter(const std::string& name, double value, Material* material) {
+void AssignMaterialParameter(const std::string& name, double value, Material* material,
+                             RodSpec* rod) {
   const MaterialParameterInfo* row = FindMaterialParameter(name);
   if (!row) {
     material->spring_parameters[name] = value;
+  } else if (row->rod_field) {
+    if (!rod) throw std::invalid_argument(name + " is the rod's: set it on a RodSpec");
+    rod->*(row->rod_field) = value;
   } else if (row->field) {
     material->*(row->field) = value;
   } else {
     material->bend_stiffness_2 = value;
   }
+}
+
+const Parameter* FindParameter(const std::vector<Parameter>& parameters, const std::string& name) {
+  for (const Parameter& p : parameters)
+    if (p.name == name) return &p;
+  return nullptr;
 }
 
 RoundSectionConstants DeriveRoundSection(const Material& material, double radius) {

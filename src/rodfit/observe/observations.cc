@@ -60,6 +60,16 @@ void StartJacobian(int num_residuals, int num_vertices, int num_measurements,
   jacobian->entries.reserve(num_measurements);
 }
 
+// The RMS of every model (ObservationModel's comment): its own Evaluate, then sigma |r| / sqrt(M)
+// since |r_k| sigma = |e_k|, so sum_k |e_k|^2 = sigma^2 |r|^2.
+template <class Model>
+bool RmsOf(const Model& model, const Mat3X& x, double* rms) {
+  VecX r;
+  if (!model.Evaluate(x, &r)) return false;
+  *rms = model.sigma() * std::sqrt(r.squaredNorm() / model.num_measurements());
+  return true;
+}
+
 bool FailEvaluation(VecX* residuals) {
   residuals->setConstant(std::numeric_limits<double>::quiet_NaN());
   return false;
@@ -213,15 +223,15 @@ template PolylineFoot ClosestPointOnPolyline<3>(const Eigen::Matrix<double, 3, E
 
 // ---------------------------------------------------------------------------------------------
 
-Observation::Observation(const char* type, int num_vertices, double sigma)
-    : num_vertices_(num_vertices), sigma_(sigma) {
+ObservationModel::ObservationModel(const char* type, int num_vertices, double sigma)
+    : type_(type), num_vertices_(num_vertices), sigma_(sigma) {
   if (num_vertices < 2) Fail(type, "a rod needs at least 2 vertices");
   if (!(std::isfinite(sigma) && sigma > 0.0)) {
     Fail(type, "sigma must be positive and finite (got " + FormatNumber(sigma) + ")");
   }
 }
 
-void Observation::CheckVertices(const Mat3X& x) const {
+void ObservationModel::CheckVertices(const Mat3X& x) const {
   if (x.cols() != num_vertices_) {
     throw std::invalid_argument(std::string(type()) + ": Evaluate: x.cols() == num_vertices() (" +
                                 std::to_string(x.cols()) + " != " +
@@ -229,19 +239,11 @@ void Observation::CheckVertices(const Mat3X& x) const {
   }
 }
 
-bool Observation::RmsError(const Mat3X& x, double* rms) const {
-  VecX r;
-  if (!Evaluate(x, &r)) return false;
-  // |r_k| sigma = |e_k|, so sum_k |e_k|^2 = sigma^2 |r|^2.
-  *rms = sigma_ * std::sqrt(r.squaredNorm() / num_measurements());
-  return true;
-}
-
 // ---------------------------------------------------------------------------------------------
 
 Markers3dObservation::Markers3dObservation(const std::vector<double>& vertex_arc_length,
                                            std::vector<Marker3d> markers, double sigma)
-    : Observation("markers3d", static_cast<int>(vertex_arc_length.size()), sigma),
+    : ObservationModel("markers3d", static_cast<int>(vertex_arc_length.size()), sigma),
       markers_(std::move(markers)) {
   CheckArcLengths(type(), vertex_arc_length);
   if (markers_.empty()) Fail(type(), "no markers");
@@ -278,7 +280,7 @@ bool Markers3dObservation::Evaluate(const Mat3X& x, VecX* residuals,
 
 Points3dObservation::Points3dObservation(int num_vertices, std::vector<Eigen::Vector3d> samples,
                                          double sigma)
-    : Observation("points3d", num_vertices, sigma), samples_(std::move(samples)) {
+    : ObservationModel("points3d", num_vertices, sigma), samples_(std::move(samples)) {
   if (samples_.empty()) Fail(type(), "no samples");
   for (size_t k = 0; k < samples_.size(); ++k) {
     if (!samples_[k].allFinite()) {
@@ -323,7 +325,7 @@ ImageMarkersObservation::ImageMarkersObservation(const std::vector<double>& vert
                                                  const Camera& camera,
                                                  std::vector<MarkerPixel> markers,
                                                  double sigma_px)
-    : Observation("image_points", static_cast<int>(vertex_arc_length.size()), sigma_px),
+    : ObservationModel("image_points", static_cast<int>(vertex_arc_length.size()), sigma_px),
       camera_(camera),
       markers_(std::move(markers)) {
   CheckArcLengths(type(), vertex_arc_length);
@@ -371,7 +373,7 @@ bool ImageMarkersObservation::Evaluate(const Mat3X& x, VecX* residuals,
 ImageCurveObservation::ImageCurveObservation(int num_vertices, const Camera& camera,
                                              std::vector<Eigen::Vector2d> pixels,
                                              double sigma_px)
-    : Observation("image_points", num_vertices, sigma_px),
+    : ObservationModel("image_points", num_vertices, sigma_px),
       camera_(camera),
       pixels_(std::move(pixels)) {
   CheckCamera(camera_);
@@ -417,6 +419,19 @@ bool ImageCurveObservation::Evaluate(const Mat3X& x, VecX* residuals,
     }
   }
   return true;
+}
+
+bool Markers3dObservation::RmsError(const Mat3X& x, double* rms) const {
+  return RmsOf(*this, x, rms);
+}
+bool Points3dObservation::RmsError(const Mat3X& x, double* rms) const {
+  return RmsOf(*this, x, rms);
+}
+bool ImageMarkersObservation::RmsError(const Mat3X& x, double* rms) const {
+  return RmsOf(*this, x, rms);
+}
+bool ImageCurveObservation::RmsError(const Mat3X& x, double* rms) const {
+  return RmsOf(*this, x, rms);
 }
 
 }  // namespace rodfit

@@ -44,22 +44,28 @@ std::vector<std::string> WriteFitReport(StagedDirectory* out, const Experiment& 
   }
   for (size_t c = 0; c < input.cases.size() && c < result.shapes.size(); ++c) {
     const FitCase& fc = input.cases[c];
-    for (size_t k = 0; k < fc.observations.size(); ++k) {
-      const Observation& obs = *fc.observations[k];
-      VecX r;
-      if (!obs.Evaluate(result.shapes[c], &r)) continue;
-      const int dim = obs.num_residuals() / std::max(1, obs.num_measurements());
-      for (int m = 0; m < obs.num_measurements(); ++m) {
+    // The centre-line observations from the fitted shape; the others' below, from the fit.
+    SolvedCase at;
+    at.x = &result.shapes[c];
+    for (const auto& meas : fc.measurements) {
+      if (!meas->reads_vertices_only()) continue;
+      std::vector<double> r(meas->num_residuals());
+      std::string why;
+      if (!meas->Evaluate(at, r.data(), nullptr, &why)) continue;
+      for (int m = 0, row = 0; m < meas->num_samples(); ++m) {
+        const int dim = meas->sample_rows(m);
+        const double sigma = meas->sample_sigma(m);
         double err[3] = {0, 0, 0}, n2 = 0;
         for (int i = 0; i < dim; ++i) {
-          err[i] = r[m * dim + i] * obs.sigma();
+          err[i] = r[row + i] * sigma;
           n2 += err[i] * err[i];
         }
+        row += dim;
         const double norm = std::sqrt(n2);
-        residuals << fc.load_case.name << "," << fc.labels[k] << "," << obs.unit() << ","
-                  << m << "," << FormatDouble(err[0]) << "," << FormatDouble(err[1]) << ","
+        residuals << fc.load_case.name << "," << meas->label() << "," << meas->sample_unit(m)
+                  << "," << m << "," << FormatDouble(err[0]) << "," << FormatDouble(err[1]) << ","
                   << FormatDouble(err[2]) << "," << FormatDouble(norm) << ","
-                  << FormatDouble(norm / obs.sigma()) << "\n";
+                  << FormatDouble(norm / sigma) << "\n";
       }
     }
   }

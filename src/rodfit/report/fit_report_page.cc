@@ -21,8 +21,9 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/io/image_observations.h"
+#include "rodfit/io/image_files.h"
 #include "rodfit/model/rod.h"
+#include "rodfit/pipeline/observation_kind.h"
 #include "rodfit/report/fit_report.h"
 #include "rodfit/report/fit_views3d.h"
 #include "rodfit/report/plotly_library.h"
@@ -130,13 +131,11 @@ std::string FileName(const std::string& path) {
   return std::filesystem::path(path).filename().string();
 }
 
-// The label fit_input.cc gives an entry (ObservationFit::label, FitCase::labels).
-std::string EntryLabel(const ObservationSpec& spec) {
-  return spec.type + " " + FileName(spec.file);
-}
-
-bool IsCentreLineType(const std::string& type) {
-  return type == "markers3d" || type == "points3d" || type == "image_points" || type == "images";
+// The views of entries whose measurement is a centre-line observation.
+bool IsCentreLine(const ObservationSpec& spec) {
+  const ReportView view = KindOf(spec).view;
+  return view == ReportView::kMarkers3d || view == ReportView::kPoints3d ||
+         view == ReportView::kPixels || view == ReportView::kImage;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -200,19 +199,22 @@ void AcrossComponents(const Eigen::Matrix3Xd& polyline, const Eigen::Vector3d& q
 
 // Per measurement of a centre-line observation at `shape`: its noisy components in sigmas.
 // Empty when the observation cannot be evaluated there.
-std::vector<std::vector<double>> NoisyComponents(const Observation& obs, const Mat3X& shape) {
+std::vector<std::vector<double>> NoisyComponents(const Measurement& obs, const Mat3X& shape) {
   std::vector<std::vector<double>> out;
-  VecX r;
-  if (!obs.Evaluate(shape, &r)) return out;
+  SolvedCase at;
+  at.x = &shape;
+  VecX r(obs.num_residuals());
+  std::string why;
+  if (!obs.Evaluate(at, r.data(), nullptr, &why)) return out;
   const int n = obs.num_measurements();
   const int dim = n > 0 ? obs.num_residuals() / n : 0;
   out.resize(n);
-  if (const auto* points = dynamic_cast<const Points3dObservation*>(&obs)) {
+  if (const auto* points = ModelOf<Points3dObservation>(obs)) {
     for (int m = 0; m < n; ++m)
       AcrossComponents(shape, points->samples()[m], r.segment<3>(3 * m), &out[m]);
     return out;
   }
-  if (const auto* curve = dynamic_cast<const ImageCurveObservation*>(&obs)) {
+  if (const auto* curve = ModelOf<ImageCurveObservation>(obs)) {
     Eigen::Matrix2Xd uv(2, shape.cols());
     bool projected = true;
     for (int i = 0; i < shape.cols() && projected; ++i) {
@@ -486,33 +488,30 @@ class Builder {
     h << "<table class=\"parameters\">\n<tr><th>parameter</th><th>value ± std</th><th>unit</th>"
          "<th>relative std</th><th>identifiable</th><th>start</th><th>bounds</th>"
          "<th>at a bound</th></tr>\n";
-    std::vector<const ParameterEstimate*> held;
-    for (const ParameterEstimate& p : r_.parameters) {
-      if (!p.fitted) {
+    std::vector<const Parameter*> held;
+    for (const Parameter& p : r_.parameters) {
+      if (!p.fit) {
         held.push_back(&p);
         continue;
       }
-      const FitParameter* spec = nullptr;
-      for (const FitParameter& f : in_.parameters)
-        if (f.name == p.name) spec = &f;
       h << "<tr class=\"parameter" << (p.identifiable ? "" : " not-identifiable")
         << "\" data-name=\"" << Escape(p.name) << "\"><td><code>" << Escape(p.name)
         << "</code></td>";
       if (p.identifiable && p.std) {
         h << "<td class=\"num\">" << HtmlNumber(p.value) << " ± " << HtmlNumber(*p.std, 2)
-          << "</td><td>" << HtmlUnit(p.unit) << "</td><td class=\"num\">"
+          << "</td><td>" << HtmlUnit(p.unit()) << "</td><td class=\"num\">"
           << (p.value != 0 ? Percent(*p.std / std::abs(p.value)) : "—") << "</td>"
           << "<td>yes</td>";
       } else {
         // Where the fit stopped is not a measurement: no number an importer could mistake.
-        h << "<td class=\"num\">not determined</td><td>" << HtmlUnit(p.unit)
+        h << "<td class=\"num\">not determined</td><td>" << HtmlUnit(p.unit())
           << "</td><td class=\"num\">—</td><td><span class=\"verdict-no\">no</span>: "
           << Escape(p.reason) << "</td>";
       }
       h << "<td class=\"num\">" << WithUnit(p.start, "") << "</td><td class=\"num\">";
-      if (spec && (spec->min || spec->max))
-        h << "[" << (spec->min ? HtmlNumber(*spec->min) : "0") << ", "
-          << (spec->max ? HtmlNumber(*spec->max) : "∞") << "]";
+      if (p.min || p.max)
+        h << "[" << (p.min ? HtmlNumber(*p.min) : "0") << ", "
+          << (p.max ? HtmlNumber(*p.max) : "∞") << "]";
       else
         h << "none";
       h << "</td><td>" << (p.at_bound ? "<span class=\"warn\">yes</span>" : "no") << "</td></tr>\n";
@@ -521,9 +520,9 @@ class Builder {
     if (!held.empty()) {
       h << "<p>Held at their given values:</p>\n<table class=\"held\">\n<tr><th>parameter</th>"
            "<th>value</th><th>unit</th></tr>\n";
-      for (const ParameterEstimate* p : held)
+      for (const Parameter* p : held)
         h << "<tr><td><code>" << Escape(p->name) << "</code></td><td class=\"num\">"
-          << HtmlNumber(p->value) << "</td><td>" << HtmlUnit(p->unit) << "</td></tr>\n";
+          << HtmlNumber(p->value) << "</td><td>" << HtmlUnit(p->unit()) << "</td></tr>\n";
       h << "</table>\n";
     }
     // Correlations among the fitted parameters (of their logs), coloured: red positive, blue
@@ -620,7 +619,8 @@ class Builder {
     std::vector<RecordedSample> out;
     const std::string& case_name = e_.scene.cases[c].name;
     for (const ObservationSpec& spec : e_.cases[c].observations) {
-      if (spec.type != "markers3d" && spec.type != "points3d") continue;
+      const ReportView view = KindOf(spec).view;
+      if (view != ReportView::kMarkers3d && view != ReportView::kPoints3d) continue;
       const std::string label = EntryLabel(spec);
       std::vector<SequenceSample> samples;
       try {
@@ -654,7 +654,7 @@ class Builder {
     std::vector<RecordedForce> out;
     const std::string& case_name = e_.scene.cases[c].name;
     for (const ObservationSpec& spec : e_.cases[c].observations) {
-      if (spec.type != "reaction") continue;
+      if (KindOf(spec).view != ReportView::kReaction) continue;
       const std::string label = EntryLabel(spec);
       std::map<double, Vec3> recorded;  // as ReactionSequenceViews reads them
       try {
@@ -697,13 +697,13 @@ class Builder {
   void CameraViews(size_t c) {
     const FitCase& fc = in_.cases[c];
     // Entries in the order fit_input.cc loaded them: centre-line types only.
-    using Entry = std::pair<const ObservationSpec*, const Observation*>;
+    using Entry = std::pair<const ObservationSpec*, const Measurement*>;
     std::map<std::string, std::vector<Entry>> by_camera;
     std::vector<std::string> order;
     size_t j = 0;
     for (const ObservationSpec& spec : e_.cases[c].observations) {
-      if (!IsCentreLineType(spec.type)) continue;
-      const Observation* obs = j < fc.observations.size() ? fc.observations[j].get() : nullptr;
+      if (!IsCentreLine(spec)) continue;
+      const Measurement* obs = j < fc.measurements.size() ? fc.measurements[j].get() : nullptr;
       ++j;
       if (spec.camera.empty() || !obs) continue;
       if (!by_camera.count(CameraKey(spec))) order.push_back(CameraKey(spec));
@@ -718,8 +718,8 @@ class Builder {
       const std::string camera_index = bracket == std::string::npos ? "" : camera_key.substr(bracket);
       const Camera* cam = nullptr;
       for (const auto& [spec, obs] : entries) {
-        if (const auto* m = dynamic_cast<const ImageMarkersObservation*>(obs)) cam = &m->camera();
-        if (const auto* m = dynamic_cast<const ImageCurveObservation*>(obs)) cam = &m->camera();
+        if (const auto* m = ModelOf<ImageMarkersObservation>(*obs)) cam = &m->camera();
+        if (const auto* m = ModelOf<ImageCurveObservation>(*obs)) cam = &m->camera();
       }
       if (!cam) continue;
       svg::Figure f;
@@ -764,16 +764,17 @@ class Builder {
       fitted_markers.line = false;
       fitted_markers.marker = svg::Marker::kCross;
       for (const auto& [spec, obs] : entries) {
-        if (spec->type == "images") image_file = spec->file;
+        const bool image = KindOf(*spec).view == ReportView::kImage;
+        if (image) image_file = spec->file;
         svg::Series s;
-        s.label = spec->type == "images" ? "pixels extracted from " + FileName(spec->file)
-                                         : "observed " + FileName(spec->file);
+        s.label = image ? "pixels extracted from " + FileName(spec->file)
+                        : "observed " + FileName(spec->file);
         s.colour = colour++ == 0 ? kObserved : "#e377c2";
         s.line = false;
         s.marker = svg::Marker::kCircle;
         s.hollow = true;
         s.marker_size = 3.5;
-        if (const auto* m = dynamic_cast<const ImageMarkersObservation*>(obs)) {
+        if (const auto* m = ModelOf<ImageMarkersObservation>(*obs)) {
           VecX r;
           const bool ok = m->Evaluate(shape, &r);
           for (size_t k = 0; k < m->markers().size(); ++k) {
@@ -788,7 +789,7 @@ class Builder {
               fitted_markers.y.push_back(model.y());
             }
           }
-        } else if (const auto* m = dynamic_cast<const ImageCurveObservation*>(obs)) {
+        } else if (const auto* m = ModelOf<ImageCurveObservation>(*obs)) {
           // Thousands of pixels extracted from an image would hide the image and the fitted
           // line: every k-th is drawn, as the legend says. Not in the zoom (an outlier far
           // from the thread would zoom out to the whole frame); the figure says how many lie
@@ -877,9 +878,9 @@ class Builder {
     const Mat3X& shape = r_.shapes[c];
     std::vector<const Markers3dObservation*> markers;
     std::vector<const Points3dObservation*> points;
-    for (const auto& o : fc.observations) {
-      if (const auto* m = dynamic_cast<const Markers3dObservation*>(o.get())) markers.push_back(m);
-      if (const auto* p = dynamic_cast<const Points3dObservation*>(o.get())) points.push_back(p);
+    for (const auto& o : fc.measurements) {
+      if (const auto* m = ModelOf<Markers3dObservation>(*o)) markers.push_back(m);
+      if (const auto* p = ModelOf<Points3dObservation>(*o)) points.push_back(p);
     }
     if (markers.empty() && points.empty()) return;
     std::vector<Eigen::Vector3d> all;
@@ -959,7 +960,10 @@ class Builder {
   // The poked cross-section in its plane: rest ring, fitted deformed ring, measured points.
   void SectionView(size_t c) {
     const FitCase& fc = in_.cases[c];
-    if (fc.surface_points.empty() || c >= r_.sections.size() || r_.sections[c].cols() < 3) return;
+    std::vector<const SurfacePointSet*> surface;
+    for (const auto& o : fc.measurements)
+      if (const auto* set = dynamic_cast<const SurfacePointSet*>(o.get())) surface.push_back(set);
+    if (surface.empty() || c >= r_.sections.size() || r_.sections[c].cols() < 3) return;
     const Eigen::Matrix3Xd& rest = r_.rest_sections[c];
     const Eigen::Matrix3Xd& ring = r_.sections[c];
     // The section's plane: normal = the rest ring's least-spread direction; in-plane axes are
@@ -1010,15 +1014,15 @@ class Builder {
     if (k > 1)
       add_ring(rest + k * (ring - rest),
                "fitted dent magnified × " + svg::FormatTick(k, k), "#9467bd", false);
-    for (const SurfacePoints& sp : fc.surface_points) {
+    for (const SurfacePointSet* sp : surface) {
       svg::Series s;
-      s.label = "measured " + sp.label.substr(sp.label.find(' ') + 1);
+      s.label = "measured " + sp->label().substr(sp->label().find(' ') + 1);
       s.colour = kObserved;
       s.line = false;
       s.marker = svg::Marker::kCircle;
       s.hollow = true;
       s.marker_size = 3.5;
-      for (const Eigen::Vector3d& q : sp.points) {
+      for (const Eigen::Vector3d& q : sp->points()) {
         s.x.push_back(kMm * u.dot(q));
         s.y.push_back(kMm * v.dot(q));
       }
@@ -1049,7 +1053,7 @@ class Builder {
     const CsvTable table = CsvTable::Read(spec.file);
     const bool by_time = table.HasColumn("t");
     const std::vector<double> key = table.Column(by_time ? "t" : "frame");
-    const bool pixels = spec.type == "image_points";
+    const bool pixels = KindOf(spec).view == ReportView::kPixels;
     const std::vector<std::string> cols = pixels ? std::vector<std::string>{"u", "v"}
                                                  : std::vector<std::string>{"x", "y", "z"};
     std::vector<std::vector<std::string>> text;
@@ -1076,7 +1080,7 @@ class Builder {
     const std::string& case_name = e_.scene.cases[c].name;
     for (const ObservationSpec& spec : e_.cases[c].observations) {
       const std::string label = EntryLabel(spec);
-      if (spec.type == "reaction") {
+      if (KindOf(spec).view == ReportView::kReaction) {
         ReactionSequenceViews(c, spec, label);
         continue;
       }
@@ -1094,7 +1098,7 @@ class Builder {
         continue;  // the file changed since the fit read it: nothing to draw from
       }
       if (samples.size() != errors.size()) continue;
-      const bool pixels = spec.type == "image_points";
+      const bool pixels = KindOf(spec).view == ReportView::kPixels;
       const std::string unit = pixels ? "px" : "mm";
       const double scale = pixels ? 1.0 : 1e3;
       const std::string attrs = " data-case=\"" + Escape(case_name) + "\" data-entry=\"" + Escape(label) + "\"";
@@ -1290,7 +1294,8 @@ class Builder {
     std::map<std::string, const ObservationSpec*> spec_of;
     std::vector<std::string> order;
     for (const ObservationSpec& spec : e_.cases[c].observations)
-      if (spec.type == "grasp_force" || spec.type == "reaction") {
+      if (KindOf(spec).view == ReportView::kHapticLog ||
+          KindOf(spec).view == ReportView::kReaction) {
         const std::string label = EntryLabel(spec);
         if (!spec_of.count(label)) order.push_back(label);
         spec_of[label] = &spec;
@@ -1304,12 +1309,15 @@ class Builder {
       const FitCase& fc = in_.cases[mr.case_index];
       int k = seen[{mr.case_index, mr.observation}]++;
       const ForceMeasurement* fm = nullptr;
-      for (const ForceMeasurement& g : fc.grasp_forces) {
-        const std::string& name = g.observation.empty() ? g.label : g.observation;
-        if (name == mr.observation && k-- == 0) {
-          fm = &g;
-          break;
-        }
+      for (const auto& meas : fc.measurements) {
+        const auto* forces = dynamic_cast<const ForceReadings*>(meas.get());
+        if (!forces || forces->label() != mr.observation) continue;
+        for (const ForceMeasurement& g : forces->readings())
+          if (k-- == 0) {
+            fm = &g;
+            break;
+          }
+        if (fm) break;
       }
       if (!fm) continue;
       auto& list = readings[mr.observation];
@@ -1321,7 +1329,7 @@ class Builder {
       std::sort(list.begin(), list.end(),
                 [](const Reading& a, const Reading& b) { return a.x < b.x; });
       const ObservationSpec& spec = *spec_of[label];
-      const bool haptic = spec.type == "grasp_force";
+      const bool haptic = KindOf(spec).view == ReportView::kHapticLog;
       const std::string xlabel = haptic ? "t [s]" : "reading";
       const std::string attrs = " data-case=\"" + Escape(e_.scene.cases[c].name) +
                                 "\" data-entry=\"" + Escape(label) + "\"";
@@ -1440,13 +1448,11 @@ class Builder {
       if (shapes_ok_) {
         const Mat3X& shape = r_.shapes[ci];
         const std::vector<double> arc = VertexArcLengths(fc, shape.cols());
-        for (size_t k = 0; k < fc.observations.size(); ++k) {
-          const std::string label =
-              k < fc.labels.size() ? fc.labels[k] : fc.observations[k]->type();
-          ResidualSeries& s = series(label, ResidualSeries::Along::kArc);
-          const Observation& obs = *fc.observations[k];
-          const auto comps = NoisyComponents(obs, shape);
-          const std::vector<double> where = MeasurementArcLengths(obs, shape, arc);
+        for (const auto& meas : fc.measurements) {
+          if (!meas->reads_vertices_only()) continue;  // listed below, from the fit
+          ResidualSeries& s = series(meas->label(), ResidualSeries::Along::kArc);
+          const auto comps = NoisyComponents(*meas, shape);
+          const std::vector<double> where = MeasurementArcLengths(*meas, shape, arc);
           for (size_t m = 0; m < comps.size() && m < where.size(); ++m)
             for (double v : comps[m]) {
               s.x.push_back(where[m]);
@@ -1467,30 +1473,37 @@ class Builder {
         ResidualSeries::Along along = ResidualSeries::Along::kReading;
         if (mr.unit == "N" || mr.unit == "N m") {
           int k = readings[{mr.observation, mr.unit}]++;
-          for (const ForceMeasurement& fm : fc.grasp_forces) {
-            const std::string& name = fm.observation.empty() ? fm.label : fm.observation;
-            if (name != mr.observation || k-- != 0) continue;
-            x = HeldArcLength(fc.load_case, fm.point);
-            if (std::isfinite(x)) along = ResidualSeries::Along::kArc;
+          for (const auto& meas : fc.measurements) {
+            const auto* forces = dynamic_cast<const ForceReadings*>(meas.get());
+            if (!forces || forces->label() != mr.observation) continue;
+            for (const ForceMeasurement& fm : forces->readings()) {
+              if (k-- != 0) continue;
+              x = HeldArcLength(fc.load_case, fm.point);
+              if (std::isfinite(x)) along = ResidualSeries::Along::kArc;
+              break;
+            }
             break;
           }
         }
         if (mr.unit == "m" && shapes_ok_ && ci < r_.sections.size() && r_.sections[ci].cols() > 2) {
           // A surface point: across the ring, as the centre-line points, at its angle around
           // the section.
-          for (const SurfacePoints& sp : fc.surface_points)
-            if (sp.label == mr.observation && mr.measurement < static_cast<int>(sp.points.size())) {
-              AcrossComponents(Closed(r_.sections[ci]), sp.points[mr.measurement], e, &comps);
-              x = AngleAroundSection(r_.rest_sections[ci], sp.points[mr.measurement]);
-              along = ResidualSeries::Along::kAngle;
-            }
+          for (const auto& meas : fc.measurements)
+            if (const auto* sp = dynamic_cast<const SurfacePointSet*>(meas.get()))
+              if (sp->label() == mr.observation &&
+                  mr.measurement < static_cast<int>(sp->points().size())) {
+                const Eigen::Vector3d& q = sp->points()[mr.measurement];
+                AcrossComponents(Closed(r_.sections[ci]), q, e, &comps);
+                x = AngleAroundSection(r_.rest_sections[ci], q);
+                along = ResidualSeries::Along::kAngle;
+              }
         }
         ResidualSeries& s = series(label, along);
         if (along == ResidualSeries::Along::kReading)
           x = static_cast<double>(s.x.empty() ? 1 : s.x.back() + 1);
         else if (s.along != along)
           continue;  // an entry drawn against another axis (cannot happen: one kind per entry)
-        if (comps.empty()) comps = {e.x(), e.y(), e.z()};
+        if (comps.empty()) comps.assign(e.data(), e.data() + mr.components);
         for (double v : comps) {
           s.x.push_back(x);
           s.sigmas.push_back(v);
@@ -1530,7 +1543,7 @@ class Builder {
 
   // Where on the rod each measurement of a centre-line observation lies [m]: a marker's s, a
   // point's or pixel's closest point on the fitted centre-line (projected, for pixels).
-  static std::vector<double> MeasurementArcLengths(const Observation& obs, const Mat3X& shape,
+  static std::vector<double> MeasurementArcLengths(const Measurement& obs, const Mat3X& shape,
                                                    const std::vector<double>& arc) {
     std::vector<double> out;
     auto at_foot = [&](const PolylineFoot& foot) {
@@ -1539,14 +1552,14 @@ class Builder {
         return std::numeric_limits<double>::quiet_NaN();
       return arc[foot.edge] + foot.t * (arc[foot.edge + 1] - arc[foot.edge]);
     };
-    if (const auto* m = dynamic_cast<const Markers3dObservation*>(&obs)) {
+    if (const auto* m = ModelOf<Markers3dObservation>(obs)) {
       for (const Marker3d& k : m->markers()) out.push_back(k.s);
-    } else if (const auto* m = dynamic_cast<const ImageMarkersObservation*>(&obs)) {
+    } else if (const auto* m = ModelOf<ImageMarkersObservation>(obs)) {
       for (const MarkerPixel& k : m->markers()) out.push_back(k.s);
-    } else if (const auto* p = dynamic_cast<const Points3dObservation*>(&obs)) {
+    } else if (const auto* p = ModelOf<Points3dObservation>(obs)) {
       for (const Eigen::Vector3d& q : p->samples())
         out.push_back(at_foot(ClosestPointOnPolyline<3>(shape, q)));
-    } else if (const auto* curve = dynamic_cast<const ImageCurveObservation*>(&obs)) {
+    } else if (const auto* curve = ModelOf<ImageCurveObservation>(obs)) {
       Eigen::Matrix2Xd uv(2, shape.cols());
       bool projected = true;
       for (int i = 0; i < shape.cols() && projected; ++i) {
@@ -1723,6 +1736,7 @@ class Builder {
         << Escape(o.type) << "</td><td class=\"num\">" << o.num_measurements
         << "</td><td class=\"num\">" << WithUnit(o.rms, o.unit, 3);
       if (std::isfinite(o.rms_moment)) h << "; moments " << WithUnit(o.rms_moment, "N m", 3);
+      if (std::isfinite(o.rms_roll)) h << "; roll " << WithUnit(o.rms_roll, "deg", 3);
       h << "</td></tr>\n";
     }
     h << "</table>\n</section>\n";

@@ -166,11 +166,20 @@ void DrawArrows(const std::string& name, const ArrowSet& set, double metres_per_
   }
 }
 
+// The case's force readings in residual order (each ForceReadings' readings in turn).
+std::vector<const ForceMeasurement*> Readings(const FitCase& fc) {
+  std::vector<const ForceMeasurement*> out;
+  for (const auto& meas : fc.measurements)
+    if (const auto* forces = dynamic_cast<const ForceReadings*>(meas.get()))
+      for (const ForceMeasurement& m : forces->readings()) out.push_back(&m);
+  return out;
+}
+
 double LargestForce(const FitCase& fc, const FitResult& r, size_t ci) {
   double f = fc.load_case.tip_force.norm();
   for (const PointForce& p : fc.load_case.point_forces) f = std::max(f, p.force.norm());
   if (fc.load_case.poke) f = std::max(f, fc.load_case.poke->force.norm());
-  for (const ForceMeasurement& m : fc.grasp_forces) f = std::max(f, m.force.norm());
+  for (const ForceMeasurement* m : Readings(fc)) f = std::max(f, m->force.norm());
   for (const MeasurementResidual& mr : r.measurement_residuals)
     if (mr.case_index == static_cast<int>(ci) && mr.unit == "N") f = std::max(f, mr.error.norm());
   return f;
@@ -210,8 +219,9 @@ std::vector<json> MovingPart(const FitInput& in, const FitResult& r, size_t ci, 
   traces.push_back(view3d::Points("instrument (grasp)", where, hover, grasp));
   ArrowSet measured, fitted;
   const std::vector<const MeasurementResidual*> errors = ForceResiduals(r, ci);
-  for (size_t k = 0; k < fc.grasp_forces.size(); ++k) {
-    const ForceMeasurement& m = fc.grasp_forces[k];
+  const std::vector<const ForceMeasurement*> readings = Readings(fc);
+  for (size_t k = 0; k < readings.size(); ++k) {
+    const ForceMeasurement& m = *readings[k];
     // Where the reading was taken: the grasp, or another held point (a reaction entry).
     Eigen::Vector3d at = fc.load_case.grasp && m.point == "grasp" ? fc.load_case.grasp->position
                                                                    : Eigen::Vector3d(shape.col(0));
@@ -309,26 +319,30 @@ view3d::View StaticCaseView(const Experiment& /*experiment: the static case is i
   HeldPoints(fc.load_case, L, &view.traces);
 
   // Markers and points with their residual vectors.
-  for (size_t k = 0; k < fc.observations.size(); ++k) {
-    const Observation& obs = *fc.observations[k];
-    const std::string label = Text(k < fc.labels.size() ? fc.labels[k] : obs.type());
-    VecX res;
-    const bool ok = obs.Evaluate(shape, &res);
+  for (const auto& meas : fc.measurements) {
+    if (!meas->reads_vertices_only()) continue;
+    const Measurement& obs = *meas;
+    const std::string label = Text(obs.label());
+    SolvedCase at;
+    at.x = &shape;
+    VecX res(obs.num_residuals());
+    std::string why;
+    const bool ok = obs.Evaluate(at, res.data(), nullptr, &why);
     std::vector<Eigen::Vector3d> seen, model;
     std::vector<std::string> hover;
     auto add = [&](const Eigen::Vector3d& q, const Eigen::Vector3d& e_sigma, const std::string& what) {
-      const Eigen::Vector3d e = e_sigma * obs.sigma();
+      const Eigen::Vector3d e = e_sigma * obs.sample_sigma(0);
       seen.push_back(q);
       model.push_back(ok ? Eigen::Vector3d(q + e) : Eigen::Vector3d::Constant(NAN));
       hover.push_back(what + (ok ? "<br>residual (model − measured) " + Mm(e.norm()) + " = " +
                                        Num(e_sigma.norm(), "%.2f") + " σ"
                                  : std::string()));
     };
-    if (const auto* m = dynamic_cast<const Markers3dObservation*>(&obs)) {
+    if (const auto* m = ModelOf<Markers3dObservation>(obs)) {
       for (size_t i = 0; i < m->markers().size(); ++i)
         add(m->markers()[i].p_world, ok ? Eigen::Vector3d(res.segment<3>(3 * i)) : Eigen::Vector3d::Zero(),
             "marker at " + Arc(m->markers()[i].s));
-    } else if (const auto* p = dynamic_cast<const Points3dObservation*>(&obs)) {
+    } else if (const auto* p = ModelOf<Points3dObservation>(obs)) {
       for (size_t i = 0; i < p->samples().size(); ++i)
         add(p->samples()[i], ok ? Eigen::Vector3d(res.segment<3>(3 * i)) : Eigen::Vector3d::Zero(),
             "point " + std::to_string(i + 1));
@@ -354,14 +368,18 @@ view3d::View StaticCaseView(const Experiment& /*experiment: the static case is i
                                            Columns(model), hover, arrow));
   }
   // Surface points of a poke, with their residuals to the fitted section.
-  for (const SurfacePoints& sp : fc.surface_points) {
+  for (const auto& meas : fc.measurements) {
+    const auto* set = dynamic_cast<const SurfacePointSet*>(meas.get());
+    if (!set) continue;
+    const std::vector<Eigen::Vector3d>& points = set->points();
     std::vector<Eigen::Vector3d> seen, model;
     std::vector<std::string> hover;
     size_t i = 0;
     for (const MeasurementResidual& mr : r.measurement_residuals) {
-      if (mr.case_index != static_cast<int>(c) || mr.observation != sp.label || mr.unit != "m") continue;
-      if (mr.measurement < 0 || mr.measurement >= static_cast<int>(sp.points.size())) continue;
-      const Eigen::Vector3d q = sp.points[mr.measurement];
+      if (mr.case_index != static_cast<int>(c) || mr.observation != set->label() || mr.unit != "m")
+        continue;
+      if (mr.measurement < 0 || mr.measurement >= static_cast<int>(points.size())) continue;
+      const Eigen::Vector3d q = points[mr.measurement];
       seen.push_back(q);
       model.push_back(q + mr.error);
       hover.push_back("surface point " + std::to_string(++i) + "<br>residual " + Mm(mr.error.norm()) +
@@ -371,7 +389,8 @@ view3d::View StaticCaseView(const Experiment& /*experiment: the static case is i
     observed.colour = kObserved;
     observed.symbol = "circle";
     observed.width = 2;
-    view.traces.push_back(view3d::Points("measured: " + Text(sp.label), Columns(seen), hover, observed));
+    view.traces.push_back(
+        view3d::Points("measured: " + Text(set->label()), Columns(seen), hover, observed));
     Style arrow;
     arrow.colour = kResidual;
     arrow.width = 4;

@@ -130,7 +130,7 @@ void ValidateForExport(const Profile& p) {
   if (rod.radius != 0.0)
     if (const std::string why = CheckRodRadius(rod.radius, rod.length); !why.empty())
       throw ProfileError(p.path, "rod.radius", why);
-  for (const ProfileParameter& parameter : p.parameters) {
+  for (const Parameter& parameter : p.parameters) {
     if (!(std::abs(parameter.value) <= kMaxExportParameter))
       throw ProfileError(p.path, "parameters." + parameter.name + ".value",
                          Show(parameter.value) + " is beyond " + Show(kMaxExportParameter) +

@@ -16,17 +16,13 @@
 
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod_radius.h"
+#include "rodfit/runtime/profile_format.h"
 
 namespace rodfit {
 namespace {
 
 using nlohmann::json;
-
-// Below this sine of the angle between a clamp's tangent and normal the frame is taken to be a
-// mistake (the scene reader's limit).
-constexpr double kMinClampSine = 1e-3;
-constexpr int kMaxProfileSegments = 100000;  // the scene reader's rod.segments limit
-constexpr int kMaxProfileSectionNodes = 256;
+namespace pf = profile_format;
 
 std::string Show(double v) {
   char buffer[32];
@@ -113,184 +109,177 @@ class Reader {
   std::string path_;
 };
 
-// A direction that must not be zero.
-Vec3 Direction(const Reader& r, const json& v, const std::string& key) {
-  const Vec3 d = r.Vector3(v, key);
-  if (!(d.norm() > 0.0)) r.Fail(key, "must not be zero");
-  return d;
-}
+// The reader's archive of rodfit/runtime/profile_format.h over one JSON object: each key the
+// format declares is read and checked with its dotted path; a key it does not declare is an
+// error. Collecting (before reading), it only records the keys declared, so that an unknown key
+// is named before any value is read.
+class ProfileReader {
+ public:
+  ProfileReader(const Reader& r, const json& object, std::string key, bool collect = false)
+      : r_(r), v_(object), key_(std::move(key)), collect_(collect) {}
 
-void CheckFrame(const Reader& r, const Vec3& tangent, const Vec3& normal, const std::string& key) {
-  if (tangent.cross(normal).norm() < kMinClampSine * tangent.norm() * normal.norm())
-    r.Fail(key, "is (nearly) parallel to the tangent");
-}
-
-RodSpec ReadRod(const Reader& r, const json& v) {
-  r.Object(v, "rod", {"length", "segments", "radius", "linear_density", "rest_curvature",
-                      "vertex_s"});
-  RodSpec rod;
-  rod.length = r.Positive(r.Require(v, "rod", "length"), "rod.length");
-  rod.segments = r.Integer(r.Require(v, "rod", "segments"), "rod.segments", 2, kMaxProfileSegments);
-  rod.radius = r.NonNegative(r.Require(v, "rod", "radius"), "rod.radius");
-  // 0: the fit had no radius (a version 1 profile may say so); any other value is a real one.
-  if (rod.radius != 0.0)
-    if (const std::string why = CheckRodRadius(rod.radius, rod.length); !why.empty())
-      r.Fail("rod.radius", why);
-  rod.linear_density = r.NonNegative(r.Require(v, "rod", "linear_density"), "rod.linear_density");
-  if (const json* k = r.Find(v, "rest_curvature"))
-    rod.rest_curvature = r.Vector3(*k, "rod.rest_curvature");
-  if (const json* s = r.Find(v, "vertex_s")) {
-    r.Array(*s, "rod.vertex_s");
-    if (static_cast<int>(s->size()) != rod.segments + 1)
-      r.Fail("rod.vertex_s", "must have segments + 1 = " + std::to_string(rod.segments + 1) +
-                                 " values (has " + std::to_string(s->size()) + ")");
-    for (size_t i = 0; i < s->size(); ++i) {
-      const double x = r.Number((*s)[i], Reader::Index("rod.vertex_s", i));
-      if (i == 0 ? x != 0.0 : !(x > rod.vertex_s.back()))
-        r.Fail(Reader::Index("rod.vertex_s", i), "must increase strictly from 0");
-      rod.vertex_s.push_back(x);
-    }
-    if (std::abs(rod.vertex_s.back() - rod.length) > 1e-12 * rod.length)
-      r.Fail("rod.vertex_s", "must end at rod.length (" + Show(rod.length) + ")");
+  /// Runs `visit(*this)` over the object: first its keys, then their values.
+  template <class F>
+  void Visit(F visit) {
+    if (!v_.is_object()) r_.Fail(key_, "must be an object");
+    ProfileReader keys(r_, v_, key_, /*collect=*/true);
+    visit(keys);
+    for (const auto& item : v_.items())
+      if (std::find(keys.declared_.begin(), keys.declared_.end(), item.key()) ==
+          keys.declared_.end())
+        r_.Fail(Reader::Join(key_, item.key()), "unknown key");
+    visit(*this);
   }
-  return rod;
-}
 
-// An arc length s in [lo, hi] of the rod.
-double ArcLength(const Reader& r, const json& v, const std::string& key, double length) {
-  const double s = r.Number(v, key);
-  if (!(s >= 0.0 && s <= length))
-    r.Fail(key, "must lie in [0, rod.length = " + Show(length) + "] (is " + Show(s) + ")");
-  return s;
-}
+  bool reading() const { return !collect_; }
 
-Interval ReadInterval(const Reader& r, const json& v, const std::string& key, double length,
-                      std::string* parameter) {
-  std::vector<std::string> allowed = {"from", "to"};
-  if (parameter) allowed.push_back("parameter");
-  r.Object(v, key, allowed);
-  Interval in;
-  in.from = ArcLength(r, r.Require(v, key, "from"), key + ".from", length);
-  in.to = ArcLength(r, r.Require(v, key, "to"), key + ".to", length);
-  if (!(in.from < in.to)) r.Fail(key + ".to", "must be greater than from (" + Show(in.from) + ")");
-  if (parameter) {
-    if (const json* p = r.Find(v, "parameter")) *parameter = r.String(*p, key + ".parameter");
+  void Number(const char* key, double* v, profile_format::Bound bound,
+              profile_format::Need need = profile_format::kRequired) {
+    if (const json* x = Take(key, need)) *v = NumberOf(*x, Path(key), bound);
   }
-  return in;
-}
-
-LoadCase ReadHeld(const Reader& r, const json& v, double length) {
-  r.Object(v, "held", {"case", "clamp", "end_clamp", "end_pin", "pins", "cuts"});
-  LoadCase c;
-  c.name = "profile";
-  if (const json* name = r.Find(v, "case")) c.name = r.String(*name, "held.case");
-  const json& clamp = r.Require(v, "held", "clamp");
-  r.Object(clamp, "held.clamp", {"position", "tangent", "normal"});
-  c.clamp.position = r.Vector3(r.Require(clamp, "held.clamp", "position"), "held.clamp.position");
-  c.clamp.tangent = Direction(r, r.Require(clamp, "held.clamp", "tangent"), "held.clamp.tangent");
-  c.clamp.normal = Direction(r, r.Require(clamp, "held.clamp", "normal"), "held.clamp.normal");
-  CheckFrame(r, c.clamp.tangent, c.clamp.normal, "held.clamp.normal");
-  if (const json* end = r.Find(v, "end_clamp")) {
-    r.Object(*end, "held.end_clamp", {"position", "tangent", "normal"});
-    EndClamp e;
-    e.position = r.Vector3(r.Require(*end, "held.end_clamp", "position"), "held.end_clamp.position");
-    e.tangent =
-        Direction(r, r.Require(*end, "held.end_clamp", "tangent"), "held.end_clamp.tangent");
-    if (const json* n = r.Find(*end, "normal")) {
-      e.normal = Direction(r, *n, "held.end_clamp.normal");
-      CheckFrame(r, e.tangent, *e.normal, "held.end_clamp.normal");
-    }
-    c.end_clamp = e;
+  void Integer(const char* key, int* v, int lo, int hi) {
+    if (const json* x = Take(key, profile_format::kRequired)) *v = r_.Integer(*x, Path(key), lo, hi);
   }
-  if (const json* pin = r.Find(v, "end_pin")) {
-    if (c.end_clamp) r.Fail("held.end_pin", "a rod has an end clamp or an end pin, not both");
-    c.end_pin = r.Vector3(*pin, "held.end_pin");
+  void Vector(const char* key, Vec3* v, profile_format::Need need = profile_format::kRequired) {
+    if (const json* x = Take(key, need)) *v = r_.Vector3(*x, Path(key));
   }
-  if (const json* pins = r.Find(v, "pins")) {
-    r.Array(*pins, "held.pins");
-    for (size_t i = 0; i < pins->size(); ++i) {
-      const std::string key = Reader::Index("held.pins", i);
-      r.Object((*pins)[i], key, {"s", "position"});
-      Pin pin;
-      pin.s = ArcLength(r, r.Require((*pins)[i], key, "s"), key + ".s", length);
-      if (!(pin.s > 0.0 && pin.s < length)) r.Fail(key + ".s", "must lie inside (0, rod.length)");
-      pin.position = r.Vector3(r.Require((*pins)[i], key, "position"), key + ".position");
-      c.pins.push_back(pin);
+  void Direction(const char* key, Vec3* v) {
+    if (const json* x = Take(key, profile_format::kRequired)) *v = DirectionOf(*x, Path(key));
+  }
+  void OptionalDirection(const char* key, std::optional<Vec3>* v) {
+    if (const json* x = Take(key, profile_format::kOptional)) *v = DirectionOf(*x, Path(key));
+  }
+  void OptionalVector(const char* key, std::optional<Vec3>* v) {
+    if (const json* x = Take(key, profile_format::kOptional)) *v = r_.Vector3(*x, Path(key));
+  }
+  void Text(const char* key, std::string* v,
+            profile_format::Need need = profile_format::kRequired) {
+    if (const json* x = Take(key, need)) *v = r_.String(*x, Path(key));
+  }
+  void NumberList(const char* key, std::vector<double>* v) {
+    const json* x = Take(key, profile_format::kOptional);
+    if (!x) return;
+    r_.Array(*x, Path(key));
+    v->clear();
+    for (size_t i = 0; i < x->size(); ++i)
+      v->push_back(r_.Number((*x)[i], Reader::Index(Path(key), i)));
+  }
+  template <class T, class F>
+  void List(const char* key, std::vector<T>* v, F visit) {
+    const json* x = Take(key, profile_format::kOptional);
+    if (!x) return;
+    r_.Array(*x, Path(key));
+    for (size_t i = 0; i < x->size(); ++i) {
+      T item;
+      ProfileReader(r_, (*x)[i], Reader::Index(Path(key), i))
+          .Visit([&](ProfileReader& o) { visit(o, item); });
+      v->push_back(item);
     }
   }
-  if (const json* cuts = r.Find(v, "cuts")) {
-    r.Array(*cuts, "held.cuts");
-    for (size_t i = 0; i < cuts->size(); ++i)
-      c.cuts.push_back(ReadInterval(r, (*cuts)[i], Reader::Index("held.cuts", i), length, nullptr));
+  template <class F>
+  void Object(const char* key, F visit) {
+    if (const json* x = Take(key, profile_format::kRequired))
+      ProfileReader(r_, *x, Path(key)).Visit(visit);
   }
-  return c;
-}
+  template <class T, class F>
+  void OptionalObject(const char* key, std::optional<T>* v, F visit) {
+    const json* x = Take(key, profile_format::kOptional);
+    if (!x) return;
+    T item;
+    ProfileReader(r_, *x, Path(key)).Visit([&](ProfileReader& o) { visit(o, item); });
+    *v = item;
+  }
+  void Check(bool ok, const char* key, const std::string& message) {
+    if (!collect_ && !ok) r_.Fail(Path(key), message);
+  }
 
-SectionSpec ReadSection(const Reader& r, const json& v) {
-  r.Object(v, "section", {"radius", "nodes", "h_factor", "stop_factor"});
-  SectionSpec s;
-  s.radius = r.Positive(r.Require(v, "section", "radius"), "section.radius");
-  s.nodes = r.Integer(r.Require(v, "section", "nodes"), "section.nodes", 8, kMaxProfileSectionNodes);
-  if (const json* h = r.Find(v, "h_factor")) s.h_factor = r.Positive(*h, "section.h_factor");
-  if (const json* f = r.Find(v, "stop_factor")) s.stop_factor = r.Positive(*f, "section.stop_factor");
-  std::string why;
-  if (!s.Check(&why)) r.Fail("section", why);
-  return s;
-}
+ private:
+  // Declares `key`; reading, its value when present (a required one absent is an error).
+  const json* Take(const char* key, profile_format::Need need) {
+    declared_.push_back(key);
+    if (collect_) return nullptr;
+    if (need == profile_format::kRequired) return &r_.Require(v_, key_, key);
+    return r_.Find(v_, key);
+  }
+  std::string Path(const char* key) const { return Reader::Join(key_, key); }
+  double NumberOf(const json& x, const std::string& key, profile_format::Bound bound) const {
+    switch (bound) {
+      case profile_format::kPositive: return r_.Positive(x, key);
+      case profile_format::kNonNegative: return r_.NonNegative(x, key);
+      case profile_format::kAnyNumber: break;
+    }
+    return r_.Number(x, key);
+  }
+  // A direction that must not be zero.
+  Vec3 DirectionOf(const json& x, const std::string& key) const {
+    const Vec3 d = r_.Vector3(x, key);
+    if (!(d.norm() > 0.0)) r_.Fail(key, "must not be zero");
+    return d;
+  }
+
+  const Reader& r_;
+  const json& v_;
+  std::string key_;
+  bool collect_;
+  std::vector<std::string> declared_;
+};
 
 // One parameter: its unit must be the table's, its value present (or overridden), finite and
 // in range. `zone` marks a spring zone's own parameter (a spring stiffness).
-ProfileParameter ReadParameter(const Reader& r, const json& v, const std::string& name,
-                               int version, const ProfileReadOptions& options) {
-  const std::string key = "parameters." + name;
-  r.Object(v, key, {"value", "std", "fitted", "identifiable", "unit", "start", "reason",
-                    "at_bound", "tied_to"});
-  ProfileParameter p;
+Parameter ReadParameter(const Reader& r, const json& v, const std::string& name, int version,
+                        const ProfileReadOptions& options) {
+  const std::string key = Reader::Join(pf::kParameters, name);
+  r.Object(v, key, std::vector<std::string>(std::begin(pf::kParameterKeys),
+                                            std::end(pf::kParameterKeys)));
+  Parameter p;
   p.name = name;
   const MaterialParameterInfo* row = FindMaterialParameter(name);
-  const std::string unit = MaterialParameterUnit(name);
-  p.unit = r.String(r.Require(v, key, "unit"), key + ".unit");
+  const std::string unit = p.unit();
+  const std::string written = r.String(r.Require(v, key, pf::kUnit), Reader::Join(key, pf::kUnit));
   // Version 1 labelled the damping rows "N/m^2" (the label of spring stiffness); their values
   // were in the table's units all along.
-  const bool v1_damping_label = version == 1 && p.unit == "N/m^2" &&
+  const bool v1_damping_label = version == 1 && written == "N/m^2" &&
                                 std::string(unit).find(" s") != std::string::npos;
-  if (p.unit != unit && !v1_damping_label) r.Fail(key + ".unit", "must be \"" + unit + "\" (is \"" + p.unit + "\")");
-  if (const json* f = r.Find(v, "fitted")) p.fitted = r.Bool(*f, key + ".fitted");
-  if (const json* i = r.Find(v, "identifiable")) p.identifiable = r.Bool(*i, key + ".identifiable");
-  if (const json* t = r.Find(v, "tied_to")) {
-    p.tied_to = r.String(*t, key + ".tied_to");
+  if (written != unit && !v1_damping_label)
+    r.Fail(Reader::Join(key, pf::kUnit), "must be \"" + unit + "\" (is \"" + written + "\")");
+  if (const json* f = r.Find(v, pf::kFitted)) p.fit = r.Bool(*f, Reader::Join(key, pf::kFitted));
+  if (const json* i = r.Find(v, pf::kIdentifiable))
+    p.identifiable = r.Bool(*i, Reader::Join(key, pf::kIdentifiable));
+  if (const json* t = r.Find(v, pf::kTiedTo)) {
+    p.tied_to = r.String(*t, Reader::Join(key, pf::kTiedTo));
     if (!row || !row->tied_to || p.tied_to != row->tied_to)
-      r.Fail(key + ".tied_to", row && row->tied_to
+      r.Fail(Reader::Join(key, pf::kTiedTo), row && row->tied_to
                                    ? "may be tied only to " + std::string(row->tied_to)
                                    : std::string("cannot be tied to another parameter"));
   }
-  if (const json* s = r.Find(v, "std"); s && !s->is_null())
-    p.std = r.NonNegative(*s, key + ".std");
-  const bool positive = row ? row->positive : name == "linear_density";
+  if (const json* s = r.Find(v, pf::kStd); s && !s->is_null())
+    p.std = r.NonNegative(*s, Reader::Join(key, pf::kStd));
+  const bool positive = row && row->positive;  // a spring zone's own stiffness may be 0
   auto check = [&](double x, const std::string& where) {
     if (!std::isfinite(x)) r.Fail(where, "must be finite");
     if (positive && !(x > 0.0)) r.Fail(where, "must be > 0 (is " + Show(x) + ")");
     if (!positive && !(x >= 0.0)) r.Fail(where, "must be >= 0 (is " + Show(x) + ")");
   };
-  const json& value = r.Require(v, key, "value");
+  const json& value = r.Require(v, key, pf::kValue);
+  const std::string value_key = Reader::Join(key, pf::kValue);
   const auto override_it = options.overrides.find(name);
   if (override_it != options.overrides.end()) {
-    check(override_it->second, key + ".value (--set " + name + ")");
+    check(override_it->second, value_key + " (--set " + name + ")");
     p.value = override_it->second;
     p.overridden = true;
     p.tied_to.clear();
     return p;
   }
   if (value.is_null()) {
-    r.Fail(key + ".value",
+    r.Fail(value_key,
            std::string("is null (") + (p.identifiable ? "no value" : "not identifiable by the fit") +
                "); rodfit does not invent one: give it with --set " + name + "=VALUE");
   }
   if (!p.identifiable)
-    r.Fail(key + ".identifiable", "is false: the value is not a measurement; give one with --set " +
-                                      name + "=VALUE");
-  p.value = r.Number(value, key + ".value");
-  check(p.value, key + ".value");
+    r.Fail(Reader::Join(key, pf::kIdentifiable),
+           "is false: the value is not a measurement; give one with --set " + name + "=VALUE");
+  p.value = r.Number(value, value_key);
+  check(p.value, value_key);
   return p;
 }
 
@@ -308,8 +297,8 @@ ProfileError::ProfileError(const std::string& file_in, const std::string& key_in
       key(key_in),
       message(message_in) {}
 
-const ProfileParameter* Profile::Find(const std::string& name) const {
-  for (const ProfileParameter& p : parameters)
+const Parameter* Profile::Find(const std::string& name) const {
+  for (const Parameter& p : parameters)
     if (p.name == name) return &p;
   return nullptr;
 }
@@ -323,66 +312,75 @@ Profile ParseProfile(const std::string& text, const std::string& path,
   } catch (const json::parse_error& e) {
     r.Fail("", std::string("not a JSON document: ") + e.what());
   }
-  r.Object(doc, "", {"format", "version", "rodfit_version", "rod", "gravity", "held", "springs",
-                     "section", "parameters", "derived", "fit"});
-  const json& format = r.Require(doc, "", "format");
-  if (!format.is_string() || format.get<std::string>() != "rodfit-profile")
-    r.Fail("format", "must be \"rodfit-profile\" (not a rodfit profile)");
+  r.Object(doc, "", {pf::kFormat, pf::kVersion, pf::kRodfitVersion, pf::kRod, pf::kGravity,
+                     pf::kHeld, pf::kSprings, pf::kSection, pf::kParameters, pf::kDerived,
+                     pf::kFit});
+  const json& format = r.Require(doc, "", pf::kFormat);
+  if (!format.is_string() || format.get<std::string>() != pf::kFormatName)
+    r.Fail(pf::kFormat, std::string("must be \"") + pf::kFormatName + "\" (not a rodfit profile)");
   Profile out;
   out.path = path;
-  const json& version = r.Require(doc, "", "version");
+  const json& version = r.Require(doc, "", pf::kVersion);
   if (!version.is_number_integer() || version.get<long long>() < kProfileMinVersion ||
       version.get<long long>() > kProfileMaxVersion)
-    r.Fail("version", version.dump() + " is not supported (this reader reads " +
-                          std::to_string(kProfileMinVersion) + " to " +
-                          std::to_string(kProfileMaxVersion) + ")");
+    r.Fail(pf::kVersion, version.dump() + " is not supported (this reader reads " +
+                             std::to_string(kProfileMinVersion) + " to " +
+                             std::to_string(kProfileMaxVersion) + ")");
   out.version = version.get<int>();
-  if (const json* v = r.Find(doc, "rodfit_version"))
-    out.rodfit_version = r.String(*v, "rodfit_version");
+  if (const json* v = r.Find(doc, pf::kRodfitVersion))
+    out.rodfit_version = r.String(*v, pf::kRodfitVersion);
   Scene& scene = out.scene;
-  scene.rod = ReadRod(r, r.Require(doc, "", "rod"));
+  ProfileReader(r, r.Require(doc, "", pf::kRod), pf::kRod).Visit([&](ProfileReader& a) {
+    pf::VisitRod(a, scene.rod);
+  });
   const double length = scene.rod.length;
-  if (const json* g = r.Find(doc, "gravity")) scene.gravity = r.Vector3(*g, "gravity");
+  if (const json* g = r.Find(doc, pf::kGravity)) scene.gravity = r.Vector3(*g, pf::kGravity);
   if (out.version >= 2) {
-    scene.cases.push_back(ReadHeld(r, r.Require(doc, "", "held"), length));
+    LoadCase held;
+    held.name = "profile";
+    ProfileReader(r, r.Require(doc, "", pf::kHeld), pf::kHeld).Visit([&](ProfileReader& a) {
+      pf::VisitHeld(a, held, length);
+    });
+    scene.cases.push_back(held);
   } else {
     // Version 1 did not record the held ends: the clamp of LoadCase's defaults.
     scene.cases.push_back(LoadCase());
     scene.cases.back().name = "profile";
-    for (const char* key : {"held", "springs", "section"})
+    for (const char* key : {pf::kHeld, pf::kSprings, pf::kSection})
       if (r.Find(doc, key)) r.Fail(key, "is a version 2 key (the profile says version 1)");
   }
   std::set<std::string> zone_parameters;
-  if (const json* springs = r.Find(doc, "springs")) {
-    r.Array(*springs, "springs");
-    for (size_t i = 0; i < springs->size(); ++i) {
-      SpringZone zone;
-      const Interval in =
-          ReadInterval(r, (*springs)[i], Reader::Index("springs", i), length, &zone.parameter);
-      zone.from = in.from;
-      zone.to = in.to;
-      if (!zone.parameter.empty()) {
-        if (FindMaterialParameter(zone.parameter))
-          r.Fail(Reader::Index("springs", i) + ".parameter",
-                 "\"" + zone.parameter + "\" is a material parameter, not a zone's own");
-        zone_parameters.insert(zone.parameter);
-      }
-      scene.springs.push_back(zone);
-    }
+  ProfileReader(r, doc, "").List(pf::kSprings, &scene.springs,
+                                 [&](ProfileReader& a, SpringZone& zone) {
+                                   pf::VisitSpringZone(a, zone, length);
+                                 });
+  for (size_t i = 0; i < scene.springs.size(); ++i) {
+    const std::string& parameter = scene.springs[i].parameter;
+    if (parameter.empty()) continue;
+    if (FindMaterialParameter(parameter))
+      r.Fail(Reader::Index(pf::kSprings, i) + ".parameter",
+             "\"" + parameter + "\" is a material parameter, not a zone's own");
+    zone_parameters.insert(parameter);
   }
-  if (const json* section = r.Find(doc, "section")) scene.section = ReadSection(r, *section);
+  ProfileReader(r, doc, "").OptionalObject(pf::kSection, &scene.section,
+                                           [](ProfileReader& a, SectionSpec& section) {
+                                             pf::VisitSection(a, section);
+                                           });
+  if (scene.section) {
+    std::string why;
+    if (!scene.section->Check(&why)) r.Fail(pf::kSection, why);
+  }
 
-  const json& params = r.Require(doc, "", "parameters");
-  if (!params.is_object()) r.Fail("parameters", "must be an object");
+  const json& params = r.Require(doc, "", pf::kParameters);
+  if (!params.is_object()) r.Fail(pf::kParameters, "must be an object");
   std::set<std::string> seen;
   for (const auto& item : params.items()) {
     const std::string& name = item.key();
     const MaterialParameterInfo* row = FindMaterialParameter(name);
     // Version 1 wrote zone parameters without their zones: read them as spring stiffnesses.
-    // A moving fit lists the rod's linear density it fitted (as rod.linear_density).
-    if (!row && !zone_parameters.count(name) && out.version >= 2 && name != "linear_density")
-      r.Fail("parameters." + name, "unknown parameter (neither in the parameter table nor a "
-                                   "spring zone's parameter)");
+    if (!row && !zone_parameters.count(name) && out.version >= 2)
+      r.Fail(Reader::Join(pf::kParameters, name),
+             "unknown parameter (neither in the parameter table nor a spring zone's parameter)");
     if (row && row->needs_section && !scene.section) continue;  // no ring without a section
     out.parameters.push_back(ReadParameter(r, item.value(), name, out.version, options));
     seen.insert(name);
@@ -390,26 +388,28 @@ Profile ParseProfile(const std::string& text, const std::string& path,
   for (const auto& [name, value] : options.overrides) {
     (void)value;
     if (!seen.count(name))
-      r.Fail("parameters." + name, "--set names a parameter the profile does not list");
+      r.Fail(Reader::Join(pf::kParameters, name),
+             "--set names a parameter the profile does not list");
   }
   for (const MaterialParameterInfo& row : MaterialParameters())
     if (row.required && (!row.needs_section || scene.section) && !seen.count(row.name))
-      r.Fail(std::string("parameters.") + row.name, "missing (" + std::string(row.description) + ")");
+      r.Fail(Reader::Join(pf::kParameters, row.name),
+             "missing (" + std::string(row.description) + ")");
   for (const std::string& name : zone_parameters)
-    if (!seen.count(name)) r.Fail("parameters." + name, "missing (a spring zone's stiffness)");
-  for (const ProfileParameter& p : out.parameters) {
+    if (!seen.count(name))
+      r.Fail(Reader::Join(pf::kParameters, name), "missing (a spring zone's stiffness)");
+  for (const Parameter& p : out.parameters) {
     // An isotropic B2 stays tied, so that the rod model sees exactly what the fit's did.
     if (!p.tied_to.empty()) continue;
-    if (p.name == "linear_density") {
-      // The row is the rod's mass per length: --set on it sets the rod's; as written it must
-      // agree with rod.linear_density.
-      if (!p.overridden && p.value != scene.rod.linear_density)
-        r.Fail("parameters.linear_density.value",
-               "disagrees with rod.linear_density (" + Show(scene.rod.linear_density) + ")");
-      scene.rod.linear_density = p.value;
-      continue;
+    const MaterialParameterInfo* row = FindMaterialParameter(p.name);
+    if (row && row->rod_field) {
+      // A row of the rod (its mass per length, a moving fit's): --set on it sets the rod's; as
+      // written it must agree with the rod's block.
+      if (!p.overridden && p.value != scene.rod.*(row->rod_field))
+        r.Fail(Reader::Join(Reader::Join(pf::kParameters, p.name), pf::kValue),
+               "disagrees with rod." + p.name + " (" + Show(scene.rod.*(row->rod_field)) + ")");
     }
-    AssignMaterialParameter(p.name, p.value, &scene.material);
+    AssignMaterialParameter(p.name, p.value, &scene.material, &scene.rod);
   }
   if (scene.section && !(scene.rod.radius > 0.0))
     r.Fail("rod.radius", "must be > 0 with a section");
@@ -451,11 +451,11 @@ void UseProfileMaterial(const Profile& profile, Scene* scene) {
     differ("rod.linear_density", a.linear_density, b.linear_density);
   for (const SpringZone& zone : scene->springs)
     if (!zone.parameter.empty() && !profile.Find(zone.parameter))
-      throw ProfileError(profile.path, "parameters." + zone.parameter,
+      throw ProfileError(profile.path, Reader::Join(pf::kParameters, zone.parameter),
                          "missing (the scene's spring zone names it)");
   for (const MaterialParameterInfo& row : MaterialParameters())
     if (scene->section && row.needs_section && row.required && !profile.Find(row.name))
-      throw ProfileError(profile.path, std::string("parameters.") + row.name,
+      throw ProfileError(profile.path, Reader::Join(pf::kParameters, row.name),
                          "missing (the scene has a section)");
   scene->material = profile.scene.material;
 }

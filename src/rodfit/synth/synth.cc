@@ -1,6 +1,6 @@
 // Synthetic observations of an experiment (see synth.h): solve, sample, perturb, render, and
 // gather every output file in memory before anything is written, so a failure leaves nothing.
-#include "rodfit/synth/synth.h"
+#include "rodfit/synth/synth_entry.h"
 
 #include <algorithm>
 #include <cctype>
@@ -22,7 +22,6 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/fit/motion_fit.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/camera.h"
@@ -38,83 +37,62 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kExperimentFile = "experiment.yaml";
-constexpr const char* kTruthFile = "truth.json";
 
-// Random numbers that are the same on every standard library: only raw std::mt19937 output (whose
-// sequence the standard fixes) is used; the <random> distributions are implementation-defined.
-class Random {
- public:
-  Random(std::uint32_t seed, const std::string& key) {
-    // FNV-1a of the key, so an entry's stream depends on what it is, not where it is.
-    std::uint64_t h = 14695981039346656037ull;
-    for (const unsigned char c : key) {
-      h ^= c;
-      h *= 1099511628211ull;
-    }
-    std::seed_seq seq{seed, static_cast<std::uint32_t>(h), static_cast<std::uint32_t>(h >> 32)};
-    engine_.seed(seq);
+}  // namespace
+
+Random::Random(std::uint32_t seed, const std::string& key) {
+  // FNV-1a of the key, so an entry's stream depends on what it is, not where it is.
+  std::uint64_t h = 14695981039346656037ull;
+  for (const unsigned char c : key) {
+    h ^= c;
+    h *= 1099511628211ull;
   }
-
-  std::mt19937& engine() { return engine_; }
-
-  // [0, 1) with 53 random bits.
-  double Uniform() {
-    const double hi = static_cast<double>(engine_() >> 5);  // 27 bits
-    const double lo = static_cast<double>(engine_() >> 6);  // 26 bits
-    return (hi * 67108864.0 + lo) * (1.0 / 9007199254740992.0);
-  }
-  double Uniform(double lo, double hi) { return lo + (hi - lo) * Uniform(); }
-
-  // Standard normal by Marsaglia's polar method (no trigonometry), the pair's second kept.
-  double Normal() {
-    if (has_spare_) {
-      has_spare_ = false;
-      return spare_;
-    }
-    for (;;) {  // accepts with probability pi / 4
-      const double u = 2.0 * Uniform() - 1.0;
-      const double v = 2.0 * Uniform() - 1.0;
-      const double r2 = u * u + v * v;
-      if (r2 > 0.0 && r2 < 1.0) {
-        const double f = std::sqrt(-2.0 * std::log(r2) / r2);
-        spare_ = v * f;
-        has_spare_ = true;
-        return u * f;
-      }
-    }
-  }
-
-  // Uniform integer in [0, n) by rejection, free of modulo bias. n >= 1.
-  std::uint32_t Index(std::uint32_t n) {
-    const std::uint64_t range = std::uint64_t{1} << 32;
-    const std::uint64_t limit = range - range % n;
-    for (;;) {
-      const std::uint64_t r = engine_();
-      if (r < limit) return static_cast<std::uint32_t>(r % n);
-    }
-  }
-
- private:
-  std::mt19937 engine_;
-  double spare_ = 0.0;
-  bool has_spare_ = false;
-};
-
-std::string EntryKey(int c, int o) {
-  return "cases[" + std::to_string(c) + "].observations[" + std::to_string(o) + "]";
+  std::seed_seq seq{seed, static_cast<std::uint32_t>(h), static_cast<std::uint32_t>(h >> 32)};
+  engine_.seed(seq);
 }
 
-std::string ReadBytes(const std::string& path, const std::string& what) {
-  return ReadInputFile(path, what);
+double Random::Uniform() {
+  const double hi = static_cast<double>(engine_() >> 5);  // 27 bits
+  const double lo = static_cast<double>(engine_() >> 6);  // 26 bits
+  return (hi * 67108864.0 + lo) * (1.0 / 9007199254740992.0);
 }
+
+double Random::Normal() {
+  if (has_spare_) {
+    has_spare_ = false;
+    return spare_;
+  }
+  for (;;) {  // accepts with probability pi / 4
+    const double u = 2.0 * Uniform() - 1.0;
+    const double v = 2.0 * Uniform() - 1.0;
+    const double r2 = u * u + v * v;
+    if (r2 > 0.0 && r2 < 1.0) {
+      const double f = std::sqrt(-2.0 * std::log(r2) / r2);
+      spare_ = v * f;
+      has_spare_ = true;
+      return u * f;
+    }
+  }
+}
+
+std::uint32_t Random::Index(std::uint32_t n) {
+  const std::uint64_t range = std::uint64_t{1} << 32;
+  const std::uint64_t limit = range - range % n;
+  for (;;) {
+    const std::uint64_t r = engine_();
+    if (r < limit) return static_cast<std::uint32_t>(r % n);
+  }
+}
+
+namespace {
 
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
 }
 
-// Indices of round(fraction * n) distinct samples, increasing (partial Fisher–Yates).
+}  // namespace
+
 std::vector<int> ChooseOutliers(double fraction, int n, Random* random) {
   const int k = static_cast<int>(std::lround(fraction * n));
   std::vector<int> order(n);
@@ -128,8 +106,6 @@ std::vector<int> ChooseOutliers(double fraction, int n, Random* random) {
   return chosen;
 }
 
-// Arc lengths of markers: the entry's list, or `count` evenly spaced with the last at the tip
-// (a marker on the clamp carries no information); default one per free vertex.
 std::vector<double> MarkerArcLengths(const ObservationSpec& spec, const RodSpec& rod) {
   if (!spec.s.empty()) return spec.s;
   const int count = spec.count > 0 ? spec.count : rod.segments;
@@ -137,6 +113,8 @@ std::vector<double> MarkerArcLengths(const ObservationSpec& spec, const RodSpec&
   for (int k = 0; k < count; ++k) s[k] = rod.length * (k + 1) / count;
   return s;
 }
+
+namespace {
 
 // Positions t_k of `count` samples evenly spaced over [0, total], both ends included (one sample:
 // the middle); default one per vertex.
@@ -166,29 +144,9 @@ Eigen::Vector2d AlongPolyline(const std::vector<Eigen::Vector2d>& p, const std::
   return p[i] + f * (p[i + 1] - p[i]);
 }
 
-// Everything one observation entry needs to be synthesized.
-struct EntryContext {
-  const Experiment* experiment;
-  const SynthOptions* options;
-  const CaseShape* shape;
-  const CaseSolution* solution;  // the case solved (model, state, poke)
-  const ObservationSpec* spec;
-  const Camera* camera;      // image types only
-  std::string key;           // cases[c].observations[o]
-  std::string camera_label;  // the camera file as written in messages
-  Random* random;
-  int case_index;            // the entry's case in experiment->scene.cases
-  std::string when;          // a sequence's frame: " at t = ... s"; empty otherwise
-
-  [[noreturn]] void Fail(const std::string& message) const {
-    throw InputError(experiment->path, spec->line, key, message);
-  }
-  std::string CaseName() const { return "'" + shape->name + "'" + when; }
-};
-
 // Projects every vertex; a vertex at or behind the camera is an error (the rod would cross the
 // camera's focal plane, which no lab set-up shows). `depth` gets each vertex's camera z [m].
-std::vector<Eigen::Vector2d> ProjectVertices(const EntryContext& ctx, std::vector<double>* depth) {
+std::vector<Eigen::Vector2d> ProjectVertices(const SynthEntry& ctx, std::vector<double>* depth) {
   const Camera& camera = *ctx.camera;
   std::vector<Eigen::Vector2d> uv(ctx.shape->x.cols());
   int behind = 0;
@@ -208,33 +166,10 @@ std::vector<Eigen::Vector2d> ProjectVertices(const EntryContext& ctx, std::vecto
   return uv;
 }
 
-// Gaussian noise of the entry's sigma on every coordinate, drawn sample by sample.
-template <int N>
-void AddNoise(const EntryContext& ctx, std::vector<Eigen::Matrix<double, N, 1>>* p) {
-  if (!ctx.options->add_noise) return;
-  for (auto& q : *p) {
-    for (int d = 0; d < N; ++d) q(d) += ctx.spec->sigma * ctx.random->Normal();
-  }
-}
+}  // namespace
 
-// Replaces the entry's fraction of samples by uniform points in the box [lo, hi]; returns how
-// many. Drawn after the noise: first the choice, then the points.
-template <int N>
-int ReplaceOutliers(const EntryContext& ctx, const Eigen::Matrix<double, N, 1>& lo,
-                    const Eigen::Matrix<double, N, 1>& hi,
-                    std::vector<Eigen::Matrix<double, N, 1>>* p) {
-  if (!ctx.options->add_noise) return 0;
-  const std::vector<int> chosen =
-      ChooseOutliers(ctx.spec->outliers, static_cast<int>(p->size()), ctx.random);
-  for (const int i : chosen) {
-    for (int d = 0; d < N; ++d) (*p)[i](d) = ctx.random->Uniform(lo(d), hi(d));
-  }
-  return static_cast<int>(chosen.size());
-}
-
-std::string Summary(const EntryContext& ctx, const std::string& file, int n, int outliers,
-                    int dropped) {
-  std::string line = "case " + ctx.shape->name + ": " + file + ": " + ctx.spec->type + ", " +
+std::string Summary(const SynthEntry& ctx, int n, int outliers, int dropped) {
+  std::string line = "case " + ctx.shape->name + ": " + ctx.file + ": " + ctx.spec->type + ", " +
                      std::to_string(n) + " samples";
   if (outliers > 0) line += ", " + std::to_string(outliers) + " outliers";
   if (dropped > 0) line += ", " + std::to_string(dropped) + " outside the image dropped";
@@ -242,15 +177,17 @@ std::string Summary(const EntryContext& ctx, const std::string& file, int n, int
 }
 
 // The bounding box of the solved vertices grown by margin * L on every side.
-void OutlierBox(const EntryContext& ctx, Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
+void OutlierBox(const SynthEntry& ctx, Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
   const double margin = ctx.options->outlier_box_margin * ctx.experiment->scene.rod.length;
   *lo = ctx.shape->x.rowwise().minCoeff().array() - margin;
   *hi = ctx.shape->x.rowwise().maxCoeff().array() + margin;
 }
 
-std::string Synth3d(const EntryContext& ctx, const std::string& file, std::string* report) {
+namespace {
+
+// markers3d at MarkerArcLengths, or points3d at `count` arc lengths evenly spaced over [0, L].
+std::string Synth3d(const SynthEntry& ctx, bool markers, std::string* report) {
   const RodSpec& rod = ctx.experiment->scene.rod;
-  const bool markers = ctx.spec->type == "markers3d";
   std::vector<double> s;
   if (markers) {
     s = MarkerArcLengths(*ctx.spec, rod);
@@ -263,9 +200,21 @@ std::string Synth3d(const EntryContext& ctx, const std::string& file, std::strin
   OutlierBox(ctx, &lo, &hi);
   AddNoise(ctx, &p);
   const int outliers = ReplaceOutliers(ctx, lo, hi, &p);
-  *report = Summary(ctx, file, static_cast<int>(p.size()), outliers, 0);
+  *report = Summary(ctx, static_cast<int>(p.size()), outliers, 0);
   return markers ? FormatMarkersCsv(s, p) : FormatPoints3dCsv(p);
 }
+
+}  // namespace
+
+std::string SynthMarkers3d(const SynthEntry& entry, std::string* report) {
+  return Synth3d(entry, /*markers=*/true, report);
+}
+
+std::string SynthPoints3d(const SynthEntry& entry, std::string* report) {
+  return Synth3d(entry, /*markers=*/false, report);
+}
+
+namespace {
 
 std::string Show(double v);
 
@@ -273,7 +222,7 @@ std::string Show(double v);
 // dynamics (output_every steps), from 0 to dynamics.duration. More times than a file may hold
 // rows is the entry's error, found before they are listed (a frame_rate of 1e12 Hz would ask for
 // 1e10 of them, and 1e308 Hz for more than a long counts).
-std::vector<double> SequenceTimes(const EntryContext& ctx) {
+std::vector<double> SequenceTimes(const SynthEntry& ctx) {
   const ObservationSpec& spec = *ctx.spec;
   const DynamicsSpec& dynamics = *ctx.experiment->scene.dynamics;
   const double interval =
@@ -298,7 +247,10 @@ std::vector<double> SequenceTimes(const EntryContext& ctx) {
 // from its initial state, the markers' positions at every sample time with Gaussian noise of the
 // entry's sigma, a fraction `drop` of the samples left empty (not seen). Rows time-major;
 // columns frame,s,x,y,z with the entry's frame_rate, else t,s,x,y,z.
-std::string SynthSequence(const EntryContext& ctx, const std::string& file, std::string* report) {
+}  // namespace
+
+std::string SynthMarkers3dSequence(const SynthEntry& ctx, std::string* report) {
+  const std::string& file = ctx.file;
   const Scene& scene = ctx.experiment->scene;
   const std::vector<double> s = MarkerArcLengths(*ctx.spec, scene.rod);
   const std::vector<double> t = SequenceTimes(ctx);
@@ -341,6 +293,8 @@ std::string SynthSequence(const EntryContext& ctx, const std::string& file, std:
   return out;
 }
 
+namespace {
+
 // The pixels an image_points entry's camera records of the shape ctx.shape: at the entry's `s`
 // (markers), else along the projected centre-line `count` points evenly spaced, both ends
 // included (default segments + 1), or for a sequence's frame at the middles of `count` equal
@@ -353,7 +307,7 @@ struct PixelSamples {
   int total = 0;                    // samples before those off the sensor were left out
 };
 
-PixelSamples SamplePixels(const EntryContext& ctx, bool sequence_frame) {
+PixelSamples SamplePixels(const SynthEntry& ctx, bool sequence_frame) {
   const Camera& camera = *ctx.camera;
   const bool with_s = !ctx.spec->s.empty();
   std::vector<double> s;
@@ -394,15 +348,16 @@ PixelSamples SamplePixels(const EntryContext& ctx, bool sequence_frame) {
   return out;
 }
 
-[[noreturn]] void FailSeesNothing(const EntryContext& ctx) {
+[[noreturn]] void FailSeesNothing(const SynthEntry& ctx) {
   const Camera& camera = *ctx.camera;
   ctx.Fail("camera " + ctx.camera_label + " sees nothing of the rod in case " + ctx.CaseName() +
            " (every sample projects outside its " + std::to_string(camera.K.width) + "x" +
            std::to_string(camera.K.height) + " image)");
 }
 
-std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
-                             std::string* report) {
+}  // namespace
+
+std::string SynthImagePoints(const SynthEntry& ctx, std::string* report) {
   const Camera& camera = *ctx.camera;
   PixelSamples samples = SamplePixels(ctx, /*sequence_frame=*/false);
   if (samples.uv.empty()) FailSeesNothing(ctx);
@@ -410,10 +365,12 @@ std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
   const int outliers = ReplaceOutliers(
       ctx, Eigen::Vector2d(-0.5, -0.5),
       Eigen::Vector2d(camera.K.width - 0.5, camera.K.height - 0.5), &samples.uv);
-  *report = Summary(ctx, file, static_cast<int>(samples.uv.size()), outliers,
+  *report = Summary(ctx, static_cast<int>(samples.uv.size()), outliers,
                     samples.total - static_cast<int>(samples.uv.size()));
   return FormatImagePointsCsv(samples.uv, ctx.spec->s.empty() ? nullptr : &samples.s);
 }
+
+namespace {
 
 // A points3d or image_points sequence of a moving case (docs/formats.md, "Observation
 // sequences"): the case run from its initial state, and at every sample time (SequenceTimes) the
@@ -421,11 +378,10 @@ std::string SynthImagePoints(const EntryContext& ctx, const std::string& file,
 // of [0, L] in s, image_points as SamplePixels (pixels off the sensor left out) — with Gaussian
 // noise of the entry's sigma and a fraction `drop` of the samples written empty (not seen). Rows
 // time-major; a frame column with the entry's frame_rate, else t.
-std::string SynthShapeSequence(const EntryContext& ctx, const std::string& file,
-                               std::string* report) {
+std::string SynthShapeSequence(const SynthEntry& ctx, bool pixels, std::string* report) {
+  const std::string& file = ctx.file;
   const Scene& scene = ctx.experiment->scene;
   const std::vector<double> t = SequenceTimes(ctx);
-  const bool pixels = ctx.spec->type == "image_points";
   const bool with_s = pixels && !ctx.spec->s.empty();
   const int count = ctx.spec->count > 0 ? ctx.spec->count : scene.rod.segments;
   const std::vector<double> s_points = MiddlesOfParts(count, scene.rod.length);
@@ -437,7 +393,7 @@ std::string SynthShapeSequence(const EntryContext& ctx, const std::string& file,
   CaseSamples run;
   try {
     // Every vertex, so that the shape at each time is the static entry's.
-    shape.s = CaseVertexArcLengths(scene, ctx.case_index);
+    shape.s = ctx.vertex_arc_length;
     run = SampleCaseDynamics(scene, ctx.case_index, ctx.options->statics, shape.s, t, {});
   } catch (const std::exception& e) {
     ctx.Fail("case " + ctx.CaseName() + ": " + e.what());
@@ -449,7 +405,7 @@ std::string SynthShapeSequence(const EntryContext& ctx, const std::string& file,
   int total = 0, written = 0;
   for (size_t k = 0; k < t.size(); ++k) {
     shape.x = run.x[k];
-    EntryContext frame = ctx;
+    SynthEntry frame = ctx;
     frame.shape = &shape;
     frame.when = " at t = " + FormatDouble(t[k]) + " s";
     if (pixels) {
@@ -500,7 +456,18 @@ std::string SynthShapeSequence(const EntryContext& ctx, const std::string& file,
   return out;
 }
 
-std::string SynthImage(const EntryContext& ctx, const std::string& file, std::string* report) {
+}  // namespace
+
+std::string SynthPoints3dSequence(const SynthEntry& entry, std::string* report) {
+  return SynthShapeSequence(entry, /*pixels=*/false, report);
+}
+
+std::string SynthImagePointsSequence(const SynthEntry& entry, std::string* report) {
+  return SynthShapeSequence(entry, /*pixels=*/true, report);
+}
+
+std::string SynthImage(const SynthEntry& ctx, std::string* report) {
+  const std::string& file = ctx.file;
   const Camera& camera = *ctx.camera;
   if (Lower(fs::path(ctx.spec->file).extension().string()) != ".png") {
     ctx.Fail("synth writes images as PNG; name the file *.png, not " + ctx.spec->file);
@@ -549,9 +516,11 @@ std::string SynthImage(const EntryContext& ctx, const std::string& file, std::st
   return png;
 }
 
+namespace {
+
 // Solves `load_case` with its grasp moved to `position` from the case's start and returns the
 // force on the instrument; *warm becomes this solution.
-Eigen::Vector3d ReactionAt(const EntryContext& ctx, const LoadCase& load_case,
+Eigen::Vector3d ReactionAt(const SynthEntry& ctx, const LoadCase& load_case,
                            const Eigen::Vector3d& position, const std::string& where,
                            std::optional<CaseSolution>* warm) {
   const Scene& scene = ctx.experiment->scene;
@@ -594,7 +563,10 @@ std::string FormatPoint(const Eigen::Vector3d& p) {
 
 // A haptic log of the instrument dragging the grasped point from its rest position to the
 // case's grasp.position in steps, dwelling at each (the schedule is SynthOptions' comment).
-std::string SynthGraspForce(const EntryContext& ctx, const std::string& file, std::string* report) {
+}  // namespace
+
+std::string SynthGraspForce(const SynthEntry& ctx, std::string* report) {
+  const std::string& file = ctx.file;
   // A log longer than this is a mistake in max_speed or the rate, not a protocol (~100 MB).
   constexpr double kMaxRows = 1e6;
   const Scene& scene = ctx.experiment->scene;
@@ -674,7 +646,8 @@ std::string SynthGraspForce(const EntryContext& ctx, const std::string& file, st
 
 // `reaction`: `count` (default 1) readings of the force (and, with sigma_moment, the moment) the
 // rod exerts on the entry's held point, with Gaussian noise of sigma and sigma_moment.
-std::string SynthReaction(const EntryContext& ctx, const std::string& file, std::string* report) {
+std::string SynthReaction(const SynthEntry& ctx, std::string* report) {
+  const std::string& file = ctx.file;
   const ObservationSpec& spec = *ctx.spec;
   const HeldReaction* found = nullptr;
   for (const HeldReaction& r : ctx.solution->reactions)
@@ -704,8 +677,8 @@ std::string SynthReaction(const EntryContext& ctx, const std::string& file, std:
 // entry's held point at every sample time (MovingReactions) with Gaussian noise of sigma (and
 // sigma_moment), a fraction `drop` of the readings written empty (not taken). Columns
 // frame,fx,fy,fz[,mx,my,mz] with the entry's frame_rate, else t,....
-std::string SynthReactionSequence(const EntryContext& ctx, const std::string& file,
-                                  std::string* report) {
+std::string SynthReactionSequence(const SynthEntry& ctx, std::string* report) {
+  const std::string& file = ctx.file;
   const Scene& scene = ctx.experiment->scene;
   const ObservationSpec& spec = *ctx.spec;
   const std::vector<double> t = SequenceTimes(ctx);
@@ -761,8 +734,7 @@ std::string SynthReactionSequence(const EntryContext& ctx, const std::string& fi
 // nodes) points on the deformed ring at angles 2 pi (k + 1/2) / count about the section's centre
 // (where the ray from the centre crosses the ring's polygon, in the section's plane), mapped to
 // the world; Gaussian noise of sigma on every world coordinate.
-std::string SynthSurfacePoints(const EntryContext& ctx, const std::string& file,
-                               std::string* report) {
+std::string SynthSurfacePoints(const SynthEntry& ctx, std::string* report) {
   const Scene& scene = ctx.experiment->scene;
   const LoadCase& load_case = scene.cases[ctx.case_index];
   if (!load_case.poke || !scene.section) {
@@ -798,12 +770,10 @@ std::string SynthSurfacePoints(const EntryContext& ctx, const std::string& file,
   std::vector<Eigen::Vector3d> p(count);
   for (int k = 0; k < count; ++k) p[k] = world.col(k);
   AddNoise(ctx, &p);
-  *report = Summary(ctx, file, count, 0, 0);
+  *report = Summary(ctx, count, 0, 0);
   return FormatPoints3dCsv(p);
 }
 
-// Solves every case in order (a case may start from the previous one's solution); a case that
-// is not a valid rod or does not converge is an error at its entry.
 std::vector<CaseSolution> SolveCases(const Experiment& ex, const StaticsOptions& statics) {
   std::vector<CaseSolution> out;
   out.reserve(ex.scene.cases.size());
@@ -824,6 +794,8 @@ std::vector<CaseSolution> SolveCases(const Experiment& ex, const StaticsOptions&
   }
   return out;
 }
+
+namespace {
 
 std::string Absolute(const std::string& path) {
   std::error_code ec;
@@ -967,7 +939,9 @@ std::string FormatTruthJson(const Experiment& experiment, const std::vector<Case
   std::map<std::string, double> values;
   for (const auto& [name, spec] : experiment.parameters) values[name] = spec.value;
   // A moving scene's rod density is a parameter its fit may estimate: listed with the rest.
-  if (experiment.scene.dynamics) values["linear_density"] = experiment.scene.rod.linear_density;
+  if (experiment.scene.dynamics)
+    for (const MaterialParameterInfo& row : MaterialParameters())
+      if (row.rod_field) values[row.name] = experiment.scene.rod.*(row.rod_field);
   bool first = true;
   for (const auto& [name, value] : values) {
     out += std::string(first ? "" : ",") + "\n    " + nlohmann::json(name).dump() + ": " +
@@ -988,135 +962,12 @@ std::string FormatTruthJson(const Experiment& experiment, const std::vector<Case
   return out;
 }
 
-SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& options) {
-  std::string why;
-  if (!options.Check(&why)) throw std::invalid_argument("SynthOptions: " + why);
-  const Experiment& ex = experiment;
-  SynthBundle bundle;
-  // A moving scene's truth shapes are its cases' initial equilibria (held points where their
-  // paths start); its observations are sequences along the runs (SynthSequence).
-  Experiment at_start;
-  if (ex.scene.dynamics) {
-    at_start = ex;
-    at_start.scene.dynamics.reset();
-    for (LoadCase& c : at_start.scene.cases) c = CaseAtStart(c);
-  }
-  const std::vector<CaseSolution> solutions =
-      SolveCases(ex.scene.dynamics ? at_start : ex, options.statics);
-  for (size_t c = 0; c < solutions.size(); ++c)
-    bundle.truth.push_back({ex.scene.cases[c].name, solutions[c].shape_s, solutions[c].shape});
-
-  // Output paths first: each entry's file and each camera once, with no two the same.
-  std::map<std::string, std::string> owner;  // relative output path -> who writes it
-  owner[kExperimentFile] = "the re-emitted experiment";
-  owner[kTruthFile] = "the truth";
-  auto claim = [&](const std::string& rel, const std::string& who, int line,
-                   const std::string& key) {
-    // A folder (`.`, `..`, `dir/`) names no file to write.
-    const std::string name = fs::path(rel).filename().string();
-    if (name.empty() || name == "." || name == "..")
-      throw InputError(ex.path, line, key, "names a folder, not a file to write");
-    const auto [it, inserted] = owner.emplace(rel, who);
-    if (!inserted && it->second != who) {
-      throw InputError(ex.path, line, key, "writes " + rel + ", which " + it->second + " writes");
-    }
-  };
-  const auto rel = [&](const std::string& p) { return SynthRelativePath(p, ex.directory); };
-  std::map<std::string, Camera> cameras;       // by CameraKey (path, and index in a stereo file)
-  std::vector<std::string> camera_order;       // first use
-  for (size_t c = 0; c < ex.cases.size(); ++c) {
-    for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
-      const ObservationSpec& spec = ex.cases[c].observations[o];
-      const std::string key = EntryKey(static_cast<int>(c), static_cast<int>(o));
-      claim(rel(spec.file), key, spec.line, key + ".file");
-    }
-  }
-  for (size_t c = 0; c < ex.cases.size(); ++c) {
-    for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
-      const ObservationSpec& spec = ex.cases[c].observations[o];
-      if (spec.camera.empty() || cameras.count(CameraKey(spec))) continue;
-      const std::string key = EntryKey(static_cast<int>(c), static_cast<int>(o)) + ".camera";
-      try {
-        cameras[CameraKey(spec)] = LoadObservationCamera(spec);
-      } catch (const CameraFileError& e) {
-        throw InputError(ex.path, spec.line, key, e.what());
-      }
-      // The file is copied once (both cameras of a stereo file come from one file).
-      if (std::find(camera_order.begin(), camera_order.end(), spec.camera) == camera_order.end())
-        camera_order.push_back(spec.camera);
-      claim(rel(spec.camera), "camera " + spec.camera, spec.line, key);
-    }
-  }
-
-  for (size_t c = 0; c < ex.cases.size(); ++c) {
-    for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
-      const ObservationSpec& spec = ex.cases[c].observations[o];
-      const std::string file = rel(spec.file);
-      Random random(options.seed, file);
-      EntryContext ctx{&ex,  &options, &bundle.truth[c], &solutions[c],
-                       &spec, spec.camera.empty() ? nullptr : &cameras.at(CameraKey(spec)),
-                       EntryKey(static_cast<int>(c), static_cast<int>(o)),
-                       spec.camera, &random, static_cast<int>(c), ""};
-      std::string report, contents;
-      if (spec.type == "markers3d" && ex.scene.dynamics) {
-        contents = SynthSequence(ctx, file, &report);
-      } else if ((spec.type == "points3d" || spec.type == "image_points") && ex.scene.dynamics) {
-        contents = SynthShapeSequence(ctx, file, &report);
-      } else if (spec.type == "reaction" && ex.scene.dynamics) {
-        contents = SynthReactionSequence(ctx, file, &report);
-      } else if (spec.type == "markers3d" || spec.type == "points3d") {
-        contents = Synth3d(ctx, file, &report);
-      } else if (spec.type == "image_points") {
-        contents = SynthImagePoints(ctx, file, &report);
-      } else if (spec.type == "images") {
-        contents = SynthImage(ctx, file, &report);
-      } else if (spec.type == "grasp_force") {
-        contents = SynthGraspForce(ctx, file, &report);
-      } else if (spec.type == "surface_points") {
-        contents = SynthSurfacePoints(ctx, file, &report);
-      } else if (spec.type == "reaction") {
-        contents = SynthReaction(ctx, file, &report);
-      } else {
-        ctx.Fail("synth cannot make observations of type " + spec.type);
-      }
-      bundle.files.emplace_back(file, std::move(contents));
-      bundle.report.push_back(report);
-    }
-  }
-  for (const std::string& camera : camera_order) {
-    bundle.files.emplace_back(rel(camera), ReadBytes(camera, "the camera file"));
-  }
-  // Masks and start shapes are copied too, so DIR/experiment.yaml is self-contained.
-  std::set<std::string> masks;
-  for (size_t c = 0; c < ex.cases.size(); ++c) {
-    for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
-      const ObservationSpec& spec = ex.cases[c].observations[o];
-      if (spec.mask.empty() || !masks.insert(spec.mask).second) continue;
-      const std::string key = EntryKey(static_cast<int>(c), static_cast<int>(o)) + ".mask";
-      claim(rel(spec.mask), "mask " + spec.mask, spec.line, key);
-      bundle.files.emplace_back(rel(spec.mask), ReadBytes(spec.mask, "the mask"));
-    }
-  }
-  std::set<std::string> starts;
-  for (size_t c = 0; c < ex.scene.cases.size(); ++c) {
-    const StartShape& start = ex.scene.cases[c].start;
-    if (start.kind != StartShape::Kind::kPoints || !starts.insert(start.file).second) continue;
-    const std::string key = "cases[" + std::to_string(c) + "].start";
-    claim(rel(start.file), "start shape " + start.file, ex.cases[c].line, key);
-    bundle.files.emplace_back(rel(start.file), ReadBytes(start.file, "the start shape"));
-  }
-  bundle.files.emplace_back(kExperimentFile,
-                            EmitExperimentYaml(ReadBytes(ex.path, "the experiment"), ex, rel));
-  bundle.files.emplace_back(kTruthFile, FormatTruthJson(ex, bundle.truth, options.seed));
-  return bundle;
-}
-
 void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
                       const std::string& experiment_path, const std::vector<InputFile>& inputs) {
   const fs::path dir(output_dir);
   std::error_code ec;
-  if (!experiment_path.empty() && fs::exists(dir / kExperimentFile, ec) &&
-      fs::equivalent(dir / kExperimentFile, experiment_path, ec)) {
+  if (!experiment_path.empty() && fs::exists(dir / kSynthExperimentFile, ec) &&
+      fs::equivalent(dir / kSynthExperimentFile, experiment_path, ec)) {
     throw InputError(output_dir, 0, "",
                      "would overwrite the input experiment; write to another directory");
   }
@@ -1128,15 +979,6 @@ void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
     RefuseOverwritingInput(out.FinalPath(rel), inputs);
   }
   out.Commit();
-}
-
-SynthBundle Synthesize(const Experiment& experiment, const std::string& output_dir,
-                       const SynthOptions& options) {
-  SynthBundle bundle = MakeSynthBundle(experiment, options);
-  // Observation files are synth's outputs; the experiment, cameras and start shapes its inputs.
-  WriteSynthBundle(bundle, output_dir, experiment.path,
-                   ExperimentInputs(experiment, /*with_data_files=*/false));
-  return bundle;
 }
 
 }  // namespace rodfit

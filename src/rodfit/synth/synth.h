@@ -1,18 +1,18 @@
-// `rodfit synth`: synthetic observations of an experiment whose parameter values are taken as
-// the truth (docs/cli.md, "synth"). Every case is solved to equilibrium; every observation entry of
-// every case gets the file it names: `markers3d` (s,x,y,z at the entry's `s` or `count` arc
-// lengths), `points3d` (x,y,z centre-line samples), `image_points` (s,u,v at given arc lengths, or
-// u,v evenly spaced along the projected centre-line) and `images` (a PNG of the tube of the rod's
-// radius as the camera sees it, RenderThreadImage) and `grasp_force` (a haptic log of an
-// instrument dragging the grasped point in steps, see SynthOptions). Gaussian noise of the entry's
-// `sigma` [m, px or N] and a fraction `outliers` of uniformly random points complete the
-// measurement model. Beside
-// them go DIR/experiment.yaml (the experiment re-emitted with every path relative to DIR, camera
-// files copied in, so DIR is self-contained) and DIR/truth.json (the parameters and the solved
-// vertices). Randomness is std::mt19937 seeded per entry from the run's seed and the entry's
-// output path, so an entry's data does not depend on the order of entries; normal deviates use
-// Marsaglia's polar method on raw 32-bit draws, so a seed gives the same bytes on every standard
-// library.
+// `rodfit synth`'s layer: synthetic observations of an experiment whose parameter values are taken
+// as the truth (docs/cli.md, "synth"); the driver that runs every entry's generator is the
+// pipeline's (rodfit/pipeline/synthesize.h), the generators are in synth_entry.h. Every case is
+// solved to equilibrium; every observation entry of every case gets the file it names: `markers3d`
+// (s,x,y,z at the entry's `s` or `count` arc lengths), `points3d` (x,y,z centre-line samples),
+// `image_points` (s,u,v at given arc lengths, or u,v evenly spaced along the projected centre-line)
+// and `images` (a PNG of the tube of the rod's radius as the camera sees it, RenderThreadImage) and
+// `grasp_force` (a haptic log of an instrument dragging the grasped point in steps, see
+// SynthOptions). Gaussian noise of the entry's `sigma` [m, px or N] and a fraction `outliers` of
+// uniformly random points complete the measurement model. Beside them go DIR/experiment.yaml (the
+// experiment re-emitted with every path relative to DIR, camera files copied in, so DIR is
+// self-contained) and DIR/truth.json (the parameters and the solved vertices). Randomness is
+// std::mt19937 seeded per entry from the run's seed and the entry's output path, so an entry's data
+// does not depend on the order of entries; normal deviates use Marsaglia's polar method on raw
+// 32-bit draws, so a seed gives the same bytes on every standard library.
 #pragma once
 
 #include <cstdint>
@@ -29,6 +29,10 @@
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
+
+/// The files synth writes beside the observations: the re-emitted experiment and the truth.
+inline constexpr char kSynthExperimentFile[] = "experiment.yaml";
+inline constexpr char kSynthTruthFile[] = "truth.json";
 
 struct SynthOptions {
   std::uint32_t seed = 1;    ///< run seed; every entry derives its own from it
@@ -77,31 +81,6 @@ struct SynthBundle {
   std::vector<std::string> report;
 };
 
-/// Solves every case of `experiment` and synthesizes all its observation files in memory
-/// (experiment.path is read again for DIR/experiment.yaml). Sample positions: markers3d at `s`,
-/// else `count` (default: rod segments) evenly spaced with the last at the tip; points3d at
-/// `count` (default: segments + 1) arc lengths evenly spaced over [0, L]; image_points with `s`
-/// at those markers (s,u,v), else `count` (default: segments + 1) points evenly spaced along the
-/// projected centre-line, both ends included (u,v). Image samples whose true or noisy pixel is
-/// off the sensor are dropped. grasp_force: `t,tool_x,tool_y,tool_z,fx,fy,fz` as SynthOptions
-/// describes (fx.. the force the tissue exerts on the instrument [N]).
-/// surface_points: x,y,z of `count` (default: section nodes) points on the case's deformed poke
-/// ring, evenly spaced in angle about the section's centre, in the world (noise on x, y, z).
-/// In a moving scene (a dynamics: block) the truth is each case's initial equilibrium, and
-/// markers3d, points3d and image_points entries are sequences (docs/formats.md, "Observation
-/// sequences"): the case run from its initial state and, at every 1 / frame_rate (a `frame`
-/// column) or every written frame (a `t` column), the samples above of the shape at that time
-/// (closest-point samples, points3d and image_points without s, at the middles of `count`,
-/// default segments, equal parts of the rod or its image instead: away from vertices and ends),
-/// with a fraction `drop` of them written empty (not seen); pixels off the sensor are left out
-/// (a camera that sees nothing at any time is an error).
-/// grasp_force also throws InputError for a case without a grasp, an entry whose s grasps
-/// another vertex than the case's grasp.s, and a step whose grasp does not converge.
-/// Throws InputError (naming the experiment file, the entry's line and key) for a case that does
-/// not converge, an unreadable camera file, a camera that sees nothing of the rod, two entries
-/// writing the same file, or an `images` file not ending in .png. Nothing is written.
-SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& options = {});
-
 /// Writes a bundle into `output_dir` (created if missing), all files at once (StagedDirectory):
 /// a failure leaves `output_dir` as it was. Throws InputError if `output_dir`/experiment.yaml is
 /// the input experiment itself (`experiment_path`), or any file would overwrite one of `inputs`
@@ -109,10 +88,6 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
 void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
                       const std::string& experiment_path = "",
                       const std::vector<InputFile>& inputs = {});
-
-/// MakeSynthBundle then WriteSynthBundle; on an error nothing is written.
-SynthBundle Synthesize(const Experiment& experiment, const std::string& output_dir,
-                       const SynthOptions& options = {});
 
 /// Where synth puts an input path inside the output directory: its path relative to the
 /// experiment's folder when that stays inside it, else its file name alone.

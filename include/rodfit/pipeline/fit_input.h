@@ -1,6 +1,7 @@
-// From an experiment file to the fit's input (docs/formats.md, "Observation entries"): reads every
-// observation's data file (CSV, image) and camera, checks it against the rod, and builds the
-// observation models. Errors name the file, the row's line and the column or key.
+// From an experiment to the static fit's input (docs/formats.md, "Observation entries"): every
+// observation entry read by its kind (rodfit/pipeline/observation_kind.h) from its data file (CSV,
+// image) and camera, checked against the rod, into the case's measurements. Errors name the
+// file, the row's line and the column or key. Pipeline layer.
 #pragma once
 
 #include "rodfit/fit/fit.h"
@@ -10,7 +11,7 @@ namespace rodfit {
 
 /// All five parameters of the model in a fixed order, fitted or not; an absent
 /// bend_stiffness_2 is left out (tied to bend_stiffness), an absent spring_stiffness is 0.
-std::vector<FitParameter> FitParametersOf(const Experiment& experiment);
+std::vector<Parameter> FitParametersOf(const Experiment& experiment);
 
 /// Loads every observation of every case. Throws InputError (or CameraFileError) for a missing
 /// or malformed file, a missing column, a non-number, a marker with s outside [0, L], a camera

@@ -1,9 +1,9 @@
-// Camera images -> observations the fit uses (docs/solvers.md, "Observations"): one image becomes
+// Camera images -> observations the fit uses (docs/solvers.md, "Observations"), a pipeline step
+// above vision (which works on cv::Mat only) and io (which reads the files): one image becomes
 // `image_points` without s (the ordered centre-line pixels from ExtractCentreline, started at the
 // clamped end by hinting the projected clamp position); two images of one case from two
 // calibrated cameras become `points3d` by matching the two centre-lines along epipolar lines and
-// triangulating (MatchPolylines). Files are read here, so errors name the image; the vision layer
-// below works on cv::Mat only.
+// triangulating (MatchPolylines). Errors name the image.
 #pragma once
 
 #include <string>
@@ -13,34 +13,13 @@
 #include <opencv2/core.hpp>
 
 #include "rodfit/io/experiment.h"
+#include "rodfit/io/image_files.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/observe/triangulate.h"
 #include "rodfit/vision/centreline.h"
 
 namespace rodfit {
-
-/// Reads an image file as stored (8- or 16-bit; grey, BGR or BGRA). Throws InputError
-/// "PATH: cannot read the image" when it is missing or not an image, and names the limit when
-/// its header claims more than kMaxImageSidePx a side or kMaxImagePixels (checked before the
-/// decoder runs; the decoders' own warnings are kept off stderr).
-cv::Mat ReadImageFile(const std::string& path);
-
-/// The width and height a PNG, BMP or JPEG header states (false for other formats or a header
-/// too short to tell), read without decoding.
-bool ImageHeaderSize(const std::string& bytes, int* width, int* height);
-
-/// The bytes of `image` encoded in the format of `path`'s extension (.png, .jpg, .bmp, .tif, ...).
-/// Throws InputError naming `path` for an extension OpenCV cannot write.
-std::string EncodeImage(const std::string& path, const cv::Mat& image);
-
-/// EncodeImage, then WriteFileAtomically. Throws InputError.
-void WriteImageFile(const std::string& path, const cv::Mat& image);
-
-/// Reads the mask image `path` for CentrelineOptions::mask (non-zero = may hold thread). Throws
-/// InputError naming `path` when it cannot be read (ReadImageFile), has more than one channel or
-/// not the size of `camera`'s images.
-cv::Mat ReadMaskFile(const std::string& path, const Camera& camera);
 
 /// ExtractCentreline on the image file `path` taken by `camera`. The image must have the camera's
 /// size (InputError otherwise); options.image_name defaults to `path`. Throws InputError or

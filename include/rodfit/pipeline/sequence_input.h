@@ -1,8 +1,8 @@
 // A moving experiment's observations (docs/formats.md, "Observation sequences"): every case's
-// markers3d, points3d and image_points sequences read into the motion fit's input
-// (fit/motion_fit.h, ObservationSequence: one static observation per frame), and the motion
-// fit's result in the static fit's terms, so that the profile and the report are written as for
-// a static experiment.
+// sequences (the observation kinds that may move: markers3d, points3d, image_points, reaction)
+// read by their kinds into the motion fit's input (fit/motion_fit.h, ObservationSequence: one
+// measurement per frame), and the motion fit's result in the static fit's terms, so that the
+// profile and the report are written as for a static experiment. Pipeline layer.
 #pragma once
 
 #include <string>

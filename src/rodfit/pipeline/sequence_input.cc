@@ -1,5 +1,6 @@
-// Observation sequences of a moving experiment (marker_sequences.h).
-#include "rodfit/io/marker_sequences.h"
+// Observation sequences of a moving experiment (sequence_input.h) and the readers of sequence
+// files the kinds share (sequence_files.h).
+#include "rodfit/pipeline/sequence_input.h"
 
 #include <algorithm>
 #include <cctype>
@@ -12,19 +13,14 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/io/fit_input.h"
-#include "rodfit/io/sensor_check.h"
 #include "rodfit/model/material_parameters.h"
+#include "rodfit/pipeline/fit_input.h"
+#include "rodfit/pipeline/kind_support.h"
+#include "rodfit/pipeline/observation_kind.h"
+#include "rodfit/pipeline/sequence_files.h"
 
 namespace rodfit {
 namespace {
-
-// Numbers in messages, as a person would type them.
-std::string Short(double v) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%.10g", v);
-  return buffer;
-}
 
 // A sample more than this many sigmas from anything the model can give leaves no residual
 // (model - measured) / sigma whose square sums over a file's rows in double precision (1e100^2 x
@@ -71,43 +67,14 @@ bool ReadCoordinate(const CsvTable& table, int row, const std::string& column,
   return true;
 }
 
-// One recorded sample of a sequence file: its time, arc length (markers) and coordinates.
-struct Sample {
-  double t = 0.0, s = 0.0;
-  Eigen::Vector3d value = Eigen::Vector3d::Zero();  // x, y, z [m] or u, v (and 0) [px]
-};
+}  // namespace
 
-// The static observation of one frame's samples (observe/observations.h).
-std::shared_ptr<const Observation> FrameObservation(const ObservationSpec& spec, bool with_s,
-                                                    const std::vector<double>& arc,
-                                                    const Camera* camera,
-                                                    const std::vector<const Sample*>& seen) {
-  const int nv = static_cast<int>(arc.size());
-  if (spec.type == "markers3d") {
-    std::vector<Marker3d> markers;
-    for (const Sample* q : seen) markers.push_back({q->s, q->value});
-    return std::make_shared<Markers3dObservation>(arc, std::move(markers), spec.sigma);
-  }
-  if (spec.type == "points3d") {
-    std::vector<Eigen::Vector3d> points;
-    for (const Sample* q : seen) points.push_back(q->value);
-    return std::make_shared<Points3dObservation>(nv, std::move(points), spec.sigma);
-  }
-  if (with_s) {
-    std::vector<MarkerPixel> markers;
-    for (const Sample* q : seen) markers.push_back({q->s, q->value.head<2>()});
-    return std::make_shared<ImageMarkersObservation>(arc, *camera, std::move(markers), spec.sigma);
-  }
-  std::vector<Eigen::Vector2d> pixels;
-  for (const Sample* q : seen) pixels.push_back(q->value.head<2>());
-  return std::make_shared<ImageCurveObservation>(nv, *camera, std::move(pixels), spec.sigma);
-}
-
-// An entry's file as a sequence: markers3d `t,s,x,y,z`, points3d `t,x,y,z`, image_points
-// `t,s,u,v` or `t,u,v` (a `frame` column with the entry's frame_rate instead of `t`), one static
-// observation per time at which something was seen.
-ObservationSequence ReadSequence(const Experiment& ex, int case_index, const ObservationSpec& spec,
-                                 const std::vector<double>& arc, const Camera* camera) {
+ObservationSequence ReadShapeSequence(const KindContext& context, bool pixels, SColumn s_column,
+                                      FrameMeasurement frame_measurement) {
+  const Experiment& ex = context.experiment();
+  const ObservationSpec& spec = context.spec();
+  const int case_index = context.case_index();
+  const Camera* camera = pixels ? &context.camera() : nullptr;
   const double length = ex.scene.rod.length;
   const double duration = ex.scene.dynamics->duration;
   const CsvTable table = CsvTable::Read(spec.file);
@@ -120,9 +87,9 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
   if (!by_time && !(spec.frame_rate > 0.0))
     throw InputError(file, 1, "frame", "a frame column needs frame_rate [Hz] in the entry (" +
                                            ex.path + " line " + std::to_string(spec.line) + ")");
-  const bool pixels = spec.type == "image_points";
   // Markers are identified by s; points3d and pixels without s are closest-point samples.
-  const bool with_s = spec.type == "markers3d" || (pixels && table.HasColumn("s"));
+  const bool with_s =
+      s_column == SColumn::kRequired || (s_column == SColumn::kOptional && table.HasColumn("s"));
   const std::vector<std::string> columns =
       pixels ? std::vector<std::string>{"u", "v"} : std::vector<std::string>{"x", "y", "z"};
   const std::vector<double> key = table.Column(by_time ? "t" : "frame");
@@ -133,9 +100,9 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
   const Vec3& clamp = ex.scene.cases[case_index].clamp.position;
   std::map<double, std::vector<int>> by_t;  // time -> its recorded samples, in file order
   std::map<std::pair<double, double>, int> marker_line;  // (t, s) -> line (markers only)
-  std::vector<Sample> samples;
+  std::vector<SequenceSample> samples;
   for (int r = 0; r < table.num_rows(); ++r) {
-    Sample q;
+    SequenceSample q;
     q.t = key[r];
     if (!by_time) {
       if (q.t != std::round(q.t) || q.t < 0.0)
@@ -197,13 +164,13 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
   seq.case_index = case_index;
   for (const auto& [t, indices] : by_t) {
     if (indices.empty()) continue;
-    std::vector<const Sample*> seen;
+    std::vector<const SequenceSample*> seen;
     for (const int k : indices) seen.push_back(&samples[k]);
     ObservationSequence::Frame frame;
     frame.t = t;
     frame.sample = indices;
     try {
-      frame.observation = FrameObservation(spec, with_s, arc, camera, seen);
+      frame.measurement = frame_measurement(context, with_s, seen);
     } catch (const std::invalid_argument& e) {
       // The observation models' own checks (a camera failing its check).
       throw InputError(file, 0, spec.type, e.what());
@@ -213,11 +180,10 @@ ObservationSequence ReadSequence(const Experiment& ex, int case_index, const Obs
   return seq;
 }
 
-// A `reaction` entry's file as a sequence: a load cell's log `t,fx,fy,fz[,mx,my,mz]` (or
-// `frame,...` with the entry's frame_rate), one reading per row and time; a row whose fields
-// are all missing is a reading not taken.
-ObservationSequence ReadReactionSequence(const Experiment& ex, int case_index,
-                                         const ObservationSpec& spec) {
+ObservationSequence ReadReactionSequence(const KindContext& context) {
+  const Experiment& ex = context.experiment();
+  const ObservationSpec& spec = context.spec();
+  const int case_index = context.case_index();
   const double duration = ex.scene.dynamics->duration;
   const CsvTable table = CsvTable::Read(spec.file);
   const std::string& file = spec.file;
@@ -240,7 +206,7 @@ ObservationSequence ReadReactionSequence(const Experiment& ex, int case_index,
   std::vector<std::vector<std::string>> text;
   for (const std::string& column : columns) text.push_back(table.TextColumn(column));
   std::map<double, int> line_of_time;
-  std::map<double, std::shared_ptr<ReactionReading>> by_t;
+  std::map<double, ForceMeasurement> by_t;
   for (int r = 0; r < table.num_rows(); ++r) {
     double t = key[r];
     if (!by_time) {
@@ -282,14 +248,14 @@ ObservationSequence ReadReactionSequence(const Experiment& ex, int case_index,
                              ") from zero: too many for a residual (wrong units, or is sigma "
                              "right?)");
     }
-    auto reading = std::make_shared<ReactionReading>();
-    reading->point = spec.point;
-    reading->sigma = spec.sigma;
-    reading->force = Eigen::Vector3d(value[0], value[1], value[2]);
+    ForceMeasurement reading;
+    reading.point = spec.point;
+    reading.sigma = spec.sigma;
+    reading.force = Eigen::Vector3d(value[0], value[1], value[2]);
+    reading.label = context.label() + " t=" + FormatDouble(t);
     if (moments) {
-      reading->has_moment = true;
-      reading->sigma_moment = spec.sigma_moment;
-      reading->moment = Eigen::Vector3d(value[3], value[4], value[5]);
+      reading.moment = Eigen::Vector3d(value[3], value[4], value[5]);
+      reading.sigma_moment = spec.sigma_moment;
     }
     by_t.emplace(t, std::move(reading));
   }
@@ -299,13 +265,12 @@ ObservationSequence ReadReactionSequence(const Experiment& ex, int case_index,
   for (auto& [t, reading] : by_t) {
     ObservationSequence::Frame frame;
     frame.t = t;
-    frame.reading = std::move(reading);
+    frame.measurement = std::make_shared<ForceReadings>(
+        spec.type, context.label(), std::vector<ForceMeasurement>{std::move(reading)});
     seq.frames.push_back(std::move(frame));
   }
   return seq;
 }
-
-}  // namespace
 
 SequenceInput BuildSequenceInput(const Experiment& experiment) {
   if (!experiment.scene.dynamics)
@@ -318,7 +283,7 @@ SequenceInput BuildSequenceInput(const Experiment& experiment) {
                      "the motion fit differentiates the bdf2 and backward_euler steps, not " +
                          integrator + " (fit with bdf2; simulate may use " + integrator + ")");
   SequenceInput input;
-  std::map<std::string, Camera> cameras;  // by CameraKey, each file read once
+  CameraCache cameras;  // each file read once
   for (size_t c = 0; c < experiment.cases.size(); ++c) {
     std::vector<double> arc;
     try {
@@ -327,26 +292,14 @@ SequenceInput BuildSequenceInput(const Experiment& experiment) {
       throw InputError(experiment.path, experiment.cases[c].line,
                        "cases[" + std::to_string(c) + "]", e.what());
     }
+    const LoadCase& load_case = experiment.scene.cases[c];
     for (const ObservationSpec& spec : experiment.cases[c].observations) {
-      const std::string label =
-          spec.type + " " + std::filesystem::path(spec.file).filename().string();
-      if (spec.type == "reaction") {
-        input.sequences.push_back(ReadReactionSequence(experiment, static_cast<int>(c), spec));
-        input.labels.push_back(label);
-        continue;
-      }
-      // The experiment reader admits no other type in a moving scene.
-      if (spec.type != "markers3d" && spec.type != "points3d" && spec.type != "image_points")
-        continue;
-      const Camera* camera = nullptr;
-      if (spec.type == "image_points") {
-        auto it = cameras.find(CameraKey(spec));
-        if (it == cameras.end())
-          it = cameras.emplace(CameraKey(spec), LoadObservationCamera(spec)).first;
-        camera = &it->second;
-      }
-      input.sequences.push_back(ReadSequence(experiment, static_cast<int>(c), spec, arc, camera));
-      input.labels.push_back(label);
+      // The experiment reader admits in a moving scene only the kinds that may move.
+      const ObservationKind& kind = KindOf(spec);
+      if (!kind.build_sequence) continue;
+      const KindContext context(experiment, static_cast<int>(c), spec, load_case, arc, &cameras);
+      input.sequences.push_back(kind.build_sequence(context));
+      input.labels.push_back(context.label());
     }
   }
   if (input.sequences.empty())
@@ -361,10 +314,6 @@ std::vector<std::string> FittedNames(const Experiment& experiment) {
     const auto it = experiment.parameters.find(row.name);
     if (it != experiment.parameters.end() && it->second.fit) names.push_back(row.name);
   }
-  // The rod's linear density (a moving experiment's), after the material's.
-  if (const auto it = experiment.parameters.find("linear_density");
-      it != experiment.parameters.end() && it->second.fit)
-    names.push_back("linear_density");
   return names;
 }
 
@@ -374,7 +323,7 @@ MotionFitOptions SequenceFitOptionsOf(const Experiment& experiment,
   options.max_evaluations = experiment.fit.max_iterations;
   options.trusted_sigmas = experiment.fit.trusted_sigmas;
   for (const std::string& name : names) {
-    const ParameterSpec& p = experiment.parameters.at(name);
+    const Parameter& p = experiment.parameters.at(name);
     options.lower.push_back(p.min ? *p.min : NAN);
     options.upper.push_back(p.max ? *p.max : NAN);
   }
@@ -400,26 +349,28 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
   r.solve_seconds = motion.run_seconds;
   r.trajectories = residuals.trajectories;
   r.fitted_names = motion.names;
-  // Every parameter the static fit lists (the rod's and the springs'), then the damping
-  // parameters the experiment gives.
+  // Every parameter the static fit lists (the rod's and the springs'), then those only motion
+  // sees (damping, the rod's mass) that the experiment gives.
   std::vector<std::string> listed;
-  for (const FitParameter& p : FitParametersOf(experiment)) listed.push_back(p.name);
+  for (const Parameter& p : FitParametersOf(experiment)) listed.push_back(p.name);
   for (const MaterialParameterInfo& row : MaterialParameters())
-    if (row.kind == ParameterKind::kDamping && experiment.parameters.count(row.name))
+    if ((row.kind == ParameterKind::kDamping || row.kind == ParameterKind::kMass) &&
+        experiment.parameters.count(row.name))
       listed.push_back(row.name);
-  if (experiment.parameters.count("linear_density")) listed.push_back("linear_density");
   for (const std::string& name : listed) {
-    ParameterEstimate est;
-    est.name = name;
-    est.unit = MaterialParameterUnit(name);
+    Parameter est;
     const auto spec = experiment.parameters.find(name);
-    est.value = est.start = spec != experiment.parameters.end()
-                                ? spec->second.value
-                                : MaterialParameterValue(experiment.scene.material, name).value_or(0.0);
+    if (spec != experiment.parameters.end()) est = spec->second;
+    est.name = name;
+    est.fit = false;
+    est.value = est.start =
+        spec != experiment.parameters.end()
+            ? spec->second.value
+            : MaterialParameterValue(experiment.scene.material, name).value_or(0.0);
     const auto k = std::find(motion.names.begin(), motion.names.end(), name);
     if (k != motion.names.end()) {
       const size_t i = static_cast<size_t>(k - motion.names.begin());
-      est.fitted = true;
+      est.fit = true;
       est.start = motion.start[i];
       est.value = motion.values[i];
       est.identifiable = motion.identifiable[i];
@@ -441,57 +392,31 @@ FitResult SequenceFitResult(const Experiment& experiment, const SequenceInput& i
     o.case_index = seq.case_index;
     o.case_name = experiment.scene.cases[seq.case_index].name;
     o.label = input.labels[q];
-    if (seq.is_reaction()) {
-      // Readings: the forces' RMS [N] and the moments' apart [N m], each sample's error in
-      // residuals.csv numbered by reading (per unit, as a static reaction entry's).
-      const ReactionReading& first = *seq.frames.front().reading;
-      const int per = first.num_measurements();
-      o.type = "reaction";
-      o.unit = "N";
-      o.num_measurements = seq.num_samples() / per;
-      double sum_force = 0.0, sum_moment = 0.0;
-      if (q < residuals.error.size())
-        for (size_t k = 0; k < residuals.error[q].size(); ++k) {
-          const bool moment = per == 2 && k % 2 == 1;
-          const Eigen::Vector3d& e = residuals.error[q][k];
-          (moment ? sum_moment : sum_force) += e.squaredNorm();
-          MeasurementResidual mr;
-          mr.case_index = seq.case_index;
-          mr.case_name = o.case_name;
-          mr.observation = o.label;
-          mr.unit = moment ? "N m" : "N";
-          mr.measurement = static_cast<int>(k) / per;
-          mr.error = e;
-          mr.sigma = moment ? first.sigma_moment : first.sigma;
-          r.measurement_residuals.push_back(mr);
-        }
-      o.rms = std::sqrt(sum_force / std::max(1, o.num_measurements));
-      if (per == 2) o.rms_moment = std::sqrt(sum_moment / std::max(1, o.num_measurements));
-      r.observations.push_back(o);
-      continue;
-    }
-    const Observation& model = *seq.frames.front().observation;
-    o.type = model.type();
-    o.unit = model.unit();
-    o.num_measurements = seq.num_samples();
-    double sum = 0.0;
-    if (q < residuals.error.size()) {
-      // Each sample's error in the report's residuals.csv, in the file's order of samples.
+    // Each sample's error in residuals.csv, in the file's order of samples, numbered per unit;
+    // a reading's force [N] and moment [N m] (two samples of one measurement) apart.
+    const Measurement& first = *seq.frames.front().measurement;
+    const int per = std::max(1, first.num_samples() / std::max(1, first.num_measurements()));
+    o.type = first.type();
+    o.unit = first.unit();
+    o.num_measurements = seq.num_samples() / per;
+    double sum = 0.0, sum_second = 0.0;
+    if (q < residuals.error.size())
       for (size_t k = 0; k < residuals.error[q].size(); ++k) {
+        const int part = static_cast<int>(k) % per;
         const Eigen::Vector3d& e = residuals.error[q][k];
-        sum += e.squaredNorm();
+        (part == 0 ? sum : sum_second) += e.squaredNorm();
         MeasurementResidual mr;
         mr.case_index = seq.case_index;
         mr.case_name = o.case_name;
         mr.observation = o.label;
-        mr.unit = o.unit;
-        mr.measurement = static_cast<int>(k);
+        mr.unit = first.sample_unit(part);
+        mr.measurement = static_cast<int>(k) / per;
         mr.error = e;
-        mr.sigma = model.sigma();
+        mr.sigma = first.sample_sigma(part);
         r.measurement_residuals.push_back(mr);
       }
-    }
     o.rms = std::sqrt(sum / std::max(1, o.num_measurements));
+    if (per == 2) o.rms_moment = std::sqrt(sum_second / std::max(1, o.num_measurements));
     r.observations.push_back(o);
   }
   return r;
