@@ -10,6 +10,7 @@
 
 #include "rodfit/io/errors.h"
 #include "rodfit/io/experiment.h"
+#include "rodfit/pipeline/experiment.h"
 #include "temp_dir.h"
 
 namespace rodfit {
