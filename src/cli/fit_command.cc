@@ -316,6 +316,12 @@ int RunFit(int argc, char** argv) {
     warnings.push_back(span + " (check rod.length and the held positions)");
   std::string residual_warning = ResidualWarning(result, options, &check);
   if (!residual_warning.empty()) warnings.push_back(residual_warning);
+  // An entry's own (a critical twist the model does not reach within its range).
+  std::vector<std::string> entry_warnings;
+  for (const rodfit::ObservationFit& o : result.observations)
+    if (!o.warning.empty())
+      entry_warnings.push_back("case " + o.case_name + ": " + o.label + ": " + o.warning);
+  warnings.insert(warnings.end(), entry_warnings.begin(), entry_warnings.end());
   const std::vector<std::string> report_warnings =
       WriteOutputs(experiment, input, options, result, profile_path, report_dir, warnings);
   if (!stretched.empty())
@@ -328,6 +334,8 @@ int RunFit(int argc, char** argv) {
                      : "");
   if (!residual_warning.empty())
     std::fprintf(stderr, "rodfit fit: warning: %s\n", residual_warning.c_str());
+  for (const std::string& w : entry_warnings)
+    std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
   for (const std::string& w : report_warnings)
     std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
   if (!quiet) {

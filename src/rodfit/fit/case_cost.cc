@@ -146,6 +146,20 @@ CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fit
               const ceres::LossFunction* loss)
     : in_(in), case_(in.cases[case_index]), measurements_(case_.measurements),
       fitted_(std::move(fitted)), loss_(loss), statics_(in.statics) {
+  for (const Fitted& f : fitted_) {
+    CriticalTwistParameter p = CriticalTwistParameter::Stiffness(false, false, false, false);
+    for (Stiffness st : f.drives) {
+      p.bend1 = p.bend1 || st == Stiffness::kBend1;
+      p.bend2 = p.bend2 || st == Stiffness::kBend2;
+      p.twist = p.twist || st == Stiffness::kTwist;
+      p.stretch = p.stretch || st == Stiffness::kStretch;
+    }
+    if (f.spring) {
+      p.kind = CriticalTwistParameter::Kind::kSpring;
+      p.spring = f.spring_zone_name;
+    }
+    column_terms_.push_back(p);  // a ring parameter scales none of the rod's terms
+  }
   for (const auto& meas : measurements_) {
     num_residuals_ += meas->num_residuals();
     needs_reactions_ = needs_reactions_ || meas->needs_reactions();
@@ -284,6 +298,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     view.d_q = &dq_all;
     view.d_reactions = &d_reactions;
     view.d_ring = &d_ring;
+    view.parameters = &column_terms_;
   }
   int row = 0;
   for (const auto& meas : measurements_) {

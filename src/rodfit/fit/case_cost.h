@@ -111,6 +111,8 @@ class CaseEvaluator {
   const MeasurementList& measurements_;  // in residual order
   bool needs_reactions_ = false, needs_section_ = false, needs_state_ = false;
   std::vector<Fitted> fitted_;
+  // What each fitted column moves, in the critical twist's terms (SolvedCase::parameters).
+  std::vector<CriticalTwistParameter> column_terms_;
   const ceres::LossFunction* loss_;
   int num_residuals_ = 0;
   mutable std::mutex mutex_;  // guards the warm start only; evaluation is otherwise pure

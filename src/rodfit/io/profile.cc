@@ -253,6 +253,7 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
       entry["rms_roll"] = o.rms_roll;
       entry["unit_roll"] = "deg";
     }
+    if (!o.warning.empty()) entry["warning"] = o.warning;
     rms.push_back(entry);
   }
   fit["rms"] = rms;

@@ -1737,6 +1737,7 @@ class Builder {
         << "</td><td class=\"num\">" << WithUnit(o.rms, o.unit, 3);
       if (std::isfinite(o.rms_moment)) h << "; moments " << WithUnit(o.rms_moment, "N m", 3);
       if (std::isfinite(o.rms_roll)) h << "; roll " << WithUnit(o.rms_roll, "deg", 3);
+      if (!o.warning.empty()) h << "; " << Escape(o.warning);
       h << "</td></tr>\n";
     }
     h << "</table>\n</section>\n";
