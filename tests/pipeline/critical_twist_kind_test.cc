@@ -16,6 +16,7 @@
 #include <string>
 
 #include "io/temp_dir.h"
+#include "pipeline/heavy_loop.h"
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
@@ -29,69 +30,14 @@ namespace {
 using test::TempDir;
 using ::testing::HasSubstr;
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kB = 1e-3, kGJ = 1e-3 / 1.3;  // [N m^2] the loop's truth
-
-// The loop; SEGMENTS, END and OBSERVATIONS replaced by each test. EA L^2 / B = 1e8 (a steel
-// wire's). It starts from the circle through the clamp going down (loop_start.csv), from which
-// the solve moves the end clamp to its place, as the reference's continuation does.
-const char* const kLoop =
-    "rod: {length: 1.5, segments: SEGMENTS, radius: 2.8e-4, linear_density: 5.0e-3}\n"
-    "parameters:\n"
-    "  bend_stiffness: {value: 1.0e-3, fit: true, min: 1.0e-4, max: 1.0e-2}\n"
-    "  twist_stiffness: {value: 7.6923076923076923e-4, fit: true, min: 1.0e-4, max: 1.0e-2}\n"
-    "  stretch_stiffness: {value: 44444.444444444444, FIT_EA}\n"
-    "gravity: [0, 0, -9.81]\n"
-    "cases:\n"
-    "  - name: loop\n"
-    "    clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}\n"
-    "    END\n"
-    "    start: loop_start.csv\n"
-    "    observations:\n"
-    "OBSERVATIONS";
-
-constexpr char kEndClamp[] = "end_clamp: {position: [-0.12, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1]}";
-
-std::string Loop(int segments, const std::string& observations, bool fit_ea = false,
-                 const std::string& end = kEndClamp) {
-  std::string text = kLoop;
-  auto put = [&](const std::string& key, const std::string& value) {
-    text.replace(text.find(key), key.size(), value);
-  };
-  put("SEGMENTS", std::to_string(segments));
-  put("FIT_EA", fit_ea ? "fit: true" : "fit: false");
-  put("END", end);
-  put("OBSERVATIONS", observations);
-  return text;
-}
-
-// The circle of the loop's length through the clamp, heading +x and going down first.
-void WriteStart(const TempDir& dir) {
-  const double L = 1.5, R = L / (2 * kPi);
-  std::string csv = "s,x,y,z\n";
-  for (int k = 0; k <= 400; ++k) {
-    const double s = L * k / 400, phi = s / R;
-    char row[128];
-    std::snprintf(row, sizeof(row), "%.17g,%.17g,0,%.17g\n", s, R * std::sin(phi),
-                  -R * (1 - std::cos(phi)));
-    csv += row;
-  }
-  dir.Write("loop_start.csv", csv);
-}
-
-FitInput LoadLoop(const TempDir& dir, const std::string& text, Experiment* experiment = nullptr) {
-  WriteStart(dir);
-  const Experiment e = LoadExperiment(dir.Write("loop.yaml", text));
-  if (experiment) *experiment = e;
-  return BuildFitInput(e);
-}
-
-std::vector<double> StartLogs(const FitInput& in) {
-  std::vector<double> logp;
-  for (const Parameter& p : in.parameters)
-    if (p.fit) logp.push_back(std::log(p.value));
-  return logp;
-}
+using test::kB;
+using test::kEndClamp;
+using test::kGJ;
+using test::kPi;
+using test::LoadLoop;
+using test::Loop;
+using test::StartLogs;
+using test::WriteStart;
 
 // The critical twist's residual (one trial) and its Jacobian row by the fitted log-parameters
 // (B, GJ, EA) against central differences of the whole forward map (solve, continuation,

@@ -119,6 +119,10 @@ class Measurement {
   virtual bool needs_state() const { return false; }
   virtual bool needs_reactions() const { return false; }
   virtual bool needs_section() const { return false; }
+  /// Its model reads the held frames themselves, not only the solved state (a roll counted from
+  /// the clamp's normal): its Jacobian by a fitted held frame's turn is not modelled, so a case
+  /// with such a nuisance refuses it.
+  virtual bool reads_held_frames() const { return false; }
   /// Reads nothing but the vertices: the report can evaluate it on a fitted centre-line alone.
   bool reads_vertices_only() const {
     return !needs_state() && !needs_reactions() && !needs_section();

@@ -363,9 +363,19 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
   }
 }
 
+// `rotation_prior_deg: sigma` of a clamp or an end clamp: (0, 90] degrees.
+std::optional<double> ReadRotationPrior(const Reader& r, const Entries& m) {
+  const Field* f = Reader::Find(m, "rotation_prior_deg");
+  if (!f) return std::nullopt;
+  const double sigma = r.Positive(*f);
+  if (sigma > 90.0) r.Fail(*f, "must be at most 90 (degrees per axis), got " + Show(sigma));
+  return sigma;
+}
+
 Clamp ReadClamp(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"position", "tangent", "normal"});
+  const Entries m = r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg"});
   Clamp clamp;
+  clamp.rotation_prior_deg = ReadRotationPrior(r, m);
   clamp.position = r.Vector3(r.Require(m, f, "position"));
   const Field& tangent = r.Require(m, f, "tangent");
   const Field& normal = r.Require(m, f, "normal");
@@ -653,8 +663,9 @@ Vec3 Direction(const Reader& r, const Field& f) {
 }
 
 EndClamp ReadEndClamp(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"position", "tangent", "normal"});
+  const Entries m = r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg"});
   EndClamp ec;
+  ec.rotation_prior_deg = ReadRotationPrior(r, m);
   ec.position = r.Vector3(r.Require(m, f, "position"));
   const Field& tangent = r.Require(m, f, "tangent");
   ec.tangent = Direction(r, tangent);
@@ -663,6 +674,9 @@ EndClamp ReadEndClamp(const Reader& r, const Field& f) {
     if (ec.tangent.cross(*ec.normal).norm() < kMinClampSine * ec.tangent.norm() * ec.normal->norm())
       r.Fail(*normal, "is (nearly) parallel to the tangent");
   }
+  if (ec.rotation_prior_deg && !ec.normal)
+    r.Fail(*Reader::Find(m, "rotation_prior_deg"),
+           "needs the end clamp's normal (a fitted rotation turns a whole frame)");
   return ec;
 }
 
