@@ -984,12 +984,22 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     (*name_lines)[c.name] = f.line;
   }
   c.clamp = ReadClamp(r, r.Require(m, f, "clamp"));
-  const double L = ex->scene.rod.length;
+  // Fitted frames are the static fit's (a moving fit drives its held points along paths).
+  auto static_only = [&](const char* key, bool prior) {
+    if (prior && ex->scene.dynamics)
+      r.Fail(*Reader::Find(m, key),
+             "rotation_prior_deg fits the frame in a static scene only (not with a dynamics: "
+             "block)");
+  };
+  static_only("clamp", c.clamp.rotation_prior_deg.has_value());  const double L = ex->scene.rod.length;
   const Field* end_clamp = Reader::Find(m, "end_clamp");
   const Field* end_pin = Reader::Find(m, "end_pin");
   if (end_clamp && end_pin)
     r.Fail(end_pin->key_line, end_pin->key, "s = L is already held by end_clamp: give one");
-  if (end_clamp) c.end_clamp = ReadEndClamp(r, *end_clamp);
+  if (end_clamp) {
+    c.end_clamp = ReadEndClamp(r, *end_clamp);
+    static_only("end_clamp", c.end_clamp->rotation_prior_deg.has_value());
+  }
   if (end_pin) {
     const Entries pm = r.Map(*end_pin, {"position"});
     c.end_pin = r.Vector3(r.Require(pm, *end_pin, "position"));
