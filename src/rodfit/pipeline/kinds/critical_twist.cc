@@ -42,6 +42,8 @@ void Keys(EntryKeys* k, ObservationSpec* o) {
            "type", "a critical twist is computed without moment loads");
   k->Check(!c.grasp.has_value() && !c.poke.has_value(), "type",
            "a critical twist is computed without a grasp or a poke");
+  k->Check(!c.symmetry.has_value(), "type",
+           "a critical twist leaves the case's plane: remove the case's symmetry");
   double& value = o->kind_values[kValue];
   double& max_roll = o->kind_values[kMaxRoll];
   value = std::numeric_limits<double>::quiet_NaN();
