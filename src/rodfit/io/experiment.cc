@@ -564,6 +564,28 @@ ObservationSpec ReadObservation(const Reader& r, const Field& f, const Experimen
       for (const std::string& key : collect.declared())
         if (!Contains(all, key)) all.push_back(key);
     }
+  // A key no kind takes, in an entry whose type is known, is told with that type's keys: the
+  // union of every kind's is too long a line to read.
+  if (f.node.IsMap()) {
+    const YAML::Node type_node = f.node["type"];
+    if (type_node && type_node.IsScalar() && Contains(names, type_node.Scalar())) {
+      const std::string type_name = type_node.Scalar();
+      std::vector<std::string> own = {"type"};
+      for (const bool mode : {moving, !moving}) {
+        ObservationSpec scratch;
+        YamlEntryKeys collect(r, f, kNoKeys, ex, load_case, points, mode, false);
+        kinds.DeclareKeys(type_name, &collect, &scratch);
+        for (const std::string& key : collect.declared())
+          if (!Contains(own, key)) own.push_back(key);
+      }
+      for (auto it = f.node.begin(); it != f.node.end(); ++it) {
+        if (!it->first.IsScalar() || Contains(all, it->first.Scalar())) continue;
+        const std::string key = ClipForMessage(it->first.Scalar());
+        r.Fail(LineOf(it->first, f.line), f.key.empty() ? key : f.key + "." + key,
+               "unknown key (allowed for type " + type_name + ": " + Join(own) + ")");
+      }
+    }
+  }
   const Entries m = r.Map(f, all);
   ObservationSpec o;
   o.line = f.line;
