@@ -108,7 +108,7 @@ std::string Csv(const std::vector<Row>& rows);
 std::string Html(const std::vector<Row>& rows);
 std::string ParetoSvg(const std::vector<Row>& rows);
 
-/// Statics rows against independent references (bench_references.cc), one solve of one
+/// Statics rows against independent references (references.cc), one solve of one
 /// setting each: a heavy rod clamped at both ends and a rest-curved anisotropic rod in 3-D against
 /// the Kirchhoff shooting solver (error: max vertex distance / L; family "segments"), a rod on
 /// tissue springs under a point load against Hetenyi's beam on an elastic foundation (max

@@ -10,6 +10,7 @@
 #include "rodfit/io/profile.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/pipeline/fit_input.h"
+#include "rodfit/model/check.h"
 #include "rodfit/pipeline/run.h"
 #include "rodfit/pipeline/sequence_input.h"
 
@@ -141,8 +142,9 @@ FitRun FitMovingExperiment(const Experiment& experiment, const FitRunOptions& op
 }  // namespace
 
 FitRun FitExperiment(const Experiment& experiment, const FitRunOptions& options) {
-  if (!options.report_dir.empty() && (!options.write_report || options.profile_path.empty()))
-    throw std::invalid_argument("FitExperiment: a report_dir needs write_report and profile_path");
+  RODFIT_CHECK_ARG(
+      options.report_dir.empty() || (options.write_report && !options.profile_path.empty()),
+      "FitExperiment: a report_dir needs write_report and profile_path");
   if (experiment.scene.dynamics) return FitMovingExperiment(experiment, options);
   FitRun run;
   const FitInput input = BuildFitInput(experiment);

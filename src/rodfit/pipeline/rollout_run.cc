@@ -11,6 +11,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/io/output_dir.h"
 #include "rodfit/model/material_parameters.h"
+#include "rodfit/model/check.h"
 #include "rodfit/pipeline/run.h"
 #include "rodfit/version.h"
 
@@ -251,9 +252,10 @@ std::vector<MarkerRecording> ReadRecordings(const Experiment& experiment,
 RolloutRun Rollout(const Experiment& experiment, std::vector<MarkerRecording> recordings,
                    const RolloutRunOptions& options) {
   RequireDynamics(experiment);
-  if (!options.report_dir.empty() && (!options.write_report || options.output_dir.empty()))
-    throw std::invalid_argument("Rollout: a report_dir needs write_report and output_dir");
-  if (recordings.empty()) throw std::invalid_argument("Rollout: no recording");
+  RODFIT_CHECK_ARG(
+      options.report_dir.empty() || (options.write_report && !options.output_dir.empty()),
+      "Rollout: a report_dir needs write_report and output_dir");
+  RODFIT_CHECK_ARG(!recordings.empty(), "Rollout: no recording");
   RolloutRun run;
   run.scene_path = experiment.path;
   run.recordings = std::move(recordings);
