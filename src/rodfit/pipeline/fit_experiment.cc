@@ -182,13 +182,15 @@ FitRun FitExperiment(const Experiment& experiment, const FitRunOptions& options)
       }
     };
   }
+  bool ran = true;
   try {
     run.result = Fit(input, run.options);
   } catch (const std::invalid_argument& e) {
     run.error = e.what();
-    return run;
+    ran = false;
   }
   run.options.progress = nullptr;  // the callback refers to `options`, which the caller owns
+  if (!ran) return run;
   if (!run.result.success) {
     run.error = "the fit failed: " + run.result.message + " (no profile written)";
     return run;
