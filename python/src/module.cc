@@ -68,7 +68,7 @@ py::object JsonToPython(const std::string& text) {
 
 void BindInputs(py::module_& m) {
   py::class_<rodfit::Experiment>(
-      m, "Experiment",
+      m, "Experiment", py::dynamic_attr(),
       "An experiment or scene as rodfit reads it (docs/formats.md): made by "
       "rodfit.experiment(path or dict) or load_experiment / parse_experiment here.")
       .def_property_readonly("path", [](const rodfit::Experiment& e) { return e.path; },
