@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import warnings
 from typing import Any, Dict, Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
@@ -32,9 +33,23 @@ from . import _core
 from ._core import Experiment, InputError, Profile, ProfileError, __version__  # noqa: F401
 
 __all__ = [
-    "Experiment", "InputError", "Profile", "ProfileError", "Runtime", "Table", "experiment",
-    "experiment_text", "fit", "profile", "rollout", "simulate", "synth", "__version__",
+    "Experiment", "FitError", "FitWarning", "InputError", "Profile", "ProfileError", "Runtime",
+    "SimulateResult", "SolveError", "Table", "experiment", "experiment_text", "fit", "profile",
+    "rollout", "simulate", "synth", "__version__",
 ]
+
+
+class FitError(RuntimeError):
+    """A fit that failed (it did not converge, or could not run): no profile."""
+
+
+class SolveError(RuntimeError):
+    """A case that did not solve (simulate), or a rollout that failed."""
+
+
+class FitWarning(UserWarning):
+    """A run's warning: a parameter the data do not determine, residuals beyond the stated
+    noise, a stretched span ... (what the CLI prints as 'warning:')."""
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -204,3 +219,128 @@ def synth(source: Union[PathLike, Mapping[str, Any], Experiment], *, seed: int =
     ex = experiment(source, base_dir=base_dir)
     text_file = getattr(ex, "_rodfit_text_file", "")
     return _core.synth(ex, seed, noise_free, os.fspath(output) if output else "", text_file)
+
+
+def fit(source: Union[PathLike, Mapping[str, Any], Experiment], *, threads: int = 2,
+        output: Optional[PathLike] = None, report: Optional[PathLike] = None,
+        base_dir: Optional[PathLike] = None) -> Dict[str, Any]:
+    """Fits the experiment's ``fit: true`` parameters to its observations (the static fit, or
+    the motion fit of a moving experiment), as ``rodfit fit`` does; returns the profile as a
+    dict with the profile JSON's structure (docs/formats.md, "Profile JSON"): ``parameters``
+    {name: {value, std, unit, identifiable, reason, ...}} in SI units, ``correlation``, ``fit``
+    (its summary) ... ``output``: also write the profile JSON there; ``report``: also the
+    report's folder (with ``output``). ``threads``: cases evaluated in parallel.
+
+    Raises InputError for bad input, FitError when the fit fails. Issues a FitWarning per
+    warning of the run, among them a fitted parameter the data do not determine (its value is
+    then None) and residuals far beyond the stated noise (the model does not explain the
+    data: do not use the values as they stand).
+    """
+    ex = experiment(source, base_dir=base_dir)
+    run = _core.fit(ex, threads, os.fspath(output) if output else "",
+                    os.fspath(report) if report else "")
+    if not run["ok"]:
+        raise FitError(run["error"])
+    for text in run["warnings"]:
+        warnings.warn(text, FitWarning, stacklevel=2)
+    if not run["all_determined"]:
+        warnings.warn("some fitted parameter is not determined by the data (value None in the "
+                      "profile; its 'reason' says why)", FitWarning, stacklevel=2)
+    return run["profile"]
+
+
+class SimulateResult(dict):
+    """What :func:`simulate` returns: a dict. Static scenes: {case: (n+1, 3) centre-line [m]};
+    moving scenes: {case: {"t": (T,) [s], "x": (T, n+1, 3) [m], "s": [m], "reactions":
+    {point: {"s", "position", "force" [N], "moment" [N m]: (T, 3)}}}}. Attributes: ``forces``
+    (static: per held point of every case, case, point, s, position, force [N], moment [N m]),
+    ``summary`` (per case, how its solve or integration ended), ``warnings``, ``moving``."""
+
+    forces: list
+    summary: list
+    warnings: list
+    moving: bool
+
+
+def simulate(source: Union[PathLike, Mapping[str, Any], Experiment],
+             profile: Union[None, PathLike, Mapping[str, Any], Profile] = None, *,
+             overrides: Optional[Mapping[str, float]] = None,
+             output: Optional[PathLike] = None, keep_going: bool = False,
+             base_dir: Optional[PathLike] = None) -> SimulateResult:
+    """Solves every case of a scene to static equilibrium, or integrates a moving scene (a
+    ``dynamics:`` block) in time, as ``rodfit simulate`` does; with ``profile`` (a path, a dict
+    as :func:`fit` returns, or a Profile) its fitted material replaces the scene's
+    ``parameters:`` (which may then be left out; ``overrides`` {name: value} as for
+    :func:`profile`). ``output``: also write the CLI's files there (shapes.csv ...).
+
+    Returns a :class:`SimulateResult`. Raises InputError for bad input, SolveError when a case
+    does not solve (with ``keep_going``, the cases that did are returned and the failure is
+    warned about)."""
+    ex = experiment(source, base_dir=base_dir, parameters_optional=profile is not None)
+    prof = None if profile is None else globals()["profile"](profile, overrides=overrides)
+    run = _core.simulate(ex, prof, os.fspath(output) if output else "", keep_going)
+    if run["first_failure"]:
+        if not keep_going:
+            raise SolveError(run["first_failure"])
+        warnings.warn(run["first_failure"], FitWarning, stacklevel=2)
+    for text in run["warnings"]:
+        warnings.warn(text, FitWarning, stacklevel=2)
+    result = SimulateResult(run["motions"] if run["moving"] else run["shapes"])
+    result.forces, result.summary = run["forces"], run["summary"]
+    result.warnings, result.moving = run["warnings"], run["moving"]
+    return result
+
+
+def _recording_path(recording: Any, index: int, folder: str) -> str:
+    """A recording as a file ReadRecordings reads: a path as is; an array (frames, markers, 3)
+    [m], NaN where a marker was not seen, as a wide CSV (frame,x0,y0,z0,x1,...)."""
+    if isinstance(recording, (str, os.PathLike)):
+        return os.fspath(recording)
+    frames = np.asarray(recording, dtype=np.float64)
+    if frames.ndim != 3 or frames.shape[2] != 3:
+        raise ValueError(f"recordings[{index}]: an array must have shape (frames, markers, 3), "
+                         f"got {frames.shape}")
+    columns = ["frame"] + [f"{c}{k}" for k in range(frames.shape[1]) for c in "xyz"]
+    data = np.column_stack([np.arange(frames.shape[0], dtype=np.float64),
+                            frames.reshape(frames.shape[0], -1)])
+    path = os.path.join(folder, f"recording{index}.csv")
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(Table(data, columns=columns).to_csv())
+    return path
+
+
+def rollout(source: Union[PathLike, Mapping[str, Any], Experiment],
+            recordings: Iterable[Any], fit: Sequence[str] = (), *,
+            frame_rate: Optional[float] = None, unit: str = "m",
+            held_markers: Sequence[int] = (0, 1, -2, -1), initial: str = "equilibrium",
+            smooth_frames: int = 5, held_ends: str = "pins", method: str = "lm",
+            max_evaluations: int = 150, marker_sigma: float = 0.0,
+            output: Optional[PathLike] = None, report: Optional[PathLike] = None,
+            base_dir: Optional[PathLike] = None) -> Dict[str, Any]:
+    """Predicts recorded marker motions open-loop with the scene's rod (it needs a
+    ``dynamics:`` block), as ``rodfit rollout`` does; with ``fit`` (parameter names, e.g.
+    ["bend_stiffness", "bend_damping"]) first fits them to the recordings.
+
+    ``recordings``: marker CSV paths (docs/formats.md, "marker recording") or arrays of shape
+    (frames, markers, 3) [m, or mm with unit="mm"], NaN where not seen, which need
+    ``frame_rate`` [Hz]. Returns {"recordings": [{"predicted": (frames, markers, 3) [m],
+    "marker_s" [m], "held", "mae_all" [m], "mae_predicted" [m], ...}], "fit": motion_fit.json
+    as Python data or None, "error_all" [m], "error_predicted" [m], "warnings", "misfit"}.
+    Raises InputError for bad input, SolveError when a rollout or the fit fails."""
+    ex = experiment(source, base_dir=base_dir)
+    if unit not in ("m", "mm"):
+        raise ValueError(f"unit: must be 'm' or 'mm', got {unit!r}")
+    if initial not in ("equilibrium", "markers"):
+        raise ValueError(f"initial: must be 'equilibrium' or 'markers', got {initial!r}")
+    with tempfile.TemporaryDirectory(prefix="rodfit-") as folder:
+        paths = [_recording_path(r, k, folder) for k, r in enumerate(recordings)]
+        run = _core.rollout(ex, paths, float(frame_rate or 0.0), unit == "mm", list(fit),
+                            list(held_markers), initial == "equilibrium", smooth_frames,
+                            held_ends, method, max_evaluations, marker_sigma,
+                            os.fspath(output) if output else "",
+                            os.fspath(report) if report else "")
+    if not run["ok"]:
+        raise SolveError(run["error"])
+    for text in run["warnings"]:
+        warnings.warn(text, FitWarning, stacklevel=2)
+    return run
