@@ -192,6 +192,9 @@ def profile(source: Union[PathLike, Mapping[str, Any], Profile], *,
     raise TypeError(f"profile: a path, a dict or a Profile, got {type(source).__name__}")
 
 
+_read_profile = profile  # for functions whose argument is named `profile`
+
+
 class Runtime(_core.Runtime):
     """The fitted rod at haptic rate (rodfit/runtime/runtime.h; docs/python.md, "Runtime").
 
@@ -277,7 +280,7 @@ def simulate(source: Union[PathLike, Mapping[str, Any], Experiment],
     does not solve (with ``keep_going``, the cases that did are returned and the failure is
     warned about)."""
     ex = experiment(source, base_dir=base_dir, parameters_optional=profile is not None)
-    prof = None if profile is None else globals()["profile"](profile, overrides=overrides)
+    prof = None if profile is None else _read_profile(profile, overrides=overrides)
     run = _core.simulate(ex, prof, os.fspath(output) if output else "", keep_going)
     if run["first_failure"]:
         if not keep_going:
