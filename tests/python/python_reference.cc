@@ -19,6 +19,10 @@
 
 #include "rodfit/runtime/profile.h"
 #include "rodfit/runtime/runtime.h"
+// TEMPORARY guard until rodfit/pipeline/run.h (another piece of work) is merged.
+#if __has_include("rodfit/pipeline/run.h")
+#define RODFIT_PYTHON_REFERENCE_FIT 1
+#endif
 #ifdef RODFIT_PYTHON_REFERENCE_FIT
 #include "rodfit/pipeline/experiment.h"
 #include "rodfit/pipeline/run.h"
