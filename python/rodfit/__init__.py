@@ -17,7 +17,9 @@ Experiments and scenes come in three forms, wherever a function takes one:
 Bad input raises :class:`InputError` (or :class:`ProfileError` for profiles), a ``ValueError``
 whose ``str()`` is one line ``FILE:LINE: KEY: message`` and whose attributes ``file``, ``line``,
 ``key`` and ``message`` hold its parts. For a dict, FILE is ``BASE_DIR/<dict>`` and LINE the line
-of :func:`experiment_text`'s rendering of it.
+of :func:`experiment_text`'s rendering of it; errors found after reading (in a data file, a
+case that does not solve) name the temporary copy of that text, ``experiment.yaml`` beside
+the Tables' CSV files.
 """
 from __future__ import annotations
 
@@ -59,7 +61,8 @@ _DICT_NAME = "<dict>"
 
 class Table:
     """A data file given as an array: ``Table(array, columns=["s", "x", "y", "z"])`` or
-    ``Table(s=..., x=..., y=..., z=...)`` (equal-length 1-D arrays).
+    ``Table(s=..., x=..., y=..., z=...)`` (equal-length 1-D arrays); ``name="rest.csv"`` names
+    the file (the profile and the report label the observation by it; default ``table<k>.csv``).
 
     Wherever an experiment dict takes a CSV file (an observation's ``file``, a ``drive``, a
     ``start`` shape ...) a Table may stand instead, with the columns that file would have
@@ -69,8 +72,13 @@ class Table:
     checks and messages (naming the column and the row's line in that file).
     """
 
-    def __init__(self, data: Any = None, columns: Optional[Sequence[str]] = None,
-                 **named_columns: Any) -> None:
+    def __init__(self, data: Any = None, columns: Optional[Sequence[str]] = None, *,
+                 name: Optional[str] = None, **named_columns: Any) -> None:
+        # The CSV file's name (what the profile's and the report's tables call the
+        # observation); default table<k>.csv.
+        if name is not None and (os.path.basename(name) != name or not name.endswith(".csv")):
+            raise ValueError(f"Table: name must be a file name ending in .csv, got {name!r}")
+        self.name = name
         if data is not None and named_columns:
             raise TypeError("Table: give an array with columns=, or named columns, not both")
         if data is not None:
@@ -159,8 +167,11 @@ def experiment(source: Union[PathLike, Mapping[str, Any], Experiment], *,
     # reads the files when it runs, synth reads the text again.
     folder = tempfile.TemporaryDirectory(prefix="rodfit-")
     paths = []
-    for k, table in enumerate(tables):
-        path = os.path.join(folder.name, f"table{k}.csv")
+    names = [t.name or f"table{k}.csv" for k, t in enumerate(tables)]
+    if len(set(names)) != len(names):
+        raise ValueError("experiment: two Tables have the same name")
+    for table, name in zip(tables, names):
+        path = os.path.join(folder.name, name)
         with open(path, "w", encoding="utf-8") as f:
             f.write(table.to_csv())
         paths.append(path)
@@ -170,8 +181,8 @@ def experiment(source: Union[PathLike, Mapping[str, Any], Experiment], *,
         f.write(text)
     anchor = os.path.join(os.path.abspath(os.fspath(base_dir or os.getcwd())), _DICT_NAME)
     result = _core.parse_experiment(text, anchor, parameters_optional)
+    result._use_text_file(text_file)  # messages after reading name this copy of the text
     result._rodfit_files = folder
-    result._rodfit_text_file = text_file
     return result
 
 
@@ -220,8 +231,7 @@ def synth(source: Union[PathLike, Mapping[str, Any], Experiment], *, seed: int =
     array [m]}, "report": [lines]}``; written into the folder ``output`` too when given (with its
     experiment.yaml; nothing written on an error). The same seed gives the same bytes."""
     ex = experiment(source, base_dir=base_dir)
-    text_file = getattr(ex, "_rodfit_text_file", "")
-    return _core.synth(ex, seed, noise_free, os.fspath(output) if output else "", text_file)
+    return _core.synth(ex, seed, noise_free, os.fspath(output) if output else "")
 
 
 def fit(source: Union[PathLike, Mapping[str, Any], Experiment], *, threads: int = 2,

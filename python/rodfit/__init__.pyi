@@ -57,8 +57,9 @@ class Profile:
 class Table:
     columns: List[str]
     data: npt.NDArray[np.float64]
-    def __init__(self, data: Any = ..., columns: Optional[Sequence[str]] = ...,
-                 **named_columns: npt.ArrayLike) -> None: ...
+    name: Optional[str]
+    def __init__(self, data: Any = ..., columns: Optional[Sequence[str]] = ..., *,
+                 name: Optional[str] = ..., **named_columns: npt.ArrayLike) -> None: ...
     def to_csv(self) -> str: ...
 
 ExperimentSource = Union[PathLike, Mapping[str, Any], Experiment]

@@ -73,6 +73,11 @@ void BindInputs(py::module_& m) {
       "rodfit.experiment(path or dict) or load_experiment / parse_experiment here.")
       .def_property_readonly("path", [](const rodfit::Experiment& e) { return e.path; },
                              "the YAML file's path (names it in messages, anchors relative paths)")
+      .def(
+          "_use_text_file",
+          [](rodfit::Experiment& e, const std::string& path) { e.path = path; },
+          "An experiment parsed from text (a dict): the file holding that text, which the "
+          "entry points read again (the profile's input digests, synth's experiment.yaml).")
       .def_property_readonly("case_names",
                              [](const rodfit::Experiment& e) {
                                std::vector<std::string> names;

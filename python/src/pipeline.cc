@@ -17,12 +17,8 @@ namespace {
 
 using RowsX3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
-// `text_file`: for an experiment parsed from text (a dict), a file holding that text, which
-// synth reads again to write DIR/experiment.yaml.
-py::dict Synth(const rodfit::Experiment& given, std::uint32_t seed, bool noise_free,
-               const std::string& output, const std::string& text_file) {
-  rodfit::Experiment experiment = given;
-  if (!text_file.empty()) experiment.path = text_file;
+py::dict Synth(const rodfit::Experiment& experiment, std::uint32_t seed, bool noise_free,
+               const std::string& output) {
   rodfit::SynthOptions options;  // as `rodfit synth` sets them (src/cli/synth_command.cc)
   options.seed = seed;
   options.add_noise = !noise_free;
@@ -50,7 +46,7 @@ void BindRun(py::module_& m);
 
 void BindPipeline(py::module_& m) {
   m.def("synth", &Synth, py::arg("experiment"), py::arg("seed") = 1,
-        py::arg("noise_free") = false, py::arg("output") = "", py::arg("text_file") = "",
+        py::arg("noise_free") = false, py::arg("output") = "",
         "Every observation file of the experiment synthesized from its parameter values (the "
         "truth), as `rodfit synth` makes them: {'files': {name: bytes}, 'truth': {case: (n+1, 3) "
         "[m]}, 'report': [lines]}; written into `output` too when it names a folder (nothing "

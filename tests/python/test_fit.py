@@ -88,7 +88,7 @@ def test_fit_from_numpy_arrays_equals_fit_from_files(source_dir):
     tables = {}
     for name in ("rest_markers", "drag_markers", "drag_force"):
         columns, data = _csv(folder / f"{name}.csv")
-        tables[name] = rodfit.Table(data, columns=columns)
+        tables[name] = rodfit.Table(data, columns=columns, name=f"{name}.csv")
     clamp = {"position": np.zeros(3), "tangent": np.array([1.0, 0, 0]),
              "normal": np.array([0.0, 0, 1])}
     # calibration/tissue_drag/experiment.yaml as Python objects, its files as arrays.

@@ -78,7 +78,7 @@ def test_moving_scene_equals_trajectory_csv(tmp_path, source_dir, cli):
 
 def test_case_that_does_not_solve_raises(tmp_path):
     scene = {
-        "rod": {"length": 0.2, "segments": 10, "radius": 2.5e-4},
+        "rod": {"length": 0.2, "segments": 10, "radius": 2.5e-4, "linear_density": 2.24e-4},
         "parameters": {"bend_stiffness": {"value": 3e-6}, "twist_stiffness": {"value": 6.8e-6},
                        "stretch_stiffness": {"value": 589}},
         "solver": {"max_iterations": 1},
