@@ -45,6 +45,7 @@ void SilenceCeresLogging() {
 // An output must not overwrite one of the experiment's inputs (as the CLI refuses it).
 void RefuseOverwritingInputs(const rodfit::Experiment& experiment,
                              const std::vector<std::string>& outputs) {
+  if (outputs.empty()) return;
   const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
   for (const std::string& path : outputs) rodfit::RefuseOverwritingInput(path, inputs);
 }
