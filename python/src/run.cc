@@ -2,14 +2,6 @@
 // the CLI's commands make, bound for Python (docs/python.md). Each returns the run as plain
 // Python data (dicts, lists, numpy arrays); rodfit/__init__.py turns failures into exceptions and
 // warnings into Python warnings.
-// Until the entry points are on this branch (another piece of work adds run.h), the module
-// builds without these three functions. TEMPORARY: removed when run.h is merged.
-#if !__has_include("rodfit/pipeline/run.h")
-#include "bindings.h"
-namespace rodfit_python {
-void BindRun(py::module_&) {}
-}  // namespace rodfit_python
-#else
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -307,5 +299,3 @@ void BindRun(py::module_& m) {
 }
 
 }  // namespace rodfit_python
-
-#endif

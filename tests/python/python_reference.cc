@@ -19,14 +19,8 @@
 
 #include "rodfit/runtime/profile.h"
 #include "rodfit/runtime/runtime.h"
-// TEMPORARY guard until rodfit/pipeline/run.h (another piece of work) is merged.
-#if __has_include("rodfit/pipeline/run.h")
-#define RODFIT_PYTHON_REFERENCE_FIT 1
-#endif
-#ifdef RODFIT_PYTHON_REFERENCE_FIT
 #include "rodfit/pipeline/experiment.h"
 #include "rodfit/pipeline/run.h"
-#endif
 
 namespace {
 
@@ -78,7 +72,6 @@ int Ticks(const std::string& path, double tool_s, const std::string& mode, int t
   return EXIT_SUCCESS;
 }
 
-#ifdef RODFIT_PYTHON_REFERENCE_FIT
 int TimeFit(const std::string& path, int runs) {
   const rodfit::Experiment experiment = rodfit::LoadExperiment(path);
   if (!rodfit::FitExperiment(experiment).ok) return EXIT_FAILURE;
@@ -88,7 +81,6 @@ int TimeFit(const std::string& path, int runs) {
   std::printf("%.9g\n", seconds / runs);
   return EXIT_SUCCESS;
 }
-#endif
 
 }  // namespace
 
@@ -98,9 +90,7 @@ int main(int argc, char** argv) {
     if ((command == "ticks" || command == "time-ticks") && argc == 6)
       return Ticks(argv[2], std::stod(argv[3]), argv[4], std::stoi(argv[5]),
                    command == "time-ticks");
-#ifdef RODFIT_PYTHON_REFERENCE_FIT
     if (command == "time-fit" && argc == 4) return TimeFit(argv[2], std::stoi(argv[3]));
-#endif
   } catch (const std::exception& e) {
     std::fprintf(stderr, "python_reference: %s\n", e.what());
     return EXIT_FAILURE;
