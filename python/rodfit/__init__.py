@@ -217,10 +217,10 @@ class Runtime(_core.Runtime):
     ``mesh()``, ``status()``.
     """
 
-    def __init__(self, profile_source: Union[PathLike, Mapping[str, Any], Profile],
+    def __init__(self, profile: Union[PathLike, Mapping[str, Any], Profile],
                  mode: str = "quasi_static", *, overrides: Optional[Mapping[str, float]] = None,
                  **options: Any) -> None:
-        super().__init__(profile(profile_source, overrides=overrides), mode, **options)
+        super().__init__(_read_profile(profile, overrides=overrides), mode, **options)
 
 
 def synth(source: Union[PathLike, Mapping[str, Any], Experiment], *, seed: int = 1,
