@@ -1,7 +1,6 @@
 """rodfit.fit against `rodfit fit`: every bundled recipe gives the CLI's profile (every number
 within 1e-9 relative), and a fit from numpy arrays gives the fit from the files."""
 import json
-import math
 import warnings
 
 import numpy as np
@@ -51,19 +50,15 @@ def count_numbers(document):
 
 
 @pytest.mark.parametrize("recipe", RECIPES)
-def test_fit_equals_cli_profile(tmp_path, source_dir, cli, recipe):
+def test_fit_equals_cli_profile(tmp_path, source_dir, cli, recipe, monkeypatch):
     done = run(cli, "fit", recipe, "-o", tmp_path / "cli.json", "-q", cwd=source_dir, check=False)
     assert done.returncode in (0, 4, 5), done.stderr  # 4, 5: written, with a verdict
     expected = json.loads((tmp_path / "cli.json").read_text())
+    # The same relative path as the CLI was given: the profile names its inputs as given.
+    monkeypatch.chdir(source_dir)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        import os
-        cwd = os.getcwd()
-        os.chdir(source_dir)  # the same relative path as the CLI was given (the profile names it)
-        try:
-            profile = rodfit.fit(recipe)
-        finally:
-            os.chdir(cwd)
+        profile = rodfit.fit(recipe)
     assert count_numbers(expected) > 10
     assert_documents_match(expected, profile)
     # The CLI's warnings (stderr) are the Python warnings.
