@@ -83,6 +83,11 @@ void Finish(const Experiment& experiment, const FitInput& input, const FitRunOpt
   ResidualCheck check;
   run->residual_warning = ResidualWarning(run->result, run->options, &check);
   if (!run->residual_warning.empty()) run->warnings.push_back(run->residual_warning);
+  for (const ObservationFit& o : run->result.observations)
+    if (!o.warning.empty())
+      run->entry_warnings.push_back("case " + o.case_name + ": " + o.label + ": " + o.warning);
+  run->warnings.insert(run->warnings.end(), run->entry_warnings.begin(),
+                       run->entry_warnings.end());
   run->misfit = check.gross;
   for (const Parameter& p : run->result.parameters)
     if (p.fit && !p.identifiable) run->all_determined = false;
