@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # Installs what rodfit builds against, only what is missing: Debian packages (apt-get), the
-# report's 3-D plotting library (plotly.js's gl3d bundle, from the npm registry) and the npm
-# package one test uses (MuJoCo's WebAssembly build); Debian's pybind11, numpy, pytest and
-# matplotlib for the Python package. With --tests,
-# also what the test suite needs beyond the build: Debian's `chromium`, in which the report test
-# loads every report headless (tests/report/report_browser_test.cc).
+# report's 3-D plotting library (plotly.js's gl3d bundle, from the npm registry); Debian's
+# pybind11, numpy, pytest and matplotlib for the Python package. With --tests, also what the
+# test suite needs beyond the build: Debian's `chromium`, in which the report test loads every
+# report headless (tests/report/report_browser_test.cc), and the npm package one test uses
+# (MuJoCo's WebAssembly build).
 # Idempotent: a machine that has them all is left untouched (no apt-get update either).
 set -euo pipefail
 packages=(
@@ -58,9 +58,11 @@ if ! plotly_installed; then
 fi
 # npm: MuJoCo's WebAssembly build for the test that loads the MuJoCo export
 # (tests/export/package.json, package-lock.json), when the machine has node and npm; without them
-# that test is skipped. Only installed once (node_modules kept).
+# that test is skipped. Only installed once (node_modules kept), and only with --tests: the
+# quickstart does not need it.
 export_tests="$(cd "$(dirname "$0")/.." && pwd)/tests/export"
-if command -v npm >/dev/null 2>&1 && [ ! -d "$export_tests/node_modules/mujoco-js" ]; then
+if [ "${1:-}" = "--tests" ] && command -v npm >/dev/null 2>&1 &&
+   [ ! -d "$export_tests/node_modules/mujoco-js" ]; then
   echo "install_deps: npm ci in tests/export (mujoco-js)" >&2
   npm ci --prefix "$export_tests" --no-audit --no-fund >/dev/null
 fi

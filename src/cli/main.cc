@@ -132,7 +132,7 @@ const std::vector<Command>& Commands() {
       {"rollout", "predict a recorded motion open-loop from its first frames; its error",
        nullptr},
       {"bench", "reference problems: error against time over settings; --stress", nullptr},
-      {"export", "a fitted profile for another simulator: sofa, xpbd or json", &RunExport},
+      {"export", "a fitted profile for another simulator: sofa, mujoco, xpbd or json", &RunExport},
   };
   return commands;
 }
