@@ -67,7 +67,7 @@ int RunExport(int argc, char** argv) {
   if (output.empty()) throw std::invalid_argument("-o is empty: give the output file's path");
   if (!target.has_filename() || target.filename() == "." || target.filename() == "..")
     throw rodfit::InputError(output, 0, "", "is not a file name (-o names the output file)");
-  rodfit::RefuseOverwritingInput(output, {{profile_path, "the profile"}});
+  rodfit::CheckOutputFile(output, {{profile_path, "the profile"}});
   // One read of the file: the json format re-writes exactly the text that was validated.
   const std::string text =
       rodfit::ReadInputFile(profile_path, "a profile", rodfit::kMaxProfileBytes);

@@ -248,7 +248,7 @@ int RunFit(int argc, char** argv) {
                                "is a directory; -o takes the profile's file name");
     }
     const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
-    rodfit::RefuseOverwritingInput(profile_path, inputs);
+    rodfit::CheckOutputFile(profile_path, inputs);
     if (!report_dir.empty()) {
       for (const char* name : {"summary.csv", "residuals.csv", "index.html"})
         rodfit::RefuseOverwritingInput((std::filesystem::path(report_dir) / name).string(),

@@ -34,8 +34,6 @@
 
 namespace {
 
-/// Strain above which `simulate` warns that an equilibrium is outside a rod model's range.
-constexpr double kLargeStrain = 0.1;
 
 int RunSimulate(int argc, char** argv) {
   CLI::App app(
@@ -136,12 +134,8 @@ int RunSimulate(int argc, char** argv) {
     {
       // A rod model is a small-strain model: an equilibrium that stretches or compresses an edge by more than
       // 10 % (held points pulled apart, a unit mistake in EA) is reported, not silently returned.
-      double strain = 0.0;
-      const rodfit::RodModel& m = *solution.model;
-      for (int j = 0; j < m.num_edges(); ++j)
-        strain = std::max(strain, std::abs(solution.state.e.col(j).norm() /
-                                               m.rest_edge_length(j) - 1.0));
-      if (strain > kLargeStrain) {
+      const double strain = rodfit::LargestEdgeStrain(*solution.model, solution.state);
+      if (strain > rodfit::kSmallStrainLimit) {
         char percent[32];
         std::snprintf(percent, sizeof(percent), "%.3g", 100.0 * strain);
         warnings.push_back("rodfit simulate: warning: " + where + "an edge is strained by " +
@@ -182,12 +176,9 @@ int RunSimulate(int argc, char** argv) {
   if (!sections.empty()) files.emplace_back("sections.csv", rodfit::FormatSectionsCsv(sections));
   for (const auto& [name, obj] : meshes) files.emplace_back(name + ".obj", obj);
   rodfit::StagedDirectory out(output_dir);
-  const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
-  for (const auto& [name, text] : files) {
-    // Case names become file names: the reader refuses paths, and Write keeps any name in DIR.
-    out.Write(name, text, "case file name");
-    rodfit::RefuseOverwritingInput(out.FinalPath(name), inputs);
-  }
+  out.SetInputs(rodfit::ExperimentInputs(experiment));
+  // Case names become file names: the reader refuses paths, and Write keeps any name in DIR.
+  for (const auto& [name, text] : files) out.Write(name, text, "case file name");
   out.Commit();
   // The time goes to stdout, not into a file: the same scene writes the same bytes.
   double seconds = 0.0;

@@ -107,12 +107,19 @@ int RunRollout(int argc, char** argv) {
   const rodfit::Experiment experiment = rodfit::LoadExperiment(scene_path);
   if (!experiment.scene.dynamics)
     throw rodfit::InputError(scene_path, 1, "dynamics", "rollout needs a dynamics: block");
+  // Every file the run reads; no output may replace one (checked now, before any work).
+  std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
+  for (const std::string& path : recording_paths) inputs.emplace_back(path, "a recording");
+  if (!parameters_path.empty()) inputs.emplace_back(parameters_path, "--parameters");
+  rodfit::CheckOutputDirectory(output_dir, {"rollout.csv", "motion_fit.json"}, inputs);
+  if (!report_dir.empty()) rodfit::CheckOutputDirectory(report_dir, {"index.html"}, inputs);
   std::vector<rodfit::MarkerRecording> recs;
   std::vector<rodfit::MotionRecordingData> data;
   for (const std::string& path : recording_paths) {
     recs.push_back(rodfit::ReadMarkerRecording(path, frame_rate, unit == "mm" ? 1e-3 : 1.0));
     rodfit::CheckRecordingScale(recs.back(), experiment.scene.rod.length,
                                 unit == "mm" ? "--unit mm is set" : "give --unit mm");
+    rodfit::CheckRecordingFitsRod(recs.back(), experiment.scene.rod.length);
     data.push_back({path, recs.back().frame_interval, recs.back().frames});
   }
   rodfit::RolloutOptions options;
@@ -314,24 +321,16 @@ int RunRollout(int argc, char** argv) {
   std::unique_ptr<rodfit::StagedDirectory> report_out;
   std::vector<std::string> report_warnings;
   if (!report_dir.empty()) {
-    std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
-    for (const std::string& path : recording_paths) inputs.emplace_back(path, "recording");
-    if (!parameters_path.empty()) inputs.emplace_back(parameters_path, "--parameters");
-    rodfit::RefuseOverwritingInput((std::filesystem::path(report_dir) / "index.html").string(), inputs);
     report.fit = fitted.get();
     report.warnings = warnings;
     report_out = std::make_unique<rodfit::StagedDirectory>(report_dir);
+    report_out->SetInputs(inputs);
     report_warnings = rodfit::WriteRolloutReport(report_out.get(), report);
   }
   rodfit::StagedDirectory out(output_dir);
-  std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
-  if (!parameters_path.empty()) inputs.emplace_back(parameters_path, "--parameters");
+  out.SetInputs(inputs);
   out.Write("rollout.csv", csv, "output file name");
-  rodfit::RefuseOverwritingInput(out.FinalPath("rollout.csv"), inputs);
-  if (!fit_json.empty()) {
-    out.Write("motion_fit.json", fit_json, "output file name");
-    rodfit::RefuseOverwritingInput(out.FinalPath("motion_fit.json"), inputs);
-  }
+  if (!fit_json.empty()) out.Write("motion_fit.json", fit_json, "output file name");
   if (report_out)
     rodfit::CommitAll({report_out.get(), &out});
   else

@@ -55,6 +55,10 @@ int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scen
                    bool quiet) {
   // A long integration shows which case it is on (a terminal only; io/progress.h).
   rodfit::ProgressLine progress(quiet, 2);
+  // The output rule before the work: no output over an input (a drive path, a tip load, ...).
+  rodfit::CheckOutputDirectory(
+      output_dir, {"trajectory.csv", "reactions.csv", "summary.csv", "markers.csv"},
+      rodfit::ExperimentInputs(experiment));
   const rodfit::Scene& scene = experiment.scene;
   std::vector<rodfit::CaseMotion> motions;
   std::vector<rodfit::MotionSummaryRow> summary;
@@ -102,16 +106,13 @@ int SimulateMotion(const rodfit::Experiment& experiment, const std::string& scen
     return EXIT_FAILURE;
   }
   rodfit::StagedDirectory out(output_dir);
-  const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
+  out.SetInputs(rodfit::ExperimentInputs(experiment));
   std::vector<std::pair<std::string, std::string>> files = {
       {"trajectory.csv", rodfit::FormatTrajectoryCsv(motions)},
       {"reactions.csv", rodfit::FormatReactionsCsv(motions)},
       {"summary.csv", rodfit::FormatMotionSummaryCsv(summary)}};
   if (markers.count > 0) files.emplace_back("markers.csv", MarkersCsv(motions, markers));
-  for (const auto& [name, text] : files) {
-    out.Write(name, text, "output file name");
-    rodfit::RefuseOverwritingInput(out.FinalPath(name), inputs);
-  }
+  for (const auto& [name, text] : files) out.Write(name, text, "output file name");
   out.Commit();
   if (!first_failure.empty()) {
     std::cerr << "rodfit simulate: " << first_failure << " (the frames up to there written)\n";

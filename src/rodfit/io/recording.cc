@@ -309,6 +309,34 @@ void CheckRecordingScale(const MarkerRecording& recording, double rod_length,
   }
 }
 
+void CheckRecordingFitsRod(const MarkerRecording& recording, double rod_length) {
+  for (size_t k = 0; k < recording.frames.size(); ++k) {
+    const Eigen::Matrix3Xd& frame = recording.frames[k];
+    double polyline = 0.0;
+    int last = -1, seen = 0;
+    for (int m = 0; m < frame.cols(); ++m) {
+      if (!frame.col(m).allFinite()) continue;
+      if (last >= 0) polyline += (frame.col(m) - frame.col(last)).norm();
+      last = m;
+      ++seen;
+    }
+    if (seen < 2) continue;
+    const double ratio = polyline / rod_length;
+    const bool too_long = ratio > 1.0 + kRecordingLengthTolerance;
+    const bool too_short = k == 0 && ratio < 1.0 - kRecordingLengthTolerance;
+    if (!too_long && !too_short) continue;
+    char text[400];
+    std::snprintf(text, sizeof(text),
+                  "frame %zu: the markers' polyline is %.4g m long, %.3g %% of the rod's length "
+                  "(%.4g m); a recording of this rod lies within %.3g %% of it%s (a recording "
+                  "of another rod, or scaled?)",
+                  k, polyline, 100.0 * ratio, rod_length, 100.0 * kRecordingLengthTolerance,
+                  k == 0 ? " in its first frame, whose markers are placed along the rod by it"
+                         : "");
+    throw InputError(recording.file, 0, "", text);
+  }
+}
+
 namespace {
 
 // The 1-based line of the first `"key"` at or after byte `from` of a JSON text (0: not found),

@@ -36,6 +36,18 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
 void CheckRecordingScale(const MarkerRecording& recording, double rod_length,
                          const std::string& hint);
 
+/// The largest stretch of the rod a recording may show [-]: a frame's marker polyline longer
+/// than (1 + this) rod lengths, or a first frame's shorter than (1 - this), is not a recording
+/// of this rod (another rod, a scaled or mislabelled recording).
+inline constexpr double kRecordingLengthTolerance = 0.2;
+
+/// The recording against the rod it is to be a recording of: throws InputError naming the file
+/// and the frame when the first frame's marker polyline (its seen markers in order) is not
+/// within kRecordingLengthTolerance of `rod_length` (the rollout places the markers on the rod
+/// by it), or a later frame's is longer than (1 + kRecordingLengthTolerance) rod lengths (the
+/// rod would be stretched beyond anything a rod model describes).
+void CheckRecordingFitsRod(const MarkerRecording& recording, double rod_length);
+
 /// The fitted values of a `rollout --fit` result file (motion_fit.json, docs/cli.md,
 /// "rollout"): per parameter name, its `value` in SI units, in the file's order. Throws
 /// InputError naming the file, the line and the key for a file that cannot be read or is not

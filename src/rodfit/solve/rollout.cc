@@ -1,5 +1,6 @@
 #include "rodfit/solve/rollout.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -317,6 +318,10 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers) {
     held[m] = 1;
   }
   if (markers < 1 || !held[0]) throw std::invalid_argument("marker 0 (the clamp) must be held");
+  // A rollout whose markers are all driven predicts nothing: its error would read 0 m.
+  if (std::find(held.begin(), held.end(), 0) == held.end())
+    throw std::invalid_argument("every one of the " + std::to_string(markers) +
+                                " markers is held (--held): none is left to predict");
   return held;
 }
 
