@@ -5,9 +5,7 @@
 
 #include <string>
 
-namespace CLI {
-class App;
-}
+#include <CLI/CLI.hpp>
 
 /// `text` with its line breaks turned into spaces: every error is one line.
 std::string OneLine(std::string text);
@@ -19,6 +17,10 @@ std::string CasePlace(const std::string& file, int line, const std::string& name
 
 /// Parses argv for one subcommand; returns -1 to go on, else the exit status (help or error).
 int Parse(CLI::App& app, int argc, char** argv);
+
+/// A number option's check: finite and in [min, max]. CLI::Range lets "nan" through (every
+/// comparison with NaN is false), so every floating-point option is checked with this instead.
+CLI::Validator FiniteRange(double min, double max);
 
 /// Runs the command `name` and turns what it throws into one line on stderr and exit status 1:
 /// out of memory named as such, any other exception by its message.

@@ -55,14 +55,18 @@ int RunSimulate(int argc, char** argv) {
                  "(t,marker,x,y,z) of this many markers evenly spaced in s, at every written frame")
       ->check(CLI::Range(2, 10000));
   app.add_option("--marker-noise", markers.noise, "[m] Gaussian noise per coordinate of markers.csv")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(FiniteRange(0.0, 1.0));
   app.add_option("--marker-drop", markers.drop, "fraction of markers.csv samples dropped (not in frames 0-1)")
-      ->check(CLI::Range(0.0, 0.9));
+      ->check(FiniteRange(0.0, 0.9));
   app.add_option("--seed", markers.seed, "random seed of the marker noise and drops");
   app.add_flag("--keep-going", keep_going,
                "write the cases that converged and summary.csv even when one fails (exit 3)");
   bool quiet = false;
   app.add_flag("-q,--quiet", quiet, "no progress line");
+  bool large = false;
+  app.add_flag("--large", large,
+               "moving scene: run it even when its estimated work or output is above the limits "
+               "(docs/formats.md, \"Limits\")");
   std::string profile_path;
   std::vector<std::string> sets;
   app.add_option("--profile", profile_path,
@@ -86,6 +90,11 @@ int RunSimulate(int argc, char** argv) {
     }
     rodfit::UseProfileMaterial(rodfit::LoadProfile(profile_path, read), &experiment.scene);
   }
+  // The work and the output a moving scene asks for, refused before the run starts when
+  // above the documented limits (a scene within every other limit could run for hours).
+  if (experiment.scene.dynamics && !large)
+    rodfit::CheckMotionRunSize(rodfit::EstimateMotionRun(experiment.scene, markers.count),
+                               scene_path, "--large");
   if (experiment.scene.dynamics)
     return SimulateMotion(experiment, scene_path, output_dir, keep_going, markers, quiet);
   if (markers.count > 0)

@@ -3,10 +3,10 @@
 // input, never over anything but a regular file, never to an empty path), physical sanity of a
 // result returned with exit 0, a recording checked against the scene's rod, exports validated
 // before anything is written, and one-line errors with exit 1.
-#include <sys/stat.h>
-
 #include <filesystem>
+#include <algorithm>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -18,6 +18,7 @@ namespace rodfit::test {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 // A short moving scene: a 1 m cable clamped at 0, its end pinned and driven along `path.csv`.
 std::string MovingScene(const std::string& drive_file, const std::string& extra = "",
@@ -116,20 +117,168 @@ TEST(OutputRule, EmptyOutputPathIsRefusedByEveryCommand) {
   }
 }
 
-TEST(OutputRule, ExportRefusesAFifoBeforeReadingTheProfile) {
+// --- 2. Physical sanity of what is returned with exit 0 -------------------------------------
+
+// The bundled suture swing with a tip-load series rising to 1e4 N: the edges were stretched by
+// 4080 % and the tip thrown 8.4 m from a 0.2 m rod, with exit 0.
+TEST(PhysicalSanity, ATipLoadTheRodCannotCarryStopsTheCaseNamingTheTime) {
   TempDir dir;
-  const std::string fifo = dir.File("pipe");
-  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-  const std::string profile = std::string(RODFIT_SOURCE_DIR) + "/data/profiles/suture.json";
-  for (const char* format : {"json", "sofa"}) {
-    const RunResult run = RunRodfit(
-        dir, "export " + Quote(profile) + " --format " + format + " -o " + Quote(fifo));
-    EXPECT_EQ(run.status, 1) << format;
-    EXPECT_THAT(run.err, HasSubstr("is not a file")) << format;
-    struct stat st;
-    ASSERT_EQ(::stat(fifo.c_str(), &st), 0);
-    EXPECT_TRUE(S_ISFIFO(st.st_mode)) << format;
+  std::string scene = ReadText(std::string(RODFIT_SOURCE_DIR) + "/data/scenes/suture_swing.yaml");
+  scene = Replace(scene, "duration: 1.0 ", "duration: 0.1 ");
+  scene += "    tip_load: {file: load.csv}\n";
+  dir.Write("load.csv", "t,fx,fy,fz\n0,0,0,0\n0.05,1e4,0,0\n");
+  const std::string path = dir.Write("swing.yaml", scene);
+  const RunResult run = RunRodfit(dir, "simulate " + Quote(path) + " -o " + Quote(dir.File("o")));
+  EXPECT_EQ(run.status, 1) << run.out;
+  EXPECT_THAT(run.err, HasSubstr("case swing: t = "));
+  EXPECT_THAT(run.err, HasSubstr("beyond the rod model's small-strain limit of 10 %"));
+  EXPECT_FALSE(std::filesystem::exists(dir.File("o")));
+  // With --keep-going, the frames up to there and exit 3.
+  const RunResult kept =
+      RunRodfit(dir, "simulate " + Quote(path) + " --keep-going -o " + Quote(dir.File("k")));
+  EXPECT_EQ(kept.status, 3) << kept.err;
+}
+
+// An end pin driven to twice the rod's length: 100 % strain and a 20 kN reaction with exit 0.
+TEST(PhysicalSanity, AnEndDrivenBeyondTheRodsReachStops) {
+  TempDir dir;
+  dir.Write("far.csv", "t,x,y,z\n0,0.8,0,0\n0.05,2.0,0,0\n");
+  const std::string scene = dir.Write("s.yaml", MovingScene("far.csv"));
+  const RunResult run = RunRodfit(dir, "simulate " + Quote(scene) + " -o " + Quote(dir.File("o")));
+  EXPECT_EQ(run.status, 1) << run.out;
+  EXPECT_THAT(run.err, HasSubstr("case carried: t = "));
+  EXPECT_THAT(run.err, HasSubstr("small-strain limit"));
+  // The same scene driven within reach runs.
+  dir.Write("near.csv", kPath);
+  const RunResult near = RunRodfit(dir, "simulate " + Quote(dir.Write("n.yaml", MovingScene("near.csv"))) +
+                                            " -o " + Quote(dir.File("n")));
+  EXPECT_EQ(near.status, 0) << near.err;
+}
+
+// --- 3. rollout checks the recording against the scene's rod ---------------------------------
+
+TEST(RolloutRecording, ARecordingOfAnotherRodIsRefusedNamingTheFile) {
+  TempDir dir;
+  const std::string rec = Recording(dir);
+  // The same recording scaled 1.5 times about the clamp.
+  std::string scaled = "t,marker,x,y,z\n";
+  std::istringstream in(rec);
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string t, m, x, y, z;
+    std::getline(row, t, ',');
+    std::getline(row, m, ',');
+    std::getline(row, x, ',');
+    std::getline(row, y, ',');
+    std::getline(row, z, ',');
+    scaled += t + "," + m + "," + std::to_string(1.5 * std::stod(x)) + "," +
+              std::to_string(1.5 * std::stod(y)) + "," + std::to_string(1.5 * std::stod(z)) + "\n";
   }
+  const std::string path = dir.Write("scaled.csv", scaled);
+  const RunResult run = RunRodfit(dir, "rollout " + Quote(dir.File("scene.yaml")) + " " +
+                                           Quote(path) + " -q -o " + Quote(dir.File("r")));
+  EXPECT_EQ(run.status, 1) << run.out;
+  EXPECT_THAT(run.err, HasSubstr("scaled.csv: frame 0: the markers' polyline is"));
+  EXPECT_FALSE(std::filesystem::exists(dir.File("r")));
+  // The recording itself is rolled out.
+  const RunResult own = RunRodfit(dir, "rollout " + Quote(dir.File("scene.yaml")) + " " +
+                                           Quote(dir.Write("own.csv", rec)) + " -q -o " +
+                                           Quote(dir.File("r")));
+  EXPECT_EQ(own.status, 0) << own.err;
+}
+
+TEST(RolloutRecording, EveryMarkerHeldIsRefusedNotScoredAsZero) {
+  TempDir dir;
+  const std::string rec = dir.Write("rec.csv", Recording(dir));
+  const RunResult run = RunRodfit(dir, "rollout " + Quote(dir.File("scene.yaml")) + " " + Quote(rec) +
+                                           " --held 0,1,2,3,4,5,6,7 -q -o " + Quote(dir.File("r")));
+  EXPECT_EQ(run.status, 1) << run.out;
+  EXPECT_THAT(run.err, HasSubstr("none is left to predict"));
+  EXPECT_THAT(run.out, Not(HasSubstr("over the predicted ones")));
+}
+
+TEST(RolloutRecording, MillisecondTimesAreRefusedBeforeTheRun) {
+  TempDir dir;
+  const std::string rec = Recording(dir);
+  std::string ms = "t,marker,x,y,z\n";
+  std::istringstream in(rec);
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    const size_t comma = line.find(',');
+    ms += std::to_string(1000.0 * std::stod(line.substr(0, comma))) + line.substr(comma) + "\n";
+  }
+  const RunResult run = RunRodfit(dir, "rollout " + Quote(dir.File("scene.yaml")) + " " +
+                                           Quote(dir.Write("ms.csv", ms)) + " -q -o " +
+                                           Quote(dir.File("r")));
+  EXPECT_EQ(run.status, 1) << run.out;
+  EXPECT_THAT(run.err, HasSubstr("ms.csv:2: t: the frames are 5 s apart, more than 1 s"));
+}
+
+// --- 5. Work estimated before a run -----------------------------------------------------------
+
+TEST(RunSize, AMovingSceneAboveTheWorkLimitIsRefusedUnlessAsked) {
+  TempDir dir;
+  dir.Write("path.csv", kPath);
+  // 2000 segments x 1e5 steps: 2e8 vertex steps and more; refused at once.
+  std::string scene = MovingScene("path.csv", "", "100");
+  scene = Replace(scene, "segments: 20", "segments: 2000");
+  const std::string path = dir.Write("big.yaml", scene);
+  const RunResult run = RunRodfit(dir, "simulate " + Quote(path) + " -o " + Quote(dir.File("o")));
+  EXPECT_EQ(run.status, 1) << run.out;
+  EXPECT_THAT(run.err, HasSubstr("big.yaml: dynamics: the run would take 2e+08 vertex steps"));
+  EXPECT_THAT(run.err, HasSubstr("--large"));
+  // Output: a written frame every step of a 200-segment rod for 600 s.
+  scene = MovingScene("path.csv", "", "600");
+  scene = Replace(scene, "output_every: 5", "output_every: 1");
+  const RunResult out = RunRodfit(dir, "simulate " + Quote(dir.Write("out.yaml", scene)) + " -o " +
+                                           Quote(dir.File("o")));
+  EXPECT_EQ(out.status, 1) << out.out;
+  EXPECT_THAT(out.err, HasSubstr("bytes of CSV"));
+}
+
+// --- 6. Exit codes and messages ---------------------------------------------------------------
+
+TEST(ExitCodes, OptionErrorsOfEveryCommandAreExitOneWithOneLine) {
+  TempDir dir;
+  for (const std::string& args :
+       {std::string("rollout"), std::string("rollout a.yaml b.csv -o x --smooth -3"),
+        std::string("rollout a.yaml b.csv -o x --no-such-option"), std::string("bench --no-such"),
+        std::string("bench --calibration"), std::string("export"), std::string("fit"),
+        std::string("simulate")}) {
+    const RunResult run = RunRodfit(dir, args);
+    EXPECT_EQ(run.status, 1) << args << ": " << run.err;
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << args << ": " << run.err;
+    EXPECT_THAT(run.err, ::testing::StartsWith("rodfit ")) << args;
+  }
+}
+
+TEST(ExitCodes, NanAndInfOptionsAreRefused) {
+  TempDir dir;
+  dir.Write("path.csv", kPath);
+  const std::string scene = dir.Write("scene.yaml", MovingScene("path.csv"));
+  const std::string rec = dir.Write("rec.csv", "t,marker,x,y,z\n0,0,0,0,0\n0,1,1,0,0\n");
+  for (const std::string& args :
+       {"simulate " + Quote(scene) + " --markers 4 --marker-noise nan -o " + Quote(dir.File("o")),
+        "simulate " + Quote(scene) + " --markers 4 --marker-drop nan -o " + Quote(dir.File("o")),
+        "rollout " + Quote(scene) + " " + Quote(rec) + " --frame-rate nan -o " + Quote(dir.File("o")),
+        "rollout " + Quote(scene) + " " + Quote(rec) + " --marker-sigma inf -o " + Quote(dir.File("o"))}) {
+    const RunResult run = RunRodfit(dir, args);
+    EXPECT_EQ(run.status, 1) << args << ": " << run.out;
+    EXPECT_THAT(run.err, HasSubstr("not a finite number")) << args;
+    EXPECT_FALSE(std::filesystem::exists(dir.File("o"))) << args;
+  }
+}
+
+TEST(ExitCodes, DuplicateFitNamesAreRefused) {
+  TempDir dir;
+  const std::string rec = dir.Write("rec.csv", Recording(dir));
+  const RunResult run = RunRodfit(dir, "rollout " + Quote(dir.File("scene.yaml")) + " " + Quote(rec) +
+                                           " --fit damping,damping -q -o " + Quote(dir.File("r")));
+  EXPECT_EQ(run.status, 1) << run.out;
+  EXPECT_THAT(run.err, HasSubstr("'damping' is named twice"));
 }
 
 }  // namespace

@@ -25,7 +25,12 @@ struct MarkerRecording {
 /// fitted to the times, or 1 / frame_rate). Throws InputError naming the file, line and column
 /// (markers not 0..M-1 integers, a frame seen twice for one marker, a coordinate that is not a
 /// number, empty or nan, irregular times, more than 100,000 frames or 10,000 markers, markers
-/// out of order along the rod in frame 0).
+/// out of order along the rod in frame 0, a frame interval above kMaxFrameInterval).
+/// Longest frame interval a recording may have [s]: motion capture runs at tens to thousands of
+/// hertz; an interval above a second is times in milliseconds read as seconds (or a frame rate
+/// in frames per minute), and would have the rollout take thousands of steps per frame.
+inline constexpr double kMaxFrameInterval = 1.0;
+
 MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
                                     double position_scale = 1.0);
 
