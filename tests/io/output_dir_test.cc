@@ -205,7 +205,7 @@ TEST(OutputDir, CheckOutputFileRefusesEmptyNonRegularAndInputs) {
   ASSERT_EQ(::mkfifo(dir.File("fifo").c_str(), 0600), 0);
   EXPECT_THAT(error(dir.File("fifo")), HasSubstr("exists and is not a file"));
   fs::create_directory(dir.File("d"));
-  EXPECT_THAT(error(dir.File("d")), HasSubstr("is a directory"));
+  EXPECT_THAT(error(dir.File("d")), HasSubstr("exists and is not a file (a directory)"));
   EXPECT_THAT(error(input), HasSubstr("is the drive path of cases[0] (end_pin)"));
   EXPECT_EQ(error(dir.File("new.csv")), "");
   // A staged directory with the run's inputs refuses to stage over one, and its commit keeps

@@ -204,18 +204,18 @@ TEST(Recording, AlternatingJitterWithinTenPercentIsAccepted) {
   const MarkerRecording rec = ReadMarkerRecording(path, 0.0);
   ASSERT_EQ(rec.frames.size(), 30u);
   EXPECT_NEAR(rec.frame_interval, 0.01, 1e-4);
-  for (int k = 0; k < 30; ++k) EXPECT_NEAR(rec.frames[k](1, 0), 0.001 * k, 1e-12) << k;
-  // With a dropped frame as well.
-  std::string dropped = "t,marker,x,y,z\n";
-  for (int k : {0, 1, 2, 3, 5, 6, 7, 8, 9}) {
+  for (int k = 0; k < 30; ++k) EXPECT_NEAR(rec.frames[k](1, 0), 0.001 * k, 1e-12) << k;  // Over few frames, frame 0 on time: the least-squares line misses the bound; the recording is
+  // within it all the same.
+  std::string few = "t,marker,x,y,z\n";
+  for (int k = 0; k <= 10; ++k) {
     char row[96];
     std::snprintf(row, sizeof(row), "%.6f,0,0,0,%d\n", 0.01 * k + (k == 0 ? 0.0 : k % 2 ? 9e-4 : -9e-4), k);
-    dropped += row;
+    few += row;
   }
-  const MarkerRecording d = ReadMarkerRecording(dir.Write("altd.csv", dropped), 0.0);
-  ASSERT_EQ(d.frames.size(), 10u);
-  EXPECT_FALSE(d.frames[4].allFinite());
-  EXPECT_DOUBLE_EQ(d.frames[9](2, 0), 9.0);
+  const MarkerRecording f = ReadMarkerRecording(dir.Write("few.csv", few), 0.0);
+  ASSERT_EQ(f.frames.size(), 11u);
+  EXPECT_DOUBLE_EQ(f.frame_interval, 0.01);
+  EXPECT_DOUBLE_EQ(f.frames[10](2, 0), 10.0);
 }
 
 // Issue 34: a recording stamped in milliseconds read as seconds ran for minutes with no output.

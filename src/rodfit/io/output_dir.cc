@@ -101,8 +101,9 @@ void CheckOutputFile(const std::string& output, const std::vector<InputFile>& in
   const fs::file_status s = fs::symlink_status(output, ec);
   if (fs::exists(s) && !fs::is_regular_file(s) && !fs::is_symlink(s)) {
     throw InputError(output, 0, "",
-                     std::string(fs::is_directory(s) ? "is a directory" : "exists and is not a file") +
-                         "; not replaced, nothing was written");
+                     std::string("exists and is not a file (") +
+                         (fs::is_directory(s) ? "a directory" : "a device, FIFO or socket") +
+                         "); not replaced, nothing was written");
   }
   RefuseOverwritingInput(output, inputs);
 }
@@ -211,7 +212,9 @@ void StagedDirectory::Write(const std::string& relative, const std::string& cont
   PathInside(target_, relative, what);  // refused in the user's own words for the target
   const fs::path staged = PathInside(staging_, relative, what);
   const std::string final_path = FinalPath(relative);
-  CheckOutputFile(final_path, inputs_);
+  // An input is refused at once; what else is in the way (a directory, a FIFO) at the commit,
+  // which checks every file before any is moved.
+  RefuseOverwritingInput(final_path, inputs_);
   std::error_code ec;
   fs::create_directories(staged.parent_path(), ec);
   if (ec) throw InputError(final_path, 0, "", "cannot write: " + ec.message());

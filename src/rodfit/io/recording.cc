@@ -128,7 +128,43 @@ TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
     const double rate = 1.0 / dt, whole = std::round(rate);
     if (whole >= 1.0 && std::abs(rate - whole) <= 1e-3 * rate) dt = 1.0 / whole;
   }
-  const double t0 = mt - mk * dt;
+  // The documented rule is a bound: some t0 + k dt within kMaxJitter dt of every time. The
+  // least-squares line can miss it where one exists (alternating jitter near the bound over few
+  // frames tilts it): then the line of least largest offset (t0 the offsets' mid-range; dt,
+  // unless the frame rate is given, by a golden-section search on the offsets' range, which is
+  // convex in dt) is taken.
+  auto half_range = [&](double interval, double* start) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (size_t i = 0; i < n; ++i) {
+      const double r = out.times[i] - out.frame[i] * interval;
+      lo = std::min(lo, r);
+      hi = std::max(hi, r);
+    }
+    *start = 0.5 * (lo + hi);
+    return 0.5 * (hi - lo);
+  };
+  double t0 = mt - mk * dt;
+  bool within = true;
+  for (size_t i = 0; i < n && within; ++i)
+    within = std::abs(out.times[i] - (t0 + out.frame[i] * dt)) <= kMaxJitter * dt;
+  if (!within) {
+    double interval = dt, start = 0.0;
+    if (!(frame_rate > 0.0)) {
+      double a = 0.8 * dt, b = 1.2 * dt;
+      const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+      for (int it = 0; it < 100 && b - a > 1e-15 * dt; ++it) {
+        const double c = b - g * (b - a), d = a + g * (b - a);
+        if (half_range(c, &start) <= half_range(d, &start)) b = d; else a = c;
+      }
+      interval = 0.5 * (a + b);
+      const double rate = 1.0 / interval, whole = std::round(rate);
+      if (whole >= 1.0 && std::abs(rate - whole) <= 1e-3 * rate) interval = 1.0 / whole;
+    }
+    if (half_range(interval, &start) <= kMaxJitter * interval) {
+      dt = interval;
+      t0 = start;
+    }
+  }
   for (size_t i = 0; i < n; ++i) {
     const double off = out.times[i] - (t0 + out.frame[i] * dt);
     if (std::abs(off) > kMaxJitter * dt) {
