@@ -9,17 +9,6 @@
 
 #include <CLI/CLI.hpp>
 
-std::string OneLine(std::string text) {
-  for (char& c : text) {
-    if (c == '\n' || c == '\r') c = ' ';
-  }
-  return text;
-}
-
-std::string CasePlace(const std::string& file, int line, const std::string& name) {
-  return file + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": case " + name + ": ";
-}
-
 CLI::Validator FiniteRange(double min, double max) {
   const std::string range = "[" + CLI::detail::to_string(min) + " - " + CLI::detail::to_string(max) + "]";
   return CLI::Validator(
