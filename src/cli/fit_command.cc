@@ -58,6 +58,11 @@ void PrintEstimates(const rodfit::FitResult& result) {
     else
       std::fprintf(stderr, "%-18s NOT IDENTIFIABLE: %s\n", p.name.c_str(), p.reason.c_str());
   }
+  // The cases' fitted held frames (nuisances, not material).
+  for (const rodfit::NuisanceEstimate& n : result.nuisances)
+    std::fprintf(stderr, "case %s, %s rotation: (%.3g, %.3g, %.3g) +- (%.2g, %.2g, %.2g) deg\n",
+                 n.case_name.c_str(), n.held.c_str(), n.rotation_deg[0], n.rotation_deg[1],
+                 n.rotation_deg[2], n.std_deg[0], n.std_deg[1], n.std_deg[2]);
 }
 
 }  // namespace
@@ -141,6 +146,8 @@ int RunFit(int argc, char** argv) {
                      : "");
   if (!run.residual_warning.empty())
     std::fprintf(stderr, "rodfit fit: warning: %s\n", run.residual_warning.c_str());
+  for (const std::string& w : run.entry_warnings)
+    std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
   for (const std::string& w : run.report_warnings)
     std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
   if (!quiet) {

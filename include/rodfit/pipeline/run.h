@@ -65,8 +65,11 @@ struct FitRun {
   std::vector<std::string> stretched;
   /// The residual variance outside its chi-square band, with what it means (empty: inside).
   std::string residual_warning;
+  /// The observation entries' own warnings ("case NAME: LABEL: ...", e.g. a critical twist the
+  /// model does not reach within its range).
+  std::vector<std::string> entry_warnings;
   /// Every warning in the order the report lists them (stretched spans with what to check, the
-  /// residual warning); then the report's own (drawn without 3-D views...).
+  /// residual warning, the entries' warnings); then the report's own (drawn without 3-D views...).
   std::vector<std::string> warnings;
   std::vector<std::string> report_warnings;
   /// Some fitted parameter is not determined by the data (its value null in the profile).

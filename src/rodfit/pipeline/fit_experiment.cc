@@ -83,6 +83,11 @@ void Finish(const Experiment& experiment, const FitInput& input, const FitRunOpt
   ResidualCheck check;
   run->residual_warning = ResidualWarning(run->result, run->options, &check);
   if (!run->residual_warning.empty()) run->warnings.push_back(run->residual_warning);
+  for (const ObservationFit& o : run->result.observations)
+    if (!o.warning.empty())
+      run->entry_warnings.push_back("case " + o.case_name + ": " + o.label + ": " + o.warning);
+  run->warnings.insert(run->warnings.end(), run->entry_warnings.begin(),
+                       run->entry_warnings.end());
   run->misfit = check.gross;
   for (const Parameter& p : run->result.parameters)
     if (p.fit && !p.identifiable) run->all_determined = false;
@@ -182,13 +187,15 @@ FitRun FitExperiment(const Experiment& experiment, const FitRunOptions& options)
       }
     };
   }
+  bool ran = true;
   try {
     run.result = Fit(input, run.options);
   } catch (const std::invalid_argument& e) {
     run.error = e.what();
-    return run;
+    ran = false;
   }
   run.options.progress = nullptr;  // the callback refers to `options`, which the caller owns
+  if (!ran) return run;
   if (!run.result.success) {
     run.error = "the fit failed: " + run.result.message + " (no profile written)";
     return run;
