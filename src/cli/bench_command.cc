@@ -7,6 +7,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "rodfit/bench/bench.h"
 #include "rodfit/io/output_dir.h"
@@ -32,11 +33,8 @@ int RunBench(int argc, char** argv) {
   app.add_flag("--skips", skips, "what each skip saves, timed with and without it");
   app.add_option("--calibration", calibration_dir,
                  "the bundled recipes' folder, for the fit rows (default: ./calibration)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  // CLI11's errors are exit 1 with one line, as every command's (cli_common.h, docs/cli.md).
+  if (const int status = Parse(app, argc, argv); status >= 0) return status;
   if (stress && skips) {
     std::cerr << "rodfit bench: --stress and --skips are separate runs; give one\n";
     return EXIT_FAILURE;

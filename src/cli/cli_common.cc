@@ -1,12 +1,26 @@
 // What the executable and the commands module share (cli_common.h).
 #include "cli_common.h"
 
+#include <cmath>
 #include <cstdlib>
 #include <exception>
 #include <iostream>
 #include <new>
 
 #include <CLI/CLI.hpp>
+
+CLI::Validator FiniteRange(double min, double max) {
+  const std::string range = "[" + CLI::detail::to_string(min) + " - " + CLI::detail::to_string(max) + "]";
+  return CLI::Validator(
+      [min, max, range](std::string& text) -> std::string {
+        double value = 0.0;
+        if (!CLI::detail::lexical_cast(text, value)) return "'" + text + "' is not a number";
+        if (!std::isfinite(value)) return "'" + text + "' is not a finite number";
+        if (value < min || value > max) return "value " + text + " not in range " + range;
+        return std::string();
+      },
+      range, "FINITE_RANGE");
+}
 
 int Parse(CLI::App& app, int argc, char** argv) {
   try {

@@ -5,11 +5,9 @@
 
 #include <string>
 
-#include "rodfit/io/errors.h"
+#include <CLI/CLI.hpp>
 
-namespace CLI {
-class App;
-}
+#include "rodfit/io/errors.h"
 
 // OneLine and CasePlace are the library's (rodfit/io/errors.h).
 using rodfit::CasePlace;
@@ -17,6 +15,10 @@ using rodfit::OneLine;
 
 /// Parses argv for one subcommand; returns -1 to go on, else the exit status (help or error).
 int Parse(CLI::App& app, int argc, char** argv);
+
+/// A number option's check: finite and in [min, max]. CLI::Range lets "nan" through (every
+/// comparison with NaN is false), so every floating-point option is checked with this instead.
+CLI::Validator FiniteRange(double min, double max);
 
 /// Runs the command `name` and turns what it throws into one line on stderr and exit status 1:
 /// out of memory named as such, any other exception by its message.

@@ -12,6 +12,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
@@ -40,17 +41,12 @@ int RunExport(int argc, char** argv) {
   app.add_option("--time-step", time_step,
                  "[s] the simulator's (sub)step: xpbd requires it; sofa and mujoco write it "
                  "(default 1e-3 s, mujoco less when its cable needs less)")
-      ->check(CLI::Range(1e-9, 10.0));
+      ->check(FiniteRange(1e-9, 10.0));
   app.add_option("--set", sets,
                  "NAME=VALUE [SI]: a value for a parameter the profile leaves undetermined "
                  "(not json; repeatable)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);
-    std::cerr << "rodfit export: " << e.what() << " (see --help)\n";
-    return EXIT_FAILURE;
-  }
+  // CLI11's errors are exit 1 with one line, as every command's (cli_common.h, docs/cli.md).
+  if (const int status = Parse(app, argc, argv); status >= 0) return status;
   const rodfit::ExportFormat& format = *rodfit::FindExportFormat(format_name);
   if (!format.takes_overrides && !sets.empty())
     throw std::invalid_argument(std::string("--set is not for --format ") + format.name +
@@ -67,7 +63,7 @@ int RunExport(int argc, char** argv) {
   if (output.empty()) throw std::invalid_argument("-o is empty: give the output file's path");
   if (!target.has_filename() || target.filename() == "." || target.filename() == "..")
     throw rodfit::InputError(output, 0, "", "is not a file name (-o names the output file)");
-  rodfit::RefuseOverwritingInput(output, {{profile_path, "the profile"}});
+  rodfit::CheckOutputFile(output, {{profile_path, "the profile"}});
   // One read of the file: the json format re-writes exactly the text that was validated.
   const std::string text =
       rodfit::ReadInputFile(profile_path, "a profile", rodfit::kMaxProfileBytes);

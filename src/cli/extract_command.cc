@@ -110,8 +110,8 @@ int RunExtract(int argc, char** argv) {
   for (const std::string& camera : camera_paths) inputs.emplace_back(camera, "a camera file");
   for (const std::string& stereo : stereo_paths) inputs.emplace_back(stereo, "a stereo file");
   for (const std::string& mask : masks) inputs.emplace_back(mask, "a mask");
-  rodfit::RefuseOverwritingInput(output_path, inputs);
-  for (const std::string& overlay : overlays) rodfit::RefuseOverwritingInput(overlay, inputs);
+  rodfit::CheckOutputFile(output_path, inputs);
+  for (const std::string& overlay : overlays) rodfit::CheckOutputFile(overlay, inputs);
 
   std::vector<rodfit::Camera> cameras;
   if (!stereo_paths.empty()) {

@@ -13,6 +13,7 @@
 #include <CLI/CLI.hpp>
 #include <glog/logging.h>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/output_dir.h"
@@ -90,13 +91,8 @@ int RunFit(int argc, char** argv) {
                                            std::to_string(kMaxThreads))
       ->check(CLI::Validator(CheckThreads, "INT", "threads"));
   app.add_flag("-q,--quiet", quiet, "no progress line and no summary");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);
-    std::cerr << "rodfit fit: " << e.what() << " (see --help)\n";
-    return EXIT_FAILURE;
-  }
+  // CLI11's errors are exit 1 with one line, as every command's (cli_common.h, docs/cli.md).
+  if (const int status = Parse(app, argc, argv); status >= 0) return status;
 
   SilenceCeresLogging();
 
@@ -109,7 +105,7 @@ int RunFit(int argc, char** argv) {
                                "is a directory; -o takes the profile's file name");
     }
     const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
-    rodfit::RefuseOverwritingInput(profile_path, inputs);
+    rodfit::CheckOutputFile(profile_path, inputs);
     if (!report_dir.empty()) {
       for (const char* name : {"summary.csv", "residuals.csv", "index.html"})
         rodfit::RefuseOverwritingInput((std::filesystem::path(report_dir) / name).string(),

@@ -21,6 +21,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "rodfit/io/output_dir.h"
 #include "rodfit/io/progress.h"
 #include "rodfit/runtime/profile.h"
 #include "rodfit/version.h"
@@ -48,10 +49,13 @@ int RunSimulate(int argc, char** argv) {
                  "(t,marker,x,y,z) of this many markers evenly spaced in s, at every written frame")
       ->check(CLI::Range(2, 10000));
   app.add_option("--marker-noise", options.marker_noise, "[m] Gaussian noise per coordinate of markers.csv")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(FiniteRange(0.0, 1.0));
   app.add_option("--marker-drop", options.marker_drop, "fraction of markers.csv samples dropped (not in frames 0-1)")
-      ->check(CLI::Range(0.0, 0.9));
+      ->check(FiniteRange(0.0, 0.9));
   app.add_option("--seed", options.seed, "random seed of the marker noise and drops");
+  app.add_flag("--large", options.large,
+               "moving scene: run it even when its estimated work or output is above the limits "
+               "(docs/formats.md, \"Limits\")");
   app.add_flag("--keep-going", options.keep_going,
                "write the cases that converged and summary.csv even when one fails (exit 3)");
   bool quiet = false;
@@ -65,6 +69,9 @@ int RunSimulate(int argc, char** argv) {
                  "NAME=VALUE [SI]: with --profile, a value for a parameter the profile leaves "
                  "undetermined (value null) or one to replace (repeatable)");
   if (const int status = Parse(app, argc, argv); status >= 0) return status;
+  // -o '' would mean "write nothing" to the library (and the working directory to a user):
+  // refused with the output rule's message before anything runs.
+  rodfit::CheckOutputDirectory(output_dir, {}, {});
   if (!sets.empty() && profile_path.empty())
     throw std::invalid_argument("--set needs --profile");
 

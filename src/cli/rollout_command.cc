@@ -11,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
@@ -65,9 +66,9 @@ int RunRollout(int argc, char** argv) {
                  "covariance; bobyqa: derivative-free on the mean absolute error")
       ->check(CLI::IsMember({"lm", "bobyqa"}));
   app.add_option("--marker-sigma", marker_sigma, "[m] the markers' noise, weighting the fit's residuals")
-      ->check(CLI::Range(0.0, 1e9));
+      ->check(FiniteRange(0.0, 1e9));
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
-  app.add_option("--frame-rate", frame_rate, "[Hz] with a frame column (with a t column: must agree with its times)")->check(CLI::Range(1e-6, 1e9));
+  app.add_option("--frame-rate", frame_rate, "[Hz] with a frame column (with a t column: must agree with its times)")->check(FiniteRange(1e-6, 1e9));
   std::string unit = "m";
   app.add_option("--unit", unit, "the recordings' positions: m (default) or mm")
       ->check(CLI::IsMember({"m", "mm"}));
@@ -84,11 +85,11 @@ int RunRollout(int argc, char** argv) {
   app.add_option("--parameters", parameters_path,
                  "a motion_fit.json of rollout --fit on other recordings of the rod: its values "
                  "replace the scene's (with --fit: the start)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  // CLI11's errors are exit 1 with one line, as every command's (cli_common.h, docs/cli.md).
+  if (const int status = Parse(app, argc, argv); status >= 0) return status;
+  // -o '' would mean "write nothing" to the library (and the working directory to a user):
+  // refused with the output rule's message before anything runs.
+  rodfit::CheckOutputDirectory(output_dir, {}, {});
   if (!report_dir.empty()) {
     // Two staged directories moved onto one folder would replace each other: said before any
     // work.

@@ -27,11 +27,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <mutex>
 #include <random>
 #include <set>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -188,7 +190,9 @@ std::string MovingSceneYaml() {
 enum class Command {
   kSimulate, kFit, kFitReport, kSynth, kExtract,
   // the same commands on the moving experiment's files
-  kMovingSimulate, kMovingFit, kMovingFitReport, kMovingSynth
+  kMovingSimulate, kMovingFit, kMovingFitReport, kMovingSynth,
+  // issue 34's surfaces: rollout of the moving scene's recording, export of a profile
+  kRollout, kExportJson, kExportSofa, kExportXpbd, kExportMujoco
 };
 
 bool IsFit(Command c) {
@@ -207,6 +211,11 @@ const char* Name(Command c) {
     case Command::kMovingFit: return "fit (moving)";
     case Command::kMovingFitReport: return "fit --report (moving)";
     case Command::kMovingSynth: return "synth (moving)";
+    case Command::kRollout: return "rollout";
+    case Command::kExportJson: return "export json";
+    case Command::kExportSofa: return "export sofa";
+    case Command::kExportXpbd: return "export xpbd";
+    case Command::kExportMujoco: return "export mujoco";
   }
   return "";
 }
@@ -231,6 +240,13 @@ std::vector<std::string> Arguments(Command c, const std::vector<std::string>& ex
       a = {"fit", "move.yaml", "-o", "profile.json", "--report", "report", "-q"};
       break;
     case Command::kMovingSynth: a = {"synth", "move_synth.yaml", "-o", "out", "--seed", "7"}; break;
+    case Command::kRollout: a = {"rollout", "move_scene.yaml", "rec.csv", "-o", "out", "-q"}; break;
+    case Command::kExportJson: a = {"export", "fitted.json", "--format", "json", "-o", "out.json"}; break;
+    case Command::kExportSofa: a = {"export", "fitted.json", "--format", "sofa", "-o", "out.scn"}; break;
+    case Command::kExportXpbd:
+      a = {"export", "fitted.json", "--format", "xpbd", "--time-step", "1e-3", "-o", "out.xpbd.json"};
+      break;
+    case Command::kExportMujoco: a = {"export", "fitted.json", "--format", "mujoco", "-o", "out.xml"}; break;
   }
   for (const std::string& e : extra) a.push_back(e);
   return a;
@@ -242,9 +258,14 @@ struct Case {
   std::function<void(const std::string& dir)> mutate;  // applied to a copy of the base folder
   std::vector<std::string> extra;                       // more options, or instead of the defaults
   bool replace_arguments = false;                       // extra is the whole command line
+  // Inputs the case puts where outputs go (e.g. a drive path in out/): they must come out as
+  // they went in, whatever the verdict (every other file present before the run is checked
+  // unless it is under out*, report* or is profile.json).
+  std::vector<std::string> protect = {};
 };
 
-enum class Verdict { kCleanError, kSuccess, kCrash, kHang, kSilent, kNoisy, kPartial };
+
+enum class Verdict { kCleanError, kSuccess, kCrash, kHang, kSilent, kNoisy, kPartial, kInputChanged };
 
 const char* Name(Verdict v) {
   switch (v) {
@@ -255,6 +276,7 @@ const char* Name(Verdict v) {
     case Verdict::kSilent: return "silent";
     case Verdict::kNoisy: return "noisy";
     case Verdict::kPartial: return "partial output";
+    case Verdict::kInputChanged: return "input changed";
   }
   return "";
 }
@@ -288,6 +310,20 @@ Outcome RunCase(const Case& c, const std::string& dir, const std::string& logs) 
   argv.push_back(nullptr);
   const std::string out_file = logs + ".out", err_file = logs + ".err";
   const std::set<std::string> before = Listing(dir);
+  // The contents of the inputs (regular files only: a FIFO is never opened), to see that no run
+  // changes one. Where outputs go (out*, report*, profile.json) only the protected ones count.
+  auto is_output = [&c](const std::string& rel) {
+    for (const std::string& p : c.protect)
+      if (rel == p) return false;
+    const std::string first = fs::path(rel).begin()->string();
+    return first.rfind("out", 0) == 0 || first.rfind("report", 0) == 0 || rel == "profile.json";
+  };
+  std::map<std::string, std::string> contents;
+  for (const std::string& rel : before) {
+    std::error_code ec;
+    if (!is_output(rel) && fs::is_regular_file(fs::symlink_status(dir + "/" + rel, ec)))
+      contents[rel] = ReadText(dir + "/" + rel);
+  }
 
   const pid_t pid = ::fork();
   if (pid == 0) {
@@ -339,6 +375,15 @@ Outcome RunCase(const Case& c, const std::string& dir, const std::string& logs) 
   if (WIFSIGNALED(raw) || status == 127 || status >= 128) {
     o.verdict = Verdict::kCrash;
     return o;
+  }
+  for (const auto& [rel, text] : contents) {
+    std::error_code ec;
+    const fs::file_status now = fs::symlink_status(dir + "/" + rel, ec);
+    if (!fs::is_regular_file(now) || ReadText(dir + "/" + rel) != text) {
+      o.verdict = Verdict::kInputChanged;
+      o.detail += " changed the input " + rel;
+      return o;
+    }
   }
   // Success: 0, or the fit's 4 (profile written, a parameter not determined) and 5 (profile
   // written, residuals far beyond the stated noise).
@@ -419,6 +464,17 @@ class FuzzCorpusTest : public ::testing::Test {
     fs::remove(b.File("stdout.txt"));
     fs::remove(b.File("stderr.txt"));
     b.Write("move.yaml", MovingFitYaml());
+    // Issue 34's surfaces: the moving scene's own recording (simulate --markers, one case) for
+    // rollout, and a fitted profile for export.
+    const test::RunResult recorded = test::RunRodfit(
+        b, "simulate " + test::Quote(b.File("move_scene.yaml")) + " --markers 6 -o " +
+               test::Quote(b.File("made")));
+    ASSERT_EQ(recorded.status, 0) << recorded.err;
+    fs::copy_file(b.File("made/markers.csv"), b.File("rec.csv"));
+    fs::remove_all(b.File("made"));
+    fs::remove(b.File("stdout.txt"));
+    fs::remove(b.File("stderr.txt"));
+    fs::copy_file(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/suture.json", b.File("fitted.json"));
   }
   static void TearDownTestSuite() {
     delete base_;
@@ -458,10 +514,11 @@ class FuzzCorpusTest : public ::testing::Test {
                       << "): " << outcomes[k].detail;
     }
     std::printf("%s: tried %zu: clean error %d, success %d, crash %d, hang %d, silent %d, "
-                "noisy %d, partial output %d\n",
+                "noisy %d, partial output %d, input changed %d\n",
                 title.c_str(), cases.size(), tally[Verdict::kCleanError],
                 tally[Verdict::kSuccess], tally[Verdict::kCrash], tally[Verdict::kHang],
-                tally[Verdict::kSilent], tally[Verdict::kNoisy], tally[Verdict::kPartial]);
+                tally[Verdict::kSilent], tally[Verdict::kNoisy], tally[Verdict::kPartial],
+                tally[Verdict::kInputChanged]);
     std::fflush(stdout);
     return tally;
   }
@@ -471,7 +528,7 @@ class FuzzCorpusTest : public ::testing::Test {
 
 // What every corpus must show: no run crashed, hung or left partial output.
 void ExpectNoCrashHangOrPartial(const std::map<Verdict, int>& tally) {
-  for (Verdict v : {Verdict::kCrash, Verdict::kHang, Verdict::kPartial})
+  for (Verdict v : {Verdict::kCrash, Verdict::kHang, Verdict::kPartial, Verdict::kInputChanged})
     EXPECT_EQ(tally.count(v) ? tally.at(v) : 0, 0) << Name(v);
 }
 
@@ -1192,6 +1249,222 @@ void AddSequenceCsvCases(Command command, std::vector<Case>* cases) {
       }()));
 }
 
+// Issue 34: rollout's recordings, options and --parameters file.
+void AddRolloutCases(std::vector<Case>* cases) {
+  const Command r = Command::kRollout;
+  AddCsvCases(r, "rec.csv", "case,t,marker,x,y,z", cases, "swing");
+  auto add = [&](const std::string& name, std::function<void(const std::string&)> m,
+                 std::vector<std::string> extra = {}) {
+    cases->push_back({"rollout: " + name, r, std::move(m), std::move(extra)});
+  };
+  // Recordings that parse but are not of this rod, or not a recording at all.
+  auto scaled = [](double f) {
+    return EditFile("rec.csv", [f](std::string t) {
+      std::string out, line;
+      std::istringstream in(t);
+      std::getline(in, line);
+      out = line + "\n";
+      while (std::getline(in, line)) {
+        std::vector<std::string> v;
+        std::istringstream row(line);
+        for (std::string x; std::getline(row, x, ',');) v.push_back(x);
+        if (v.size() != 6) continue;
+        out += v[0] + "," + v[1] + "," + v[2];
+        for (int c = 3; c < 6; ++c) out += "," + Digits(f * std::atof(v[c].c_str()));
+        out += "\n";
+      }
+      return out;
+    });
+  };
+  add("scaled 1.5x (another rod)", scaled(1.5));
+  add("scaled 0.5x", scaled(0.5));
+  add("scaled 1000x (millimetres)", scaled(1000.0));
+  add("times in milliseconds", EditFile("rec.csv", [](std::string t) {
+        std::string out, line;
+        std::istringstream in(t);
+        std::getline(in, line);
+        out = line + "\n";
+        while (std::getline(in, line)) {
+          const size_t a = line.find(','), b = line.find(',', a + 1);
+          out += line.substr(0, a + 1) + Digits(1000.0 * std::atof(line.substr(a + 1, b - a - 1).c_str())) +
+                 line.substr(b) + "\n";
+        }
+        return out;
+      }));
+  add("gzip magic", WriteFile("rec.csv", std::string("\x1f\x8b\x08\x00", 4) + Garbage(200, 5)));
+  add("one marker", WriteFile("rec.csv", "t,marker,x,y,z\n0,0,0,0,0\n0.01,0,0,0,0\n"));
+  add("one frame", WriteFile("rec.csv", "t,marker,x,y,z\n0,0,0,0,0\n0,1,0.1,0,0\n0,2,0.2,0,0\n"));
+  add("all markers at one point", WriteFile("rec.csv", "t,marker,x,y,z\n0,0,0,0,0\n0,1,0,0,0\n0,2,0,0,0\n"
+                                                       "0.01,0,0,0,0\n0.01,1,0,0,0\n0.01,2,0,0,0\n"));
+  add("two cases", EditFile("rec.csv", [](std::string t) { return t + "other,0,0,0,0,0\n"; }));
+  add("frame seen twice", EditFile("rec.csv", [](std::string t) {
+        const size_t a = t.find('\n') + 1, b = t.find('\n', a) + 1;
+        return t + t.substr(a, b - a);
+      }));
+  // Options.
+  const std::vector<std::vector<std::string>> options = {
+      {"--frame-rate", "nan"}, {"--frame-rate", "inf"}, {"--frame-rate", "-1"}, {"--frame-rate", "1e300"},
+      {"--frame-rate", "0.5"}, {"--frame-rate", "400"}, {"--held", "0,1,2,3,4,5"}, {"--held", "7"},
+      {"--held", "a,b"}, {"--held", ""}, {"--held", "1,2"}, {"--held", "0,-7"}, {"--smooth", "-1"},
+      {"--smooth", "1e9"}, {"--unit", "km"}, {"--unit", "mm"}, {"--initial", "markers"},
+      {"--initial", "x"}, {"--held-ends", "grippers"}, {"--held-ends", "free-roll"},
+      {"--held-ends", "x"}, {"--marker-sigma", "nan"}, {"--marker-sigma", "-1"},
+      {"--fit", "damping,damping"}, {"--fit", "no_such"}, {"--fit", ""}, {"--fit", ",,,"},
+      {"--max-evaluations", "0"}, {"--max-evaluations", "1e9"}, {"--method", "x"},
+      {"--report", "out"}, {"--no-such-option"}, {"-o"}, {"--parameters", "missing.json"},
+      {"--parameters", "rec.csv"}, {"--parameters", "move_scene.yaml"}};
+  for (const std::vector<std::string>& o : options) {
+    std::string name;
+    for (const std::string& w : o) name += w + " ";
+    add("option " + name, Nothing(), o);
+  }
+  // The output rule: never over a recording, a FIFO, a directory, never to an empty path.
+  cases->push_back({"rollout: -o ''", r, Nothing(),
+                    {"rollout", "move_scene.yaml", "rec.csv", "-o", "", "-q"}, true});
+  cases->push_back({"rollout: recording at out/rollout.csv", r,
+                    [](const std::string& dir) {
+                      fs::create_directory(dir + "/out");
+                      fs::copy_file(dir + "/rec.csv", dir + "/out/rollout.csv");
+                    },
+                    {"rollout", "move_scene.yaml", "out/rollout.csv", "-o", "out", "-q"}, true,
+                    {"out/rollout.csv"}});
+  cases->push_back({"rollout: --parameters at out/motion_fit.json", r,
+                    [](const std::string& dir) {
+                      fs::create_directory(dir + "/out");
+                      std::ofstream(dir + "/out/motion_fit.json")
+                          << "{\"parameters\": {\"damping\": {\"value\": 2e-4}}}\n";
+                    },
+                    {"rollout", "move_scene.yaml", "rec.csv", "-o", "out", "-q", "--parameters",
+                     "out/motion_fit.json", "--fit", "damping"},
+                    true, {"out/motion_fit.json"}});
+  cases->push_back({"rollout: out/rollout.csv a FIFO", r,
+                    Both(MakeDirectory("out"), MakeFifo("out/rollout.csv")), {}});
+  cases->push_back({"rollout: out/rollout.csv a directory", r,
+                    Both(MakeDirectory("out"), MakeDirectory("out/rollout.csv")), {}});
+  cases->push_back({"rollout: out a file", r, WriteFile("out", "mine\n"), {}, false, {"out"}});
+  // --parameters files.
+  for (const auto& [name, text] :
+       std::vector<std::pair<std::string, std::string>>{
+           {"empty", ""}, {"garbage", Garbage(300, 9)}, {"not an object", "[1,2]"},
+           {"no parameters", "{}"}, {"value nan", "{\"parameters\": {\"damping\": {\"value\": NaN}}}"},
+           {"value -1", "{\"parameters\": {\"damping\": {\"value\": -1}}}"},
+           {"value 1e308", "{\"parameters\": {\"damping\": {\"value\": 1e308}}}"},
+           {"unknown name", "{\"parameters\": {\"nope\": {\"value\": 1}}}"},
+           {"deep", Nested("[", "]", 100000)}}) {
+    add("--parameters " + name, WriteFile("p.json", text), {"--parameters", "p.json"});
+  }
+  add("--parameters a FIFO", MakeFifo("p.json"), {"--parameters", "p.json"});
+}
+
+// Issue 34: export of mutated profiles in every format, and export's output paths.
+void AddExportCases(std::vector<Case>* cases) {
+  const std::vector<std::pair<std::string, std::function<void(const std::string&)>>> mutations = {
+      {"empty", WriteFile("fitted.json", "")},
+      {"garbage", WriteFile("fitted.json", Garbage(2000, 17))},
+      {"{}", WriteFile("fitted.json", "{}")},
+      {"truncated", EditFile("fitted.json", [](std::string t) { return t.substr(0, t.size() / 2); })},
+      {"nested 100000", WriteFile("fitted.json", Nested("[", "]", 100000))},
+      {"radius 1e308", Replace("fitted.json", "\"radius\": 0.00025,\n    \"rest", "\"radius\": 1e308,\n    \"rest")},
+      {"radius 1e-300", Replace("fitted.json", "\"radius\": 0.00025,\n    \"rest", "\"radius\": 1e-300,\n    \"rest")},
+      {"radius -1", Replace("fitted.json", "\"radius\": 0.00025,\n    \"rest", "\"radius\": -1,\n    \"rest")},
+      {"length 0", Replace("fitted.json", "\"length\": 0.2", "\"length\": 0")},
+      {"length 1e308", Replace("fitted.json", "\"length\": 0.2", "\"length\": 1e308")},
+      {"segments 1e9", Replace("fitted.json", "\"segments\": 50", "\"segments\": 1000000000")},
+      {"segments 1", Replace("fitted.json", "\"segments\": 50", "\"segments\": 1")},
+      {"bend 1e308", Replace("fitted.json", "9.192305793229486e-06", "1e308")},
+      {"bend -1", Replace("fitted.json", "9.192305793229486e-06", "-1")},
+      {"bend null", Replace("fitted.json", "9.192305793229486e-06", "null")},
+      {"bend string", Replace("fitted.json", "9.192305793229486e-06", "\"nan\"")},
+      {"stretch 1e308", Replace("fitted.json", "589.0", "1e308")},
+      {"stretch 0", Replace("fitted.json", "589.0", "0")},
+      {"density 1e-300", Replace("fitted.json", "\"linear_density\": 0.000224", "\"linear_density\": 1e-300")},
+      {"gravity 1e308", EditFile("fitted.json", [](std::string t) {
+         const size_t at = t.find("\"gravity\"");
+         if (at == std::string::npos) return t;
+         const size_t open = t.find('[', at), close = t.find(']', at);
+         return t.substr(0, open) + "[0, 0, 1e308" + t.substr(close);
+       })},
+      {"end pin 10 m away", Replace("fitted.json", "\"pins\": []", "\"end_pin\": {\"position\": [10, 0, 0]}, \"pins\": []")},
+      {"two pins on a vertex", Replace("fitted.json", "\"pins\": []",
+                                       "\"pins\": [{\"s\": 0.1, \"position\": [0.1, 0, 0]}, "
+                                       "{\"s\": 0.1001, \"position\": [0.1, 0, 0]}]")},
+      {"version 99", Replace("fitted.json", "\"version\": 2", "\"version\": 99")},
+      {"a directory", MakeDirectory("fitted.json")},
+      {"a FIFO", MakeFifo("fitted.json")}};
+  for (Command c : {Command::kExportJson, Command::kExportSofa, Command::kExportXpbd,
+                    Command::kExportMujoco}) {
+    for (const auto& [name, m] : mutations)
+      cases->push_back({std::string(Name(c)) + ": " + name, c, m, {}});
+    const std::string format = std::string(Name(c)).substr(7);
+    auto line = [&](const std::string& out) {
+      std::vector<std::string> a = {"export", "fitted.json", "--format", format, "-o", out};
+      if (c == Command::kExportXpbd) a.insert(a.end(), {"--time-step", "1e-3"});
+      return a;
+    };
+    cases->push_back({std::string(Name(c)) + ": -o ''", c, Nothing(), line(""), true});
+    cases->push_back({std::string(Name(c)) + ": -o the profile", c, Nothing(), line("fitted.json"), true});
+    cases->push_back({std::string(Name(c)) + ": -o a FIFO", c, MakeFifo("outfifo"), line("outfifo"), true});
+    cases->push_back({std::string(Name(c)) + ": -o a directory", c, MakeDirectory("outdir"), line("outdir"), true});
+    cases->push_back({std::string(Name(c)) + ": -o dir/", c, MakeDirectory("outdir"), line("outdir/"), true});
+    cases->push_back({std::string(Name(c)) + ": -o a missing folder's file", c, Nothing(), line("outnew/x/y"), true});
+    cases->push_back({std::string(Name(c)) + ": --set bend_stiffness_2=1e308", c, Nothing(),
+                      {"--set", "bend_stiffness_2=1e308"}});
+    cases->push_back({std::string(Name(c)) + ": --set damping=nan", c, Nothing(), {"--set", "damping=nan"}});
+    cases->push_back({std::string(Name(c)) + ": --time-step nan", c, Nothing(), {"--time-step", "nan"}});
+    cases->push_back({std::string(Name(c)) + ": unchanged", c, Nothing(), {}});
+  }
+}
+
+// Issue 34: a moving scene's output paths: its drive path, tip load and initial velocity inside
+// the output folder (inputs that must survive), and output paths that are not directories.
+void AddMovingOutputCases(std::vector<Case>* cases) {
+  const Command m = Command::kMovingSimulate;
+  const std::string path = "t,x,y,z\n0,0,0,0\n0.05,0,0,0.001\n";
+  auto in_out = [](const std::string& name, const std::string& text) {
+    return [=](const std::string& dir) {
+      fs::create_directories(dir + "/out");
+      std::ofstream(dir + "/out/" + name) << text;
+    };
+  };
+  auto scene_with = [](const std::string& extra) {
+    return EditFile("move_scene.yaml", [extra](std::string t) { return t + extra; });
+  };
+  cases->push_back({"simulate (moving): drive path at out/trajectory.csv", m,
+                    Both(in_out("trajectory.csv", path),
+                         scene_with("    drive:\n      - {point: clamp, file: out/trajectory.csv}\n")),
+                    {}, false, {"out/trajectory.csv"}});
+  cases->push_back({"simulate (moving): tip load at out/reactions.csv", m,
+                    Both(in_out("reactions.csv", "t,fx,fy,fz\n0,0,0,0\n0.05,0,0,1e-6\n"),
+                         scene_with("    tip_load: {file: out/reactions.csv}\n")),
+                    {}, false, {"out/reactions.csv"}});
+  cases->push_back({"simulate (moving): velocity at out/summary.csv", m,
+                    Both(in_out("summary.csv", "s,vx,vy,vz\n0,0,0,0\n0.2,0,0,0\n"),
+                         Replace("move_scene.yaml", "initial: {shape: start}",
+                                 "initial: {shape: start, velocity: out/summary.csv}")),
+                    {}, false, {"out/summary.csv"}});
+  cases->push_back({"simulate (moving): --markers into out/markers.csv, a drive path", m,
+                    Both(in_out("markers.csv", path),
+                         scene_with("    drive:\n      - {point: clamp, file: out/markers.csv}\n")),
+                    {"--markers", "4"}, false, {"out/markers.csv"}});
+  cases->push_back({"simulate (moving): -o ''", m, Nothing(), {"simulate", "move_scene.yaml", "-o", ""}, true});
+  cases->push_back({"simulate (moving): -o the scene", m, Nothing(),
+                    {"simulate", "move_scene.yaml", "-o", "move_scene.yaml"}, true});
+  cases->push_back({"simulate (moving): out/trajectory.csv a FIFO", m,
+                    Both(MakeDirectory("out"), MakeFifo("out/trajectory.csv")), {}});
+  cases->push_back({"simulate (moving): tip load 1e4 N", m,
+                    Both(in_out("load.csv", "t,fx,fy,fz\n0,0,0,0\n0.02,1e4,0,0\n"),
+                         scene_with("    tip_load: {file: out/load.csv}\n")),
+                    {}, false, {"out/load.csv"}});
+  cases->push_back({"simulate (moving): clamp driven 1 m away", m,
+                    Both(in_out("far.csv", "t,x,y,z\n0,0,0,0\n0.02,1,0,0\n"),
+                         scene_with("    drive:\n      - {point: clamp, file: out/far.csv}\n")),
+                    {}, false, {"out/far.csv"}});
+  cases->push_back({"simulate (moving): --marker-noise nan", m, Nothing(),
+                    {"--markers", "4", "--marker-noise", "nan"}});
+  cases->push_back({"simulate (moving): 1e9 steps", m,
+                    Replace("move_scene.yaml", "duration: 0.05", "duration: 2.5e6"), {}});
+}
+
 // ---------------------------------------------------------------------------------------------
 
 TEST_F(FuzzCorpusTest, HostileInputsGiveOneLineAndLeaveNothingBehind) {
@@ -1300,6 +1573,30 @@ TEST_F(FuzzCorpusTest, ByteFlipsOfSequenceFiles) {
       {"load.csv", Command::kMovingFitReport}};
   const std::vector<Case> cases = ByteFlipCases(*base_, kinds, /*per_kind=*/20, /*seed=*/16);
   ExpectNoCrashHangOrPartial(RunAll(cases, "sequence byte flips"));
+}
+
+// Issue 34: the newer surfaces — rollout (recordings, options, --parameters), export and
+// profile read-back (mutated profiles x formats, output paths), a moving scene's output paths —
+// with "input changed" judged as well.
+TEST_F(FuzzCorpusTest, HostileRolloutExportAndMovingOutputs) {
+  std::vector<Case> cases;
+  AddRolloutCases(&cases);
+  AddExportCases(&cases);
+  AddMovingOutputCases(&cases);
+  cases.push_back({"unchanged rollout", Command::kRollout, Nothing(), {}});
+  const std::map<Verdict, int> tally = RunAll(cases, "rollout/export/moving-output corpus");
+  ExpectNoCrashHangOrPartial(tally);
+  EXPECT_GE(tally.count(Verdict::kSuccess) ? tally.at(Verdict::kSuccess) : 0, 5);
+}
+
+// Byte flips of the recording (rollout) and the profile (every export format).
+TEST_F(FuzzCorpusTest, ByteFlipsOfRecordingsAndProfiles) {
+  const std::vector<std::pair<std::string, Command>> kinds = {
+      {"rec.csv", Command::kRollout},         {"fitted.json", Command::kExportJson},
+      {"fitted.json", Command::kExportSofa},  {"fitted.json", Command::kExportXpbd},
+      {"fitted.json", Command::kExportMujoco}};
+  const std::vector<Case> cases = ByteFlipCases(*base_, kinds, /*per_kind=*/20, /*seed=*/34);
+  ExpectNoCrashHangOrPartial(RunAll(cases, "recording/profile byte flips"));
 }
 
 }  // namespace

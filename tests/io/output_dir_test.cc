@@ -3,6 +3,8 @@
 // leaving an existing one as it was.
 #include "rodfit/io/output_dir.h"
 
+#include <sys/stat.h>
+
 #include <filesystem>
 #include <iterator>
 #include <string>
@@ -182,6 +184,46 @@ TEST(OutputDir, CommitAllRollsBackTheOutputsAlreadyCommittedWhenALaterOneFails) 
               1);
   }
   EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 3);
+}
+
+// Issue 34: one output rule for every command and writer: never an empty path, never over a
+// device, FIFO or directory, never over an input; StagedDirectory keeps it for every file.
+TEST(OutputDir, CheckOutputFileRefusesEmptyNonRegularAndInputs) {
+  TempDir dir;
+  const std::string input = dir.Write("in.csv", "t,x,y,z\n");
+  const std::vector<InputFile> inputs = {{input, "the drive path of cases[0] (end_pin)"}};
+  auto error = [&](const std::string& path) -> std::string {
+    try {
+      CheckOutputFile(path, inputs);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_THAT(error(""), HasSubstr("the output path is empty"));
+  EXPECT_THAT(error("/dev/null"), HasSubstr("/dev/null: exists and is not a file"));
+  ASSERT_EQ(::mkfifo(dir.File("fifo").c_str(), 0600), 0);
+  EXPECT_THAT(error(dir.File("fifo")), HasSubstr("exists and is not a file"));
+  fs::create_directory(dir.File("d"));
+  EXPECT_THAT(error(dir.File("d")), HasSubstr("exists and is not a file (a directory)"));
+  EXPECT_THAT(error(input), HasSubstr("is the drive path of cases[0] (end_pin)"));
+  EXPECT_EQ(error(dir.File("new.csv")), "");
+  // A staged directory with the run's inputs refuses to stage over one, and its commit keeps
+  // the rule for what appeared since.
+  {
+    StagedDirectory out(dir.path());
+    out.SetInputs(inputs);
+    EXPECT_THROW(out.Write("in.csv", "x"), InputError);
+    out.Write("later.csv", "x");
+    ASSERT_EQ(::mkfifo(dir.File("later.csv").c_str(), 0600), 0);
+    EXPECT_THROW(out.Commit(), InputError);
+  }
+  EXPECT_TRUE(fs::is_fifo(dir.File("later.csv")));
+  EXPECT_EQ(ReadText(input), "t,x,y,z\n");
+  EXPECT_THROW(StagedDirectory(""), InputError);
+  EXPECT_THROW(CheckOutputDirectory("", {"a.csv"}, {}), InputError);
+  EXPECT_THROW(CheckOutputDirectory(dir.path(), {"in.csv"}, inputs), InputError);
+  EXPECT_NO_THROW(CheckOutputDirectory(dir.path(), {"out.csv"}, inputs));
 }
 
 }  // namespace

@@ -25,7 +25,12 @@ struct MarkerRecording {
 /// fitted to the times, or 1 / frame_rate). Throws InputError naming the file, line and column
 /// (markers not 0..M-1 integers, a frame seen twice for one marker, a coordinate that is not a
 /// number, empty or nan, irregular times, more than 100,000 frames or 10,000 markers, markers
-/// out of order along the rod in frame 0).
+/// out of order along the rod in frame 0, a frame interval above kMaxFrameInterval).
+/// Longest frame interval a recording may have [s]: motion capture runs at tens to thousands of
+/// hertz; an interval above a second is times in milliseconds read as seconds (or a frame rate
+/// in frames per minute), and would have the rollout take thousands of steps per frame.
+inline constexpr double kMaxFrameInterval = 1.0;
+
 MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
                                     double position_scale = 1.0);
 
@@ -35,6 +40,18 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
 /// the first frame; metres read as millimetres), with the hint `hint` (e.g. the option that sets the unit).
 void CheckRecordingScale(const MarkerRecording& recording, double rod_length,
                          const std::string& hint);
+
+/// The largest stretch of the rod a recording may show [-]: a frame's marker polyline longer
+/// than (1 + this) rod lengths, or a first frame's shorter than (1 - this), is not a recording
+/// of this rod (another rod, a scaled or mislabelled recording).
+inline constexpr double kRecordingLengthTolerance = 0.2;
+
+/// The recording against the rod it is to be a recording of: throws InputError naming the file
+/// and the frame when the first frame's marker polyline (its seen markers in order) is not
+/// within kRecordingLengthTolerance of `rod_length` (the rollout places the markers on the rod
+/// by it), or a later frame's is longer than (1 + kRecordingLengthTolerance) rod lengths (the
+/// rod would be stretched beyond anything a rod model describes).
+void CheckRecordingFitsRod(const MarkerRecording& recording, double rod_length);
 
 /// The fitted values of a `rollout --fit` result file (motion_fit.json, docs/cli.md,
 /// "rollout"): per parameter name, its `value` in SI units, in the file's order. Throws

@@ -9,6 +9,8 @@
 
 #include <Eigen/Core>
 
+#include "rodfit/model/scene.h"
+
 namespace rodfit {
 
 /// The equilibrium centre-line of one case.
@@ -95,5 +97,25 @@ struct MotionSummaryRow {
   std::string reason;
 };
 std::string FormatMotionSummaryCsv(const std::vector<MotionSummaryRow>& rows);
+
+/// What `simulate` on a moving scene will do and write, estimated from the scene before it
+/// starts: steps x vertices over every case (the integration's work: ~4e5 vertex steps a second
+/// on one core of a laptop) and the bytes of trajectory.csv, reactions.csv and markers.csv.
+struct MotionRunEstimate {
+  double vertex_steps = 0.0;
+  double output_bytes = 0.0;
+};
+/// `markers`: simulate --markers' count (0: none).
+MotionRunEstimate EstimateMotionRun(const Scene& scene, int markers);
+
+/// Largest moving run `simulate` starts without being asked (--large): about ten minutes of
+/// integration, and a gigabyte of CSV (docs/formats.md, "Limits").
+inline constexpr double kMaxMotionVertexSteps = 2e8;
+inline constexpr double kMaxMotionOutputBytes = 1e9;
+
+/// Throws InputError naming `scene_path` and `dynamics` when the estimate is above either limit,
+/// giving the estimate, the limit and the option that accepts it.
+void CheckMotionRunSize(const MotionRunEstimate& estimate, const std::string& scene_path,
+                        const std::string& option);
 
 }  // namespace rodfit

@@ -275,6 +275,18 @@ class RodModel {
   uint64_t hessian_digest_ = 0;
 };
 
+/// The small-strain envelope of the rod model [-]: a discrete elastic rod's stretch energy and
+/// its bending and twisting (per unit rest length) assume edges near their rest length. An edge
+/// stretched or compressed by more than this is outside the model's range (held points pulled
+/// apart, a load the material would not carry, EA in the wrong unit): `simulate`'s statics warn
+/// about it, a moving case stops there, and the runtime's grasp is held within it by default
+/// (RuntimeOptions::max_strain). Declared once.
+inline constexpr double kSmallStrainLimit = 0.1;
+
+/// The largest |e_j| / l_j - 1 in magnitude of a state of `model`'s rod, and (when `edge` is
+/// given) the edge where it is.
+double LargestEdgeStrain(const RodModel& model, const RodState& state, int* edge = nullptr);
+
 /// The intrinsic curvature profile of a centre-line at rest (`rod.rest_shape`, docs/model.md,
 /// "Rest shape"): at each interior point the discrete curvature binormal
 /// 2 t_k-1 x t_k / (1 + t_k-1 . t_k) over the point's Voronoi length, resolved in the material

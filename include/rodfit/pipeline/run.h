@@ -98,6 +98,9 @@ struct SimulateOptions {
   double marker_noise = 0.0;  ///< [m] Gaussian, per coordinate
   double marker_drop = 0.0;   ///< fraction of samples left out (never in frames 0 and 1)
   unsigned seed = 1;          ///< of the marker noise and drops
+  /// Moving scenes: run even when the estimated work or output is above the limits
+  /// (EstimateMotionRun, kMaxMotionVertexSteps, kMaxMotionOutputBytes; else InputError).
+  bool large = false;
   ProgressCallback progress;
 };
 
@@ -126,7 +129,8 @@ struct SimulateRun {
 };
 
 /// Solves every case of the scene to static equilibrium, or integrates a moving scene's cases in
-/// time. Throws InputError naming the case's entry for a case that is not a valid rod, and
+/// time. Throws InputError naming the case's entry for a case that is not a valid rod, an output
+/// over an input (CheckOutputFile) or a moving run above the size limits (unless `large`), and
 /// std::invalid_argument for markers asked of a static scene.
 SimulateRun SimulateScene(const Experiment& experiment, const SimulateOptions& options = {});
 

@@ -83,7 +83,7 @@ struct RuntimeOptions {
   /// for a few ticks). A tool beyond is followed to that reach, and each such tick says so
   /// (StepStatus::kStrainLimit). A poke's force is refused above max_strain times the rod's
   /// stretch stiffness EA (the force that would stretch it so far).
-  double max_strain = 0.1;
+  double max_strain = kSmallStrainLimit;
   /// [s] dynamic mode: the step of one tick, a BDF2 step of DynamicsStepper to its default
   /// tolerances, with DynamicsOptions::extrapolate_corrections and converge_on_rate on.
   double time_step = 1e-3;

@@ -314,6 +314,10 @@ void SetUpParameters(const Scene& scene, const std::vector<std::string>& names,
                      const MotionFitOptions& fit_options, MotionFitResult* result, Ctx* ctx,
                      std::vector<double>* x, std::vector<double>* lo, std::vector<double>* hi) {
   if (names.empty()) throw std::invalid_argument("no parameters to fit");
+  for (size_t k = 0; k < names.size(); ++k)
+    for (size_t j = 0; j < k; ++j)
+      if (names[j] == names[k])
+        throw std::invalid_argument("'" + names[k].substr(0, 60) + "' is named twice");
   std::string why;
   if (!fit_options.Check(&why)) throw std::invalid_argument(why);
   const size_t m = names.size();

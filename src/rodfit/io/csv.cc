@@ -135,6 +135,11 @@ std::string ReadInputFile(const std::string& path, const std::string& what,
     have += static_cast<size_t>(n);
   }
   text.resize(have);
+  // A compressed file (recording.csv.gz) would otherwise be parsed as text and refused for its
+  // field counts: said for what it is.
+  if (text.size() >= 2 && static_cast<unsigned char>(text[0]) == 0x1f &&
+      static_cast<unsigned char>(text[1]) == 0x8b)
+    throw InputError(path, 0, "", "is gzip-compressed; decompress it first (gunzip) to read it as " + what);
   return text;
 }
 

@@ -61,9 +61,15 @@ std::vector<InputFile> ExperimentInputs(const Experiment& experiment, bool with_
       if (!observations[o].mask.empty())
         inputs.emplace_back(observations[o].mask, "the mask of " + entry);
     }
-    if (c < experiment.scene.cases.size() &&
-        experiment.scene.cases[c].start.kind == StartShape::Kind::kPoints)
-      inputs.emplace_back(experiment.scene.cases[c].start.file, "the start shape of " + key);
+    if (c >= experiment.scene.cases.size()) continue;
+    const LoadCase& load_case = experiment.scene.cases[c];
+    if (load_case.start.kind == StartShape::Kind::kPoints)
+      inputs.emplace_back(load_case.start.file, "the start shape of " + key);
+    // A moving scene's series and initial velocities are read by the run as well.
+    for (const DrivenPoint& drive : load_case.drives)
+      inputs.emplace_back(drive.path.file, "the drive path of " + key + " (" + drive.point + ")");
+    inputs.emplace_back(load_case.tip_load.file, "the tip load of " + key);
+    inputs.emplace_back(load_case.initial.file, "the initial velocity file of " + key);
   }
   return inputs;
 }
@@ -89,8 +95,36 @@ void RefuseOverwritingInput(const std::string& output, const std::vector<InputFi
   }
 }
 
+void CheckOutputFile(const std::string& output, const std::vector<InputFile>& inputs) {
+  if (output.empty()) throw InputError("''", 0, "", "the output path is empty: give a file name");
+  std::error_code ec;
+  const fs::file_status s = fs::symlink_status(output, ec);
+  if (fs::exists(s) && !fs::is_regular_file(s) && !fs::is_symlink(s)) {
+    throw InputError(output, 0, "",
+                     std::string("exists and is not a file (") +
+                         (fs::is_directory(s) ? "a directory" : "a device, FIFO or socket") +
+                         "); not replaced, nothing was written");
+  }
+  RefuseOverwritingInput(output, inputs);
+}
+
+void CheckOutputDirectory(const std::string& dir, const std::vector<std::string>& names,
+                          const std::vector<InputFile>& inputs) {
+  if (dir.empty())
+    throw InputError("''", 0, "", "the output directory's path is empty: give a directory");
+  std::error_code ec;
+  const fs::file_status s = fs::status(dir, ec);
+  if (fs::exists(s) && !fs::is_directory(s))
+    throw InputError(dir, 0, "", "exists and is not a directory");
+  for (const std::string& name : names)
+    CheckOutputFile(PathInside(dir, name, "output file name"), inputs);
+}
+
 StagedDirectory::StagedDirectory(const std::string& target, bool stage_inside)
     : target_(target) {
+  // An empty -o would write into the working directory: refused, as no path at all.
+  if (target.empty())
+    throw InputError("''", 0, "", "the output directory's path is empty: give a directory");
   std::error_code ec;
   fs::path path = fs::absolute(target.empty() ? fs::path(".") : fs::path(target), ec);
   if (ec) throw InputError(target, 0, "", "not a usable directory name: " + ec.message());
@@ -178,6 +212,9 @@ void StagedDirectory::Write(const std::string& relative, const std::string& cont
   PathInside(target_, relative, what);  // refused in the user's own words for the target
   const fs::path staged = PathInside(staging_, relative, what);
   const std::string final_path = FinalPath(relative);
+  // An input is refused at once; what else is in the way (a directory, a FIFO) at the commit,
+  // which checks every file before any is moved.
+  RefuseOverwritingInput(final_path, inputs_);
   std::error_code ec;
   fs::create_directories(staged.parent_path(), ec);
   if (ec) throw InputError(final_path, 0, "", "cannot write: " + ec.message());
@@ -222,11 +259,8 @@ void StagedDirectory::Commit(bool undoable) {
                                                 " (not a directory); nothing was written");
       }
     }
-    const fs::file_status s = fs::symlink_status(final_path, ec);
-    if (fs::exists(s) && !fs::is_regular_file(s) && !fs::is_symlink(s)) {
-      throw InputError(final_path.string(), 0, "",
-                       "exists and is not a file; not replaced, nothing was written");
-    }
+    // Again at the commit: the path may have changed since the file was staged.
+    CheckOutputFile(final_path.string(), inputs_);
   }
   // Moved one by one; each replaced file kept aside until all are in (and until RollBack() can
   // no longer be asked for), so a failure puts the directory back as it was.

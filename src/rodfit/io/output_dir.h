@@ -23,14 +23,28 @@ std::string PathInside(const std::string& dir, const std::string& relative,
 using InputFile = std::pair<std::string, std::string>;
 
 /// The experiment file and every file it names that a run reads: observation data files (unless
-/// `with_data_files` is false: synth writes them), camera files and start shapes (paths as
-/// resolved by the reader).
+/// `with_data_files` is false: synth writes them), camera files, masks, start shapes and a moving
+/// scene's files (drive paths, tip load series, initial velocities or second frames), paths as
+/// resolved by the reader.
 std::vector<InputFile> ExperimentInputs(const Experiment& experiment, bool with_data_files = true);
 
 /// Throws InputError naming `output` and the input when `output` is the same file as one of
 /// `inputs` (std::filesystem::equivalent when both exist, else the same weakly canonical path).
 /// Call it before anything is written.
 void RefuseOverwritingInput(const std::string& output, const std::vector<InputFile>& inputs);
+
+/// The output rule of every command and library writer, for one file a run will write: not an
+/// empty path, not one of `inputs` (RefuseOverwritingInput), and nothing that exists there but a
+/// regular file or a symbolic link (a directory, device, FIFO or socket is refused: the rename
+/// would replace it; a link is replaced, never followed). Throws InputError naming `output`.
+/// StagedDirectory applies it to every file it writes and again at its commit; commands call it
+/// before their work starts so that a refused output costs nothing.
+void CheckOutputFile(const std::string& output, const std::vector<InputFile>& inputs);
+
+/// CheckOutputFile for the files `names` a run will write into directory `dir`, before its work
+/// starts: `dir` not empty and not an existing non-directory, each name kept inside it.
+void CheckOutputDirectory(const std::string& dir, const std::vector<std::string>& names,
+                          const std::vector<InputFile>& inputs);
 
 /// A run's output directory, written all at once. Files are written into a fresh hidden
 /// directory beside `target` (`.NAME.tmp.PID.N`, so the final renames stay on one file system;
@@ -44,8 +58,8 @@ void RefuseOverwritingInput(const std::string& output, const std::vector<InputFi
 /// another output of the run then fails (CommitAll).
 class StagedDirectory {
  public:
-  /// Throws InputError when `target` exists and is not a directory, or the staging directory
-  /// cannot be made. `stage_inside`: stage inside `target` when it exists (for single files
+  /// Throws InputError when `target` is empty, exists and is not a directory, or the staging
+  /// directory cannot be made. `stage_inside`: stage inside `target` when it exists (for single files
   /// written into a directory of the user's, like the profile, which then get no temporary
   /// directory beside that directory).
   explicit StagedDirectory(const std::string& target, bool stage_inside = false);
@@ -53,7 +67,11 @@ class StagedDirectory {
   StagedDirectory(const StagedDirectory&) = delete;
   StagedDirectory& operator=(const StagedDirectory&) = delete;
 
-  /// Stages `relative` (checked with PathInside; `what` for its message) with `contents`.
+  /// The run's inputs: no file of this directory may be one of them (CheckOutputFile, checked by
+  /// Write and again by Commit). Give them before the first Write.
+  void SetInputs(std::vector<InputFile> inputs) { inputs_ = std::move(inputs); }
+  /// Stages `relative` (checked with PathInside and CheckOutputFile; `what` for its message)
+  /// with `contents`.
   void Write(const std::string& relative, const std::string& contents,
              const std::string& what = "output file name");
   /// The final path of a staged or to-be-staged file, for RefuseOverwritingInput and messages.
@@ -80,6 +98,7 @@ class StagedDirectory {
   std::string staging_;
   std::vector<std::string> created_parents_;  // made for the staging directory, innermost last
   std::vector<std::string> files_;            // relative paths, in the order written
+  std::vector<InputFile> inputs_;             // SetInputs: none of them is overwritten
   std::vector<Moved> moved_;                  // by the commit, in order
   std::vector<std::string> made_dirs_;        // by the commit, outermost first
   bool renamed_whole_ = false;                // the commit renamed the staging directory

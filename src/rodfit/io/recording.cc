@@ -65,6 +65,25 @@ TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
   std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
   double dt = sorted[sorted.size() / 2];
   out.frame.assign(n, 0);
+  // Alternating jitter (+9 %, -9 %, ...) puts every difference 18 % off the interval, and the
+  // median with them: the interval is refined by least squares over the frames the differences
+  // round to before any difference is judged against it.
+  for (int round = 0; round < 5; ++round) {
+    for (size_t i = 1; i < n; ++i)
+      out.frame[i] = out.frame[i - 1] + std::max(1L, std::lround(diff[i - 1] / dt));
+    double mk = 0.0, mt = 0.0;
+    for (size_t i = 0; i < n; ++i) mk += out.frame[i], mt += out.times[i];
+    mk /= n;
+    mt /= n;
+    double skk = 0.0, skt = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      skk += (out.frame[i] - mk) * (out.frame[i] - mk);
+      skt += (out.frame[i] - mk) * (out.times[i] - mt);
+    }
+    const double refined = skt / skk;
+    if (!(refined > 0.0) || std::abs(refined - dt) <= 1e-12 * dt) break;
+    dt = refined;
+  }
   for (size_t i = 1; i < n; ++i) {
     const long step = std::lround(diff[i - 1] / dt);
     if (step < 1 || std::abs(diff[i - 1] - step * dt) > 2.0 * kMaxJitter * dt) {
@@ -109,7 +128,43 @@ TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
     const double rate = 1.0 / dt, whole = std::round(rate);
     if (whole >= 1.0 && std::abs(rate - whole) <= 1e-3 * rate) dt = 1.0 / whole;
   }
-  const double t0 = mt - mk * dt;
+  // The documented rule is a bound: some t0 + k dt within kMaxJitter dt of every time. The
+  // least-squares line can miss it where one exists (alternating jitter near the bound over few
+  // frames tilts it): then the line of least largest offset (t0 the offsets' mid-range; dt,
+  // unless the frame rate is given, by a golden-section search on the offsets' range, which is
+  // convex in dt) is taken.
+  auto half_range = [&](double interval, double* start) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (size_t i = 0; i < n; ++i) {
+      const double r = out.times[i] - out.frame[i] * interval;
+      lo = std::min(lo, r);
+      hi = std::max(hi, r);
+    }
+    *start = 0.5 * (lo + hi);
+    return 0.5 * (hi - lo);
+  };
+  double t0 = mt - mk * dt;
+  bool within = true;
+  for (size_t i = 0; i < n && within; ++i)
+    within = std::abs(out.times[i] - (t0 + out.frame[i] * dt)) <= kMaxJitter * dt;
+  if (!within) {
+    double interval = dt, start = 0.0;
+    if (!(frame_rate > 0.0)) {
+      double a = 0.8 * dt, b = 1.2 * dt;
+      const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+      for (int it = 0; it < 100 && b - a > 1e-15 * dt; ++it) {
+        const double c = b - g * (b - a), d = a + g * (b - a);
+        if (half_range(c, &start) <= half_range(d, &start)) b = d; else a = c;
+      }
+      interval = 0.5 * (a + b);
+      const double rate = 1.0 / interval, whole = std::round(rate);
+      if (whole >= 1.0 && std::abs(rate - whole) <= 1e-3 * rate) interval = 1.0 / whole;
+    }
+    if (half_range(interval, &start) <= kMaxJitter * interval) {
+      dt = interval;
+      t0 = start;
+    }
+  }
   for (size_t i = 0; i < n; ++i) {
     const double off = out.times[i] - (t0 + out.frame[i] * dt);
     if (std::abs(off) > kMaxJitter * dt) {
@@ -120,6 +175,14 @@ TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
                     off, dt, 100.0 * kMaxJitter);
       throw InputError(path, line_of(out.times[i]), "t", text);
     }
+  }
+  if (dt > kMaxFrameInterval) {
+    char text[240];
+    std::snprintf(text, sizeof(text),
+                  "the frames are %.6g s apart, more than %.3g s: times in milliseconds? (the t "
+                  "column is in seconds; --frame-rate in Hz)",
+                  dt, kMaxFrameInterval);
+    throw InputError(path, table.line(0), "t", text);
   }
   out.interval = dt;
   return out;
@@ -231,6 +294,11 @@ MarkerRecording ReadMarkerRecording(const std::string& path, double frame_rate,
   } else {
     if (!(frame_rate > 0.0)) throw InputError(path, 1, "frame", "a frame column needs --frame-rate");
     rec.frame_interval = 1.0 / frame_rate;
+    if (rec.frame_interval > kMaxFrameInterval)
+      throw InputError(path, 1, "frame",
+                       "--frame-rate " + FormatDouble(frame_rate) + " Hz puts the frames " +
+                           FormatDouble(rec.frame_interval) + " s apart, more than " +
+                           FormatDouble(kMaxFrameInterval) + " s: a rate in Hz (frames per second)?");
     for (int r = 0; r < table.num_rows(); ++r) {
       if (std::abs(key[r] - std::round(key[r])) > 1e-6 || key[r] < 0 || key[r] >= kMaxFrames)
         throw InputError(path, table.line(r), "frame", "must be an integer in [0, 100000)");
@@ -306,6 +374,34 @@ void CheckRecordingScale(const MarkerRecording& recording, double rod_length,
                   "read as millimetres? (%s)",
                   span, rod_length, hint.c_str());
     throw InputError(recording.file, 0, "x", text);
+  }
+}
+
+void CheckRecordingFitsRod(const MarkerRecording& recording, double rod_length) {
+  for (size_t k = 0; k < recording.frames.size(); ++k) {
+    const Eigen::Matrix3Xd& frame = recording.frames[k];
+    double polyline = 0.0;
+    int last = -1, seen = 0;
+    for (int m = 0; m < frame.cols(); ++m) {
+      if (!frame.col(m).allFinite()) continue;
+      if (last >= 0) polyline += (frame.col(m) - frame.col(last)).norm();
+      last = m;
+      ++seen;
+    }
+    if (seen < 2) continue;
+    const double ratio = polyline / rod_length;
+    const bool too_long = ratio > 1.0 + kRecordingLengthTolerance;
+    const bool too_short = k == 0 && ratio < 1.0 - kRecordingLengthTolerance;
+    if (!too_long && !too_short) continue;
+    char text[400];
+    std::snprintf(text, sizeof(text),
+                  "frame %zu: the markers' polyline is %.4g m long, %.3g %% of the rod's length "
+                  "(%.4g m); a recording of this rod lies within %.3g %% of it%s (a recording "
+                  "of another rod, or scaled?)",
+                  k, polyline, 100.0 * ratio, rod_length, 100.0 * kRecordingLengthTolerance,
+                  k == 0 ? " in its first frame, whose markers are placed along the rod by it"
+                         : "");
+    throw InputError(recording.file, 0, "", text);
   }
 }
 

@@ -1,6 +1,9 @@
 // shapes.csv writing and reading (see shapes_csv.h).
 #include "rodfit/io/shapes_csv.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <set>
 #include <stdexcept>
 
@@ -154,6 +157,46 @@ std::string FormatMotionSummaryCsv(const std::vector<MotionSummaryRow>& rows) {
            reason + "\"\n";
   }
   return out;
+}
+
+MotionRunEstimate EstimateMotionRun(const Scene& scene, int markers) {
+  MotionRunEstimate out;
+  if (!scene.dynamics) return out;
+  const DynamicsSpec& spec = *scene.dynamics;
+  // Bytes of a written row: the case name and a comma, then its numbers at up to 24 characters.
+  constexpr double kNumberBytes = 24.0;
+  const double steps = std::ceil(spec.duration / spec.time_step);
+  const double frames = std::floor(steps / std::max(1, spec.output_every)) + 2.0;
+  const double vertices = scene.rod.segments + 1.0;
+  for (const LoadCase& c : scene.cases) {
+    const double name = c.name.size() + 1.0;
+    const double held = 1.0 + c.pins.size() + (c.end_clamp || c.end_pin ? 1 : 0) + (c.grasp ? 1 : 0);
+    out.vertex_steps += steps * vertices;
+    out.output_bytes += frames * (vertices * (name + 6 * kNumberBytes) +
+                                  held * (name + 14 * kNumberBytes) +
+                                  markers * (name + 5 * kNumberBytes));
+  }
+  return out;
+}
+
+void CheckMotionRunSize(const MotionRunEstimate& estimate, const std::string& scene_path,
+                        const std::string& option) {
+  char text[400];
+  if (estimate.vertex_steps > kMaxMotionVertexSteps) {
+    std::snprintf(text, sizeof(text),
+                  "the run would take %.3g vertex steps (steps x vertices over the cases), more "
+                  "than %.3g (about ten minutes); a longer time_step, a shorter duration or fewer "
+                  "segments, or %s to run it all the same",
+                  estimate.vertex_steps, kMaxMotionVertexSteps, option.c_str());
+    throw InputError(scene_path, 0, "dynamics", text);
+  }
+  if (estimate.output_bytes > kMaxMotionOutputBytes) {
+    std::snprintf(text, sizeof(text),
+                  "the run would write about %.3g bytes of CSV, more than %.3g; a larger "
+                  "output_every, or %s to write it all the same",
+                  estimate.output_bytes, kMaxMotionOutputBytes, option.c_str());
+    throw InputError(scene_path, 0, "dynamics", text);
+  }
 }
 
 }  // namespace rodfit

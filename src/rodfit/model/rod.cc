@@ -821,4 +821,15 @@ void RestCurvatureOfCentreline(const std::vector<double>& s_in, const Mat3X& poi
   profile->push_back(profile->back());
 }
 
+double LargestEdgeStrain(const RodModel& model, const RodState& state, int* edge) {
+  double worst = 0.0;
+  int where = 0;
+  for (int j = 0; j < model.num_edges(); ++j) {
+    const double strain = std::abs(state.e.col(j).norm() / model.rest_edge_length(j) - 1.0);
+    if (strain > worst) worst = strain, where = j;
+  }
+  if (edge != nullptr) *edge = where;
+  return worst;
+}
+
 }  // namespace rodfit

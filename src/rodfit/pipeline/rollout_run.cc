@@ -203,31 +203,33 @@ bool RollOut(const Experiment& experiment, const RolloutRunOptions& options, con
   return true;
 }
 
+// Every file a rollout reads: the scene's, the recordings and the --parameters file. No output
+// may replace one (the output rule, io/output_dir.h).
+std::vector<InputFile> RolloutInputs(const Experiment& experiment,
+                                     const std::vector<MarkerRecording>& recordings,
+                                     const RolloutRunOptions& options) {
+  std::vector<InputFile> inputs = ExperimentInputs(experiment);
+  for (const MarkerRecording& rec : recordings) inputs.emplace_back(rec.file, "a recording");
+  if (!options.parameters_path.empty())
+    inputs.emplace_back(options.parameters_path, "--parameters");
+  return inputs;
+}
+
 // rollout.csv (and motion_fit.json) in the output directory and the report beside it, committed
 // together (nothing half-written).
 void WriteOutputs(const Experiment& experiment, const RolloutRunOptions& options,
                   RolloutRun* run) {
+  const std::vector<InputFile> inputs = RolloutInputs(experiment, run->recordings, options);
   std::unique_ptr<StagedDirectory> report_out;
   if (!options.report_dir.empty()) {
-    std::vector<InputFile> inputs = ExperimentInputs(experiment);
-    for (const MarkerRecording& rec : run->recordings) inputs.emplace_back(rec.file, "recording");
-    if (!options.parameters_path.empty())
-      inputs.emplace_back(options.parameters_path, "--parameters");
-    RefuseOverwritingInput((std::filesystem::path(options.report_dir) / "index.html").string(),
-                           inputs);
     report_out = std::make_unique<StagedDirectory>(options.report_dir);
+    report_out->SetInputs(inputs);
     run->report_warnings = options.write_report(report_out.get(), *run);
   }
   StagedDirectory out(options.output_dir);
-  std::vector<InputFile> inputs = ExperimentInputs(experiment);
-  if (!options.parameters_path.empty())
-    inputs.emplace_back(options.parameters_path, "--parameters");
+  out.SetInputs(inputs);
   out.Write("rollout.csv", run->csv, "output file name");
-  RefuseOverwritingInput(out.FinalPath("rollout.csv"), inputs);
-  if (!run->fit_text.empty()) {
-    out.Write("motion_fit.json", run->fit_text, "output file name");
-    RefuseOverwritingInput(out.FinalPath("motion_fit.json"), inputs);
-  }
+  if (!run->fit_text.empty()) out.Write("motion_fit.json", run->fit_text, "output file name");
   if (report_out)
     CommitAll({report_out.get(), &out});
   else
@@ -245,6 +247,8 @@ std::vector<MarkerRecording> ReadRecordings(const Experiment& experiment,
     recordings.push_back(ReadMarkerRecording(path, frame_rate, millimetres ? 1e-3 : 1.0));
     CheckRecordingScale(recordings.back(), experiment.scene.rod.length,
                         millimetres ? "--unit mm is set" : "give --unit mm");
+    // A recording of another rod (or scaled) is refused before any rollout, naming the file.
+    CheckRecordingFitsRod(recordings.back(), experiment.scene.rod.length);
   }
   return recordings;
 }
@@ -259,6 +263,12 @@ RolloutRun Rollout(const Experiment& experiment, std::vector<MarkerRecording> re
   RolloutRun run;
   run.scene_path = experiment.path;
   run.recordings = std::move(recordings);
+  // The output rule before any work: no output over an input, a FIFO, a directory, or to ''.
+  if (!options.output_dir.empty()) {
+    const std::vector<InputFile> inputs = RolloutInputs(experiment, run.recordings, options);
+    CheckOutputDirectory(options.output_dir, {"rollout.csv", "motion_fit.json"}, inputs);
+    if (!options.report_dir.empty()) CheckOutputDirectory(options.report_dir, {"index.html"}, inputs);
+  }
   Scene scene = experiment.scene;
   for (const auto& [name, value] : options.parameters) {
     SetMotionParameter(name, value, &scene);

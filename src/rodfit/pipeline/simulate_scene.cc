@@ -20,9 +20,6 @@
 namespace rodfit {
 namespace {
 
-/// Strain above which a static equilibrium is warned about as outside a rod model's range.
-constexpr double kLargeStrain = 0.1;
-
 void Progress(const SimulateOptions& options, const std::string& text, double fraction) {
   if (options.progress) options.progress(text, fraction);
 }
@@ -61,12 +58,9 @@ std::string MarkersCsv(const std::vector<CaseMotion>& motions, const SimulateOpt
 void WriteFiles(const Experiment& experiment, const std::string& output_dir,
                 const std::vector<std::pair<std::string, std::string>>& files, const char* what) {
   StagedDirectory out(output_dir);
-  const std::vector<InputFile> inputs = ExperimentInputs(experiment);
-  for (const auto& [name, text] : files) {
-    // Case names become file names: the reader refuses paths, and Write keeps any name in DIR.
-    out.Write(name, text, what);
-    RefuseOverwritingInput(out.FinalPath(name), inputs);
-  }
+  out.SetInputs(ExperimentInputs(experiment));
+  // Case names become file names: the reader refuses paths, and Write keeps any name in DIR.
+  for (const auto& [name, text] : files) out.Write(name, text, what);
   out.Commit();
 }
 
@@ -121,16 +115,6 @@ void SimulateMotion(const Experiment& experiment, const SimulateOptions& options
     WriteFiles(experiment, options.output_dir, run->files, "output file name");
 }
 
-// The largest relative change of an edge's length at the equilibrium.
-double LargestStrain(const CaseSolution& solution) {
-  double strain = 0.0;
-  const RodModel& m = *solution.model;
-  for (int j = 0; j < m.num_edges(); ++j)
-    strain = std::max(strain,
-                      std::abs(solution.state.e.col(j).norm() / m.rest_edge_length(j) - 1.0));
-  return strain;
-}
-
 // A static scene: every case solved to equilibrium, each warm-started from the one before.
 void SimulateStatics(const Experiment& experiment, const SimulateOptions& options,
                      SimulateRun* run) {
@@ -169,7 +153,8 @@ void SimulateStatics(const Experiment& experiment, const SimulateOptions& option
     // A rod model is a small-strain model: an equilibrium that stretches or compresses an edge
     // by more than 10 % (held points pulled apart, a unit mistake in EA) is reported, not
     // silently returned.
-    if (const double strain = LargestStrain(solution); strain > kLargeStrain) {
+    if (const double strain = LargestEdgeStrain(*solution.model, solution.state);
+        strain > kSmallStrainLimit) {
       char percent[32];
       std::snprintf(percent, sizeof(percent), "%.3g", 100.0 * strain);
       run->warnings.push_back(where + "an edge is strained by " + percent +
@@ -214,6 +199,17 @@ void SimulateStatics(const Experiment& experiment, const SimulateOptions& option
 SimulateRun SimulateScene(const Experiment& experiment, const SimulateOptions& options) {
   SimulateRun run;
   run.moving = static_cast<bool>(experiment.scene.dynamics);
+  if (run.moving && !options.output_dir.empty()) {
+    // The output rule before the work: no output over an input (a drive path, a tip load, ...).
+    CheckOutputDirectory(options.output_dir,
+                         {"trajectory.csv", "reactions.csv", "summary.csv", "markers.csv"},
+                         ExperimentInputs(experiment));
+  }
+  // The work and the output a moving scene asks for, refused before the run starts when above
+  // the documented limits (a scene within every other limit could run for hours).
+  if (run.moving && !options.large)
+    CheckMotionRunSize(EstimateMotionRun(experiment.scene, options.marker_count),
+                       experiment.path, "--large");
   if (run.moving)
     SimulateMotion(experiment, options, &run);
   else if (options.marker_count > 0)

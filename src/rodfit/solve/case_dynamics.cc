@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <optional>
 #include <stdexcept>
 
@@ -354,12 +355,29 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
   record(0.0);
   const int steps = static_cast<int>(std::ceil(spec.duration / spec.time_step - 1e-9));
   int taken = 0;
+  // Physical sanity of what is returned: a step that leaves the rod model's small-strain
+  // envelope (kSmallStrainLimit; an end driven beyond the rod's reach, a load the rod cannot
+  // carry) stops the case there with the time and the edge, as the statics refuse unreachable
+  // held points; the frames up to it are kept (simulate --keep-going writes them).
+  std::string out_of_range;
   const IntegrationStats stats = Integrate(
       stepper, drive, steps, &s,
-      [&](const DynamicState& before, const DynamicState&, const DynamicsStepSummary&) {
+      [&](const DynamicState& before, const DynamicState& after, const DynamicsStepSummary&) {
         v_before = before.v;
         ++taken;
         if (taken % spec.output_every == 0 || taken == steps) record(spec.time_step);
+        int edge = 0;
+        const double strain = LargestEdgeStrain(model, after.q, &edge);
+        if (strain > kSmallStrainLimit) {
+          char text[320];
+          std::snprintf(text, sizeof(text),
+                        "t = %.6g s: edge %d is strained by %.3g %%, beyond the rod model's "
+                        "small-strain limit of %.3g %% (held points driven beyond the rod's "
+                        "reach, or a load the rod cannot carry?)",
+                        after.t, edge, 100.0 * strain, 100.0 * kSmallStrainLimit);
+          out_of_range = text;
+          return false;
+        }
         return true;
       },
       nullptr, progress);
@@ -367,8 +385,8 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
   out.halved_steps = stats.halved_steps;
   out.newton_iterations = stats.newton_iterations;
   out.seconds = stats.seconds;
-  out.reason = stats.reason;
-  out.ok = stats.ok;
+  out.reason = out_of_range.empty() ? stats.reason : out_of_range;
+  out.ok = stats.ok && out_of_range.empty();
   return out;
 }
 

@@ -1,5 +1,6 @@
 #include "rodfit/solve/rollout.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -318,6 +319,10 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers) {
     held[m] = 1;
   }
   RODFIT_CHECK_ARG(markers >= 1 && held[0], "marker 0 (the clamp) must be held");
+  // A rollout whose markers are all driven predicts nothing: its error would read 0 m.
+  RODFIT_CHECK_ARG(std::find(held.begin(), held.end(), 0) != held.end(),
+                   "every one of the " + std::to_string(markers) +
+                       " markers is held (--held): none is left to predict");
   return held;
 }
 

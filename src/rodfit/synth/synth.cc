@@ -974,10 +974,8 @@ void WriteSynthBundle(const SynthBundle& bundle, const std::string& output_dir,
   // Every file into a staging directory first: a run that cannot write its last file (truth.json)
   // leaves none of the others behind.
   StagedDirectory out(output_dir);
-  for (const auto& [rel, contents] : bundle.files) {
-    out.Write(rel, contents);
-    RefuseOverwritingInput(out.FinalPath(rel), inputs);
-  }
+  out.SetInputs(inputs);
+  for (const auto& [rel, contents] : bundle.files) out.Write(rel, contents);
   out.Commit();
 }
 
