@@ -66,7 +66,8 @@ TEST(MotionFit, RefusesAParameterWithoutAStartValueOrUnknown) {
 // free markers (the gripper model's, 10 ms in) are not the rollout's.
 std::vector<Eigen::Matrix3Xd> SelfConsistentRecording(const Scene& truth, double seconds,
                                                       double noise, unsigned seed) {
-  const std::vector<Eigen::Matrix3Xd> source = testing::Recording(seconds, 0.0, 0.0, 3, &truth.material);
+  const std::vector<Eigen::Matrix3Xd> source =
+      testing::Recording(seconds, 0.0, 0.0, 3, &truth.material, &truth.rod);
   const RolloutResult made = Rollout(truth, testing::kFrameInterval, source, RolloutOptions());
   EXPECT_TRUE(made.ok) << made.reason;
   std::vector<Eigen::Matrix3Xd> frames = source;
@@ -158,8 +159,9 @@ TEST(MotionFit, FitsTheLinearDensityAndReportsTheTwistStiffnessNotIdentifiable) 
 
 // The rest shape from motion: a cable curved at rest (its bending curvature at 5 knots, both
 // components, smooth within the prior), a recording its own rollout model explains to 0.5 mm of
-// noise; fitted together with the bending stiffness from half the rest curvature and 1.5x the
-// stiffness, without the noise given (estimated from the recording). Every knot and the stiffness land within 3 std
+// noise (its held markers and first two frames those of the same cable between two grippers);
+// fitted together with the bending stiffness from a straight start 2.5x too stiff, without the
+// noise given (estimated from the recording). Every knot and the stiffness land within 3 std
 // of the truth; the correlation of the rest curvature with the stiffness is reported.
 TEST(MotionFit, FitsTheRestCurvatureWithTheBendingStiffness) {
   Scene truth = testing::Cable();
@@ -173,12 +175,10 @@ TEST(MotionFit, FitsTheRestCurvatureWithTheBendingStiffness) {
   MotionRecordingData rec;
   rec.frame_interval = testing::kFrameInterval;
   rec.frames = SelfConsistentRecording(truth, 1.0, noise, 11);
-  // From halfway to the truth's shape (measured: from a straight start, 2.5x or 1.5x too stiff,
-  // this one 1 s recording leads the fit to another minimum, B 1.6-2.6x the truth with the rest
-  // curvature absorbing the difference: one gentle motion barely tells them apart).
   Scene start = truth;
-  for (Vec3& k : start.rod.rest_curvature_profile) k *= 0.5;
-  start.material.bend_stiffness *= 1.5;
+  start.rod.rest_curvature_s.clear();
+  start.rod.rest_curvature_profile.clear();
+  start.material.bend_stiffness *= 2.5;
   const std::vector<std::string> names = {"bend_stiffness", "rest_curvature"};
   MotionFitOptions options;
   options.rest_curvature_knots = 4;
@@ -196,7 +196,7 @@ TEST(MotionFit, FitsTheRestCurvatureWithTheBendingStiffness) {
   for (size_t k = 0; k < r.values.size(); ++k) {
     std::printf("%-20s truth %8.4g  fitted %8.4g +- %.3g (%.2f std)\n", r.names[k].c_str(),
                 want[k], r.values[k], r.std[k], (r.values[k] - want[k]) / r.std[k]);
-    EXPECT_TRUE(r.identifiable[k]) << r.names[k] << ": " << r.reason[k];
+    ASSERT_TRUE(r.identifiable[k]) << r.names[k] << ": " << r.reason[k];
     EXPECT_LT(std::abs(r.values[k] - want[k]), 3.0 * r.std[k]) << r.names[k];
     if (k > 0)
       worst_correlation = std::max(
@@ -207,14 +207,17 @@ TEST(MotionFit, FitsTheRestCurvatureWithTheBendingStiffness) {
               "|correlation| with bend_stiffness %.2f\n",
               r.evaluations, r.seconds, r.residual_variance, 1e3 * r.marker_sigma,
               worst_correlation);
-  {
-    MotionFitOptions at_truth = options;
-    at_truth.max_evaluations = 1;
-    const MotionFitResult z = FitMotion(truth, {rec}, names, RolloutOptions(), StaticsOptions(), at_truth);
-    std::printf("cost at the truth %.6g, at the fit %.6g (start %.6g)\n", z.initial_cost, r.final_cost, r.initial_cost);
-  }
+  // The fit's minimum is at least as low as the truth's cost. Neither is at the noise: frame 1's
+  // free markers are the gripper model's, not the rollout's (measured: residual variance 6.4;
+  // cost 7652 at the fit, 7921 at the truth, 2.7e6 at the start; 28 rollouts).
+  MotionFitOptions at_truth = options;
+  at_truth.max_evaluations = 1;
+  const MotionFitResult z =
+      FitMotion(truth, {rec}, names, RolloutOptions(), StaticsOptions(), at_truth);
+  std::printf("cost at the truth %.6g, at the fit %.6g (start %.6g)\n", z.initial_cost,
+              r.final_cost, r.initial_cost);
+  EXPECT_LE(r.final_cost, z.initial_cost);
   EXPECT_EQ(r.prior_residuals, 4);
-  EXPECT_LT(r.residual_variance, 1.5);
 }
 
 }  // namespace

@@ -187,6 +187,19 @@ TEST(RestCurvatureSensitivity, RolloutMatchesCentralDifferences) {
   const RolloutResult base = RolloutWithSensitivities(scene, kFrameInterval, frames, options,
                                                       statics, directions, &d_predicted, &schedule);
   ASSERT_TRUE(base.ok) << base.reason;
+  {
+    // The predictions are Rollout's own, curved at rest too.
+    StepSchedule replay = schedule;
+    replay.Replay();
+    const RolloutResult plain = Rollout(scene, kFrameInterval, frames, options, statics, &replay);
+    const RolloutResult fresh = Rollout(scene, kFrameInterval, frames, options, statics);
+    ASSERT_TRUE(plain.ok && fresh.ok);
+    ASSERT_EQ(plain.predicted.size(), base.predicted.size());
+    for (size_t f = 0; f < base.predicted.size(); ++f) {
+      EXPECT_EQ((plain.predicted[f] - base.predicted[f]).cwiseAbs().maxCoeff(), 0.0) << f;
+      EXPECT_EQ((fresh.predicted[f] - base.predicted[f]).cwiseAbs().maxCoeff(), 0.0) << f;
+    }
+  }
   const double h = 1e-3;  // [1/m]
   for (int knot = 0; knot < 3; ++knot)
     for (int a = 0; a < 2; ++a) {
