@@ -7,7 +7,7 @@
 // and the clamp's reaction force [N] of every written frame (every 10 ms).
 // Run from the repository root, no arguments; exits 0 when the integration reaches 0.1 s.
 //
-// Public API used: rodfit/io/experiment.h (LoadExperiment), rodfit/solve/case_dynamics.h
+// Public API used: rodfit/pipeline/experiment.h (LoadExperiment), rodfit/solve/case_dynamics.h
 // (SimulateCaseDynamics, CaseTrajectory). A simulator stepping frame by frame uses
 // rodfit/solve/dynamics.h (DynamicsStepper::Step with its own Drive) instead.
 #include <cstdio>

@@ -5,7 +5,7 @@
 // and prints the tip position [m], the clamp's reaction force [N] and the solver's summary.
 // Run from the repository root, no arguments; exits 0 when every case converges.
 //
-// Public API used: rodfit/io/experiment.h (LoadExperiment), rodfit/solve/case_solve.h
+// Public API used: rodfit/pipeline/experiment.h (LoadExperiment), rodfit/solve/case_solve.h
 // (SolveCase, CaseSolution). Build against an installed rodfit: examples/CMakeLists.txt.
 #include <cstdio>
 #include <cstdlib>

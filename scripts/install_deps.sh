@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what rodfit builds against, only what is missing: Debian packages (apt-get), the
 # report's 3-D plotting library (plotly.js's gl3d bundle, from the npm registry) and the npm
-# package one test uses (MuJoCo's WebAssembly build). With --tests,
+# package one test uses (MuJoCo's WebAssembly build); Debian's pybind11, numpy, pytest and
+# matplotlib for the Python package. With --tests,
 # also what the test suite needs beyond the build: Debian's `chromium`, in which the report test
 # loads every report headless (tests/report/report_browser_test.cc).
 # Idempotent: a machine that has them all is left untouched (no apt-get update either).
@@ -17,6 +18,9 @@ packages=(
   # for the tests only (an independent image decoder). Image files: libpng, libjpeg, libtiff.
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-calib3d-dev
   libpng-dev libjpeg-dev libtiff-dev
+  # The Python package (docs/python.md): pybind11 and Python's headers to build it, numpy for its
+  # arrays, pytest for its tests, matplotlib for its example's plot.
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib
 )
 if [ "${1:-}" = "--tests" ]; then packages+=(chromium); fi
 # The report's interactive 3-D view (docs/formats.md, "Fit report") inlines plotly.js's gl3d

@@ -8,17 +8,6 @@
 
 #include <CLI/CLI.hpp>
 
-std::string OneLine(std::string text) {
-  for (char& c : text) {
-    if (c == '\n' || c == '\r') c = ' ';
-  }
-  return text;
-}
-
-std::string CasePlace(const std::string& file, int line, const std::string& name) {
-  return file + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": case " + name + ": ";
-}
-
 int Parse(CLI::App& app, int argc, char** argv) {
   try {
     app.parse(argc, argv);

@@ -5,17 +5,15 @@
 
 #include <string>
 
+#include "rodfit/io/errors.h"
+
 namespace CLI {
 class App;
 }
 
-/// `text` with its line breaks turned into spaces: every error is one line.
-std::string OneLine(std::string text);
-
-/// "FILE:LINE: case NAME: " (LINE left out when unknown, 0): where a case the solver cannot
-/// settle is written, named like an input error's place, so that a scene of many cases points at
-/// the one to change.
-std::string CasePlace(const std::string& file, int line, const std::string& name);
+// OneLine and CasePlace are the library's (rodfit/io/errors.h).
+using rodfit::CasePlace;
+using rodfit::OneLine;
 
 /// Parses argv for one subcommand; returns -1 to go on, else the exit status (help or error).
 int Parse(CLI::App& app, int argc, char** argv);

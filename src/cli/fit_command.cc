@@ -2,12 +2,10 @@
 // its observation files, runs the identification and writes the profile (docs/cli.md, "fit").
 #include <unistd.h>
 
-#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
-#include <memory>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -16,17 +14,12 @@
 #include <glog/logging.h>
 
 #include "commands.h"
-#include "rodfit/fit/fit.h"
-#include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/pipeline/fit_input.h"
-#include "rodfit/pipeline/sequence_input.h"
-#include "rodfit/model/rod.h"
-#include "rodfit/report/fit_report.h"
 #include "rodfit/io/output_dir.h"
-#include "rodfit/io/profile.h"
 #include "rodfit/io/progress.h"
 #include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/run.h"
+#include "rodfit/report/fit_report.h"
 
 namespace {
 
@@ -54,37 +47,6 @@ std::string CheckThreads(const std::string& text) {
   return "";
 }
 
-// Stages the report (when asked) and the profile, then commits both together: the report first,
-// so that no profile claims a finished run without its report; when the profile cannot be
-// moved into place the report is rolled back. A failure leaves both locations as they were.
-// Returns the report's own warnings (e.g. written without its 3-D views).
-std::vector<std::string> WriteOutputs(const rodfit::Experiment& experiment,
-                                      const rodfit::FitInput& input,
-                                      const rodfit::FitOptions& options,
-                                      const rodfit::FitResult& result,
-                                      const std::string& profile_path,
-                                      const std::string& report_dir,
-                                      const std::vector<std::string>& warnings) {
-  std::vector<rodfit::StagedDirectory*> outputs;
-  std::unique_ptr<rodfit::StagedDirectory> report;
-  std::vector<std::string> report_warnings;
-  if (!report_dir.empty()) {
-    report = std::make_unique<rodfit::StagedDirectory>(report_dir);
-    report_warnings = rodfit::WriteFitReport(report.get(), experiment, input, result, warnings);
-    outputs.push_back(report.get());
-  }
-  const std::filesystem::path profile(profile_path);
-  rodfit::StagedDirectory profile_dir(profile.has_parent_path() ? profile.parent_path().string()
-                                                                : std::string("."),
-                                       /*stage_inside=*/true);
-  profile_dir.Write(profile.filename().string(),
-                    rodfit::FormatProfile(rodfit::ProfileJson(experiment, options, result)),
-                    "profile file name");
-  outputs.push_back(&profile_dir);
-  rodfit::CommitAll(outputs);
-  return report_warnings;
-}
-
 // The fitted parameters as the summary lists them.
 void PrintEstimates(const rodfit::FitResult& result) {
   for (const rodfit::Parameter& p : result.parameters) {
@@ -95,112 +57,11 @@ void PrintEstimates(const rodfit::FitResult& result) {
     else
       std::fprintf(stderr, "%-18s NOT IDENTIFIABLE: %s\n", p.name.c_str(), p.reason.c_str());
   }
-}
-
-// The residual variance against its chi-square band, warned about on one line even with
-// --quiet (a warning is not progress). Trusted sigmas keep the std as stated, so nothing else
-// would show that the residuals are not what those sigmas predict; untrusted ones scale the
-// std by the variance, which covers sigmas stated too small but not a model error. The warning's
-// text (empty: none) goes into the report's summary too.
-std::string ResidualWarning(const rodfit::FitResult& result, const rodfit::FitOptions& options,
-                            rodfit::ResidualCheck* check_out) {
-  const rodfit::ResidualCheck check = rodfit::CheckResiduals(result, options);
-  *check_out = check;
-  const double v = result.residual_variance;
-  char text[640] = "";
-  if (check.above && options.trusted_sigmas)
-    std::snprintf(text, sizeof(text),
-                  "residual variance %.3g x the stated sigmas (expected %.2g to %.2g for %d "
-                  "degrees of freedom): the model does not explain the data (cameras swapped? "
-                  "wrong units? sigmas too small?)",
-                  v, check.band.low, check.band.high, result.residual_dof);
-  else if (check.above)
-    std::snprintf(text, sizeof(text),
-                  "residual variance %.3g x the stated sigmas (expected %.2g to %.2g for %d "
-                  "degrees of freedom): %s; the std are scaled by it, but a model error (clamp "
-                  "pose, rod length, camera calibration, a missing load) is not noise and they do "
-                  "not cover it",
-                  v, check.band.low, check.band.high, result.residual_dof,
-                  check.gross ? "the model does not explain the data"
-                              : "the sigmas understate the noise, or the model misses something");
-  else if (check.below)
-    std::snprintf(text, sizeof(text),
-                  "residual variance %.3g x the stated sigmas (expected %.2g to %.2g for %d "
-                  "degrees of freedom): the data scatter less than the sigmas say, so the std are "
-                  "too large (sigmas too large?)",
-                  v, check.band.low, check.band.high, result.residual_dof);
-  return text;
-}
-
-// The exit status of a fit that wrote its profile (docs/cli.md, "Exit status").
-int FitStatus(const rodfit::FitResult& result, const rodfit::ResidualCheck& check) {
-  for (const rodfit::Parameter& p : result.parameters)
-    if (p.fit && !p.identifiable) return kNotAllDetermined;
-  if (check.gross) return kResidualsNotExplained;
-  return EXIT_SUCCESS;
-}
-
-// A moving experiment (a dynamics: block): its fit: true parameters, damping included, fitted
-// to its observation sequences (markers, points or pixels over time) by the motion fit
-// (docs/cli.md, "fit"); the same outputs as the static fit. The report's page has no per-case
-// figures (no static shapes).
-int RunSequenceFit(const rodfit::Experiment& experiment, const std::string& experiment_path,
-                   const std::string& profile_path, const std::string& report_dir, bool quiet) {
-  const rodfit::SequenceInput input = rodfit::BuildSequenceInput(experiment);
-  const std::vector<std::string> names = rodfit::FittedNames(experiment);
-  if (names.empty()) {
-    std::cerr << "rodfit fit: " << experiment_path
-              << ": no parameter has fit: true (nothing to fit)\n";
-    return EXIT_FAILURE;
-  }
-  rodfit::ProgressLine progress(quiet, STDERR_FILENO);
-  if (progress.enabled()) progress.Update("fit: integrating the cases with their sensitivities");
-  rodfit::MotionFitOptions fit_options = rodfit::SequenceFitOptionsOf(experiment, names);
-  if (progress.enabled()) {
-    fit_options.progress = [&progress](const rodfit::FitIterationInfo& i) {
-      char text[96];
-      std::snprintf(text, sizeof(text), "fit: iteration %d  cost %.4e  relative change %.1e",
-                    i.iteration, i.cost, i.relative_decrease);
-      progress.Update(text);
-    };
-  }
-  rodfit::MotionFitResult motion;
-  try {
-    motion = rodfit::FitSequences(experiment.scene, input.sequences, names, experiment.statics,
-                                  fit_options);
-  } catch (const std::invalid_argument& e) {
-    progress.Finish();
-    std::cerr << "rodfit fit: " << experiment_path << ": " << e.what() << "\n";
-    return EXIT_FAILURE;
-  }
-  progress.Finish();
-  if (!motion.converged) {
-    std::cerr << "rodfit fit: " << experiment_path << ": the fit failed: " << motion.message
-              << " (no profile written)\n";
-    return EXIT_FAILURE;
-  }
-  rodfit::Scene fitted = experiment.scene;
-  for (size_t k = 0; k < names.size(); ++k)
-    rodfit::SetMotionParameter(names[k], motion.values[k], &fitted);
-  const rodfit::SequenceResiduals residuals =
-      rodfit::EvaluateSequences(fitted, input.sequences, experiment.statics);
-  const rodfit::FitResult result = rodfit::SequenceFitResult(experiment, input, motion, residuals);
-  rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
-  const rodfit::FitInput report_input;  // a moving experiment has no static cases
-  rodfit::ResidualCheck check;
-  std::vector<std::string> warnings;
-  if (std::string w = ResidualWarning(result, options, &check); !w.empty()) warnings.push_back(w);
-  for (const std::string& w :
-       WriteOutputs(experiment, report_input, options, result, profile_path, report_dir, warnings))
-    warnings.push_back(w);
-  for (const std::string& w : warnings) std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
-  if (!quiet) {
-    PrintEstimates(result);
-    std::fprintf(stderr, "%d iterations, %d runs, %.3f s, residual variance %.3g; wrote %s\n",
-                 result.iterations, motion.evaluations, result.seconds, result.residual_variance,
-                 profile_path.c_str());
-  }
-  return FitStatus(result, check);
+  // The cases' fitted held frames (nuisances, not material).
+  for (const rodfit::NuisanceEstimate& n : result.nuisances)
+    std::fprintf(stderr, "case %s, %s rotation: (%.3g, %.3g, %.3g) +- (%.2g, %.2g, %.2g) deg\n",
+                 n.case_name.c_str(), n.held.c_str(), n.rotation_deg[0], n.rotation_deg[1],
+                 n.rotation_deg[2], n.std_deg[0], n.std_deg[1], n.std_deg[2]);
 }
 
 }  // namespace
@@ -255,69 +116,30 @@ int RunFit(int argc, char** argv) {
                                        inputs);
     }
   }
-  if (experiment.scene.dynamics)
-    return RunSequenceFit(experiment, experiment_path, profile_path, report_dir, quiet);
-  const rodfit::FitInput input = rodfit::BuildFitInput(experiment);
-  // A camera behind the rod or looking elsewhere is bad data: said before the fit, naming the
-  // camera file and the case (the fit would only fail to evaluate).
-  rodfit::CheckCamerasSeeTheStart(experiment);
-  // Held points the rod reaches only by stretching more than 1 %: a wire between two clamps
-  // measured farther apart than its length, or a length given short. Said after a fit that
-  // succeeds (even with --quiet; a failed fit's one line says why it failed): the fit would take
-  // the stiffness to explain what the geometry gets wrong.
-  std::vector<std::string> stretched;
-  for (const rodfit::FitCase& c : input.cases) {
-    try {
-      const rodfit::RodModel model(input.rod, input.material, input.gravity, c.load_case,
-                                   input.springs);
-      for (const std::string& span : model.StretchedSpans(0.01))
-        stretched.push_back("case " + rodfit::DisplayCaseName(c.load_case.name) + ": " + span);
-    } catch (const std::invalid_argument&) {
-      // The fit names what is wrong with the case.
-    }
-  }
-  rodfit::FitOptions options = rodfit::FitOptionsOf(experiment);
-  options.num_threads = threads;
-  // The global search has a budget of evaluations, so its line has an ETA; Levenberg–Marquardt
-  // stops when it converges, so its line has none.
+  // On a terminal, one updating line while the fit runs (io/progress.h).
   rodfit::ProgressLine progress(quiet, STDERR_FILENO);
-  if (progress.enabled()) {
-    options.progress = [&progress](const rodfit::FitIterationInfo& i) {
-      char text[96];
-      if (i.global) {
-        std::snprintf(text, sizeof(text), "fit: global search %d/%d  best cost %.4e", i.iteration,
-                      i.budget, i.cost);
-        progress.Update(text, i.budget > 0 ? double(i.iteration) / i.budget : NAN);
-      } else {
-        std::snprintf(text, sizeof(text), "fit: iteration %d  cost %.4e  relative change %.1e",
-                      i.iteration, i.cost, i.relative_decrease);
-        progress.Update(text);
-      }
+  rodfit::FitRunOptions options;
+  options.num_threads = threads;
+  options.profile_path = profile_path;
+  options.report_dir = report_dir;
+  options.write_report = [](rodfit::StagedDirectory* out, const rodfit::Experiment& e,
+                            const rodfit::FitInput& input, const rodfit::FitResult& result,
+                            const std::vector<std::string>& warnings) {
+    return rodfit::WriteFitReport(out, e, input, result, warnings);
+  };
+  if (progress.enabled())
+    options.progress = [&progress](const std::string& text, double fraction) {
+      progress.Update(text, fraction);
     };
-  }
-  rodfit::FitResult result;
-  try {
-    result = rodfit::Fit(input, options);
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "rodfit fit: " << experiment_path << ": " << e.what() << "\n";
-    return EXIT_FAILURE;
-  }
+  const rodfit::FitRun run = rodfit::FitExperiment(experiment, options);
   progress.Finish();
-  if (!result.success) {
-    std::cerr << "rodfit fit: " << experiment_path << ": the fit failed: " << result.message
-              << " (no profile written)\n";
+  if (!run.ok) {
+    std::cerr << "rodfit fit: " << experiment_path << ": " << run.error << "\n";
     return EXIT_FAILURE;
   }
   // The run's warnings: every one in the report's summary, with what to do; on stderr the
   // stretched spans in one line.
-  rodfit::ResidualCheck check;
-  std::vector<std::string> warnings;
-  for (const std::string& span : stretched)
-    warnings.push_back(span + " (check rod.length and the held positions)");
-  std::string residual_warning = ResidualWarning(result, options, &check);
-  if (!residual_warning.empty()) warnings.push_back(residual_warning);
-  const std::vector<std::string> report_warnings =
-      WriteOutputs(experiment, input, options, result, profile_path, report_dir, warnings);
+  const std::vector<std::string>& stretched = run.stretched;
   if (!stretched.empty())
     std::fprintf(stderr, "rodfit fit: warning: %s (check rod.length and the held positions)%s\n",
                  stretched.front().c_str(),
@@ -326,15 +148,25 @@ int RunFit(int argc, char** argv) {
                         (report_dir.empty() ? std::string() : ", all in the report's summary"))
                            .c_str()
                      : "");
-  if (!residual_warning.empty())
-    std::fprintf(stderr, "rodfit fit: warning: %s\n", residual_warning.c_str());
-  for (const std::string& w : report_warnings)
+  if (!run.residual_warning.empty())
+    std::fprintf(stderr, "rodfit fit: warning: %s\n", run.residual_warning.c_str());
+  for (const std::string& w : run.entry_warnings)
+    std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
+  for (const std::string& w : run.report_warnings)
     std::fprintf(stderr, "rodfit fit: warning: %s\n", w.c_str());
   if (!quiet) {
-    PrintEstimates(result);
-    std::fprintf(stderr, "%d iterations, %.3f s, residual variance %.3g; wrote %s\n",
-                 result.iterations, result.seconds, result.residual_variance,
-                 profile_path.c_str());
+    PrintEstimates(run.result);
+    if (run.moving)
+      std::fprintf(stderr, "%d iterations, %d runs, %.3f s, residual variance %.3g; wrote %s\n",
+                   run.result.iterations, run.runs, run.result.seconds,
+                   run.result.residual_variance, profile_path.c_str());
+    else
+      std::fprintf(stderr, "%d iterations, %.3f s, residual variance %.3g; wrote %s\n",
+                   run.result.iterations, run.result.seconds, run.result.residual_variance,
+                   profile_path.c_str());
   }
-  return FitStatus(result, check);
+  // The exit status of a fit that wrote its profile (docs/cli.md, "Exit status").
+  if (!run.all_determined) return kNotAllDetermined;
+  if (run.misfit) return kResidualsNotExplained;
+  return EXIT_SUCCESS;
 }

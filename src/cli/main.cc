@@ -21,21 +21,13 @@
 
 #include "cli_common.h"
 #include "commands.h"
-#include "rodfit/io/csv.h"
-#include "rodfit/io/errors.h"
-#include "rodfit/io/experiment.h"
-#include "rodfit/io/output_dir.h"
 #include "rodfit/io/progress.h"
-#include "rodfit/io/shapes_csv.h"
 #include "rodfit/runtime/profile.h"
-#include "rodfit/solve/case_solve.h"
 #include "rodfit/version.h"
 #include "rodfit/pipeline/experiment.h"
+#include "rodfit/pipeline/run.h"
 
 namespace {
-
-/// Strain above which `simulate` warns that an equilibrium is outside a rod model's range.
-constexpr double kLargeStrain = 0.1;
 
 int RunSimulate(int argc, char** argv) {
   CLI::App app(
@@ -48,20 +40,19 @@ int RunSimulate(int argc, char** argv) {
       "DIR/summary.csv.",
       "rodfit simulate");
   std::string scene_path, output_dir;
-  bool keep_going = false;
+  rodfit::SimulateOptions options;
   app.add_option("scene", scene_path, "scene YAML (docs/formats.md)")->required();
   app.add_option("-o,--output", output_dir, "output directory, created if missing")->required();
-  MarkerSampling markers;
-  app.add_option("--markers", markers.count,
+  app.add_option("--markers", options.marker_count,
                  "moving scene: also write DIR/markers.csv, a synthetic motion-capture recording "
                  "(t,marker,x,y,z) of this many markers evenly spaced in s, at every written frame")
       ->check(CLI::Range(2, 10000));
-  app.add_option("--marker-noise", markers.noise, "[m] Gaussian noise per coordinate of markers.csv")
+  app.add_option("--marker-noise", options.marker_noise, "[m] Gaussian noise per coordinate of markers.csv")
       ->check(CLI::Range(0.0, 1.0));
-  app.add_option("--marker-drop", markers.drop, "fraction of markers.csv samples dropped (not in frames 0-1)")
+  app.add_option("--marker-drop", options.marker_drop, "fraction of markers.csv samples dropped (not in frames 0-1)")
       ->check(CLI::Range(0.0, 0.9));
-  app.add_option("--seed", markers.seed, "random seed of the marker noise and drops");
-  app.add_flag("--keep-going", keep_going,
+  app.add_option("--seed", options.seed, "random seed of the marker noise and drops");
+  app.add_flag("--keep-going", options.keep_going,
                "write the cases that converged and summary.csv even when one fails (exit 3)");
   bool quiet = false;
   app.add_flag("-q,--quiet", quiet, "no progress line");
@@ -88,115 +79,36 @@ int RunSimulate(int argc, char** argv) {
     }
     rodfit::UseProfileMaterial(rodfit::LoadProfile(profile_path, read), &experiment.scene);
   }
-  if (experiment.scene.dynamics)
-    return SimulateMotion(experiment, scene_path, output_dir, keep_going, markers, quiet);
-  if (markers.count > 0)
-    throw std::invalid_argument("--markers is for a moving scene (a dynamics: block)");
-  const rodfit::Scene& scene = experiment.scene;
-  std::vector<rodfit::CaseShape> shapes;
-  std::vector<rodfit::CaseForce> forces;
-  std::vector<rodfit::CaseSection> sections;
-  std::vector<rodfit::CaseSummaryRow> summary;
-  std::vector<std::pair<std::string, std::string>> meshes;  // case name, OBJ text
-  std::vector<std::string> warnings;
-  std::string first_failure;
-  std::vector<rodfit::CaseSolution> solutions;
-  solutions.reserve(scene.cases.size());
   // Many cases or long rods: which case it is on (a terminal only; io/progress.h).
   rodfit::ProgressLine progress(quiet, 2);
-  for (size_t k = 0; k < scene.cases.size(); ++k) {
-    const rodfit::LoadCase& load_case = scene.cases[k];
-    if (progress.enabled())
-      progress.Update("simulate: solving case " + std::to_string(k + 1) + " of " +
-                          std::to_string(scene.cases.size()) + " (" + load_case.name + ")",
-                      static_cast<double>(k) / scene.cases.size());
-    const std::string where = CasePlace(scene_path, experiment.cases[k].line, load_case.name);
-    rodfit::CaseSolution solution;
-    try {
-      solution = rodfit::SolveCase(scene, static_cast<int>(k),
-                                   solutions.empty() ? nullptr : &solutions.back(),
-                                   experiment.statics);
-    } catch (const std::invalid_argument& e) {
-      // The case is not a valid rod: name the case's entry in the file.
-      throw rodfit::InputError(scene_path, experiment.cases[k].line,
-                               "cases[" + std::to_string(k) + "]", e.what());
-    }
-    const rodfit::StaticsSummary& s = solution.summary;
-    summary.push_back({load_case.name, s.converged, s.converged && s.stable, s.iterations,
-                       s.gradient_norm, solution.seconds, s.reason});
-    if (!s.converged) {
-      if (first_failure.empty()) first_failure = where + OneLine(s.reason);
-      solutions.push_back(std::move(solution));
-      continue;
-    }
-    if (!s.stable)
-      warnings.push_back("rodfit simulate: warning: " + where +
-                         "the equilibrium found is unstable (a displacement the rod does not "
-                         "resist); an experiment would not hold it");
-    {
-      // A rod model is a small-strain model: an equilibrium that stretches or compresses an edge by more than
-      // 10 % (held points pulled apart, a unit mistake in EA) is reported, not silently returned.
-      double strain = 0.0;
-      const rodfit::RodModel& m = *solution.model;
-      for (int j = 0; j < m.num_edges(); ++j)
-        strain = std::max(strain, std::abs(solution.state.e.col(j).norm() /
-                                               m.rest_edge_length(j) - 1.0));
-      if (strain > kLargeStrain) {
-        char percent[32];
-        std::snprintf(percent, sizeof(percent), "%.3g", 100.0 * strain);
-        warnings.push_back("rodfit simulate: warning: " + where + "an edge is strained by " +
-                           percent + " %, beyond the small strains of a rod model (held points too far "
-                           "apart? stretch_stiffness in the wrong unit?)");
-      }
-    }
-    shapes.push_back({load_case.name, solution.shape_s, solution.shape});
-    for (const rodfit::HeldReaction& r : solution.reactions)
-      forces.push_back({load_case.name, r.point, r.s, r.position, r.force, r.moment});
-    if (solution.poke) {
-      const rodfit::PokeResult& poke = *solution.poke;
-      if (!poke.ring.summary.IsUsable()) {
-        if (first_failure.empty())
-          first_failure = where + "cross-section: " + OneLine(poke.ring.summary.BriefReport());
-        summary.back().converged = false;
-        summary.back().reason = "cross-section: " + poke.ring.summary.BriefReport();
-        solutions.push_back(std::move(solution));
-        continue;
-      }
-      sections.push_back({load_case.name, poke.rest_world, poke.deformed_world});
-      meshes.emplace_back(load_case.name, rodfit::FormatObj(rodfit::PokedTube(
-                                              *solution.model, solution.state, *scene.section, poke)));
-    }
-    solutions.push_back(std::move(solution));
-  }
+  if (progress.enabled())
+    options.progress = [&progress](const std::string& text, double fraction) {
+      progress.Update(text, fraction);
+    };
+  options.output_dir = output_dir;
+  const rodfit::SimulateRun run = rodfit::SimulateScene(experiment, options);
   progress.Finish();
-  if (!first_failure.empty() && !keep_going) {
-    std::cerr << "rodfit simulate: " << first_failure << "\n";
+  if (!run.first_failure.empty() && !options.keep_going) {
+    std::cerr << "rodfit simulate: " << run.first_failure << "\n";
     return EXIT_FAILURE;
   }
-  // Only now, and all files at once: a run that fails while writing (a full disk, a directory
-  // where a file goes) leaves the output directory as it was.
-  std::vector<std::pair<std::string, std::string>> files = {
-      {"shapes.csv", rodfit::FormatShapesCsv(shapes)},
-      {"forces.csv", rodfit::FormatForcesCsv(forces)},
-      {"summary.csv", rodfit::FormatSummaryCsv(summary)}};
-  if (!sections.empty()) files.emplace_back("sections.csv", rodfit::FormatSectionsCsv(sections));
-  for (const auto& [name, obj] : meshes) files.emplace_back(name + ".obj", obj);
-  rodfit::StagedDirectory out(output_dir);
-  const std::vector<rodfit::InputFile> inputs = rodfit::ExperimentInputs(experiment);
-  for (const auto& [name, text] : files) {
-    // Case names become file names: the reader refuses paths, and Write keeps any name in DIR.
-    out.Write(name, text, "case file name");
-    rodfit::RefuseOverwritingInput(out.FinalPath(name), inputs);
+  if (run.moving) {
+    if (!run.first_failure.empty()) {
+      std::cerr << "rodfit simulate: " << run.first_failure
+                << " (the frames up to there written)\n";
+      return 3;
+    }
+    // The time goes to stdout, not into the files (outputs are reproducible byte for byte).
+    std::printf("integrated %zu cases (%d steps) in %.3f s; wrote %s\n",
+                run.motion_summary.size(), run.steps, run.seconds, output_dir.c_str());
+    return EXIT_SUCCESS;
   }
-  out.Commit();
   // The time goes to stdout, not into a file: the same scene writes the same bytes.
-  double seconds = 0.0;
-  for (const rodfit::CaseSummaryRow& row : summary) seconds += row.seconds;
-  std::printf("solved %zu cases in %.3f s; wrote %s\n", summary.size(), seconds,
+  std::printf("solved %zu cases in %.3f s; wrote %s\n", run.summary.size(), run.seconds,
               output_dir.c_str());
-  for (const std::string& w : warnings) std::cerr << w << "\n";
-  if (!first_failure.empty()) {
-    std::cerr << "rodfit simulate: " << first_failure << " (other cases written)\n";
+  for (const std::string& w : run.warnings) std::cerr << "rodfit simulate: warning: " << w << "\n";
+  if (!run.first_failure.empty()) {
+    std::cerr << "rodfit simulate: " << run.first_failure << " (other cases written)\n";
     return 3;
   }
   return EXIT_SUCCESS;

@@ -5,7 +5,8 @@
 # must exit 0). Also checks that the internal headers under src/ were not installed and that the
 # installed public headers compile on their own.
 #
-# Usage (CTest test `install_examples`): install_test.sh CMAKE BUILD_DIR SOURCE_DIR CXX [CC]
+# Usage (CTest test `install_examples`): install_test.sh CMAKE BUILD_DIR SOURCE_DIR CXX [CC
+#   [PYTHON PYTHON_INSTALL_DIR]] (the last two when the Python package is built)
 set -euo pipefail
 cmake_bin=$1 build_dir=$2 source_dir=$3 cxx=$4 cc=${5:-cc}
 
@@ -107,3 +108,22 @@ assert lib.rodfit_step(handle, None) == 0
 lib.rodfit_destroy(handle)
 print("ctypes: rodfit_create, rodfit_step through", sys.argv[1])
 PY
+
+# The Python package (docs/python.md), when built: installed into the prefix's
+# lib/pythonX.Y/site-packages, imported from there (not from the build tree), a runtime ticked
+# and the runtime example run.
+if [ -n "${6:-}" ]; then
+  echo "== python package"
+  site="$prefix/$7"
+  test -f "$site/rodfit/__init__.py" && test -f "$site/rodfit/__init__.pyi"
+  PYTHONPATH="$site" "$6" - "$site" <<'PY'
+import sys
+import rodfit
+assert rodfit.__file__.startswith(sys.argv[1]), rodfit.__file__
+runtime = rodfit.Runtime("data/profiles/suture.json", mode="dynamic")
+force = runtime.step(runtime.tool_position())
+assert runtime.status()["ok"] and force.shape == (3,)
+print("python: rodfit", rodfit.__version__, "from", rodfit.__file__)
+PY
+  PYTHONPATH="$site" "$6" examples/python/runtime_loop.py >/dev/null
+fi

@@ -175,5 +175,29 @@ TEST(NewtonMinimizer, EveryTerminationHasAMessage) {
   }
 }
 
+// The dense solver finds a NaN or an infinity anywhere in the triangle it factors (it checks the
+// factor's diagonal, where any such entry ends up), with and without a shift.
+TEST(DenseCholeskySolver, NonFiniteEntriesFailTheFactor) {
+  const int n = 40;  // past Eigen's unblocked size: the blocked path too
+  for (double bad : {std::numeric_limits<double>::quiet_NaN(),
+                     std::numeric_limits<double>::infinity(),
+                     -std::numeric_limits<double>::infinity()}) {
+    for (int i = 0; i < n; i += 7) {
+      for (int j = 0; j <= i; j += 5) {
+        for (double shift : {0.0, 1e-3}) {
+          DenseCholeskySolver solver;
+          solver.Resize(n);
+          Eigen::MatrixXd& a = solver.matrix();
+          a.setConstant(0.1);
+          a.diagonal().setConstant(n);
+          ASSERT_TRUE(solver.Factor(shift));
+          a(i, j) = a(j, i) = bad;
+          EXPECT_FALSE(solver.Factor(shift)) << "entry (" << i << ", " << j << ") = " << bad;
+        }
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace rodfit

@@ -79,6 +79,18 @@ struct FitOptions {
   bool Check(std::string* why) const;
 };
 
+/// A fitted nuisance of a case (a held frame with `rotation_prior_deg`): its rotation vector
+/// R = Exp(phi) R_given [deg] and std [deg] per world axis (NaN where not determined), never
+/// part of the material.
+struct NuisanceEstimate {
+  int case_index = 0;
+  std::string case_name;
+  std::string held;  ///< "clamp" or "end_clamp"
+  double prior_deg = 0.0;
+  Eigen::Vector3d rotation_deg = Eigen::Vector3d::Zero();
+  Eigen::Vector3d std_deg = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+};
+
 /// A moving case's fitted run at the times it was observed (a moving fit's report).
 struct FittedRun {
   int case_index = 0;            ///< into Scene::cases
@@ -113,6 +125,8 @@ struct FitResult {
   /// at_bound (a parameter not fitted: its value).
   std::vector<Parameter> parameters;
   std::vector<std::string> fitted_names;
+  /// The cases' fitted nuisances, case by case (none without rotation priors).
+  std::vector<NuisanceEstimate> nuisances;
   Eigen::MatrixXd correlation;   ///< among fitted parameters (in log space)
   std::vector<ObservationFit> observations;
   /// Force and moment readings and surface points, one entry each (centre-line observations
@@ -164,8 +178,10 @@ ResidualCheck CheckResiduals(const FitResult& result, const FitOptions& options)
 FitResult Fit(const FitInput& input, const FitOptions& options);
 
 /// The forward map for tests and benchmarks: weighted residuals of every case stacked, and
-/// optionally their Jacobian with respect to the log of the fitted parameters. False when a
-/// case's solve fails.
+/// optionally their Jacobian with respect to the log of the fitted parameters followed by the
+/// cases' nuisance rotation vectors [rad] (3 per held frame with a rotation prior, case by case,
+/// clamp before end clamp; their priors' rows are not included). False when a case's solve
+/// fails.
 bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,
                         Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian);
 

@@ -23,6 +23,7 @@
 
 #include "rodfit/model/rod.h"
 #include "rodfit/observe/observations.h"
+#include "rodfit/solve/critical_twist.h"
 #include "rodfit/solve/poke.h"
 #include "rodfit/solve/reactions.h"
 
@@ -51,6 +52,11 @@ struct SolvedCase {
   /// Per fitted parameter: d (ring node k, world) / d log p as a 3 x (nodes + 1) closed polyline
   /// (node 0 repeated at the end), as `poke->deformed_world`.
   const std::vector<Eigen::Matrix3Xd>* d_ring = nullptr;
+  /// Per fitted parameter: what it moves, in the critical twist's terms (the stiffnesses a log
+  /// column scales together, a spring zone; a ring parameter scales none): set by the static
+  /// fit with d_q, for a measurement that differentiates a quantity of the model other than the
+  /// state (a critical twist, solve/critical_twist.h).
+  const std::vector<CriticalTwistParameter>* parameters = nullptr;
 };
 
 /// The misfit of one observation entry of a case at the fit.
@@ -66,6 +72,9 @@ struct ObservationFit {
   double rms_moment = std::numeric_limits<double>::quiet_NaN();
   /// Roll markers: the RMS of the roll error [deg] (NaN without).
   double rms_roll = std::numeric_limits<double>::quiet_NaN();
+  /// What the fit's user must know about this entry at the fit, or empty (a critical twist whose
+  /// model stays stable over its whole search range).
+  std::string warning;
 };
 
 /// One measurement's residual at the fit that the report cannot recompute from the fitted
@@ -87,7 +96,7 @@ class Measurement {
   virtual ~Measurement() = default;
 
   /// The observation kind (the entry's `type`): markers3d, points3d, image_points, images,
-  /// grasp_force, reaction, surface_points, roll_markers.
+  /// grasp_force, reaction, surface_points, roll_markers, critical_twist.
   const std::string& type() const { return type_; }
   /// e.g. "markers3d flat_markers.csv": names the entry in messages and tables.
   const std::string& label() const { return label_; }
@@ -110,6 +119,10 @@ class Measurement {
   virtual bool needs_state() const { return false; }
   virtual bool needs_reactions() const { return false; }
   virtual bool needs_section() const { return false; }
+  /// Its model reads the held frames themselves, not only the solved state (a roll counted from
+  /// the clamp's normal): its Jacobian by a fitted held frame's turn is not modelled, so a case
+  /// with such a nuisance refuses it.
+  virtual bool reads_held_frames() const { return false; }
   /// Reads nothing but the vertices: the report can evaluate it on a fitted centre-line alone.
   bool reads_vertices_only() const {
     return !needs_state() && !needs_reactions() && !needs_section();

@@ -24,6 +24,21 @@ inline std::string ClipForMessage(const std::string& value, size_t max_chars = 8
   return out;
 }
 
+/// `text` with its line breaks turned into spaces: every error is one line.
+inline std::string OneLine(std::string text) {
+  for (char& c : text) {
+    if (c == '\n' || c == '\r') c = ' ';
+  }
+  return text;
+}
+
+/// "FILE:LINE: case NAME: " (LINE left out when unknown, 0): where a case the solver cannot
+/// settle is written, named like an input error's place, so that a scene of many cases points at
+/// the one to change.
+inline std::string CasePlace(const std::string& file, int line, const std::string& name) {
+  return file + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": case " + name + ": ";
+}
+
 struct InputError : std::runtime_error {
   /// line is 1-based; line <= 0 means unknown. key is a dotted path such as `rod.length` or
   /// `cases[1].clamp.normal` (YAML) or a column name (CSV); empty when none applies.

@@ -64,6 +64,10 @@ struct Clamp {
   Vec3 position = Vec3::Zero();     ///< [m]
   Vec3 tangent = Vec3::UnitX();
   Vec3 normal = Vec3::UnitZ();
+  /// [deg] a fit's nuisance: the frame turned by a fitted rotation vector phi (R = Exp(phi) R,
+  /// about the clamp's point) with a zero-mean Gaussian prior of this std per world axis; absent:
+  /// the frame is as given. In (0, 90]. Ignored by simulate and synth.
+  std::optional<double> rotation_prior_deg;
 };
 
 /// A stretch of arc length [from, to] [m].
@@ -91,6 +95,8 @@ struct EndClamp {
   Vec3 position = Vec3::Zero();   ///< [m]
   Vec3 tangent = Vec3::UnitX();
   std::optional<Vec3> normal;
+  /// [deg] as Clamp::rotation_prior_deg (needs the normal).
+  std::optional<double> rotation_prior_deg;
 };
 
 /// An interior point held in position only (a pin): the material point at s stays at

@@ -4,6 +4,8 @@
 // file, the row's line and the column or key. Pipeline layer.
 #pragma once
 
+#include <string>
+
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
 
@@ -29,5 +31,10 @@ FitOptions FitOptionsOf(const Experiment& experiment);
 /// otherwise end the fit as a failed evaluation with no file named. Cases that do not solve
 /// are left to the fit, which reports them.
 void CheckCamerasSeeTheStart(const Experiment& experiment);
+
+/// A fit case's name as a person reads it: a haptic sample's case "drag@t=0.16500000000000001"
+/// (its name keeps the log's time to the last digit, fit_input.cc) as "drag@t=0.165" (6
+/// digits: samples are far more than 1e-6 apart); any other name as it is.
+std::string DisplayCaseName(const std::string& name);
 
 }  // namespace rodfit

@@ -28,6 +28,7 @@ enum class ReportView {
   kHapticLog,  ///< a haptic log: force against time, and the force residuals
   kReaction,   ///< readings of a held point's reaction: the force residuals (over time)
   kSurface,    ///< points around a poke: the section view
+  kValue,      ///< a value of the case (a critical twist): the misfit table only
 };
 
 /// What the experiment reader knows of a kind: its entry's format.

@@ -12,6 +12,7 @@
 #include "rodfit/solve/poke.h"
 #include "rodfit/solve/reactions.h"
 #include "rodfit/solve/rod_energy.h"
+#include "rodfit/solve/sensitivity.h"
 
 namespace rodfit {
 namespace fit_internal {
@@ -51,6 +52,85 @@ bool ZonesUse(const FitInput& in, const std::string& parameter) {
 
 }  // namespace
 
+
+std::vector<Nuisance> Nuisances(const FitInput& in, int first_column) {
+  std::vector<Nuisance> out;
+  int column = first_column;
+  for (size_t c = 0; c < in.cases.size(); ++c) {
+    const LoadCase& lc = in.cases[c].load_case;
+    auto add = [&](bool end, double sigma_deg) {
+      Nuisance n;
+      n.case_index = static_cast<int>(c);
+      n.end_clamp = end;
+      n.sigma_rad = sigma_deg * M_PI / 180.0;
+      n.first_column = column;
+      column += 3;
+      out.push_back(n);
+    };
+    if (lc.clamp.rotation_prior_deg) add(false, *lc.clamp.rotation_prior_deg);
+    if (lc.end_clamp && lc.end_clamp->rotation_prior_deg)
+      add(true, *lc.end_clamp->rotation_prior_deg);
+  }
+  return out;
+}
+
+namespace {
+Eigen::Matrix3d Cross(const Vec3& v) {
+  Eigen::Matrix3d h;
+  h << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return h;
+}
+}  // namespace
+
+// Rodrigues' formula; below theta^2 = 1e-12 its series to second order (the next terms are
+// below round-off), so that phi = 0, the prior's mean and every fit's start, is exact.
+Eigen::Matrix3d RotationExp(const Vec3& phi) {
+  const double theta_sq = phi.squaredNorm();
+  const Eigen::Matrix3d K = Cross(phi);
+  if (theta_sq < 1e-12) return Eigen::Matrix3d::Identity() + K + 0.5 * K * K;
+  const double theta = std::sqrt(theta_sq);
+  return Eigen::Matrix3d::Identity() + std::sin(theta) / theta * K +
+         (1.0 - std::cos(theta)) / theta_sq * K * K;
+}
+
+Eigen::Matrix3d RotationLeftJacobian(const Vec3& phi) {
+  const double theta_sq = phi.squaredNorm();
+  const Eigen::Matrix3d K = Cross(phi);
+  if (theta_sq < 1e-12) return Eigen::Matrix3d::Identity() + 0.5 * K + K * K / 6.0;
+  const double theta = std::sqrt(theta_sq);
+  return Eigen::Matrix3d::Identity() + (1.0 - std::cos(theta)) / theta_sq * K +
+         (theta - std::sin(theta)) / (theta_sq * theta) * K * K;
+}
+
+LoadCase WithNuisances(const LoadCase& load_case, const std::vector<Nuisance>& own,
+                       const double* x) {
+  LoadCase out = load_case;
+  for (const Nuisance& n : own) {
+    const Eigen::Matrix3d R = RotationExp(Vec3(x[n.first_column], x[n.first_column + 1],
+                                    x[n.first_column + 2]));
+    if (n.end_clamp) {
+      out.end_clamp->tangent = R * load_case.end_clamp->tangent;
+      out.end_clamp->normal = R * *load_case.end_clamp->normal;
+    } else {
+      out.clamp.tangent = R * load_case.clamp.tangent;
+      out.clamp.normal = R * load_case.clamp.normal;
+    }
+  }
+  return out;
+}
+
+bool RotationPriorCost::Evaluate(double const* const* parameters, double* residuals,
+                                 double** jacobians) const {
+  const int cols = parameter_block_sizes()[0];
+  for (int i = 0; i < 3; ++i)
+    residuals[i] = parameters[0][nuisance_.first_column + i] / nuisance_.sigma_rad;
+  if (jacobians && jacobians[0]) {
+    std::fill(jacobians[0], jacobians[0] + 3 * cols, 0.0);
+    for (int i = 0; i < 3; ++i)
+      jacobians[0][i * cols + nuisance_.first_column + i] = 1.0 / nuisance_.sigma_rad;
+  }
+  return true;
+}
 
 // What `surface_points` need and what they can determine (fit.h).
 std::vector<Fitted> FittedParameters(const FitInput& in) {
@@ -146,12 +226,43 @@ CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fit
               const ceres::LossFunction* loss)
     : in_(in), case_(in.cases[case_index]), measurements_(case_.measurements),
       fitted_(std::move(fitted)), loss_(loss), statics_(in.statics) {
+  const int m = static_cast<int>(fitted_.size());
+  const std::vector<Nuisance> all = Nuisances(in, m);
+  num_columns_ = m + 3 * static_cast<int>(all.size());
+  for (const Nuisance& n : all)
+    if (n.case_index == case_index) own_nuisances_.push_back(n);
+  for (const Fitted& f : fitted_) {
+    CriticalTwistParameter p = CriticalTwistParameter::Stiffness(false, false, false, false);
+    for (Stiffness st : f.drives) {
+      p.bend1 = p.bend1 || st == Stiffness::kBend1;
+      p.bend2 = p.bend2 || st == Stiffness::kBend2;
+      p.twist = p.twist || st == Stiffness::kTwist;
+      p.stretch = p.stretch || st == Stiffness::kStretch;
+    }
+    if (f.spring) {
+      p.kind = CriticalTwistParameter::Kind::kSpring;
+      p.spring = f.spring_zone_name;
+    }
+    column_terms_.push_back(p);  // a ring parameter scales none of the rod's terms
+  }
+  // Another case's nuisance moves nothing here (its own columns are set per evaluation).
+  column_terms_.resize(num_columns_,
+                       CriticalTwistParameter::Stiffness(false, false, false, false));
+  bool reads_frames = false;
   for (const auto& meas : measurements_) {
     num_residuals_ += meas->num_residuals();
     needs_reactions_ = needs_reactions_ || meas->needs_reactions();
     needs_section_ = needs_section_ || meas->needs_section();
     needs_state_ = needs_state_ || meas->needs_state();
+    reads_frames = reads_frames || meas->reads_held_frames();
   }
+  // The reactions' and the section's derivatives by a held frame's turn, and those of a
+  // measurement that reads the frames themselves, are not modelled: refused, not approximated.
+  if (!own_nuisances_.empty() && (needs_reactions_ || needs_section_ || reads_frames))
+    throw std::invalid_argument(
+        "case " + case_.load_case.name +
+        ": rotation_prior_deg (a fitted clamp frame) is not supported with reaction, force, "
+        "surface point or roll marker observations of the same case");
 }
 
 // One function, though long: solve, sensitivities and the measurements share the solved state,
@@ -159,9 +270,11 @@ CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fit
 bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape,
               RodState* final_state) const {
   const Material material = MaterialAt(in_, fitted_, logp);
+  const LoadCase load_case =
+      own_nuisances_.empty() ? case_.load_case : WithNuisances(case_.load_case, own_nuisances_, logp);
   std::shared_ptr<const RodModel> model;
   try {
-    model = std::make_shared<const RodModel>(in_.rod, material, in_.gravity, case_.load_case,
+    model = std::make_shared<const RodModel>(in_.rod, material, in_.gravity, load_case,
                                              in_.springs);
   } catch (const std::invalid_argument&) {
     return false;
@@ -198,8 +311,10 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     data_failure_ = false;
     return false;
   }
-  const int m = num_parameters();
+  const int m = static_cast<int>(fitted_.size());  // the material's columns
+  const int M = num_columns_;                        // and every case's nuisances
   Eigen::MatrixXd dx, dq_all;
+  std::vector<CriticalTwistParameter> column_terms = column_terms_;
   // Per measured holder: d(reaction) / d log p, 6 x m (force rows, then moment rows).
   std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
   if (jacobian) {
@@ -240,10 +355,25 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
       }
     }
     Eigen::MatrixXd dq_terms;
-    Eigen::MatrixXd dq = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
+    Eigen::MatrixXd dq = Eigen::MatrixXd::Zero(model->num_free_dofs(), M);
     if (!terms.empty()) {  // ring parameters alone leave the rod unchanged
       if (!TermSensitivities(*model, state, ws, terms, &dq_terms)) return false;
       for (size_t t = 0; t < fitted_terms; ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
+    }
+    // This case's held frames: d phi_k turns the frame about the world axis J_l(phi) e_k at the
+    // held point, whose gradient change is exact (ClampTurnGradients); dq = -H^-1 dg.
+    for (const Nuisance& n : own_nuisances_) {
+      const Eigen::Matrix3d Jl = RotationLeftJacobian(
+          Vec3(logp[n.first_column], logp[n.first_column + 1], logp[n.first_column + 2]));
+      Eigen::MatrixXd dg_turn, dq_phi;
+      ClampTurnGradients(*model, state, n.end_clamp, &dg_turn);
+      if (!GradientSensitivities(*model, state, ws, dg_turn * Jl, /*keeps_isotropy=*/false,
+                                 &dq_phi))
+        return false;
+      dq.middleCols(n.first_column, 3) = dq_phi;
+      for (int k = 0; k < 3; ++k)
+        column_terms[n.first_column + k] =
+            CriticalTwistParameter::Rotation(n.end_clamp, Jl.col(k));
     }
     terms.resize(fitted_terms);
     dx = VertexSensitivities(*model, dq);
@@ -251,7 +381,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     if (needs_reactions_) {
       // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
       // included), the equilibrium's dq, and which spring zones each parameter stiffens.
-      Eigen::MatrixXd dr = Eigen::MatrixXd::Zero(model->num_free_dofs(), m);
+      Eigen::MatrixXd dr = Eigen::MatrixXd::Zero(model->num_free_dofs(), M);
       for (size_t t = 0; t < terms.size(); ++t) {
         EnergyTerms unit = terms[t];
         unit.hold = false;
@@ -259,7 +389,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
         AssembleGradient(*model, state, unit, &gu);
         dr.col(owner[t]) += gu;
       }
-      std::vector<std::vector<int>> zones(m);
+      std::vector<std::vector<int>> zones(M);
       for (int k = 0; k < m; ++k)
         if (fitted_[k].spring)
           for (int z = 0; z < model->num_spring_zones(); ++z)
@@ -278,17 +408,18 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
   view.state = &state;
   view.reactions = &solved.reactions;
   view.poke = &poke;
-  view.num_parameters = m;
+  view.num_parameters = M;
   if (jacobian) {
     view.d_x = &dx;
     view.d_q = &dq_all;
     view.d_reactions = &d_reactions;
     view.d_ring = &d_ring;
+    view.parameters = &column_terms;
   }
   int row = 0;
   for (const auto& meas : measurements_) {
     double* r = residuals + row;
-    double* J = jacobian ? jacobian + row * m : nullptr;
+    double* J = jacobian ? jacobian + row * M : nullptr;
     std::string why;
     if (!meas->Evaluate(view, r, J, &why)) {
       // The data, not the solve (a point behind the camera), so the message names the entry.
@@ -300,7 +431,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     // Per measurement: the loss sees each marker's, point's or reading's residual vector.
     for (int k = 0, k_row = 0; k < meas->num_measurements(); ++k) {
       const int dim = meas->measurement_rows(k);
-      ApplyLoss(loss_, dim, r + k_row, J ? J + k_row * m : nullptr, m);
+      ApplyLoss(loss_, dim, r + k_row, J ? J + k_row * M : nullptr, M);
       k_row += dim;
     }
     row += meas->num_residuals();

@@ -35,6 +35,45 @@ struct Fitted {
   int ring = 0;                   ///< 1: ring_bend_stiffness, 2: ring_stretch_stiffness
 };
 
+/// A fitted nuisance of one case (docs/solvers.md, "Nuisance parameters"): a held frame's
+/// rotation vector phi [rad], R = Exp(phi) R_given about the held point, three columns of the
+/// fit after the material's, with a zero-mean Gaussian prior of sigma per world axis.
+struct Nuisance {
+  int case_index = 0;
+  bool end_clamp = false;  ///< the end clamp's frame, else the clamp's at s = 0
+  double sigma_rad = 0.0;
+  int first_column = 0;    ///< of phi's three in the fit's parameter vector
+  std::string Name() const { return end_clamp ? "end_clamp" : "clamp"; }
+};
+
+/// The nuisances of `in`, case by case (clamp, then end clamp), their columns from
+/// `first_column` on.
+std::vector<Nuisance> Nuisances(const FitInput& in, int first_column);
+
+/// Exp(phi) (Rodrigues, exact at any angle; its Taylor series near 0) and the left Jacobian
+/// J_l(phi): d Exp(phi) / d phi_k = [J_l(phi) e_k]x Exp(phi), i.e. a change of phi_k turns the
+/// frame about the world axis J_l(phi) e_k.
+Eigen::Matrix3d RotationExp(const Vec3& phi);
+Eigen::Matrix3d RotationLeftJacobian(const Vec3& phi);
+
+/// The case's held frames turned by its nuisances' values in `x` (the fit's whole vector).
+LoadCase WithNuisances(const LoadCase& load_case, const std::vector<Nuisance>& own,
+                       const double* x);
+
+/// The prior of one nuisance as residuals phi / sigma (3 rows) over the fit's whole vector.
+class RotationPriorCost final : public ceres::CostFunction {
+ public:
+  RotationPriorCost(const Nuisance& nuisance, int num_columns) : nuisance_(nuisance) {
+    set_num_residuals(3);
+    mutable_parameter_block_sizes()->push_back(num_columns);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  Nuisance nuisance_;
+};
+
 /// The fitted parameters of `in` in input order; throws std::invalid_argument for a parameter
 /// the model does not have, a tie fitted apart, or springs and ring parameters without their
 /// terms or observations.
@@ -74,7 +113,9 @@ class CaseEvaluator {
   }
 
   int num_residuals() const { return num_residuals_; }
-  int num_parameters() const { return static_cast<int>(fitted_.size()); }
+  /// The columns of the fit's parameter vector: the material's log-parameters, then every
+  /// case's nuisances (Nuisances).
+  int num_parameters() const { return num_columns_; }
 
   struct Timing {
     double solve = 0, jacobian = 0, observation = 0;
@@ -92,7 +133,8 @@ class CaseEvaluator {
     return last_failure_;
   }
 
-  /// residuals: num_residuals(); jacobian (row major num_residuals x m) optional.
+  /// x: the fit's whole parameter vector (num_parameters()); residuals: num_residuals();
+  /// jacobian (row major num_residuals x num_parameters()) optional.
   /// `final_state`, when given, receives the equilibrium (the report's poked section needs it).
   bool Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape,
                 RodState* final_state = nullptr) const;
@@ -111,6 +153,10 @@ class CaseEvaluator {
   const MeasurementList& measurements_;  // in residual order
   bool needs_reactions_ = false, needs_section_ = false, needs_state_ = false;
   std::vector<Fitted> fitted_;
+  std::vector<Nuisance> own_nuisances_;  // this case's
+  int num_columns_ = 0;
+  // What each fitted column moves, in the critical twist's terms (SolvedCase::parameters).
+  std::vector<CriticalTwistParameter> column_terms_;
   const ceres::LossFunction* loss_;
   int num_residuals_ = 0;
   mutable std::mutex mutex_;  // guards the warm start only; evaluation is otherwise pure

@@ -166,7 +166,12 @@ void GlobalSearch(const FitInput& input, const FitOptions& options,
                   Clock::time_point start, std::vector<double>* logp_out, FitResult* result) {
   std::vector<double>& logp = *logp_out;
   const int m = static_cast<int>(fitted.size());
-  auto total_cost = [&](const double* lp, bool* ok) { return TotalCost(evals, lp, ok); };
+  // Over the material's logs, the nuisances at their priors' mean (0) meanwhile.
+  std::vector<double> full(evals.empty() ? m : evals[0]->num_parameters(), 0.0);
+  auto total_cost = [&](const double* lp, bool* ok) {
+    std::copy(lp, lp + m, full.begin());
+    return TotalCost(evals, full.data(), ok);
+  };
   const Clock::time_point global_start = Clock::now();
   // DIRECT-L: a deterministic derivative-free global search over the log box; Ceres polishes.
   nlopt::opt opt(nlopt::GN_DIRECT_L, m);
@@ -201,7 +206,7 @@ void GlobalSearch(const FitInput& input, const FitOptions& options,
         return ok ? v : 1e30;  // a failed solve is a very bad point, not an error
       },
       &ctx);
-  std::vector<double> x = logp;
+  std::vector<double> x(logp.begin(), logp.begin() + m);
   for (int k = 0; k < m; ++k) x[k] = std::min(hi[k], std::max(lo[k], x[k]));
   double best = 0.0;
   try {
@@ -210,7 +215,7 @@ void GlobalSearch(const FitInput& input, const FitOptions& options,
     // maxeval reached is reported as success by NLopt; anything else keeps the best so far.
   }
   result->global_evaluations = ctx.evaluations;
-  if (best < 1e30) logp = x;
+  if (best < 1e30) std::copy(x.begin(), x.end(), logp.begin());
   result->global_seconds = std::chrono::duration<double>(Clock::now() - global_start).count();
 }
 
@@ -387,14 +392,15 @@ ResidualCheck CheckResiduals(const FitResult& result, const FitOptions& options)
 bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,
                         Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) {
   const std::vector<Fitted> fitted = FittedParameters(input);
-  if (log_values.size() != fitted.size()) throw std::invalid_argument("log_values size");
+  const size_t columns = fitted.size() + 3 * Nuisances(input, 0).size();
+  if (log_values.size() != columns) throw std::invalid_argument("log_values size");
   int total = 0;
   std::vector<std::unique_ptr<CaseEvaluator>> evals;
   for (size_t c = 0; c < input.cases.size(); ++c) {
     evals.push_back(std::make_unique<CaseEvaluator>(input, static_cast<int>(c), fitted, nullptr));
     total += evals.back()->num_residuals();
   }
-  const int m = static_cast<int>(fitted.size());
+  const int m = static_cast<int>(columns);
   residuals->resize(total);
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(total, m);
   int row = 0;
@@ -415,11 +421,18 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   const std::vector<Fitted> fitted = FittedParameters(input);
   if (fitted.empty()) throw std::invalid_argument("parameters: nothing to fit (no `fit: true`)");
   const int m = static_cast<int>(fitted.size());
+  // The parameter vector: the material's logs, then every case's nuisances (their priors'
+  // residuals are rows of the fit like any measurement's: counted in N and in the chi-square).
+  const std::vector<Nuisance> nuisances = Nuisances(input, m);
+  const int M = m + 3 * static_cast<int>(nuisances.size());
   std::vector<double> logp = StartLogValues(input, fitted);
-  const ResidualCounts counts = CountResiduals(input);
+  logp.resize(M, 0.0);
+  ResidualCounts counts = CountResiduals(input);
   for (const FitCase& c : input.cases) CheckHeldPoints(input, c);
   if (counts.total == 0) throw std::invalid_argument("cases: no observations to fit");
-  if (counts.total <= m)
+  counts.total += 3 * static_cast<int>(nuisances.size());
+  counts.effective += 3 * static_cast<int>(nuisances.size());
+  if (counts.total <= M)
     throw std::invalid_argument("cases: fewer residuals than fitted parameters");
 
   const std::unique_ptr<ceres::LossFunction> loss = MakeLoss(options.loss, options.loss_scale);
@@ -437,7 +450,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
-  problem.AddParameterBlock(logp.data(), m);
+  problem.AddParameterBlock(logp.data(), M);
   for (int k = 0; k < m; ++k) {
     const Parameter& p = input.parameters[fitted[k].input_index];
     if (p.min) problem.SetParameterLowerBound(logp.data(), k, std::log(*p.min));
@@ -447,6 +460,8 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   for (auto& e : evals)
     if (e->num_residuals() > 0) observed.push_back(e.get());
   problem.AddResidualBlock(new AllCasesCost(observed, options.num_threads), nullptr, logp.data());
+  for (const Nuisance& n : nuisances)
+    problem.AddResidualBlock(new RotationPriorCost(n, M), nullptr, logp.data());
 
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
@@ -479,7 +494,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   }
 
   const Eigen::MatrixXd J = JacobianAtSolution(&problem, evals, &result);
-  const int dof = std::max(1, counts.effective - m);
+  const int dof = std::max(1, counts.effective - M);
   result.residual_dof = dof;
   result.residual_variance = 2.0 * result.final_cost / dof;
   // Trusted sigmas leave the covariance as the sigmas state it; the variance is still reported,
@@ -487,6 +502,10 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   const double covariance_scale = options.trusted_sigmas ? 1.0 : result.residual_variance;
   std::vector<std::string> names;
   for (const Fitted& f : fitted) names.push_back(f.name);
+  for (const Nuisance& n : nuisances)
+    for (const char* axis : {"x", "y", "z"})
+      names.push_back("case " + input.cases[n.case_index].load_case.name + " " + n.Name() +
+                      " rotation " + axis);
   const Identifiability id =
       Identify(J, names, &problem, logp.data(), covariance_scale, options.max_log_std);
   const Eigen::MatrixXd& cov_log = id.cov_log;
@@ -496,6 +515,21 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       result.correlation(i, j) = cov_log(i, j) / std::sqrt(cov_log(i, i) * cov_log(j, j));
 
   ReportParameters(input, fitted, logp, id, &result);
+  // The nuisances: values and std [deg] (the std from the whole covariance, NaN where the fit
+  // could not separate them).
+  for (const Nuisance& n : nuisances) {
+    NuisanceEstimate e;
+    e.case_index = n.case_index;
+    e.case_name = input.cases[n.case_index].load_case.name;
+    e.held = n.Name();
+    e.prior_deg = n.sigma_rad * 180.0 / M_PI;
+    for (int i = 0; i < 3; ++i) {
+      const int k = n.first_column + i;
+      e.rotation_deg[i] = logp[k] * 180.0 / M_PI;
+      e.std_deg[i] = std::sqrt(cov_log(k, k)) * 180.0 / M_PI;
+    }
+    result.nuisances.push_back(e);
+  }
   ReportCases(input, fitted, logp, evals, &result);
   for (const auto& e : evals) {
     const CaseEvaluator::Timing t = e->timing();

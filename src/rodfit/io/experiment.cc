@@ -363,9 +363,19 @@ void ReadParameters(const Reader& r, const Field& f, Experiment* ex,
   }
 }
 
+// `rotation_prior_deg: sigma` of a clamp or an end clamp: (0, 90] degrees.
+std::optional<double> ReadRotationPrior(const Reader& r, const Entries& m) {
+  const Field* f = Reader::Find(m, "rotation_prior_deg");
+  if (!f) return std::nullopt;
+  const double sigma = r.Positive(*f);
+  if (sigma > 90.0) r.Fail(*f, "must be at most 90 (degrees per axis), got " + Show(sigma));
+  return sigma;
+}
+
 Clamp ReadClamp(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"position", "tangent", "normal"});
+  const Entries m = r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg"});
   Clamp clamp;
+  clamp.rotation_prior_deg = ReadRotationPrior(r, m);
   clamp.position = r.Vector3(r.Require(m, f, "position"));
   const Field& tangent = r.Require(m, f, "tangent");
   const Field& normal = r.Require(m, f, "normal");
@@ -653,8 +663,9 @@ Vec3 Direction(const Reader& r, const Field& f) {
 }
 
 EndClamp ReadEndClamp(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"position", "tangent", "normal"});
+  const Entries m = r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg"});
   EndClamp ec;
+  ec.rotation_prior_deg = ReadRotationPrior(r, m);
   ec.position = r.Vector3(r.Require(m, f, "position"));
   const Field& tangent = r.Require(m, f, "tangent");
   ec.tangent = Direction(r, tangent);
@@ -663,6 +674,9 @@ EndClamp ReadEndClamp(const Reader& r, const Field& f) {
     if (ec.tangent.cross(*ec.normal).norm() < kMinClampSine * ec.tangent.norm() * ec.normal->norm())
       r.Fail(*normal, "is (nearly) parallel to the tangent");
   }
+  if (ec.rotation_prior_deg && !ec.normal)
+    r.Fail(*Reader::Find(m, "rotation_prior_deg"),
+           "needs the end clamp's normal (a fitted rotation turns a whole frame)");
   return ec;
 }
 
@@ -970,12 +984,22 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     (*name_lines)[c.name] = f.line;
   }
   c.clamp = ReadClamp(r, r.Require(m, f, "clamp"));
-  const double L = ex->scene.rod.length;
+  // Fitted frames are the static fit's (a moving fit drives its held points along paths).
+  auto static_only = [&](const char* key, bool prior) {
+    if (prior && ex->scene.dynamics)
+      r.Fail(*Reader::Find(m, key),
+             "rotation_prior_deg fits the frame in a static scene only (not with a dynamics: "
+             "block)");
+  };
+  static_only("clamp", c.clamp.rotation_prior_deg.has_value());  const double L = ex->scene.rod.length;
   const Field* end_clamp = Reader::Find(m, "end_clamp");
   const Field* end_pin = Reader::Find(m, "end_pin");
   if (end_clamp && end_pin)
     r.Fail(end_pin->key_line, end_pin->key, "s = L is already held by end_clamp: give one");
-  if (end_clamp) c.end_clamp = ReadEndClamp(r, *end_clamp);
+  if (end_clamp) {
+    c.end_clamp = ReadEndClamp(r, *end_clamp);
+    static_only("end_clamp", c.end_clamp->rotation_prior_deg.has_value());
+  }
   if (end_pin) {
     const Entries pm = r.Map(*end_pin, {"position"});
     c.end_pin = r.Vector3(r.Require(pm, *end_pin, "position"));

@@ -253,9 +253,24 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
       entry["rms_roll"] = o.rms_roll;
       entry["unit_roll"] = "deg";
     }
+    if (!o.warning.empty()) entry["warning"] = o.warning;
     rms.push_back(entry);
   }
   fit["rms"] = rms;
+  // The cases' nuisances (fitted held frames): per case, never part of the material.
+  if (!r.nuisances.empty()) {
+    json cases = json::array();
+    for (const NuisanceEstimate& n : r.nuisances) {
+      json rotation = json::array(), std_deg = json::array();
+      for (int i = 0; i < 3; ++i) {
+        rotation.push_back(n.rotation_deg[i]);
+        std_deg.push_back(std::isfinite(n.std_deg[i]) ? json(n.std_deg[i]) : json(nullptr));
+      }
+      cases.push_back({{"case", n.case_name}, {"held", n.held}, {"rotation_deg", rotation},
+                       {"std_deg", std_deg}, {"prior_deg", n.prior_deg}});
+    }
+    fit["cases"] = cases;
+  }
   // Digest of every input file: the experiment, the data files and the cameras.
   json inputs = json::array();
   std::set<std::string> seen;

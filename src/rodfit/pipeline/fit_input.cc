@@ -2,9 +2,11 @@
 #include "rodfit/pipeline/fit_input.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <map>
 #include <optional>
 
+#include "rodfit/io/csv.h"  // ParseDouble
 #include "rodfit/io/errors.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/pipeline/kind_support.h"
@@ -13,6 +15,16 @@
 #include "rodfit/vision/camera_file.h"
 
 namespace rodfit {
+
+std::string DisplayCaseName(const std::string& name) {
+  const size_t at = name.rfind("@t=");
+  if (at == std::string::npos) return name;
+  double t = 0.0;
+  if (!ParseDouble(name.substr(at + 3), &t)) return name;
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.6g", t);
+  return name.substr(0, at + 3) + b;
+}
 
 std::vector<Parameter> FitParametersOf(const Experiment& e) {
   std::vector<Parameter> out;

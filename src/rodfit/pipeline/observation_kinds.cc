@@ -18,7 +18,8 @@
   X(kGraspForce)                   \
   X(kSurfacePoints)                \
   X(kReaction)                     \
-  X(kRollMarkers)
+  X(kRollMarkers)                  \
+  X(kCriticalTwist)
 
 namespace rodfit {
 
@@ -37,6 +38,8 @@ const std::vector<const EntryFormat*>& EntryFormats() {
 }
 
 std::string EntryLabel(const ObservationSpec& spec) {
+  // An entry whose value is in the experiment (a critical twist's value_deg) has no file.
+  if (spec.file.empty()) return spec.type;
   return spec.type + " " + std::filesystem::path(spec.file).filename().string();
 }
 

@@ -73,6 +73,12 @@ SynthBundle MakeSynthBundle(const Experiment& experiment, const SynthOptions& op
     for (size_t o = 0; o < ex.cases[c].observations.size(); ++o) {
       const ObservationSpec& spec = ex.cases[c].observations[o];
       const std::string key = EntryKey(static_cast<int>(c), static_cast<int>(o));
+      // An entry whose value the experiment holds (a critical twist's value_deg) has nowhere to
+      // put what synth would measure.
+      if (spec.file.empty())
+        throw InputError(ex.path, spec.line, key,
+                         "synth writes each observation to its file: give this " + spec.type +
+                             " entry a `file:` instead of its value");
       claim(rel(spec.file), key, spec.line, key + ".file");
     }
   }

@@ -12,16 +12,6 @@
 
 namespace rodfit {
 
-std::string DisplayCaseName(const std::string& name) {
-  const size_t at = name.rfind("@t=");
-  if (at == std::string::npos) return name;
-  double t = 0.0;
-  if (!ParseDouble(name.substr(at + 3), &t)) return name;
-  char b[32];
-  std::snprintf(b, sizeof(b), "%.6g", t);
-  return name.substr(0, at + 3) + b;
-}
-
 std::vector<std::string> WriteFitReport(const std::string& dir, const Experiment& e,
                                         const FitInput& input, const FitResult& result,
                                         const std::vector<std::string>& warnings) {

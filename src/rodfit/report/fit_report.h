@@ -15,13 +15,9 @@
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/io/output_dir.h"
+#include "rodfit/pipeline/fit_input.h"  // DisplayCaseName
 
 namespace rodfit {
-
-/// A fit case's name as a person reads it: a haptic sample's case "drag@t=0.16500000000000001"
-/// (its name keeps the log's time to the last digit, fit_input.cc) as "drag@t=0.165" (6
-/// digits: samples are far more than 1e-6 apart); any other name as it is.
-std::string DisplayCaseName(const std::string& name);
 
 /// Writes the report files into DIR all at once (a StagedDirectory): on failure DIR is left as
 /// it was. Throws InputError on I/O failure. `warnings`: the run's warnings, each with what to

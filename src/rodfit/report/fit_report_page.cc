@@ -1737,9 +1737,27 @@ class Builder {
         << "</td><td class=\"num\">" << WithUnit(o.rms, o.unit, 3);
       if (std::isfinite(o.rms_moment)) h << "; moments " << WithUnit(o.rms_moment, "N m", 3);
       if (std::isfinite(o.rms_roll)) h << "; roll " << WithUnit(o.rms_roll, "deg", 3);
+      if (!o.warning.empty()) h << "; " << Escape(o.warning);
       h << "</td></tr>\n";
     }
-    h << "</table>\n</section>\n";
+    h << "</table>\n";
+    // The cases' fitted held frames (nuisances, never material): rotation vectors and std.
+    if (!r_.nuisances.empty()) {
+      h << "<h3>Fitted held frames (nuisances)</h3>\n<table class=\"rms\">\n<tr><th>case</th>"
+           "<th>held</th><th>rotation vector [deg]</th><th>std [deg]</th><th>prior [deg]</th>"
+           "</tr>\n";
+      for (const NuisanceEstimate& n : r_.nuisances) {
+        char b[200];
+        std::snprintf(b, sizeof(b), "%.3g, %.3g, %.3g</td><td class=\"num\">%.2g, %.2g, %.2g",
+                      n.rotation_deg[0], n.rotation_deg[1], n.rotation_deg[2], n.std_deg[0],
+                      n.std_deg[1], n.std_deg[2]);
+        h << "<tr><td>" << Escape(DisplayCaseName(n.case_name)) << "</td><td>" << Escape(n.held)
+          << "</td><td class=\"num\">" << b << "</td><td class=\"num\">" << n.prior_deg
+          << "</td></tr>\n";
+      }
+      h << "</table>\n";
+    }
+    h << "</section>\n";
   }
 
   void Convergence() {

@@ -297,8 +297,234 @@ bool HasData(const Figure& f) {
   return false;
 }
 
-// One function, though long: the figure is drawn in painting order (frame, grid, bands, series,
-// axes, legend), each stage a few lines sharing the same coordinate mapping.
+namespace {
+
+// Where each legend entry goes: left to right, wrapped at the figure's width.
+struct LegendPlace {
+  double x;
+  int row;
+};
+
+std::vector<LegendPlace> LayoutLegend(const std::vector<LegendEntry>& legend, double width) {
+  std::vector<LegendPlace> placed;
+  double x = 0;
+  int row = 0;
+  const double avail = width - 24.0;
+  for (const LegendEntry& e : legend) {
+    const double w = 34 + kCharWidth * e.label.size() + 18;
+    if (x > 0 && x + w > avail) {
+      x = 0;
+      ++row;
+    }
+    placed.push_back({x, row});
+    x += w;
+  }
+  return placed;
+}
+
+// Places the series' point labels: each where it lies inside the plot and covers no other
+// label, and, if it can, no drawn line segment or marker (a label struck through by a curve
+// cannot be read).
+class PointLabels {
+ public:
+  PointLabels(const Figure& f, const Scale& sx, const Scale& sy, const Box& plot_box)
+      : plot_box_(plot_box) {
+    // Every drawn line segment and marker [px].
+    for (const Series& s : f.series) {
+      const size_t n = std::min(s.x.size(), s.y.size());
+      bool have = false;
+      double lx = 0, ly = 0;
+      for (size_t i = 0; i < n; ++i) {
+        if (!Drawable(f.x, s.x[i]) || !Drawable(f.y, s.y[i])) {
+          have = false;
+          continue;
+        }
+        const double x = sx.Px(s.x[i]), y = sy.Px(s.y[i]);
+        if (s.line && !s.bars && have) drawn_segments_.push_back({lx, ly, x, y});
+        if (s.marker != Marker::kNone) drawn_markers_.emplace_back(x, y);
+        lx = x;
+        ly = y;
+        have = true;
+      }
+    }
+  }
+
+  // The box [px] of a label `w` x `h` for the point (px, py) of a series with markers of
+  // `marker_size`; false: the label is left out (no clear place, or the point is already
+  // labelled).
+  bool Place(double px, double py, double w, double h, double marker_size, Box* box) {
+    // The first of sixteen places around the point (the width estimate generous by a few
+    // pixels: a near miss reads as an overlap) that lies inside the plot and covers no
+    // other label, line or marker; a label with no such place is left out (dense markers).
+    // Near the point first, then a ring farther out.
+    double places[16][2];
+    for (int ring = 0; ring < 2; ++ring) {
+      const double gap = 6.0 + marker_size + 12.0 * ring;
+      const double ring_places[8][2] = {
+          {gap, -gap - h},      {gap, gap},         {-gap - w, -gap - h}, {-gap - w, gap},
+          {gap, -0.5 * h},      {-gap - w, -0.5 * h}, {-0.5 * w, -gap - h}, {-0.5 * w, gap}};
+      for (int k = 0; k < 8; ++k) {
+        places[8 * ring + k][0] = ring_places[k][0];
+        places[8 * ring + k][1] = ring_places[k][1];
+      }
+    }
+    // Where no place is clear of the lines and markers (a point in a corner that its line
+    // leaves), the first inside the plot that covers no other label: the label's white halo
+    // keeps it legible over a line.
+    // A point on (or next to) one already labelled gets none: two labels beside one dot
+    // would not say which is whose.
+    const double near = 2.0 * marker_size + 2.0;
+    if (std::any_of(labelled_points_.begin(), labelled_points_.end(), [&](const auto& q) {
+          return std::hypot(q.first - px, q.second - py) < near;
+        }))
+      return false;
+    for (int pass = 0; pass < 2; ++pass) {
+      for (const auto& d : places) {
+        *box = Box{px + d[0], py + d[1], w, h};
+        if (box->x < plot_box_.x || box->y < plot_box_.y ||
+            box->x + box->w > plot_box_.x + plot_box_.w ||
+            box->y + box->h > plot_box_.y + plot_box_.h)
+          continue;
+        if (std::any_of(labels_.begin(), labels_.end(),
+                        [&](const Box& b) { return b.Overlaps(*box); }))
+          continue;
+        if (pass == 0 &&
+            std::any_of(drawn_segments_.begin(), drawn_segments_.end(), [&](const Segment& g) {
+              return box->Crosses(g.ax, g.ay, g.bx, g.by);
+            }))
+          continue;
+        if (pass == 0 &&
+            std::any_of(drawn_markers_.begin(), drawn_markers_.end(), [&](const auto& m) {
+              return Box{box->x - 3, box->y - 3, box->w + 6, box->h + 6}.Contains(m.first,
+                                                                                   m.second);
+            }))
+          continue;
+        labels_.push_back(*box);
+        labelled_points_.emplace_back(px, py);
+        return true;
+      }
+    }
+    return false;
+  }
+
+ private:
+  struct Segment {
+    double ax, ay, bx, by;
+  };
+  Box plot_box_;
+  std::vector<Box> labels_;                                 // point labels placed so far
+  std::vector<std::pair<double, double>> labelled_points_;  // [px] the points they label
+  std::vector<Segment> drawn_segments_;
+  std::vector<std::pair<double, double>> drawn_markers_;
+};
+
+// One series: its bars or line, its markers and its point labels, clipped to the plot.
+void DrawSeries(std::ostringstream& o, const Figure& f, const Series& s, const Scale& sx,
+                const Scale& sy, const std::string& clip, double plot_bottom,
+                PointLabels* point_labels) {
+  const size_t n = std::min(s.x.size(), s.y.size());
+  std::vector<double> px(n, kNaN), py(n, kNaN);
+  for (size_t i = 0; i < n; ++i) {
+    if (!Drawable(f.x, s.x[i]) || !Drawable(f.y, s.y[i])) continue;
+    px[i] = sx.Px(s.x[i]);
+    py[i] = sy.Px(s.y[i]);
+  }
+  o << "<g class=\"series\" data-label=\"" << Escape(s.label) << "\"" << clip << ">";
+  if (s.bars) {
+    const double base = f.y.log ? plot_bottom : sy.Px(0.0);
+    o << "<g fill=\"" << Escape(s.colour) << "\" fill-opacity=\"0.55\" stroke=\""
+      << Escape(s.colour) << "\">";
+    for (size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(px[i])) continue;
+      const double xa = sx.Px(s.x[i] - 0.5 * s.bar_width), xb = sx.Px(s.x[i] + 0.5 * s.bar_width);
+      if (!std::isfinite(xa) || !std::isfinite(xb)) continue;
+      o << "<rect x=\"" << Num(std::min(xa, xb)) << "\" y=\"" << Num(std::min(base, py[i]))
+        << "\" width=\"" << Num(std::abs(xb - xa)) << "\" height=\""
+        << Num(std::abs(py[i] - base))
+        << "\"/>";
+    }
+    o << "</g>";
+  } else if (s.line) {
+    std::string d;
+    bool pen = false, broken = false;
+    size_t drawn = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(px[i])) {
+        pen = false;
+        broken = true;
+        continue;
+      }
+      d += (pen ? "L" : "M") + Num(px[i]) + " " + Num(py[i]);
+      pen = true;
+      ++drawn;
+    }
+    if (s.closed && !broken && drawn > 2) d += "Z";
+    if (!d.empty())
+      o << "<path d=\"" << d << "\" fill=\"none\" stroke=\"" << Escape(s.colour)
+        << "\" stroke-width=\"" << Num(s.line_width) << "\" stroke-linejoin=\"round\""
+        << (s.dashed ? " stroke-dasharray=\"6 4\"" : "") << "/>";
+  }
+  if (s.marker != Marker::kNone) {
+    o << "<g " << MarkerStyle(s) << ">";
+    for (size_t i = 0; i < n; ++i)
+      if (std::isfinite(px[i])) MarkerShape(o, s.marker, px[i], py[i], s.marker_size);
+    o << "</g>";
+  }
+  if (!s.point_labels.empty()) {
+    o << "<g font-size=\"" << kTickFont << "\" fill=\"" << Escape(s.colour)
+      << "\" stroke=\"#ffffff\" stroke-width=\"3\" paint-order=\"stroke\">";
+    for (size_t i = 0; i < n && i < s.point_labels.size(); ++i) {
+      if (!std::isfinite(px[i]) || s.point_labels[i].empty()) continue;
+      const double w = (kCharWidth + 0.6) * s.point_labels[i].size() + 4, h = kTickFont + 4.0;
+      Box box{};
+      if (!point_labels->Place(px[i], py[i], w, h, s.marker_size, &box)) continue;
+      // The box's baseline: its bottom less the descent.
+      o << "<text x=\"" << Num(box.x + 2) << "\" y=\"" << Num(box.y + box.h - 3) << "\">"
+        << Escape(s.point_labels[i]) << "</text>";
+    }
+    o << "</g>";
+  }
+  o << "</g>\n";
+}
+
+// The legend's rows below the plot, from `y0` [px].
+void DrawLegend(std::ostringstream& o, const std::vector<LegendEntry>& legend,
+                const std::vector<LegendPlace>& placed, double y0) {
+  o << "<g class=\"legend\" font-size=\"" << kLegendFont << "\">";
+  for (size_t i = 0; i < legend.size(); ++i) {
+    const double x = 12 + placed[i].x, y = y0 + placed[i].row * kLegendRow;
+    const LegendEntry& e = legend[i];
+    if (e.band) {
+      o << "<rect x=\"" << Num(x) << "\" y=\"" << Num(y - 6) << "\" width=\"26\" height=\"12\" "
+        << "fill=\"" << Escape(e.band->colour) << "\" fill-opacity=\""
+        << Num(std::max(e.band->opacity, 0.15)) << "\" stroke=\"#999999\"/>";
+    } else {
+      const Series& s = *e.series;
+      if (s.bars) {
+        o << "<rect x=\"" << Num(x + 4) << "\" y=\"" << Num(y - 6) << "\" width=\"18\" "
+          << "height=\"12\" fill=\"" << Escape(s.colour) << "\" fill-opacity=\"0.55\" stroke=\""
+          << Escape(s.colour) << "\"/>";
+      } else if (s.line) {
+        o << "<path d=\"M" << Num(x) << " " << Num(y) << "h26\" stroke=\"" << Escape(s.colour)
+          << "\" stroke-width=\"" << Num(s.line_width) << "\""
+          << (s.dashed ? " stroke-dasharray=\"6 4\"" : "") << "/>";
+      }
+      if (s.marker != Marker::kNone) {
+        o << "<g " << MarkerStyle(s) << ">";
+        MarkerShape(o, s.marker, x + 13, y, s.marker_size);
+        o << "</g>";
+      }
+    }
+    o << "<text x=\"" << Num(x + 34) << "\" y=\"" << Num(y + 4) << "\">" << Escape(e.label)
+      << "</text>";
+  }
+  o << "</g>\n";
+}
+
+}  // namespace
+
+// The figure in painting order (frame, grid, bands, series, axes, legend), sharing one
+// coordinate mapping; the series and the legend are drawn by the functions above.
 std::string RenderSvg(const Figure& f, const std::string& raw_id) {
   const std::string id = SafeId(raw_id);
   const bool has_data = HasData(f);
@@ -309,25 +535,7 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
     if (!s.label.empty()) legend.push_back({&s, nullptr, s.label});
   for (const Band& b : f.bands)
     if (!b.label.empty()) legend.push_back({nullptr, &b, b.label});
-  struct Placed {
-    double x;
-    int row;
-  };
-  std::vector<Placed> placed;
-  {
-    double x = 0;
-    int row = 0;
-    const double avail = f.width - 24.0;
-    for (const LegendEntry& e : legend) {
-      const double w = 34 + kCharWidth * e.label.size() + 18;
-      if (x > 0 && x + w > avail) {
-        x = 0;
-        ++row;
-      }
-      placed.push_back({x, row});
-      x += w;
-    }
-  }
+  const std::vector<LegendPlace> placed = LayoutLegend(legend, f.width);
   const int legend_rows = legend.empty() ? 0 : placed.back().row + 1;
 
   // Ranges in transformed units.
@@ -459,148 +667,8 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
   }
 
   // Series: bars, lines, markers, point labels.
-  std::vector<Box> labels;  // point labels placed so far
-  std::vector<std::pair<double, double>> labelled_points;  // [px] the points they label
-  // Every drawn line segment and marker [px], so that a point label is put where it covers
-  // none of them (a label struck through by a curve cannot be read).
-  struct Segment {
-    double ax, ay, bx, by;
-  };
-  std::vector<Segment> drawn_segments;
-  std::vector<std::pair<double, double>> drawn_markers;
-  for (const Series& s : f.series) {
-    const size_t n = std::min(s.x.size(), s.y.size());
-    bool have = false;
-    double lx = 0, ly = 0;
-    for (size_t i = 0; i < n; ++i) {
-      if (!Drawable(f.x, s.x[i]) || !Drawable(f.y, s.y[i])) {
-        have = false;
-        continue;
-      }
-      const double x = sx.Px(s.x[i]), y = sy.Px(s.y[i]);
-      if (s.line && !s.bars && have) drawn_segments.push_back({lx, ly, x, y});
-      if (s.marker != Marker::kNone) drawn_markers.emplace_back(x, y);
-      lx = x;
-      ly = y;
-      have = true;
-    }
-  }
-  const Box plot_box{left, top, plot_w, plot_bottom - top};
-  for (const Series& s : f.series) {
-    const size_t n = std::min(s.x.size(), s.y.size());
-    std::vector<double> px(n, kNaN), py(n, kNaN);
-    for (size_t i = 0; i < n; ++i) {
-      if (!Drawable(f.x, s.x[i]) || !Drawable(f.y, s.y[i])) continue;
-      px[i] = sx.Px(s.x[i]);
-      py[i] = sy.Px(s.y[i]);
-    }
-    o << "<g class=\"series\" data-label=\"" << Escape(s.label) << "\"" << clip << ">";
-    if (s.bars) {
-      const double base = f.y.log ? plot_bottom : sy.Px(0.0);
-      o << "<g fill=\"" << Escape(s.colour) << "\" fill-opacity=\"0.55\" stroke=\""
-        << Escape(s.colour) << "\">";
-      for (size_t i = 0; i < n; ++i) {
-        if (!std::isfinite(px[i])) continue;
-        const double xa = sx.Px(s.x[i] - 0.5 * s.bar_width), xb = sx.Px(s.x[i] + 0.5 * s.bar_width);
-        if (!std::isfinite(xa) || !std::isfinite(xb)) continue;
-        o << "<rect x=\"" << Num(std::min(xa, xb)) << "\" y=\"" << Num(std::min(base, py[i]))
-          << "\" width=\"" << Num(std::abs(xb - xa)) << "\" height=\""
-          << Num(std::abs(py[i] - base))
-          << "\"/>";
-      }
-      o << "</g>";
-    } else if (s.line) {
-      std::string d;
-      bool pen = false, broken = false;
-      size_t drawn = 0;
-      for (size_t i = 0; i < n; ++i) {
-        if (!std::isfinite(px[i])) {
-          pen = false;
-          broken = true;
-          continue;
-        }
-        d += (pen ? "L" : "M") + Num(px[i]) + " " + Num(py[i]);
-        pen = true;
-        ++drawn;
-      }
-      if (s.closed && !broken && drawn > 2) d += "Z";
-      if (!d.empty())
-        o << "<path d=\"" << d << "\" fill=\"none\" stroke=\"" << Escape(s.colour)
-          << "\" stroke-width=\"" << Num(s.line_width) << "\" stroke-linejoin=\"round\""
-          << (s.dashed ? " stroke-dasharray=\"6 4\"" : "") << "/>";
-    }
-    if (s.marker != Marker::kNone) {
-      o << "<g " << MarkerStyle(s) << ">";
-      for (size_t i = 0; i < n; ++i)
-        if (std::isfinite(px[i])) MarkerShape(o, s.marker, px[i], py[i], s.marker_size);
-      o << "</g>";
-    }
-    if (!s.point_labels.empty()) {
-      o << "<g font-size=\"" << kTickFont << "\" fill=\"" << Escape(s.colour)
-        << "\" stroke=\"#ffffff\" stroke-width=\"3\" paint-order=\"stroke\">";
-      for (size_t i = 0; i < n && i < s.point_labels.size(); ++i) {
-        if (!std::isfinite(px[i]) || s.point_labels[i].empty()) continue;
-        // The first of sixteen places around the point (the width estimate generous by a few
-        // pixels: a near miss reads as an overlap) that lies inside the plot and covers no
-        // other label, line or marker; a label with no such place is left out (dense markers).
-        const double w = (kCharWidth + 0.6) * s.point_labels[i].size() + 4, h = kTickFont + 4.0;
-        // Near the point first, then a ring farther out.
-        double places[16][2];
-        for (int ring = 0; ring < 2; ++ring) {
-          const double gap = 6.0 + s.marker_size + 12.0 * ring;
-          const double ring_places[8][2] = {
-              {gap, -gap - h},      {gap, gap},         {-gap - w, -gap - h}, {-gap - w, gap},
-              {gap, -0.5 * h},      {-gap - w, -0.5 * h}, {-0.5 * w, -gap - h}, {-0.5 * w, gap}};
-          for (int k = 0; k < 8; ++k) {
-            places[8 * ring + k][0] = ring_places[k][0];
-            places[8 * ring + k][1] = ring_places[k][1];
-          }
-        }
-        // Where no place is clear of the lines and markers (a point in a corner that its line
-        // leaves), the first inside the plot that covers no other label: the label's white halo
-        // keeps it legible over a line.
-        // A point on (or next to) one already labelled gets none: two labels beside one dot
-        // would not say which is whose.
-        const double near = 2.0 * s.marker_size + 2.0;
-        if (std::any_of(labelled_points.begin(), labelled_points.end(), [&](const auto& q) {
-              return std::hypot(q.first - px[i], q.second - py[i]) < near;
-            }))
-          continue;
-        bool placed = false;
-        Box box{};
-        for (int pass = 0; pass < 2 && !placed; ++pass) {
-          for (const auto& d : places) {
-            box = Box{px[i] + d[0], py[i] + d[1], w, h};
-            if (box.x < plot_box.x || box.y < plot_box.y ||
-                box.x + box.w > plot_box.x + plot_box.w || box.y + box.h > plot_box.y + plot_box.h)
-              continue;
-            if (std::any_of(labels.begin(), labels.end(), [&](const Box& b) { return b.Overlaps(box); }))
-              continue;
-            if (pass == 0 &&
-                std::any_of(drawn_segments.begin(), drawn_segments.end(), [&](const Segment& g) {
-                  return box.Crosses(g.ax, g.ay, g.bx, g.by);
-                }))
-              continue;
-            if (pass == 0 &&
-                std::any_of(drawn_markers.begin(), drawn_markers.end(), [&](const auto& m) {
-                  return Box{box.x - 3, box.y - 3, box.w + 6, box.h + 6}.Contains(m.first, m.second);
-                }))
-              continue;
-            placed = true;
-            break;
-          }
-        }
-        if (!placed) continue;
-        labels.push_back(box);
-        labelled_points.emplace_back(px[i], py[i]);
-        // The box's baseline: its bottom less the descent.
-        o << "<text x=\"" << Num(box.x + 2) << "\" y=\"" << Num(box.y + box.h - 3) << "\">"
-          << Escape(s.point_labels[i]) << "</text>";
-      }
-      o << "</g>";
-    }
-    o << "</g>\n";
-  }
+  PointLabels point_labels(f, sx, sy, Box{left, top, plot_w, plot_bottom - top});
+  for (const Series& s : f.series) DrawSeries(o, f, s, sx, sy, clip, plot_bottom, &point_labels);
 
   // Frame, ticks and tick labels.
   o << "<rect x=\"" << Num(left) << "\" y=\"" << Num(top) << "\" width=\"" << Num(plot_w)
@@ -621,38 +689,7 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
   o << "</g>\n";
 
   // Legend.
-  if (!legend.empty()) {
-    const double y0 = plot_bottom + axis_bottom + 4;
-    o << "<g class=\"legend\" font-size=\"" << kLegendFont << "\">";
-    for (size_t i = 0; i < legend.size(); ++i) {
-      const double x = 12 + placed[i].x, y = y0 + placed[i].row * kLegendRow;
-      const LegendEntry& e = legend[i];
-      if (e.band) {
-        o << "<rect x=\"" << Num(x) << "\" y=\"" << Num(y - 6) << "\" width=\"26\" height=\"12\" "
-          << "fill=\"" << Escape(e.band->colour) << "\" fill-opacity=\""
-          << Num(std::max(e.band->opacity, 0.15)) << "\" stroke=\"#999999\"/>";
-      } else {
-        const Series& s = *e.series;
-        if (s.bars) {
-          o << "<rect x=\"" << Num(x + 4) << "\" y=\"" << Num(y - 6) << "\" width=\"18\" "
-            << "height=\"12\" fill=\"" << Escape(s.colour) << "\" fill-opacity=\"0.55\" stroke=\""
-            << Escape(s.colour) << "\"/>";
-        } else if (s.line) {
-          o << "<path d=\"M" << Num(x) << " " << Num(y) << "h26\" stroke=\"" << Escape(s.colour)
-            << "\" stroke-width=\"" << Num(s.line_width) << "\""
-            << (s.dashed ? " stroke-dasharray=\"6 4\"" : "") << "/>";
-        }
-        if (s.marker != Marker::kNone) {
-          o << "<g " << MarkerStyle(s) << ">";
-          MarkerShape(o, s.marker, x + 13, y, s.marker_size);
-          o << "</g>";
-        }
-      }
-      o << "<text x=\"" << Num(x + 34) << "\" y=\"" << Num(y + 4) << "\">" << Escape(e.label)
-        << "</text>";
-    }
-    o << "</g>\n";
-  }
+  if (!legend.empty()) DrawLegend(o, legend, placed, plot_bottom + axis_bottom + 4);
   o << "</svg>\n";
   return o.str();
 }

@@ -67,6 +67,7 @@
 #include "rodfit/solve/newton_minimizer.h"
 #include "rodfit/solve/rod_energy.h"
 #include "rodfit/solve/rod_problem.h"
+#include "rodfit/solve/sensitivity.h"
 
 namespace rodfit {
 
@@ -382,6 +383,8 @@ bool LowestModes(const RodModel& model, const RodState& state, const BandedSymme
   return false;
 }
 
+}  // namespace
+
 // Derivatives of the gradient g (free dofs, held rows zero) with respect to a turn phi of a
 // clamp's frame about world axes, at the clamp's point: clamp A's (vertex 0's stencil, its
 // ghost edge behind x_0) or the end clamp's (vertex n's, its ghost after x_n). The frame turned
@@ -389,9 +392,9 @@ bool LowestModes(const RodModel& model, const RodState& state, const BandedSymme
 // in the stencil is the ghost's twist angle; its perpendicular part follows from the transport
 // of the ghost's reference director to the turned tangent (to first order, all a Jet carries).
 // *dg_dphi: num_free_dofs x 3; *torque (optional): dPi/d(phi . t), the torque holding the frame
-// about its tangent [N m].
-void ClampGradientDerivatives(const RodModel& model, const RodState& s, bool end,
-                              Eigen::MatrixXd* dg_dphi, double* torque = nullptr) {
+// about its tangent [N m]. Declared in sensitivity.h: the fit's fitted clamp angles need it too.
+void ClampTurnGradients(const RodModel& model, const RodState& s, bool end,
+                        Eigen::MatrixXd* dg_dphi, double* torque) {
   using J = ceres::Jet<double, 3>;
   const int n = model.num_edges();
   const int vertex = end ? n : 0;
@@ -420,10 +423,12 @@ void ClampGradientDerivatives(const RodModel& model, const RodState& s, bool end
   if (torque) *torque = gj[twist_slot].a;
 }
 
+namespace {
+
 // dg/droll and the clamp's torque dPi/droll.
 VecX RollGradientDerivative(const RodModel& model, const RodState& s, double* torque) {
   Eigen::MatrixXd d;
-  ClampGradientDerivatives(model, s, /*end=*/false, &d, torque);
+  ClampTurnGradients(model, s, /*end=*/false, &d, torque);
   return d * s.clamp_t;
 }
 
@@ -992,7 +997,7 @@ VecX ParameterGradient(const RodModel& model, const RodState& s, const CriticalT
     case Kind::kClampRotation:
     case Kind::kEndClampRotation: {
       Eigen::MatrixXd d;
-      ClampGradientDerivatives(model, s, p.kind == Kind::kEndClampRotation, &d);
+      ClampTurnGradients(model, s, p.kind == Kind::kEndClampRotation, &d);
       return d * p.axis;
     }
   }

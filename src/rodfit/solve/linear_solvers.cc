@@ -104,7 +104,9 @@ void DenseCholeskySolver::Resize(int n) {
 }
 
 bool DenseCholeskySolver::Factor(double shift) {
-  if (!matrix_.allFinite()) return false;
+  // Non-finite entries are caught on the factor's diagonal (O(n), not O(n^2) before factoring):
+  // LLT reads the lower triangle, and a NaN or infinity at (i, j) makes L(i, i) NaN or the pivot
+  // negative, since L(i, i)^2 = A(i, i) - sum_k L(i, k)^2 with L(i, j) carrying it.
   if (shift == 0.0) {
     llt_.compute(matrix_);  // LLT keeps its own copy: none needed here
   } else {
@@ -112,7 +114,7 @@ bool DenseCholeskySolver::Factor(double shift) {
     work_.diagonal().array() += shift;
     llt_.compute(work_);
   }
-  return llt_.info() == Eigen::Success;
+  return llt_.info() == Eigen::Success && llt_.matrixLLT().diagonal().allFinite();
 }
 
 }  // namespace rodfit

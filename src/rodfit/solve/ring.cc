@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
 
+#include "rodfit/model/check.h"
 #include "rodfit/solve/linear_solvers.h"
 #include "rodfit/solve/newton_minimizer.h"
 
@@ -15,10 +16,6 @@ namespace rodfit {
 namespace {
 
 using Vec2 = Eigen::Vector2d;
-
-void Require(bool ok, const std::string& why) {
-  if (!ok) throw std::invalid_argument(why);
-}
 
 }  // namespace
 
@@ -131,8 +128,8 @@ RingSolver::RingSolver(const SectionSpec& spec, const RingStiffness& stiffness,
                        const RingSolveOptions& options)
     : stiffness_(stiffness), options_(options) {
   std::string why;
-  Require(stiffness.Check(&why), why);
-  Require(options.Check(&why), why);
+  RODFIT_CHECK_ARG(stiffness.Check(&why), why);
+  RODFIT_CHECK_ARG(options.Check(&why), why);
   g_ = MakeRingGeometry(spec);
   const int m = 2 * g_.n;
   // Orthonormal basis Z of the constraints' null space: the last m - 3 columns of Q in C^T = QR.
@@ -235,8 +232,8 @@ void RingSolver::Sensitivities(const Eigen::VectorXd& u, RingResult* result) {
 // state; the sensitivities reuse the last factor.
 void RingSolver::Solve(const Vec2& force_in_plane, const Eigen::Matrix2Xd* warm_start,
                        RingResult* result) {
-  // (No Require here: its message would be built, and allocated, on every solve.)
-  if (!force_in_plane.allFinite()) throw std::invalid_argument("section force must be finite");
+  // RODFIT_CHECK_ARG builds its message only on failure: nothing allocated on a good solve.
+  RODFIT_CHECK_ARG(force_in_plane.allFinite(), "section force must be finite");
   const RingGeometry& g = g_;
   const int n = g.n, m = 2 * n;
   MakeRingLoad(g, force_in_plane, &load_);
@@ -245,8 +242,7 @@ void RingSolver::Solve(const Vec2& force_in_plane, const Eigen::Matrix2Xd* warm_
   Eigen::VectorXd& u = u_;
   u.setZero();
   if (warm_start) {  // read before *result is written: it may be the last result's nodes
-    if (warm_start->cols() != n)
-      throw std::invalid_argument("warm start must have one column per section node");
+    RODFIT_CHECK_ARG(warm_start->cols() == n, "warm start must have one column per section node");
     // Its projection onto the constraints: u = Z Z^T (x_warm - x°).
     u_try_ = Eigen::Map<const Eigen::VectorXd>(warm_start->data(), m) - x_rest;
     ToReduced(u_try_, &gr_);

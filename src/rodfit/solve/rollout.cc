@@ -4,6 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "rodfit/model/check.h"
 #include "rodfit/model/frames.h"
 #include "rodfit/solve/case_dynamics.h"
 #include "rodfit/solve/integration.h"
@@ -104,10 +105,10 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
                             const std::vector<Eigen::Matrix3Xd>& frames,
                             const RolloutOptions& options, RolloutResult* result) {
   RolloutResult& out = *result;
-  if (!scene.dynamics) throw std::invalid_argument("rollout needs a dynamics: block");
-  if (frames.size() < 2) throw std::invalid_argument("a recording needs at least 2 frames");
+  RODFIT_CHECK_ARG(scene.dynamics, "rollout needs a dynamics: block");
+  RODFIT_CHECK_ARG(frames.size() >= 2, "a recording needs at least 2 frames");
   const int M = static_cast<int>(frames[0].cols());
-  if (M < 3) throw std::invalid_argument("a recording needs at least 3 markers");
+  RODFIT_CHECK_ARG(M >= 3, "a recording needs at least 3 markers");
   out.held = HeldMarkers(options, M);
   for (int m = 0; m < M; ++m) {
     if (!Seen(frames[0], m))
@@ -119,7 +120,7 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   const double L = scene.rod.length;
   std::vector<double> chord(M, 0.0);
   for (int m = 1; m < M; ++m) chord[m] = chord[m - 1] + (frames[0].col(m) - frames[0].col(m - 1)).norm();
-  if (!(chord[M - 1] > 0.0)) throw std::invalid_argument("the markers of frame 0 coincide");
+  RODFIT_CHECK_ARG(chord[M - 1] > 0.0, "the markers of frame 0 coincide");
   out.marker_s.resize(M);
   for (int m = 0; m < M; ++m) out.marker_s[m] = L * chord[m] / chord[M - 1];
   for (int m = 1; m < M; ++m)
@@ -316,7 +317,7 @@ std::vector<char> HeldMarkers(const RolloutOptions& options, int markers) {
       throw std::invalid_argument("held marker " + std::to_string(h) + " does not exist");
     held[m] = 1;
   }
-  if (markers < 1 || !held[0]) throw std::invalid_argument("marker 0 (the clamp) must be held");
+  RODFIT_CHECK_ARG(markers >= 1 && held[0], "marker 0 (the clamp) must be held");
   return held;
 }
 

@@ -35,6 +35,23 @@ bool TermSensitivities(const RodModel& model, const RodState& state,
                        const StaticsWorkspace& workspace, const std::vector<EnergyTerms>& terms,
                        Eigen::MatrixXd* dq_dlogp);
 
+/// The general form of both: dq/dp = -H^{-1} dg/dp for given gradient changes (free dofs x
+/// columns, held rows zero), with the solve's kept factor. `keeps_isotropy`: every column keeps
+/// an isotropic rod's twist at rest (a bending stiffness scaling B1 and B2 alike, any other
+/// stiffness), so that a solve with the twist eliminated may use its positions-only factor; a
+/// clamp turned about its tangent does not, and is solved with the whole Hessian then.
+bool GradientSensitivities(const RodModel& model, const RodState& state,
+                           const StaticsWorkspace& workspace, const Eigen::MatrixXd& dg_dp,
+                           bool keeps_isotropy, Eigen::MatrixXd* dq_dp);
+
+/// The derivatives of the free gradient g by turns of a clamp's frame about the world axes at its
+/// point (`end`: the end clamp's, else the clamp's at s = 0): free dofs x 3, held rows zero,
+/// exact (the ghost edge's stencil differentiated by a Jet; defined in critical_twist.cc, whose
+/// nuisance-angle derivatives need it too). `torque` (optional): dPi/d(turn about the clamp's
+/// tangent) [N m].
+void ClampTurnGradients(const RodModel& model, const RodState& state, bool end,
+                        Eigen::MatrixXd* dg_dphi, double* torque = nullptr);
+
 /// Rows of the free-dof sensitivities for vertex positions: d x_i / d log p as a 3(n+1) x m
 /// matrix (vertex 0 is clamped: zero rows).
 Eigen::MatrixXd VertexSensitivities(const RodModel& model, const Eigen::MatrixXd& dq_dlogp);

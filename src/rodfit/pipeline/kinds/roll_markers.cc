@@ -143,6 +143,7 @@ class RollMarkers final : public Measurement {
   int num_noise_residuals() const override { return num_residuals(); }
   int measurement_rows(int) const override { return 4; }
   bool needs_state() const override { return true; }
+  bool reads_held_frames() const override { return true; }  // phi counts from the clamp's d1
   // Samples: each marker's position [m], then its roll [deg].
   int num_samples() const override { return 2 * num_measurements(); }
   int sample_rows(int k) const override { return k % 2 == 0 ? 3 : 1; }

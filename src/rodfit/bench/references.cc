@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <string>
 
-#include "bench.h"
+#include "rodfit/bench/bench.h"
 #include "rodfit/reference/kirchhoff_shooting.h"
 #include "rodfit/solve/case_solve.h"
 #include "rodfit/solve/ring.h"

@@ -1,6 +1,8 @@
-// The rows of `rodfit bench` (docs/cli.md, "bench") shared by its parts: the ladder and stress
-// suite (bench_command.cc), what each skip saves (bench_skips.cc) and the fit's recovery of the
-// bundled recipes (bench_fit.cc). Every part returns rows of the one bench.csv layout.
+// The scenarios of `rodfit bench` (docs/cli.md, "bench"), a library beside the references
+// (src/rodfit/reference/) that the command (src/cli/bench_command.cc) runs: the ladder and stress
+// suite (ladder.cc), independent references (references.cc), what each skip saves (skips.cc) and
+// the fit's recovery of the bundled recipes (fit_recovery.cc). Every part returns rows of the one
+// bench.csv layout.
 #pragma once
 
 #include <algorithm>
@@ -90,7 +92,23 @@ void TimeAlternating(double min_seconds, int min_repeats, A a, B b, Row* row_a, 
 /// Prints a row as it comes (a full ladder takes minutes).
 void Print(const Row& r);
 
-/// Statics rows against independent references (bench_references.cc), one solve of one
+/// The ladder (ladder.cc): reference problems with exact answers over settings (statics: end
+/// moments, circle and helix, segments and tolerances, and the references below; dynamics: a
+/// cantilever's first frequency and a damped decay per integrator and time step). `quick`: a
+/// shorter ladder (up to 1000 segments, one repeat, no explicit run).
+std::vector<Row> Ladder(bool quick);
+
+/// The stress suite: every row right (ok) or failed with a message; a wrong answer returned as
+/// success is marked WRONG.
+std::vector<Row> Stress();
+
+/// The rows as bench.csv, as the page DIR/index.html (error against time) and as the Pareto
+/// figure (empty when no problem has two settings).
+std::string Csv(const std::vector<Row>& rows);
+std::string Html(const std::vector<Row>& rows);
+std::string ParetoSvg(const std::vector<Row>& rows);
+
+/// Statics rows against independent references (references.cc), one solve of one
 /// setting each: a heavy rod clamped at both ends and a rest-curved anisotropic rod in 3-D against
 /// the Kirchhoff shooting solver (error: max vertex distance / L; family "segments"), a rod on
 /// tissue springs under a point load against Hetenyi's beam on an elastic foundation (max

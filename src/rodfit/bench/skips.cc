@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "bench.h"
+#include "rodfit/bench/bench.h"
 #include "rodfit/fit/fit.h"
 #include "rodfit/io/experiment.h"
 #include "rodfit/pipeline/fit_input.h"

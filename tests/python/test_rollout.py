@@ -1,0 +1,78 @@
+"""rodfit.rollout against `rodfit rollout`: the predicted markers of rollout.csv, the fit of
+motion_fit.json; a recording given as an array gives what its file gives."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import rodfit
+from conftest import run
+from test_fit import assert_documents_match
+
+MARKERS = 6
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory, source_dir, cli):
+    """A synthetic recording of the bundled cable scene (`simulate --markers`)."""
+    folder = tmp_path_factory.mktemp("cable")
+    run(cli, "simulate", source_dir / "data" / "scenes" / "cable_drive.yaml", "-o", folder,
+        "--markers", MARKERS, "-q")
+    return folder / "markers.csv"
+
+
+def _rollout_csv(path):
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    frames = max(int(r["frame"]) for r in rows) + 1
+    x = np.full((frames, MARKERS, 3), np.nan)
+    for r in rows:
+        x[int(r["frame"]), int(r["marker"])] = [float(r[c]) for c in "xyz"]
+    return x
+
+
+def test_rollout_equals_cli(tmp_path, source_dir, cli, recording):
+    scene = source_dir / "data" / "scenes" / "cable_drive.yaml"
+    run(cli, "rollout", scene, recording, "-o", tmp_path / "cli", "-q")
+    expected = _rollout_csv(tmp_path / "cli" / "rollout.csv")
+    result = rodfit.rollout(scene, [recording])
+    predicted = result["recordings"][0]["predicted"]
+    assert predicted.shape == expected.shape
+    assert np.abs(predicted - expected).max() <= 1e-12
+    assert result["error_predicted"] > 0 and result["recordings"][0]["held"][0]
+
+
+def test_rollout_from_an_array_equals_from_its_file(source_dir, recording):
+    with open(recording) as f:
+        rows = list(csv.DictReader(f))
+    times = sorted({float(r["t"]) for r in rows})
+    frames = np.full((len(times), MARKERS, 3), np.nan)
+    index = {t: k for k, t in enumerate(times)}
+    for r in rows:
+        frames[index[float(r["t"])], int(r["marker"])] = [float(r[c]) for c in "xyz"]
+    rate = 1.0 / (times[1] - times[0])
+    scene = source_dir / "data" / "scenes" / "cable_drive.yaml"
+    from_file = rodfit.rollout(scene, [recording])
+    from_array = rodfit.rollout(scene, [frames], frame_rate=round(rate))
+    assert np.array_equal(from_file["recordings"][0]["predicted"],
+                          from_array["recordings"][0]["predicted"])
+
+
+def test_rollout_fit_equals_cli(tmp_path, source_dir, cli, recording):
+    scene = source_dir / "data" / "scenes" / "cable_drive.yaml"
+    run(cli, "rollout", scene, recording, "-o", tmp_path / "cli", "-q", "--fit",
+        "bend_stiffness")
+    expected = json.loads((tmp_path / "cli" / "motion_fit.json").read_text())
+    result = rodfit.rollout(scene, [recording], fit=["bend_stiffness"])
+    assert expected["converged"] and expected["evaluations"] > 1
+    assert_documents_match(expected, result["fit"])
+
+
+def test_rollout_fit_that_does_not_converge_raises(tmp_path, source_dir, cli, recording):
+    scene = source_dir / "data" / "scenes" / "cable_drive.yaml"
+    done = run(cli, "rollout", scene, recording, "-o", tmp_path / "cli", "-q", "--fit",
+               "bend_stiffness", "--max-evaluations", 3, check=False)
+    assert done.returncode == 1 and "did not converge" in done.stderr
+    with pytest.raises(rodfit.SolveError, match="did not converge"):
+        rodfit.rollout(scene, [recording], fit=["bend_stiffness"], max_evaluations=3)
