@@ -81,6 +81,15 @@ int RunRollout(int argc, char** argv) {
                  "also write a report into DIR: index.html (error table, fitted parameters, per "
                  "recording a 3-D view over time and each marker's path) and its figures");
   app.add_flag("-q,--quiet", quiet, "no progress line");
+  int rest_knots = rodfit::MotionFitOptions().rest_curvature_knots;
+  double fit_smoothness = rodfit::MotionFitOptions().rest_curvature_smoothness;
+  app.add_option("--rest-knots", rest_knots,
+                 "with --fit rest_curvature: knots evenly along the rod (default 5)")
+      ->check(CLI::Range(3, 200));
+  app.add_option("--rest-smoothness", fit_smoothness,
+                 "[1/m] with --fit rest_curvature: the std of the curvature's second difference "
+                 "over neighbouring knots (default 2)")
+      ->check(CLI::Range(1e-9, 1e9));
   std::string parameters_path;
   app.add_option("--parameters", parameters_path,
                  "a motion_fit.json of rollout --fit on other recordings of the rod: its values "
@@ -132,6 +141,8 @@ int RunRollout(int argc, char** argv) {
                                                     : rodfit::MotionFitMethod::kLevenbergMarquardt;
     options.fit_options.max_evaluations = max_evaluations;
     options.fit_options.marker_sigma = marker_sigma;
+    options.fit_options.rest_curvature_knots = rest_knots;
+    options.fit_options.rest_curvature_smoothness = fit_smoothness;
   }
   options.output_dir = output_dir;
   options.report_dir = report_dir;
@@ -166,13 +177,28 @@ int RunRollout(int argc, char** argv) {
     std::cerr << "rodfit rollout: " << run.error << "\n";
     return EXIT_FAILURE;
   }
+  for (const std::string& f : run.failures) std::cerr << "rodfit rollout: " << f << "\n";
   for (const std::string& w : run.report_warnings)
     std::fprintf(stderr, "rodfit rollout: warning: %s\n", w.c_str());
   char line[256];
   std::snprintf(line, sizeof(line),
                 "mean absolute coordinate error: %.4g m over all markers, %.4g m over the "
                 "predicted ones (%d samples, %zu recording(s))\n",
-                run.error_all, run.error_predicted, run.samples, run.recordings.size());
+                run.error_all, run.error_predicted, run.samples,
+                run.recordings.size() - run.failures.size());
   std::cout << line;
-  return EXIT_SUCCESS;
+  // The exit statuses beyond 0 and 1 (docs/cli.md, "rollout"), everything that ran written:
+  // 3 a recording's rollout failed, 4 --fit did not converge or a value is not determined,
+  // 5 --fit's residuals beyond the markers' noise; the highest applies.
+  int status = EXIT_SUCCESS;
+  if (!run.failures.empty()) {
+    std::string names;
+    for (const std::string& f : run.failures) names += (names.empty() ? "" : "; ") + f;
+    std::fprintf(stderr, "rodfit rollout: %zu of %zu recording(s) failed (the others written): %s\n",
+                 run.failures.size(), run.recordings.size(), names.c_str());
+    status = 3;
+  }
+  if (run.fit_not_converged || run.fit_undetermined) status = 4;
+  if (run.misfit) status = 5;
+  return status;
 }

@@ -259,6 +259,42 @@ TEST(Recording, ARecordingOfAnotherRodIsRefused) {
   MarkerRecording stretched = rec;
   stretched.frames[3] *= 1.5;
   EXPECT_THAT(error(stretched, 0.95), HasSubstr("r.csv: frame 3: the markers' polyline is"));
+
+// A motion fit's rest shape (motion_fit.json's rest_shape, written by rollout --fit
+// rest_curvature) read back as a rest-curvature profile; a file without one gives none; lists
+// of other lengths, non-numbers or knots beyond the rod are one error naming the file and key.
+TEST(Recording, MotionFitRestShapeIsReadAsAProfile) {
+  TempDir dir;
+  std::vector<double> s;
+  std::vector<Eigen::Vector3d> k;
+  const std::string good = dir.Write(
+      "m.json", "{\"parameters\": {}, \"rest_shape\": {\"s_m\": [0, 0.5, 1], \"k1_per_m\": "
+                "[1, 2, 3], \"k2_per_m\": [-1, 0, 0.5], \"tau_per_m\": [0, 0, 0]}}");
+  ASSERT_TRUE(ReadMotionFitRestShape(good, 1.0, &s, &k));
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(s[1], 0.5);
+  EXPECT_EQ(k[2], Eigen::Vector3d(3, 0.5, 0));
+  EXPECT_TRUE(ReadMotionFitValues(good).empty());  // a rest shape alone is a fit's result
+  const std::string none = dir.Write("n.json", "{\"parameters\": {\"damping\": {\"value\": 1}}}");
+  EXPECT_FALSE(ReadMotionFitRestShape(none, 1.0, &s, &k));
+  const std::string shorter = dir.Write(
+      "b.json", "{\"parameters\": {},\n\"rest_shape\": {\"s_m\": [0, 1], \"k1_per_m\": [1], "
+                "\"k2_per_m\": [1, 2], \"tau_per_m\": [0, 0]}}");
+  try {
+    ReadMotionFitRestShape(shorter, 1.0, &s, &k);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("b.json:2: rest_shape: s_m, k1_per_m"));
+  }
+  const std::string beyond = dir.Write(
+      "c.json", "{\"rest_shape\": {\"s_m\": [0, 2], \"k1_per_m\": [1, 1], "
+                "\"k2_per_m\": [1, 2], \"tau_per_m\": [0, 0]}}");
+  try {
+    ReadMotionFitRestShape(beyond, 1.0, &s, &k);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("c.json:1: rest_shape.s_m: must increase strictly"));
+  }
 }
 
 }  // namespace

@@ -39,9 +39,11 @@ inline Scene Cable() {
 // The truth: both grippers (clamps at s = 0 and s = L) moved along smooth paths for `seconds`;
 // the markers are vertices (every 4th of 44 edges), sampled at 100 Hz with noise and drops.
 inline std::vector<Eigen::Matrix3Xd> Recording(double seconds, double noise, double drop, unsigned seed,
-                                                const Material* material = nullptr) {
+                                                const Material* material = nullptr,
+                                                const RodSpec* rod = nullptr) {
   Scene s = Cable();
   if (material) s.material = *material;
+  if (rod) s.rod = *rod;  // e.g. curved at rest
   const int steps_per_frame = static_cast<int>(std::lround(kFrameInterval / s.dynamics->time_step));
   s.dynamics->duration = seconds;
   s.dynamics->output_every = steps_per_frame;
@@ -192,7 +194,7 @@ inline std::vector<Eigen::Matrix3Xd> HardRecording(HardMotion motion, double sec
     throw std::runtime_error(std::string("the ") + HardMotionName(motion) +
                              " recording did not integrate: " + truth.reason);
   std::mt19937 rng(seed);
-  std::normal_distribution<double> gauss(0.0, noise > 0.0 ? noise : 1.0);
+  std::normal_distribution<double> gauss(0.0, 1.0);  // scaled by `noise` below
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   std::vector<Eigen::Matrix3Xd> frames;
   for (const TrajectoryFrame& f : truth.frames) {

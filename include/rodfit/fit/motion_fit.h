@@ -55,6 +55,15 @@ struct MotionFitOptions {
   std::vector<double> lower, upper;
   /// The covariance as the sigmas state it, not scaled by the residual variance.
   bool trusted_sigmas = false;
+  /// The rest shape (the name "rest_curvature"; docs/cli.md, "rollout --fit"): the bending
+  /// components (k1°, k2°) of the intrinsic curvature at this many knots evenly along the rod,
+  /// linear between them (RodSpec::rest_curvature_s / rest_curvature_profile; the rest twist is
+  /// not fitted), within +-max_rest_curvature [1/m], with a smoothness prior: the second
+  /// difference over neighbouring knots is 0 with std rest_curvature_smoothness [1/m] (its
+  /// residuals count among those the residual variance sums).
+  int rest_curvature_knots = 5;
+  double rest_curvature_smoothness = 2.0;
+  double max_rest_curvature = 30.0;
   /// Called after each Levenberg–Marquardt iteration (`iteration`, `cost`, `seconds`; `budget`
   /// is max_evaluations, `global` false): a caller's progress line.
   std::function<void(const FitIterationInfo&)> progress;
@@ -90,7 +99,27 @@ struct MotionFitResult {
   /// [s] wall time in the runs (rollouts or case integrations, with their sensitivities when
   /// the search needs them); the rest of `seconds` is the search and the covariance.
   double run_seconds = 0.0;
+  /// [m] the markers' noise the residuals were divided by: MotionFitOptions::marker_sigma, or
+  /// when that is 0 EstimateMarkerNoise of the recordings (marker_sigma_estimated; 0 when the
+  /// recordings are too short to tell: unit weights).
+  double marker_sigma = 0.0;
+  bool marker_sigma_estimated = false;
+  /// With "rest_curvature" fitted: the knots' arc lengths [m]; `names` then ends with
+  /// "rest_curvature.k1[j]", "rest_curvature.k2[j]" per knot j, whose start, values and std
+  /// are in 1/m (not log-parameters; covariance_log's rows for them are of kappa° L).
+  std::vector<double> rest_curvature_s;
+  int prior_residuals = 0;  ///< the smoothness prior's rows among `residuals`
 };
+
+/// The name FitMotion takes for the rest shape (MotionFitOptions::rest_curvature_knots).
+inline constexpr const char* kRestCurvatureParameter = "rest_curvature";
+
+/// The markers' noise [m] from the recordings alone: the median absolute fourth difference in
+/// time of every seen coordinate of the markers the rollout predicts (not options' held ones)
+/// over 0.6745 sqrt(70) (white noise's; a smooth motion's own is far smaller at motion-capture
+/// rates). 0 with fewer than 30 such differences.
+double EstimateMarkerNoise(const std::vector<MotionRecordingData>& recordings,
+                           const RolloutOptions& options);
 
 /// The parameters a motion fit may change, rows of the parameter table
 /// (rodfit/model/material_parameters.h) of the rod's stiffness (bend_stiffness moves B2 too when
@@ -99,7 +128,8 @@ struct MotionFitResult {
 void SetMotionParameter(const std::string& name, double value, Scene* scene);
 double MotionParameter(const std::string& name, const Scene& scene);
 
-/// Fits `names` (each with a start value > 0 in the scene) to the recordings. Throws
+/// Fits `names` (each with a start value > 0 in the scene; "rest_curvature": the rest shape,
+/// started from the scene's) to the recordings. Throws
 /// std::invalid_argument for an ill-posed request (no names or recordings, an unknown name, a
 /// start value <= 0, a recording the rollout refuses). A fit that does not converge returns its
 /// last point with converged false and the reason in `message`; a rollout that fails counts as

@@ -60,4 +60,12 @@ void CheckRecordingFitsRod(const MarkerRecording& recording, double rod_length);
 /// number > 0.
 std::vector<std::pair<std::string, double>> ReadMotionFitValues(const std::string& path);
 
+/// The fitted rest shape of a motion_fit.json (`rest_shape`: knots s_m [m] and k1_per_m,
+/// k2_per_m, tau_per_m [1/m] per knot), as RodSpec::rest_curvature_s / rest_curvature_profile.
+/// False when the file has none; throws InputError naming the file, line and key for lists that
+/// are not finite numbers of one length (>= 2) or knots not strictly increasing within
+/// [0, rod_length].
+bool ReadMotionFitRestShape(const std::string& path, double rod_length, std::vector<double>* s,
+                            std::vector<Eigen::Vector3d>* profile);
+
 }  // namespace rodfit

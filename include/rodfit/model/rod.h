@@ -287,6 +287,13 @@ inline constexpr double kSmallStrainLimit = 0.1;
 /// given) the edge where it is.
 double LargestEdgeStrain(const RodModel& model, const RodState& state, int* edge = nullptr);
 
+/// The value at arc length `at` [m] of a rest-curvature profile (RodSpec::rest_curvature_s /
+/// rest_curvature_profile): linear between its points, constant beyond them, zero when empty.
+/// How RodModel places the profile on its bending vertices (and, being linear in the values,
+/// how a fitted knot's derivative is placed on them).
+Vec3 RestCurvatureProfileAt(const std::vector<double>& s, const std::vector<Vec3>& profile,
+                            double at);
+
 /// The intrinsic curvature profile of a centre-line at rest (`rod.rest_shape`, docs/model.md,
 /// "Rest shape"): at each interior point the discrete curvature binormal
 /// 2 t_k-1 x t_k / (1 + t_k-1 . t_k) over the point's Voronoi length, resolved in the material

@@ -180,8 +180,15 @@ struct RolloutRun {
   /// halved steps), then the report's own.
   std::vector<std::string> warnings;
   std::vector<std::string> report_warnings;
-  /// The residual variance beyond the markers' noise (marker_sigma set): the misfit verdict.
+  /// The residual variance beyond the markers' noise (stated, or estimated from the
+  /// recordings): the misfit verdict.
   bool misfit = false;
+  /// The fit did not converge (its best point kept and written) or a value is not determined.
+  bool fit_not_converged = false, fit_undetermined = false;
+  /// Per recording whose rollout failed: "FILE: reason" (the others ran and are written).
+  std::vector<std::string> failures;
+  /// recordings.csv (one row per recording) and rollout_error.csv (the error per frame).
+  std::string table, over_time;
 };
 
 /// The recordings of a rollout (io/recording.h), in metres or millimetres, each checked against

@@ -188,6 +188,11 @@ struct ParameterDirection {
   double drag = 0.0;                                            ///< external damping c
   double bend_damping = 0.0, twist_damping = 0.0, stretch_damping = 0.0;
   double density = 0.0;  ///< linear density (the masses, spin inertias and weights)
+  /// The rest curvature's derivative (a fitted rest shape; docs/solvers.md, "Sensitivities in
+  /// time"): a profile as RodSpec::rest_curvature_s / rest_curvature_profile [1/m per unit of the
+  /// parameter], placed on the bending vertices by RestCurvatureProfileAt. Empty: none.
+  std::vector<double> rest_curvature_s;
+  std::vector<Vec3> rest_curvature_profile;
   /// The direction from one set of constants to another that differ by the factor exp(log_factor)
   /// in one parameter: each constant's log change over log_factor (0 where a constant is 0 in
   /// both). Reads the Material, so the parameter's name is resolved where the name table is.
@@ -233,6 +238,14 @@ struct DynamicsStepSummary {
 /// direction: dq = -K^-1 dg/dp with K the full Hessian at q (stiffnesses and the weights; the
 /// damping constants do not move an equilibrium), one column per direction into *dq.
 /// False with the reason for a case with moment loads or an unstable equilibrium.
+/// The derivative along `direction` of the gradient of the rod's elastic energy at q (free dofs,
+/// held rows zeroed; no loads): the stiffness factors' terms (U is linear in each stiffness) and
+/// the rest curvature's (the gradient is affine in it: the difference of the gradients with the
+/// direction's rest curvature and with none, the bending stiffnesses at their values). Exact, up
+/// to round-off.
+void ParameterGradient(const RodModel& model, const RodState& q,
+                       const ParameterDirection& direction, VecX* g);
+
 bool EquilibriumSensitivity(const RodModel& model, const RodState& q,
                             const std::vector<ParameterDirection>& directions, Eigen::MatrixXd* dq,
                             std::string* why);

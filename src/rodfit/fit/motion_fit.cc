@@ -25,10 +25,26 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The scene at log-parameters `logp`.
-Scene SceneAt(const Scene& scene, const std::vector<std::string>& names, const double* logp) {
+// The scene at log-parameters `logp` (the material names'), and the fitted rest shape's knots.
+struct RestKnots {
+  std::vector<double> s;   // [m] the knots, evenly along the rod
+  std::vector<double> tau; // [1/m] the scene's rest twist there (not fitted)
+  double length = 1.0;     // [m] the unknowns are kappa° L (a turn over the rod's length)
+  bool fitted() const { return !s.empty(); }
+};
+
+Scene SceneAt(const Scene& scene, const std::vector<std::string>& names, const RestKnots& knots,
+              const double* x) {
   Scene s = scene;
-  for (size_t k = 0; k < names.size(); ++k) SetMotionParameter(names[k], std::exp(logp[k]), &s);
+  for (size_t k = 0; k < names.size(); ++k) SetMotionParameter(names[k], std::exp(x[k]), &s);
+  if (knots.fitted()) {
+    const double* y = x + names.size();
+    s.rod.rest_curvature_s = knots.s;
+    s.rod.rest_curvature_profile.resize(knots.s.size());
+    for (size_t j = 0; j < knots.s.size(); ++j)
+      s.rod.rest_curvature_profile[j] =
+          Vec3(y[2 * j] / knots.length, y[2 * j + 1] / knots.length, knots.tau[j]);
+  }
   return s;
 }
 
@@ -42,7 +58,13 @@ struct Ctx {
   const std::vector<MotionRecordingData>* recordings = nullptr;
   const std::vector<ObservationSequence>* sequences = nullptr;
   const SequencePlan* plan = nullptr;
-  const std::vector<std::string>* names = nullptr;
+  const std::vector<std::string>* names = nullptr;  // the material names (log-parameters)
+  RestKnots knots;                                    // the rest shape's, when fitted
+  int parameters = 0;                                 // names, then 2 per knot (k1, k2)
+  // The smoothness prior's rows (after the recordings'): per interior knot and bending
+  // component, the second difference of kappa° over its std [1/m].
+  int prior_rows = 0;
+  double prior_sigma = 1.0;
   const RolloutOptions* options = nullptr;
   const StaticsOptions* statics = nullptr;
   std::vector<ParameterDirection> directions;
@@ -83,7 +105,7 @@ struct Ctx {
 // The predicted markers' mean absolute coordinate error averaged over the recordings (the score
 // the held-out data is judged by), at log-parameters `logp`.
 double MeanRolloutError(const std::vector<double>& logp, Ctx* c) {
-  const Scene s = SceneAt(*c->scene, *c->names, logp.data());
+  const Scene s = SceneAt(*c->scene, *c->names, c->knots, logp.data());
   ++c->evaluations;
   double sum = 0.0;
   for (size_t ri = 0; ri < c->recordings->size(); ++ri) {
@@ -107,14 +129,14 @@ double MeanRolloutError(const std::vector<double>& logp, Ctx* c) {
 // Residuals and their Jacobian at `logp` into the cache (rollouts with sensitivities of every
 // recording). False when a rollout or its sensitivities fail there.
 bool EvaluateWithSensitivities(const double* logp, Ctx* c) {
-  const int m = static_cast<int>(c->names->size());
+  const int m = c->parameters;
   const std::vector<double> point(logp, logp + m);
   if (!c->cached_logp.empty() && c->cached_logp == point) return c->cached_ok;
   c->cached_logp = point;
   c->cached_ok = false;
   c->cached_r.setZero(c->residuals);
   c->cached_J.setZero(c->residuals, m);
-  const Scene s = SceneAt(*c->scene, *c->names, logp);
+  const Scene s = SceneAt(*c->scene, *c->names, c->knots, logp);
   ++c->evaluations;
   const auto run_started = Clock::now();
   const bool ran = c->forward(s, c);
@@ -193,6 +215,21 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
         }
       }
   }
+  // The rest shape's smoothness prior: (y_j-1 - 2 y_j + y_j+1) / (L sigma) per interior knot
+  // and component (y = kappa° L, the unknowns).
+  if (c->prior_rows > 0) {
+    const int first = static_cast<int>(c->names->size());
+    const double w = 1.0 / (c->knots.length * c->prior_sigma);
+    const std::vector<double>& y = c->cached_logp;
+    for (size_t j = 1; j + 1 < c->knots.s.size(); ++j)
+      for (int a = 0; a < 2; ++a, ++row) {
+        const int km = first + 2 * static_cast<int>(j - 1) + a, k0 = km + 2, kp = km + 4;
+        c->cached_r[row] = w * (y[km] - 2.0 * y[k0] + y[kp]);
+        c->cached_J(row, km) = w;
+        c->cached_J(row, k0) = -2.0 * w;
+        c->cached_J(row, kp) = w;
+      }
+  }
   c->cached_mae = mae / static_cast<double>(count);
   return true;
 }
@@ -263,7 +300,47 @@ const MaterialParameterInfo& MotionRow(const std::string& name) {
 
 }  // namespace
 
+double EstimateMarkerNoise(const std::vector<MotionRecordingData>& recordings,
+                           const RolloutOptions& options) {
+  // The fourth difference in time of a coordinate, x_k-2 - 4 x_k-1 + 6 x_k - 4 x_k+1 + x_k+2:
+  // 70 sigma^2 of white noise, and of a smooth motion its fourth derivative times dt^4 (a 4 Hz,
+  // 6 cm whip at 100 Hz: 0.4 mm against 8 mm for 1 mm of noise). Its median absolute value,
+  // robust to the rest, over 0.6745 sqrt(70).
+  std::vector<double> d4;
+  for (const MotionRecordingData& r : recordings) {
+    if (r.frames.empty()) continue;
+    const std::vector<char> held = HeldMarkers(options, static_cast<int>(r.frames[0].cols()));
+    for (size_t k = 2; k + 2 < r.frames.size(); ++k)
+      for (int m = 0; m < static_cast<int>(r.frames[k].cols()); ++m) {
+        if (m < static_cast<int>(held.size()) && held[m]) continue;
+        bool seen = true;
+        for (size_t j = k - 2; j <= k + 2; ++j)
+          seen = seen && r.frames[j].cols() > m && r.frames[j].col(m).allFinite();
+        if (!seen) continue;
+        const Eigen::Vector3d v = r.frames[k - 2].col(m) - 4.0 * r.frames[k - 1].col(m) +
+                                  6.0 * r.frames[k].col(m) - 4.0 * r.frames[k + 1].col(m) +
+                                  r.frames[k + 2].col(m);
+        for (int a = 0; a < 3; ++a) d4.push_back(std::abs(v[a]));
+      }
+  }
+  if (d4.size() < 30) return 0.0;
+  std::nth_element(d4.begin(), d4.begin() + d4.size() / 2, d4.end());
+  return d4[d4.size() / 2] / (0.6745 * std::sqrt(70.0));
+}
+
 bool MotionFitOptions::Check(std::string* why) const {
+  if (rest_curvature_knots < 3) {
+    *why = "rest_curvature_knots must be at least 3";
+    return false;
+  }
+  if (!(rest_curvature_smoothness > 0.0) || !std::isfinite(rest_curvature_smoothness)) {
+    *why = "rest_curvature_smoothness must be a finite curvature > 0";
+    return false;
+  }
+  if (!(max_rest_curvature > 0.0) || !std::isfinite(max_rest_curvature)) {
+    *why = "max_rest_curvature must be a finite curvature > 0";
+    return false;
+  }
   if (max_evaluations < 1) {
     *why = "max_evaluations must be at least 1";
     return false;
@@ -313,11 +390,6 @@ std::vector<ParameterDirection> LogDirections(const Scene& scene,
 void SetUpParameters(const Scene& scene, const std::vector<std::string>& names,
                      const MotionFitOptions& fit_options, MotionFitResult* result, Ctx* ctx,
                      std::vector<double>* x, std::vector<double>* lo, std::vector<double>* hi) {
-  if (names.empty()) throw std::invalid_argument("no parameters to fit");
-  for (size_t k = 0; k < names.size(); ++k)
-    for (size_t j = 0; j < k; ++j)
-      if (names[j] == names[k])
-        throw std::invalid_argument("'" + names[k].substr(0, 60) + "' is named twice");
   std::string why;
   if (!fit_options.Check(&why)) throw std::invalid_argument(why);
   const size_t m = names.size();
@@ -345,6 +417,49 @@ void SetUpParameters(const Scene& scene, const std::vector<std::string>& names,
     if (!((*lo)[k] <= (*x)[k] && (*x)[k] <= (*hi)[k] && (*lo)[k] < (*hi)[k]))
       throw std::invalid_argument(names[k] + ": the start value must lie within its bounds");
   }
+}
+
+// The rest shape's unknowns after the log-parameters: kappa° L of (k1°, k2°) at
+// fit_options.rest_curvature_knots knots evenly along the rod, started at the scene's profile
+// there (its uniform part stays as given; the rest twist is not fitted), within
+// +-max_rest_curvature; their directions (a hat on each knot) and the prior's rows.
+void AddRestKnots(const Scene& scene, const MotionFitOptions& fit_options,
+                  MotionFitResult* result, Ctx* ctx, std::vector<double>* x,
+                  std::vector<double>* lo, std::vector<double>* hi) {
+  const int K = fit_options.rest_curvature_knots;
+  const double L = scene.rod.length;
+  if (!(L > 0.0)) throw std::invalid_argument("rest_curvature: the rod has no length");
+  RestKnots& knots = ctx->knots;
+  knots.length = L;
+  for (int j = 0; j < K; ++j) knots.s.push_back(L * j / (K - 1));
+  const double bound = fit_options.max_rest_curvature * L;
+  for (int j = 0; j < K; ++j) {
+    const Vec3 at = RestCurvatureProfileAt(scene.rod.rest_curvature_s,
+                                           scene.rod.rest_curvature_profile, knots.s[j]);
+    knots.tau.push_back(at[2]);
+    for (int a = 0; a < 2; ++a) {
+      char name[48];
+      std::snprintf(name, sizeof(name), "rest_curvature.k%d[%d]", a + 1, j);
+      if (!(std::abs(at[a] * L) <= bound))
+        throw std::invalid_argument(std::string(name) + ": the start value must lie within "
+                                    "+-max_rest_curvature");
+      result->names.push_back(name);
+      result->start.push_back(at[a]);
+      x->push_back(at[a] * L);
+      lo->push_back(-bound);
+      hi->push_back(bound);
+      // A hat on the knot: d kappa° / d (kappa° L) = 1 / L there.
+      ParameterDirection d;
+      d.rest_curvature_s = knots.s;
+      d.rest_curvature_profile.assign(K, Vec3::Zero());
+      d.rest_curvature_profile[j][a] = 1.0 / L;
+      ctx->directions.push_back(d);
+    }
+  }
+  result->rest_curvature_s = knots.s;
+  ctx->prior_rows = 2 * (K - 2);
+  ctx->prior_sigma = fit_options.rest_curvature_smoothness;
+  result->prior_residuals = ctx->prior_rows;
 }
 
 // Levenberg–Marquardt from x within [lo, hi]. False (with the result filled as a failed fit)
@@ -416,8 +531,9 @@ void Uncertainty(Ctx* ctx, std::vector<double>* x_io, const std::vector<double>&
   const int m = static_cast<int>(x.size());
   result->values.resize(m);
   result->at_bound.resize(m);
+  const int logs = static_cast<int>(ctx->names->size());  // then the rest shape's kappa° L
   for (int k = 0; k < m; ++k) {
-    result->values[k] = std::exp(x[k]);
+    result->values[k] = k < logs ? std::exp(x[k]) : x[k] / ctx->knots.length;
     result->at_bound[k] = std::abs(x[k] - lo[k]) < 1e-6 || std::abs(x[k] - hi[k]) < 1e-6;
   }
   result->std.assign(m, std::numeric_limits<double>::quiet_NaN());
@@ -443,9 +559,22 @@ void Uncertainty(Ctx* ctx, std::vector<double>* x_io, const std::vector<double>&
     result->identifiable = verdict.identifiable;
     result->reason = verdict.reason;
     result->covariance_log = verdict.cov_log;
-    for (int k = 0; k < m; ++k)
-      if (verdict.identifiable[k])
-        result->std[k] = result->values[k] * std::sqrt(verdict.cov_log(k, k));  // delta method
+    for (int k = 0; k < m; ++k) {
+      if (!verdict.identifiable[k]) continue;
+      const double s = std::sqrt(verdict.cov_log(k, k));
+      // The delta method for a log-parameter; a rest curvature's unknown is kappa° L.
+      result->std[k] = k < logs ? result->values[k] * s : s / ctx->knots.length;
+    }
+    for (int k = logs; k < m; ++k)
+      if (!verdict.identifiable[k] && verdict.reason[k].rfind("determined only within", 0) == 0) {
+        char text[160];
+        std::snprintf(text, sizeof(text),
+                      "determined only within %.3g 1/m (a turn of %.3g rad over the rod): its "
+                      "effect is below the noise",
+                      std::sqrt(verdict.cov_log(k, k)) / ctx->knots.length,
+                      std::sqrt(verdict.cov_log(k, k)));
+        result->reason[k] = text;
+      }
   } else if (fit_options.method == MotionFitMethod::kLevenbergMarquardt) {
     result->converged = false;
     result->message = "the rollout fails at the fitted values: " + ctx->last_failure;
@@ -463,8 +592,24 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
   MotionFitResult result;
   Ctx ctx;
   std::vector<double> x, lo, hi;
-  SetUpParameters(scene, names, fit_options, &result, &ctx, &x, &lo, &hi);
-  const int m = static_cast<int>(names.size());
+  // "rest_curvature" stands for the rest shape's knots; the others are log-parameters.
+  std::vector<std::string> material_names;
+  bool rest = false;
+  for (const std::string& name : names) {
+    if (name == kRestCurvatureParameter) {
+      if (rest) throw std::invalid_argument("rest_curvature is named twice");
+      rest = true;
+    } else {
+      if (std::find(material_names.begin(), material_names.end(), name) != material_names.end())
+        throw std::invalid_argument("'" + name.substr(0, 60) + "' is named twice");
+      material_names.push_back(name);
+    }
+  }
+  if (material_names.empty() && !rest) throw std::invalid_argument("no parameters to fit");
+  SetUpParameters(scene, material_names, fit_options, &result, &ctx, &x, &lo, &hi);
+  if (rest) AddRestKnots(scene, fit_options, &result, &ctx, &x, &lo, &hi);
+  ctx.parameters = static_cast<int>(x.size());
+  const int m = ctx.parameters;
   if (fit_options.method == MotionFitMethod::kLevenbergMarquardt && scene.dynamics &&
       scene.dynamics->integrator != "bdf2" && scene.dynamics->integrator != "backward_euler")
     throw std::invalid_argument("the least-squares motion fit differentiates the bdf2 and "
@@ -472,11 +617,19 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
                                 " (set dynamics.integrator, or use the derivative-free search)");
   ctx.scene = &scene;
   ctx.recordings = &recordings;
-  ctx.names = &names;
+  ctx.names = &material_names;
   ctx.options = &options;
   ctx.statics = &statics;
   ctx.forward = RecordingsForward;
-  ctx.sigma = fit_options.marker_sigma > 0.0 ? fit_options.marker_sigma : 1.0;
+  // The markers' noise: as stated, or estimated from the recordings (EstimateMarkerNoise), so
+  // that the residuals are in sigmas, the rest shape's prior is weighed against them and the
+  // residual variance says whether the model explains the recordings.
+  result.marker_sigma = fit_options.marker_sigma;
+  if (!(result.marker_sigma > 0.0)) {
+    result.marker_sigma = EstimateMarkerNoise(recordings, options);
+    result.marker_sigma_estimated = result.marker_sigma > 0.0;
+  }
+  ctx.sigma = result.marker_sigma > 0.0 ? result.marker_sigma : 1.0;
   // The residuals' layout: every coordinate of a marker the rollout does not drive, in every
   // frame after the first that saw it.
   for (const MotionRecordingData& r : recordings) {
@@ -486,9 +639,11 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
       for (int mk = 0; mk < static_cast<int>(r.frames[k].cols()); ++mk)
         if (!ctx.held.back()[mk] && r.frames[k].col(mk).allFinite()) ctx.residuals += 3;
   }
+  const int data_rows = ctx.residuals;
+  ctx.residuals += ctx.prior_rows;  // the rest shape's prior: rows that carry its noise too
   ctx.noise_residuals = ctx.residuals;
-  if (ctx.residuals <= m)
-    throw std::invalid_argument("the recordings have " + std::to_string(ctx.residuals) +
+  if (data_rows <= m)
+    throw std::invalid_argument("the recordings have " + std::to_string(data_rows) +
                                 " predicted marker coordinates: too few for " +
                                 std::to_string(m) + " parameters");
 
@@ -824,7 +979,12 @@ MotionFitResult FitSequences(const Scene& scene, const std::vector<ObservationSe
   MotionFitResult result;
   Ctx ctx;
   std::vector<double> x, lo, hi;
+  if (names.empty()) throw std::invalid_argument("no parameters to fit");
+  if (std::find(names.begin(), names.end(), kRestCurvatureParameter) != names.end())
+    throw std::invalid_argument("rest_curvature is fitted to marker recordings (rollout --fit), "
+                                "not to observation sequences");
   SetUpParameters(scene, names, fit_options, &result, &ctx, &x, &lo, &hi);
+  ctx.parameters = static_cast<int>(x.size());
   ctx.scene = &scene;
   ctx.sequences = &sequences;
   ctx.plan = &plan;

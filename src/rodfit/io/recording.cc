@@ -428,7 +428,7 @@ std::vector<std::pair<std::string, double>> ReadMotionFitValues(const std::strin
   }
   const size_t params_at = text.find("\"parameters\"");
   if (!doc.is_object() || !doc.contains("parameters") || !doc["parameters"].is_object() ||
-      doc["parameters"].empty())
+      (doc["parameters"].empty() && !doc.contains("rest_shape")))
     throw InputError(path, JsonKeyLine(text, "parameters"), "parameters",
                      "a motion fit file has a parameters object with each fitted value (written "
                      "by rollout --fit)");
@@ -448,6 +448,49 @@ std::vector<std::pair<std::string, double>> ReadMotionFitValues(const std::strin
     values.emplace_back(name, entry["value"].get<double>());
   }
   return values;
+}
+
+bool ReadMotionFitRestShape(const std::string& path, double rod_length, std::vector<double>* s,
+                            std::vector<Eigen::Vector3d>* profile) {
+  constexpr std::uintmax_t kMaxBytes = std::uintmax_t{1} << 20;
+  const std::string text = ReadInputFile(path, "a motion fit file (motion_fit.json)", kMaxBytes);
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(path, 0, "", std::string("not JSON: ") + e.what());
+  }
+  if (!doc.is_object() || !doc.contains("rest_shape")) return false;
+  const nlohmann::json& r = doc["rest_shape"];
+  const int line = JsonKeyLine(text, "rest_shape");
+  auto numbers = [&](const char* key, std::vector<double>* out) {
+    if (!r.is_object() || !r.contains(key) || !r[key].is_array())
+      throw InputError(path, line, std::string("rest_shape.") + key, "must be a list of numbers");
+    out->clear();
+    for (const nlohmann::json& v : r[key]) {
+      if (!v.is_number() || !std::isfinite(v.get<double>()))
+        throw InputError(path, line, std::string("rest_shape.") + key, "must be finite numbers");
+      out->push_back(v.get<double>());
+    }
+  };
+  std::vector<double> knots, k1, k2, tau;
+  numbers("s_m", &knots);
+  numbers("k1_per_m", &k1);
+  numbers("k2_per_m", &k2);
+  numbers("tau_per_m", &tau);
+  if (knots.size() < 2 || k1.size() != knots.size() || k2.size() != knots.size() ||
+      tau.size() != knots.size())
+    throw InputError(path, line, "rest_shape",
+                     "s_m, k1_per_m, k2_per_m and tau_per_m must have one entry per knot (2 or more)");
+  for (size_t j = 0; j < knots.size(); ++j)
+    if (knots[j] < 0.0 || knots[j] > rod_length * (1.0 + 1e-9) || (j > 0 && !(knots[j] > knots[j - 1])))
+      throw InputError(path, line, "rest_shape.s_m",
+                       "must increase strictly within the rod's length (" +
+                           FormatDouble(rod_length) + " m)");
+  *s = knots;
+  profile->resize(knots.size());
+  for (size_t j = 0; j < knots.size(); ++j) (*profile)[j] = Vec3(k1[j], k2[j], tau[j]);
+  return true;
 }
 
 }  // namespace rodfit

@@ -554,20 +554,7 @@ void RodModel::PlaceHeldPoints() {
   if (!rod_.rest_curvature_s.empty()) {
     const std::vector<double>& ps = rod_.rest_curvature_s;
     const std::vector<Vec3>& pk = rod_.rest_curvature_profile;
-    for (int i = 0; i <= n_; ++i) {
-      const double si = arc_[i];
-      Vec3 k;
-      if (si <= ps.front()) {
-        k = pk.front();
-      } else if (si >= ps.back()) {
-        k = pk.back();
-      } else {
-        const size_t j = static_cast<size_t>(std::upper_bound(ps.begin(), ps.end(), si) - ps.begin());
-        const double w = (si - ps[j - 1]) / (ps[j] - ps[j - 1]);
-        k = pk[j - 1] + w * (pk[j] - pk[j - 1]);  // exact where neighbours are equal
-      }
-      rest_curvature_[i] += k;
-    }
+    for (int i = 0; i <= n_; ++i) rest_curvature_[i] += RestCurvatureProfileAt(ps, pk, arc_[i]);
   }
   for (const Vec3& k : rest_curvature_) curved_ = curved_ || k.squaredNorm() != 0.0;
 
@@ -682,6 +669,16 @@ RodState RodModel::StraightState() const {
   s.SyncVertices();
   InitialiseFrames(&s);
   return s;
+}
+
+Vec3 RestCurvatureProfileAt(const std::vector<double>& s, const std::vector<Vec3>& profile,
+                            double at) {
+  if (s.empty()) return Vec3::Zero();
+  if (at <= s.front()) return profile.front();
+  if (at >= s.back()) return profile.back();
+  const size_t j = static_cast<size_t>(std::upper_bound(s.begin(), s.end(), at) - s.begin());
+  const double w = (at - s[j - 1]) / (s[j] - s[j - 1]);
+  return profile[j - 1] + w * (profile[j] - profile[j - 1]);  // exact where neighbours are equal
 }
 
 RodState RodModel::RestState() const {

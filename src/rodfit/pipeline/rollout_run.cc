@@ -1,8 +1,10 @@
 // Rollout (run.h): `rodfit rollout` as a library call — open-loop predictions of recorded
 // motions (solve/rollout.h), after a motion fit of the asked parameters to them; rollout.csv and
 // motion_fit.json in memory and, when asked, written.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
@@ -12,6 +14,8 @@
 #include "rodfit/io/output_dir.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/check.h"
+#include "rodfit/model/rod.h"
+#include "rodfit/io/recording.h"
 #include "rodfit/pipeline/run.h"
 #include "rodfit/version.h"
 
@@ -30,7 +34,7 @@ void Note(const RolloutRunOptions& options, const std::string& line) {
 // motion_fit.json (docs/cli.md, "rollout"): the fit's summary, every parameter's start, value,
 // std and identifiability, and the correlation of their logarithms.
 std::string MotionFitText(const MotionFitResult& fit, const MotionFitOptions& fit_options,
-                          const std::vector<std::string>& names) {
+                          const std::vector<std::string>& names, const std::vector<double>& rest_tau) {
   auto num = [](double v) { return std::isfinite(v) ? FormatDouble(v) : std::string("null"); };
   auto quoted = [](const std::string& text) {
     std::string q = "\"";
@@ -52,6 +56,8 @@ std::string MotionFitText(const MotionFitResult& fit, const MotionFitOptions& fi
       std::to_string(fit.evaluations) + ",\n  \"iterations\": " + std::to_string(fit.iterations) +
       ",\n  \"residuals\": " + std::to_string(fit.residuals) + ",\n  \"residual_variance\": " +
       num(fit.residual_variance) + ",\n  \"marker_sigma_m\": " + num(fit_options.marker_sigma) +
+      ",\n  \"marker_sigma_used_m\": " + num(fit.marker_sigma) +
+      ",\n  \"marker_sigma_estimated\": " + (fit.marker_sigma_estimated ? "true" : "false") +
       ",\n  \"error_start_m\": " + FormatDouble(fit.error_start) +
       ",\n  \"error_fitted_m\": " + FormatDouble(fit.error_fitted) + ",\n  \"parameters\": {";
   for (size_t k = 0; k < names.size(); ++k) {
@@ -62,7 +68,39 @@ std::string MotionFitText(const MotionFitResult& fit, const MotionFitOptions& fi
             (fit.at_bound[k] ? "true" : "false") +
             (fit.identifiable[k] ? std::string() : ", \"reason\": " + quoted(fit.reason[k])) + "}";
   }
-  text += "\n  },\n  \"correlation\": [";
+  text += "\n  },";
+  // The rest shape's knots (the last 2 K of fit.names), their values, std and start.
+  const size_t knots = fit.rest_curvature_s.size(), logs = fit.names.size() - 2 * knots;
+  if (knots > 0) {
+    auto list = [&](const std::function<double(size_t)>& item) {
+      std::string l = "[";
+      for (size_t j = 0; j < knots; ++j) l += std::string(j ? ", " : "") + num(item(j));
+      return l + "]";
+    };
+    // The largest |correlation| of a knot with bend_stiffness: one configuration confounds them.
+    double confounded = NAN;
+    for (size_t k = 0; k < logs; ++k)
+      if (fit.names[k] == "bend_stiffness")
+        for (size_t j = logs; j < fit.names.size(); ++j) {
+          const double c = std::abs(fit.covariance_log(k, j)) /
+                           std::sqrt(fit.covariance_log(k, k) * fit.covariance_log(j, j));
+          if (std::isfinite(c)) confounded = std::isfinite(confounded) ? std::max(confounded, c) : c;
+        }
+    text += "\n  \"rest_shape\": {\"s_m\": " + list([&](size_t j) { return fit.rest_curvature_s[j]; }) +
+            ", \"k1_per_m\": " + list([&](size_t j) { return fit.values[logs + 2 * j]; }) +
+            ", \"k2_per_m\": " + list([&](size_t j) { return fit.values[logs + 2 * j + 1]; }) +
+            ", \"tau_per_m\": " + list([&](size_t j) { return rest_tau.empty() ? 0.0 : rest_tau[j]; }) +
+            ", \"k1_std\": " + list([&](size_t j) { return fit.std[logs + 2 * j]; }) +
+            ", \"k2_std\": " + list([&](size_t j) { return fit.std[logs + 2 * j + 1]; }) +
+            ", \"k1_start\": " + list([&](size_t j) { return fit.start[logs + 2 * j]; }) +
+            ", \"k2_start\": " + list([&](size_t j) { return fit.start[logs + 2 * j + 1]; }) +
+            ", \"smoothness_std_per_m\": " + num(fit_options.rest_curvature_smoothness) +
+            ", \"prior_residuals\": " + std::to_string(fit.prior_residuals) +
+            ", \"max_correlation_with_bend_stiffness\": " + num(confounded) + "},";
+  }
+  text += "\n  \"names\": [";
+  for (size_t k = 0; k < fit.names.size(); ++k) text += std::string(k ? ", " : "") + quoted(fit.names[k]);
+  text += "],\n  \"correlation\": [";
   for (int i = 0; i < fit.covariance_log.rows(); ++i) {
     text += std::string(i ? ", " : "") + "[";
     for (int j = 0; j < fit.covariance_log.cols(); ++j)
@@ -99,14 +137,32 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string("--fit: ") + e.what());
   }
-  // A least-squares fit that did not converge is not a result: said so, nothing written. The
-  // derivative-free search has no such test (its budget is its stop) and is written as before.
-  if (!fit.converged && fit_options.method == MotionFitMethod::kLevenbergMarquardt) {
-    run->error = "--fit did not converge: " + fit.message + " (nothing written)";
+  // A fit that fails at its start has no values: said so, nothing written.
+  if (fit.values.size() != fit.start.size() || fit.std.size() != fit.start.size()) {
+    run->error = "--fit: " + fit.message + " (nothing written)";
     return false;
   }
-  for (size_t k = 0; k < names.size(); ++k) SetMotionParameter(names[k], fit.values[k], scene);
-  run->fit_text = MotionFitText(fit, fit_options, names);
+  // A least-squares fit that did not converge keeps its best point (Levenberg-Marquardt accepts
+  // only steps that lower the cost): written with converged false.
+  run->fit_not_converged = !fit.converged && fit_options.method == MotionFitMethod::kLevenbergMarquardt;
+  const size_t knots = fit.rest_curvature_s.size(), logs = fit.names.size() - 2 * knots;
+  for (size_t k = 0; k < logs; ++k) SetMotionParameter(fit.names[k], fit.values[k], scene);
+  std::vector<double> rest_tau;
+  if (knots > 0) {
+    // The fitted rest shape replaces the scene's profile (its rest twist kept).
+    std::vector<Vec3> profile(knots);
+    for (size_t j = 0; j < knots; ++j) {
+      const Vec3 at = RestCurvatureProfileAt(scene->rod.rest_curvature_s,
+                                             scene->rod.rest_curvature_profile, fit.rest_curvature_s[j]);
+      profile[j] = Vec3(fit.values[logs + 2 * j], fit.values[logs + 2 * j + 1], at[2]);
+      rest_tau.push_back(at[2]);
+    }
+    scene->rod.rest_curvature_s = fit.rest_curvature_s;
+    scene->rod.rest_curvature_profile = profile;
+  }
+  for (size_t k = 0; k < fit.names.size(); ++k)
+    run->fit_undetermined = run->fit_undetermined || !fit.identifiable[k];
+  run->fit_text = MotionFitText(fit, fit_options, names, rest_tau);
   run->fit_json = nlohmann::json::parse(run->fit_text);
   char line[320];
   std::snprintf(line, sizeof(line),
@@ -116,8 +172,8 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
                 fit.error_fitted);
   Note(options, line);
   if (!fit.converged) run->warnings.push_back("--fit: " + fit.message);
-  for (size_t k = 0; k < names.size(); ++k) {
-    std::snprintf(line, sizeof(line), "  %s: %.6g -> %.6g", names[k].c_str(), fit.start[k],
+  for (size_t k = 0; k < fit.names.size(); ++k) {
+    std::snprintf(line, sizeof(line), "  %s: %.6g -> %.6g", fit.names[k].c_str(), fit.start[k],
                   fit.values[k]);
     std::string text = line;
     if (fit.identifiable[k]) {
@@ -128,20 +184,27 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
     }
     Note(options, text + (fit.at_bound[k] ? " [at its bound]" : ""));
   }
-  // With the markers' noise stated, the residual variance says whether the rollout's model
-  // explains the recording: far above its chi-square band, the values absorb model error
-  // (e.g. pins standing in for gripper clamps) and their std understates it.
-  const int dof = fit.residuals - static_cast<int>(names.size());
-  if (fit_options.marker_sigma > 0.0 && dof > 0) {
+  // The residual variance says whether the rollout's model explains the recordings to the
+  // markers' noise (stated, or estimated from the recordings): above its chi-square band
+  // (stated) or above kEstimatedNoiseVarianceLimit (estimated: the estimate has its own error),
+  // the values absorb model error (e.g. pins standing in for gripper clamps) and their std
+  // understates it.
+  constexpr double kEstimatedNoiseVarianceLimit = 2.0;  // the model's error as large as the noise
+  const int dof = fit.noise_residuals - static_cast<int>(fit.names.size());
+  if (fit.marker_sigma > 0.0 && dof > 0 && std::isfinite(fit.residual_variance)) {
     const VarianceBand band = ResidualVarianceBand(dof);
-    if (fit.residual_variance > band.high) {
-      char text[400];
+    const double limit = fit.marker_sigma_estimated ? kEstimatedNoiseVarianceLimit : band.high;
+    if (fit.residual_variance > limit) {
+      char text[480];
       std::snprintf(text, sizeof(text),
-                    "residual variance %.3g x the marker noise (expected %.2g to %.2g for %d "
-                    "degrees of freedom): the model does not explain the recording to its "
-                    "noise (held points not as recorded? --marker-sigma too small?); the "
-                    "values carry model error",
-                    fit.residual_variance, band.low, band.high, dof);
+                    "residual variance %.3g x the marker noise (%.3g m, %s; expected %.2g to "
+                    "%.2g for %d degrees of freedom%s): the model does not explain the "
+                    "recordings to their noise (held points not as recorded? --marker-sigma "
+                    "too small?); the values carry model error",
+                    fit.residual_variance, fit.marker_sigma,
+                    fit.marker_sigma_estimated ? "estimated from the recordings" : "--marker-sigma",
+                    band.low, band.high, dof,
+                    fit.marker_sigma_estimated ? ", at most 2 with an estimated noise" : "");
       run->residual_warning = text;
       run->warnings.push_back(text);
       run->misfit = true;
@@ -158,6 +221,10 @@ bool RollOut(const Experiment& experiment, const RolloutRunOptions& options, con
   csv = "recording,frame,t,marker,s,held,observed_x,observed_y,observed_z,x,y,z\n";
   double sum_all = 0.0, sum_predicted = 0.0;
   const size_t count = run->recordings.size();
+  run->table = "recording,file,status,frames,mae_predicted_m,mae_all_m,worst_marker,"
+               "worst_marker_mae_m,reason\n";
+  run->over_time = "recording,frame,t,mae_predicted_m,max_error_m,worst_marker\n";
+  int ran = 0;
   for (size_t r = 0; r < count; ++r) {
     const MarkerRecording& rec = run->recordings[r];
     RolloutResult result;
@@ -170,10 +237,51 @@ bool RollOut(const Experiment& experiment, const RolloutRunOptions& options, con
     } catch (const std::invalid_argument& e) {
       throw InputError(rec.file, 0, "", e.what());
     }
+    auto field = [](const std::string& text) {  // a CSV field: quoted, quotes doubled
+      std::string q = "\"";
+      for (char ch : text) q += ch == '"' ? std::string("\"\"") : std::string(1, ch == '\n' ? ' ' : ch);
+      return q + "\"";
+    };
     if (!result.ok) {
-      run->error = rec.file + ": " + result.reason;
-      return false;
+      // The others still run and are written; the run names the failure.
+      run->failures.push_back(rec.file + ": " + result.reason);
+      run->table += std::to_string(r) + "," + field(rec.file) + ",failed,,,,,," +
+                    field(result.reason) + "\n";
+      run->results.push_back(std::move(result));
+      continue;
     }
+    {
+      // Each predicted marker's error over the frames (mean |coordinate error|), the worst one.
+      const int M = static_cast<int>(result.marker_s.size());
+      std::vector<double> sum(M, 0.0);
+      std::vector<int> seen(M, 0);
+      for (size_t k = 1; k < result.predicted.size(); ++k) {
+        double frame_sum = 0.0, frame_max = 0.0;
+        int frame_n = 0, frame_worst = -1;
+        for (int m = 0; m < M; ++m) {
+          if (result.held[m] || !rec.frames[k].col(m).allFinite()) continue;
+          const Eigen::Vector3d d = result.predicted[k].col(m) - rec.frames[k].col(m);
+          sum[m] += d.cwiseAbs().sum() / 3.0, ++seen[m];
+          frame_sum += d.cwiseAbs().sum() / 3.0, ++frame_n;
+          if (d.norm() > frame_max) frame_max = d.norm(), frame_worst = m;
+        }
+        run->over_time += std::to_string(r) + "," + std::to_string(k) + "," +
+                          FormatDouble(k * rec.frame_interval) + "," +
+                          (frame_n ? FormatDouble(frame_sum / frame_n) : std::string()) + "," +
+                          (frame_n ? FormatDouble(frame_max) : std::string()) + "," +
+                          (frame_worst >= 0 ? std::to_string(frame_worst) : std::string()) + "\n";
+      }
+      int worst = -1;
+      for (int m = 0; m < M; ++m)
+        if (seen[m] && (worst < 0 || sum[m] / seen[m] > sum[worst] / seen[worst])) worst = m;
+      run->table += std::to_string(r) + "," + field(rec.file) + ",ok," +
+                    std::to_string(result.predicted.size()) + "," +
+                    FormatDouble(result.mae_predicted) + "," + FormatDouble(result.mae_all) + "," +
+                    (worst >= 0 ? std::to_string(worst) + "," + FormatDouble(sum[worst] / seen[worst])
+                                : std::string(",")) +
+                    ",\n";
+    }
+    ++ran;
     auto num = [](double v) { return std::isfinite(v) ? FormatDouble(v) : std::string(); };
     for (size_t k = 0; k < result.predicted.size(); ++k) {
       for (int m = 0; m < static_cast<int>(result.marker_s.size()); ++m) {
@@ -198,8 +306,8 @@ bool RollOut(const Experiment& experiment, const RolloutRunOptions& options, con
     }
     run->results.push_back(std::move(result));
   }
-  run->error_all = sum_all / static_cast<double>(count);
-  run->error_predicted = sum_predicted / static_cast<double>(count);
+  run->error_all = sum_all / static_cast<double>(std::max(ran, 1));
+  run->error_predicted = sum_predicted / static_cast<double>(std::max(ran, 1));
   return true;
 }
 
@@ -229,6 +337,8 @@ void WriteOutputs(const Experiment& experiment, const RolloutRunOptions& options
   StagedDirectory out(options.output_dir);
   out.SetInputs(inputs);
   out.Write("rollout.csv", run->csv, "output file name");
+  out.Write("recordings.csv", run->table, "output file name");
+  out.Write("rollout_error.csv", run->over_time, "output file name");
   if (!run->fit_text.empty()) out.Write("motion_fit.json", run->fit_text, "output file name");
   if (report_out)
     CommitAll({report_out.get(), &out});
@@ -276,6 +386,11 @@ RolloutRun Rollout(const Experiment& experiment, std::vector<MarkerRecording> re
     std::snprintf(line, sizeof(line), "%s = %.6g from ", name.c_str(), value);
     Note(options, line + options.parameters_path);
   }
+  if (!options.parameters_path.empty() &&
+      ReadMotionFitRestShape(options.parameters_path, scene.rod.length, &scene.rod.rest_curvature_s,
+                             &scene.rod.rest_curvature_profile))
+    Note(options, "rest shape (" + std::to_string(scene.rod.rest_curvature_s.size()) +
+                      " knots) from " + options.parameters_path);
   // Before the fit, so its sensitivities see the twist damping as the constant it is.
   if (DefaultTwistDamping(&scene.material)) {
     char line[256];

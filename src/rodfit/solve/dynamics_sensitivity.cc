@@ -31,10 +31,14 @@ double LogRatio(double from, double to, double log_factor) {
 // The internal damping matrix at q with each viscosity scaled by its factor (1, 1, 1: the
 // stepper's C; a direction's factors: dC/dlog eta along it). Held rows carry none, as in
 // DynamicsStepper::AssembleDamping.
+// `rest_curvature` (when given) replaces the model's: the matrix is the Hessian of the energy
+// with scaled stiffnesses, which is affine in the rest curvature too.
 void DampingMatrix(const RodModel& model, const RodState& q, const std::vector<char>& held,
-                   double bend, double twist, double stretch, BandedSymmetric* C) {
+                   double bend, double twist, double stretch, BandedSymmetric* C,
+                   const std::vector<Vec3>* rest_curvature = nullptr) {
   const Material& m = model.material();
   EnergyTerms terms = EnergyTerms::Elastic();
+  terms.rest_curvature = rest_curvature;
   terms.bend1 = bend * m.bend_damping / m.B1();
   terms.bend2 = bend * m.bend_damping / m.B2();
   terms.twist = twist * m.twist_damping / m.twist_stiffness;
@@ -105,17 +109,52 @@ void WeightGradient(const RodModel& model, const std::vector<char>& held, VecX* 
   }
 }
 
-// The stiffness part of dg/dp along a direction: the gradient of the elastic energy with each
-// stiffness factor the direction's (U is linear in each).
-void StiffnessGradient(const RodModel& model, const RodState& q, const ParameterDirection& d, VecX* g) {
+}  // namespace
+
+namespace {
+// A direction's rest curvature on the model's bending vertices (false: none).
+bool RestCurvatureOnVertices(const RodModel& model, const ParameterDirection& d,
+                             std::vector<Vec3>* delta) {
+  if (d.rest_curvature_profile.empty()) return false;
+  const std::vector<double>& s = model.arc_lengths();
+  delta->resize(s.size());
+  bool any = false;
+  for (size_t i = 0; i < s.size(); ++i) {
+    (*delta)[i] = RestCurvatureProfileAt(d.rest_curvature_s, d.rest_curvature_profile, s[i]);
+    any = any || (*delta)[i].squaredNorm() > 0.0;
+  }
+  return any;
+}
+}  // namespace
+
+void ParameterGradient(const RodModel& model, const RodState& q, const ParameterDirection& d,
+                       VecX* g) {
   EnergyTerms terms = EnergyTerms::Only(-1);
   terms.bend1 = d.bend1;
   terms.bend2 = d.bend2;
   terms.twist = d.twist;
   terms.stretch = d.stretch;
   AssembleGradient(model, q, terms, g);
+  // U = sum 1/2 B (kappa - kappa°)^2 l: d grad U / d kappa° [delta] is grad U at kappa° = delta
+  // less grad U at kappa° = 0, the bend and twist stiffnesses at their values.
+  std::vector<Vec3> delta;
+  if (!RestCurvatureOnVertices(model, d, &delta)) return;
+  const std::vector<Vec3> zero(delta.size(), Vec3::Zero());
+  EnergyTerms bend = EnergyTerms::Only(-1);
+  bend.bend1 = bend.bend2 = bend.twist = 1.0;
+  VecX with, without;
+  bend.rest_curvature = &delta;
+  AssembleGradient(model, q, bend, &with);
+  bend.rest_curvature = &zero;
+  AssembleGradient(model, q, bend, &without);
+  *g += with - without;
 }
 
+namespace {
+// The parameter part of dg/dp along a direction (ParameterGradient).
+void StiffnessGradient(const RodModel& model, const RodState& q, const ParameterDirection& d, VecX* g) {
+  ParameterGradient(model, q, d, g);
+}
 }  // namespace
 
 ParameterDirection ParameterDirection::Between(const Material& a, double density_a,
@@ -277,6 +316,7 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   Eigen::MatrixXd rhs(N, m);
   Eigen::MatrixXd dz_all = Eigen::MatrixXd::Zero(N, m);  // the damping targets' derivatives
   VecX dy, dz, col, tmp;
+  std::vector<Vec3> rest_delta, rest_zero;
   for (int k = 0; k < m; ++k) {
     const ParameterDirection& dir = directions[k];
     const VecX dq = ds->dq.col(k);
@@ -318,6 +358,14 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
                     dir.stretch_damping, &Cp);
       col -= c * Cp.Multiply(w);
     }
+    // The internal damping's matrix is a Hessian of the energy (DampingMatrix): affine in the
+    // rest curvature, its derivative the difference of the matrices with the direction's and none.
+    if (internal_damping_ && RestCurvatureOnVertices(model_, dir, &rest_delta)) {
+      rest_zero.assign(rest_delta.size(), Vec3::Zero());
+      DampingMatrix(model_, before.q, held_, 1.0, 1.0, 1.0, &Cp, &rest_delta);
+      DampingMatrix(model_, before.q, held_, 1.0, 1.0, 1.0, &Cm, &rest_zero);
+      col -= c * (Cp.Multiply(w) - Cm.Multiply(w));
+    }
     if (dir.density != 0.0) {
       col -= dir.density * (a * mass_.cwiseProduct(d - y) + weights);
     }
@@ -358,6 +406,7 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   Eigen::MatrixXd next = rhs;
   factor.SolveInPlace(next);
   bool settled = false;
+  std::vector<double> last_change(m, 0.0);  // per column, the previous pass's relative change
   VecX extra;
   for (int pass = 0; pass < 30 && !settled; ++pass) {
     TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
@@ -372,11 +421,18 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
     for (int r = 0; r < N; ++r)
       if (held_[r]) again.row(r).setZero();
     factor.SolveInPlace(again);
-    // The central differences' round-off (~1e-10 relative) bounds how far the passes settle.
+    // The central differences' round-off (~1e-10 relative; ~1e-9 in a rod curved at rest, which
+    // twists as it bends) bounds how far the passes settle: a column has settled when its change
+    // is below 1e-9 of it, or below 1e-7 of it and no longer shrinking (the round-off's floor,
+    // where the passes contract by 1e-3 or better until they reach it).
     settled = true;
-    for (int k = 0; k < m; ++k)
-      settled = settled && (again.col(k) - next.col(k)).cwiseAbs().maxCoeff() <=
-                               1e-9 * next.col(k).cwiseAbs().maxCoeff();
+    for (int k = 0; k < m; ++k) {
+      const double change = (again.col(k) - next.col(k)).cwiseAbs().maxCoeff() /
+                            std::max(next.col(k).cwiseAbs().maxCoeff(), 1e-300);
+      const bool floor = pass > 0 && change <= 1e-7 && change >= 0.1 * last_change[k];
+      settled = settled && (change <= 1e-9 || floor);
+      last_change[k] = change;
+    }
     next = again;
   }
   if (!settled || !next.allFinite()) {

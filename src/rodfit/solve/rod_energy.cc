@@ -332,6 +332,7 @@ double PotentialEnergy(const RodModel& model, const RodState& state, const Energ
     for (int i = 0; i < nb; ++i) {
       GatherVertexStencil(model, state, i, q, &c, nullptr);
       c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
+      c.rest_curvature = terms.RestCurvature(model, i);
       energy += VertexEnergy<double>(c, q);
     }
   }
@@ -352,7 +353,7 @@ double PotentialEnergyFreshFrames(const RodModel& model, const RodState& state,
     for (int i = 0; i < nb; ++i) {
       const FreshStencilGeometry g(fr[i], fr[i + 1]);
       c.voronoi_length = model.voronoi_length(i);
-      c.rest_curvature = model.rest_curvature(i);
+      c.rest_curvature = terms.RestCurvature(model, i);
       const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
       const double theta_f = (i == n) ? state.end_theta : state.theta[i];
       energy += StencilEnergy<double>(c, g.te, g.tf, g.kb, g.d1e + g.d1f, g.d2e + g.d2f,
@@ -403,10 +404,11 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
     if (fresh) {
       c = stiffness;
       c.voronoi_length = model.voronoi_length(i);
-      c.rest_curvature = model.rest_curvature(i);
+      c.rest_curvature = terms.RestCurvature(model, i);
     } else {
       GatherVertexStencil(model, state, i, q, &c, &dof);
       c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
+      c.rest_curvature = terms.RestCurvature(model, i);
     }
     const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
     const double theta_f = (i == n) ? state.end_theta : state.theta[i];

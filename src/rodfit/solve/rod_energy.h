@@ -36,6 +36,14 @@ struct EnergyTerms {
   /// Hold the held vertices (zero their gradient, identity rows in the Hessian). Off only to
   /// read the constraints' reactions from the gradient.
   bool hold = true;
+  /// Per bending vertex, the rest curvature to use instead of the model's (null: the model's).
+  /// The gradient is affine in it, so the difference of two gradients with the same other terms
+  /// is exactly the derivative along the difference of rest curvatures (sensitivities of a
+  /// fitted rest shape).
+  const std::vector<Vec3>* rest_curvature = nullptr;
+  const Vec3& RestCurvature(const RodModel& model, int i) const {
+    return rest_curvature ? (*rest_curvature)[i] : model.rest_curvature(i);
+  }
 
   bool AnyBendTwist() const { return bend1 != 0.0 || bend2 != 0.0 || twist != 0.0; }
   /// Only the springs of zones with parameter `name` ("" = spring_stiffness), no loads.
