@@ -259,6 +259,7 @@ TEST(Recording, ARecordingOfAnotherRodIsRefused) {
   MarkerRecording stretched = rec;
   stretched.frames[3] *= 1.5;
   EXPECT_THAT(error(stretched, 0.95), HasSubstr("r.csv: frame 3: the markers' polyline is"));
+}
 
 // A motion fit's rest shape (motion_fit.json's rest_shape, written by rollout --fit
 // rest_curvature) read back as a rest-curvature profile; a file without one gives none; lists
