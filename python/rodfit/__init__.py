@@ -338,8 +338,11 @@ def rollout(source: Union[PathLike, Mapping[str, Any], Experiment],
     (frames, markers, 3) [m, or mm with unit="mm"], NaN where not seen, which need
     ``frame_rate`` [Hz]. Returns {"recordings": [{"predicted": (frames, markers, 3) [m],
     "marker_s" [m], "held", "mae_all" [m], "mae_predicted" [m], ...}], "fit": motion_fit.json
-    as Python data or None, "error_all" [m], "error_predicted" [m], "warnings", "misfit"}.
-    Raises InputError for bad input, SolveError when a rollout or the fit fails."""
+    as Python data or None, "error_all" [m], "error_predicted" [m], "warnings", "misfit",
+    "failures" (per recording whose rollout failed: "FILE: reason"; the others ran),
+    "fit_not_converged", "fit_undetermined"} -- what ``rodfit rollout`` exits 5, 3 and 4 for,
+    each also issued as a FitWarning (a fit that did not converge returns its best point).
+    Raises InputError for bad input, SolveError when every rollout fails or the fit cannot run."""
     ex = experiment(source, base_dir=base_dir)
     if unit not in ("m", "mm"):
         raise ValueError(f"unit: must be 'm' or 'mm', got {unit!r}")
@@ -356,4 +359,9 @@ def rollout(source: Union[PathLike, Mapping[str, Any], Experiment],
         raise SolveError(run["error"])
     for text in run["warnings"]:
         warnings.warn(text, FitWarning, stacklevel=2)
+    for text in run["failures"]:
+        warnings.warn("rollout failed: " + text, FitWarning, stacklevel=2)
+    if run["fit_not_converged"] and run["fit"] is not None:
+        warnings.warn("the fit did not converge: " + str(run["fit"].get("message", "")) +
+                      " (its best point returned)", FitWarning, stacklevel=2)
     return run

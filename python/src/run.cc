@@ -240,6 +240,9 @@ py::dict RunRollout(const rodfit::Experiment& scene, const std::vector<std::stri
   out["warnings"] = warnings;
   out["notes"] = notes;
   out["misfit"] = run.misfit;
+  out["failures"] = run.failures;
+  out["fit_not_converged"] = run.fit_not_converged;
+  out["fit_undetermined"] = run.fit_undetermined;
   out["fit"] = run.fit ? JsonToPython(run.fit_json.dump()) : py::object(py::none());
   py::list results;
   for (size_t r = 0; r < run.results.size(); ++r) {

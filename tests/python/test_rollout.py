@@ -61,18 +61,27 @@ def test_rollout_from_an_array_equals_from_its_file(source_dir, recording):
 
 def test_rollout_fit_equals_cli(tmp_path, source_dir, cli, recording):
     scene = source_dir / "data" / "scenes" / "cable_drive.yaml"
-    run(cli, "rollout", scene, recording, "-o", tmp_path / "cli", "-q", "--fit",
-        "bend_stiffness")
+    # Exit 5: the noise-free recording's estimated noise is round-off, which no held-end model
+    # explains; the fit is written all the same.
+    done = run(cli, "rollout", scene, recording, "-o", tmp_path / "cli", "-q", "--fit",
+               "bend_stiffness", check=False)
+    assert done.returncode in (0, 5), done.stderr
     expected = json.loads((tmp_path / "cli" / "motion_fit.json").read_text())
     result = rodfit.rollout(scene, [recording], fit=["bend_stiffness"])
     assert expected["converged"] and expected["evaluations"] > 1
     assert_documents_match(expected, result["fit"])
 
 
-def test_rollout_fit_that_does_not_converge_raises(tmp_path, source_dir, cli, recording):
+def test_rollout_fit_that_does_not_converge_returns_its_best_point(tmp_path, source_dir, cli, recording):
     scene = source_dir / "data" / "scenes" / "cable_drive.yaml"
     done = run(cli, "rollout", scene, recording, "-o", tmp_path / "cli", "-q", "--fit",
                "bend_stiffness", "--max-evaluations", 3, check=False)
-    assert done.returncode == 1 and "did not converge" in done.stderr
-    with pytest.raises(rodfit.SolveError, match="did not converge"):
-        rodfit.rollout(scene, [recording], fit=["bend_stiffness"], max_evaluations=3)
+    # Exit 4 (not converged, its best point written), or 5 where the misfit verdict (the
+    # higher status) applies too.
+    assert done.returncode in (4, 5) and "before converging" in done.stderr, done.stderr
+    expected = json.loads((tmp_path / "cli" / "motion_fit.json").read_text())
+    assert not expected["converged"]
+    with pytest.warns(rodfit.FitWarning, match="did not converge"):
+        result = rodfit.rollout(scene, [recording], fit=["bend_stiffness"], max_evaluations=3)
+    assert result["fit_not_converged"]
+    assert_documents_match(expected, result["fit"])

@@ -185,7 +185,8 @@ struct RolloutRun {
   bool misfit = false;
   /// The fit did not converge (its best point kept and written) or a value is not determined.
   bool fit_not_converged = false, fit_undetermined = false;
-  /// Per recording whose rollout failed: "FILE: reason" (the others ran and are written).
+  /// Per recording whose rollout failed: "FILE: reason" (the others ran and are written; when
+  /// none ran, ok is false, error names the first failure and nothing is written).
   std::vector<std::string> failures;
   /// recordings.csv (one row per recording) and rollout_error.csv (the error per frame).
   std::string table, over_time;

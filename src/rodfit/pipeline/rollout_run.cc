@@ -402,6 +402,14 @@ RolloutRun Rollout(const Experiment& experiment, std::vector<MarkerRecording> re
   }
   if (!options.fit.empty() && !FitToRecordings(experiment, options, &scene, &run)) return run;
   if (!RollOut(experiment, options, scene, &run)) return run;
+  if (!run.recordings.empty() && run.failures.size() == run.recordings.size()) {
+    // Nothing ran: an error, and nothing written (a batch writes the recordings that ran).
+    run.error = run.failures.size() == 1 ? run.failures.front()
+                                         : "every recording failed: " + run.failures.front() +
+                                               " (and " + std::to_string(run.failures.size() - 1) +
+                                               " more)";
+    return run;
+  }
   if (!options.output_dir.empty()) WriteOutputs(experiment, options, &run);
   run.ok = true;
   return run;
