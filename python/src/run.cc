@@ -211,16 +211,7 @@ py::dict RunRollout(const rodfit::Experiment& scene, const std::vector<std::stri
   options.output_dir = output;
   options.report_dir = report_dir;
   if (!report_dir.empty())
-    options.write_report = [](rodfit::StagedDirectory* out, const rodfit::RolloutRun& run) {
-      rodfit::RolloutReportInput report;
-      report.scene_path = run.scene_path;
-      for (size_t r = 0; r < run.results.size(); ++r)
-        report.recordings.push_back({run.recordings[r].file, run.recordings[r].frame_interval,
-                                     run.recordings[r].frames, run.results[r]});
-      report.fit = run.fit.get();
-      report.warnings = run.warnings;
-      return rodfit::WriteRolloutReport(out, report);
-    };
+    options.write_report = rodfit::WriteRolloutRunReport;
   std::vector<std::string> notes;
   options.note = [&notes](const std::string& line) { notes.push_back(line); };
   rodfit::RolloutRun run;

@@ -146,16 +146,7 @@ int RunRollout(int argc, char** argv) {
   }
   options.output_dir = output_dir;
   options.report_dir = report_dir;
-  options.write_report = [](rodfit::StagedDirectory* out, const rodfit::RolloutRun& run) {
-    rodfit::RolloutReportInput report;
-    report.scene_path = run.scene_path;
-    for (size_t r = 0; r < run.results.size(); ++r)
-      report.recordings.push_back({run.recordings[r].file, run.recordings[r].frame_interval,
-                                   run.recordings[r].frames, run.results[r]});
-    report.fit = run.fit.get();
-    report.warnings = run.warnings;
-    return rodfit::WriteRolloutReport(out, report);
-  };
+  options.write_report = rodfit::WriteRolloutRunReport;
   // On a terminal, one updating line while the fit and the rollouts run (io/progress.h); it is
   // erased before a line is printed.
   rodfit::ProgressLine progress(quiet, STDERR_FILENO);

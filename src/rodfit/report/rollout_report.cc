@@ -370,4 +370,15 @@ std::vector<std::string> WriteRolloutReport(StagedDirectory* out, const RolloutR
   return own;
 }
 
+std::vector<std::string> WriteRolloutRunReport(StagedDirectory* out, const RolloutRun& run) {
+  RolloutReportInput report;
+  report.scene_path = run.scene_path;
+  for (size_t r = 0; r < run.results.size(); ++r)
+    report.recordings.push_back({run.recordings[r].file, run.recordings[r].frame_interval,
+                                 run.recordings[r].frames, run.results[r]});
+  report.fit = run.fit.get();
+  report.warnings = run.warnings;
+  return WriteRolloutReport(out, report);
+}
+
 }  // namespace rodfit

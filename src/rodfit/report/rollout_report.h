@@ -13,6 +13,7 @@
 
 #include "rodfit/fit/motion_fit.h"
 #include "rodfit/io/output_dir.h"
+#include "rodfit/pipeline/run.h"
 #include "rodfit/solve/rollout.h"
 
 namespace rodfit {
@@ -36,5 +37,9 @@ struct RolloutReportInput {
 /// Stages DIR/index.html and DIR/figures/*.svg in `out`. Returns the report's own warnings (e.g.
 /// written without its 3-D views), which the caller prints.
 std::vector<std::string> WriteRolloutReport(StagedDirectory* out, const RolloutReportInput& input);
+
+/// The report of a rollout run (rodfit/pipeline/run.h): its recordings, results, fit and warnings
+/// through WriteRolloutReport. What RolloutRunOptions::write_report takes, for the CLI and Python.
+std::vector<std::string> WriteRolloutRunReport(StagedDirectory* out, const RolloutRun& run);
 
 }  // namespace rodfit
