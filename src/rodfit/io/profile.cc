@@ -130,7 +130,8 @@ std::string FileDigest(const std::string& path) {
 
 // One function, though long: it writes the profile's keys in the order docs/formats.md lists
 // them, so that the code reads as the format.
-nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const FitResult& r) {
+nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const FitResult& r,
+                           const ResidualCheck& check) {
   using nlohmann::json;
   json p;
   p[pf::kFormat] = pf::kFormatName;
@@ -228,7 +229,6 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   fit["final_cost"] = r.final_cost;
   fit["num_residuals"] = r.num_residuals;
   fit["residual_variance"] = r.residual_variance;
-  const ResidualCheck check = CheckResiduals(r, options);
   fit["residual_variance_band"] = {check.band.low, check.band.high};
   fit["residuals_explained"] = !check.above;
   fit["sigmas_trusted"] = options.trusted_sigmas;

@@ -9,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "rodfit/fit/motion_fit.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
 
 namespace rodfit {
@@ -432,16 +432,13 @@ std::vector<std::pair<std::string, double>> ReadMotionFitValues(const std::strin
     throw InputError(path, JsonKeyLine(text, "parameters"), "parameters",
                      "a motion fit file has a parameters object with each fitted value (written "
                      "by rollout --fit)");
-  Scene probe;
   std::vector<std::pair<std::string, double>> values;
   for (const auto& [name, entry] : doc["parameters"].items()) {
     const int line = JsonKeyLine(text, name, params_at == std::string::npos ? 0 : params_at);
-    try {
-      MotionParameter(name, probe);
-    } catch (const std::invalid_argument&) {
+    const MaterialParameterInfo* row = FindMaterialParameter(name);
+    if (!row || !InMotionModel(*row))
       throw InputError(path, line, "parameters." + ClipForMessage(name),
                        "not a parameter of the motion (bend_stiffness, damping, ...)");
-    }
     if (!entry.is_object() || !entry.contains("value") || !entry["value"].is_number() ||
         !(entry["value"].get<double>() > 0.0) || !std::isfinite(entry["value"].get<double>()))
       throw InputError(path, line, "parameters." + name + ".value", "must be a number > 0");

@@ -12,6 +12,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/output_dir.h"
+#include "rodfit/pipeline/image_files.h"
 #include "rodfit/pipeline/observation_kind.h"
 #include "rodfit/solve/case_dynamics.h"
 #include "rodfit/synth/synth_entry.h"
