@@ -31,12 +31,14 @@ namespace {
 struct RolloutArgs {
   std::string scene_path, output_dir, held_text = "0,1,-2,-1", initial = "equilibrium", fit_text;
   std::vector<std::string> recording_paths;
-  int max_evaluations = 150;
+  // The fit's settings start at the library's defaults (MotionFitOptions, the one place each is
+  // declared); the help states them from there.
+  int max_evaluations = rodfit::MotionFitOptions().max_evaluations;
   double frame_rate = 0.0;
   int smooth_frames = 5;
   std::string held_ends = "pins";
   std::string method = "lm";
-  double marker_sigma = 0.0;
+  double marker_sigma = rodfit::MotionFitOptions().marker_sigma;
   std::string unit = "m";
   std::string report_dir;
   bool quiet = false;
@@ -44,6 +46,13 @@ struct RolloutArgs {
   double fit_smoothness = rodfit::MotionFitOptions().rest_curvature_smoothness;
   std::string parameters_path;
 };
+
+// A default as the help states it: the shortest text that reads back as the number.
+std::string Shortest(double v) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", v);
+  return text;
+}
 
 void DeclareOptions(CLI::App& app, RolloutArgs* a) {
   app.add_option("scene", a->scene_path, "scene YAML with a dynamics: block (docs/formats.md)")->required();
@@ -63,7 +72,9 @@ void DeclareOptions(CLI::App& app, RolloutArgs* a) {
                  "their tangents from the first frames, roll by the minimal-twist frame) or "
                  "free-roll (as grippers, the end free to turn about its tangent)")
       ->check(CLI::IsMember({"grippers", "free-roll", "pins"}));
-  app.add_option("--max-evaluations", a->max_evaluations, "rollouts of every recording the fit may take")
+  app.add_option("--max-evaluations", a->max_evaluations,
+                 "rollouts of every recording the fit may take (default " +
+                     std::to_string(a->max_evaluations) + ")")
       ->check(CLI::Range(1, 100000));
   app.add_option("--method", a->method,
                  "lm (default): least squares with the rollout's exact sensitivities, with "
@@ -83,11 +94,12 @@ void DeclareOptions(CLI::App& app, RolloutArgs* a) {
                  "recording a 3-D view over time and each marker's path) and its figures");
   app.add_flag("-q,--quiet", a->quiet, "no progress line");
   app.add_option("--rest-knots", a->rest_knots,
-                 "with --fit rest_curvature: knots evenly along the rod (default 5)")
+                 "with --fit rest_curvature: knots evenly along the rod (default " +
+                     std::to_string(a->rest_knots) + ")")
       ->check(CLI::Range(3, 200));
   app.add_option("--rest-smoothness", a->fit_smoothness,
                  "[1/m] with --fit rest_curvature: the std of the curvature's second difference "
-                 "over neighbouring knots (default 2)")
+                 "over neighbouring knots (default " + Shortest(a->fit_smoothness) + ")")
       ->check(CLI::Range(1e-9, 1e9));
   app.add_option("--parameters", a->parameters_path,
                  "a motion_fit.json of rollout --fit on other recordings of the rod: its values "
