@@ -178,7 +178,10 @@ TEST(HeldPointNuisance, PriorErrorsNameTheirKeyAndRange) {
 // The critical twist's derivatives by a moved point or gravity are not modelled: refused.
 TEST(HeldPointNuisance, RefusedWithACriticalTwistOfTheSameCase) {
   TempDir dir;
-  std::string text = Loop(20, "      - {type: critical_twist, value_deg: 800, sigma_deg: 2}\n");
+  dir.Write("markers.csv", LoopMarkers());
+  std::string text = Loop(20,
+                          "      - {type: markers3d, file: markers.csv, sigma: 1.0e-3}\n"
+                          "      - {type: critical_twist, value_deg: 800, sigma_deg: 2}\n");
   text.replace(text.find("gravity: [0, 0, -9.81]"), 22,
                "gravity: [0, 0, -9.81]\ngravity_prior_deg: 5");
   const FitInput in = LoadLoop(dir, text);
@@ -211,6 +214,9 @@ std::string Frame(const char* key, const Eigen::Vector3d& p, const char* extra) 
 // nominal points and gravity with position_prior: 0.005 on both clamps and gravity_prior_deg: 5,
 // and starts B at 1.6 times the truth. Expected: B within 3 sigma, each offset and the tilt
 // within 3 sigma; without the priors, the same data fitted at the nominal points is biased.
+// Measured (60 segments, this machine): with the priors B within 1.0 sigma (sigma 1.2-1.3 %),
+// the offsets within 2.2 sigma (sigma 0.4-0.6 mm), the tilt within 0.5 sigma (sigma 0.06-0.16
+// degrees), residual variance 0.94-1.18, 0.12-0.13 s per fit; without them, below.
 TEST(HeldPointNuisance, RecoversStiffnessOffsetsAndTiltOfAPhotographedLoop) {
   const Eigen::Vector3d clamp_mm(2, -1, 1.5), end_mm(-3, 2.5, 2), tilt_deg(3, -2, 0);
   const Eigen::Vector3d g = fit_internal::RotationExp(tilt_deg * kDeg) * Eigen::Vector3d(0, 0, -9.81);
@@ -254,9 +260,15 @@ TEST(HeldPointNuisance, RecoversStiffnessOffsetsAndTiltOfAPhotographedLoop) {
                   *b.std, b_sigmas, 100 * (b.value / kB - 1), r.residual_variance, r.iterations,
                   seconds);
       if (!priors) {
-        // The shape error the nuisances explain lands on B (or is left in the residuals).
-        EXPECT_TRUE(std::abs(b_sigmas) > 3.0 || r.residual_variance > 2.0)
-            << "seed " << seed << ": the nominal fit is not biased";
+        // The shape error the nuisances explain is left in the residuals (the chi-square check
+        // fails: measured residual variance 121-128) and lands on B: measured +7.3 and +8.2 %,
+        // 10.7 and 11.8 times its std at the markers' stated sigma (the std reported is scaled up by
+        // the residual variance), against -1.1 and -1.3 % (1 sigma) with the priors.
+        const double trusted_std = *b.std / std::sqrt(r.residual_variance);
+        std::printf("  B off by %.1f times its std at the stated sigmas\n",
+                    std::abs(b.value - kB) / trusted_std);
+        EXPECT_GT(r.residual_variance, 2.0) << "seed " << seed;
+        EXPECT_GT(std::abs(b.value - kB), 3.0 * trusted_std) << "seed " << seed;
         continue;
       }
       EXPECT_LT(std::abs(b_sigmas), 3.0) << "seed " << seed;
