@@ -172,17 +172,19 @@ nlohmann::json FitJson(const Experiment& e, const FitOptions& options, const Fit
     rms.push_back(entry);
   }
   fit["rms"] = rms;
-  // The cases' nuisances (fitted held frames): per case, never part of the material.
+  // The cases' nuisances (fitted held frames, points, gravity): per case, never part of the
+  // material. Keys carry the unit: rotation_deg / std_deg / prior_deg, offset_m / std_m / prior_m.
   if (!r.nuisances.empty()) {
     json cases = json::array();
     for (const NuisanceEstimate& n : r.nuisances) {
-      json rotation = json::array(), std_deg = json::array();
+      json value = json::array(), std_dev = json::array();
       for (int i = 0; i < 3; ++i) {
-        rotation.push_back(n.rotation_deg[i]);
-        std_deg.push_back(std::isfinite(n.std_deg[i]) ? json(n.std_deg[i]) : json(nullptr));
+        value.push_back(n.value[i]);
+        std_dev.push_back(std::isfinite(n.std[i]) ? json(n.std[i]) : json(nullptr));
       }
-      cases.push_back({{"case", n.case_name}, {"held", n.held}, {"rotation_deg", rotation},
-                       {"std_deg", std_deg}, {"prior_deg", n.prior_deg}});
+      cases.push_back({{"case", n.case_name}, {"held", n.held},
+                       {n.quantity + "_" + n.unit, value}, {"std_" + n.unit, std_dev},
+                       {"prior_" + n.unit, n.prior}});
     }
     fit["cases"] = cases;
   }
