@@ -87,7 +87,7 @@ TEST(ProgressLine, SilentWhenTheDescriptorIsNotATerminal) {
   std::fclose(file);
 }
 
-// Not a terminal (a log, a pipe, CI): after the plain delay, plain lines "rodfit: TEXT  ELAPSED
+// Not a terminal (a log, a pipe, CI): after the plain delay, plain lines "rodfit: progress: TEXT  ELAPSED
 // [ETA ...]" each ended by a newline, at most one per plain interval, none erased; quiet: none.
 TEST(ProgressLine, PlainLinesWhenNotATerminalAfterTheDelay) {
   int fds[2];
@@ -106,9 +106,9 @@ TEST(ProgressLine, PlainLinesWhenNotATerminalAfterTheDelay) {
   close(fds[1]);
   const std::string out = Drain(fds[0]);
   close(fds[0]);
-  EXPECT_THAT(out, StartsWith("rodfit: simulate: 40 % (case swing, t = 0.4 s of 1 s)  "));
+  EXPECT_THAT(out, StartsWith("rodfit: progress: simulate: 40 % (case swing, t = 0.4 s of 1 s)  "));
   EXPECT_THAT(out, HasSubstr("ETA "));
-  EXPECT_THAT(out, HasSubstr("\nrodfit: simulate: 80 % (case swing, t = 0.8 s of 1 s)  "));
+  EXPECT_THAT(out, HasSubstr("\nrodfit: progress: simulate: 80 % (case swing, t = 0.8 s of 1 s)  "));
   EXPECT_THAT(out, Not(HasSubstr("\r")));
   ASSERT_FALSE(out.empty());
   EXPECT_EQ(out.back(), '\n');
@@ -125,7 +125,7 @@ TEST(ProgressLine, PlainLinesWhenNotATerminalAfterTheDelay) {
   close(fds[1]);
   const std::string one = Drain(fds[0]);
   close(fds[0]);
-  EXPECT_THAT(one, StartsWith("rodfit: step 1  "));
+  EXPECT_THAT(one, StartsWith("rodfit: progress: step 1  "));
   EXPECT_EQ(std::count(one.begin(), one.end(), '\n'), 1) << one;
 }
 

@@ -71,7 +71,7 @@ void ProgressLine::Update(const std::string& text, double fraction_done) {
     if (drawn_ &&
         std::chrono::duration<double>(now - last_draw_).count() < options_.plain_interval_seconds)
       return;
-    std::string line = "rodfit: " + text + "  " + FormatDuration(elapsed);
+    std::string line = kPlainProgressPrefix + text + "  " + FormatDuration(elapsed);
     if (std::isfinite(fraction_done) && fraction_done >= 0.01 && fraction_done <= 1.0)
       line += "  ETA " + FormatDuration(elapsed * (1.0 - fraction_done) / fraction_done);
     for (char& c : line)

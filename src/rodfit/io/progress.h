@@ -2,8 +2,8 @@
 // steps; sequences and benchmarks): the caller's text, the elapsed time and, when the work's size
 // is known, an ETA from the rate so far. On a terminal, one status line redrawn in place with a
 // carriage return. On anything else (a log file, a pipe, CI) only work that lasts longer than a
-// few seconds says anything: plain lines, "rodfit: TEXT  ELAPSED  ETA ...", one every few
-// seconds, so that a long run's log shows it is alive and a short run's stderr holds only its
+// few seconds says anything: plain lines, "rodfit: progress: TEXT  ELAPSED  ETA ...", one
+// every few seconds, so that a long run's log shows it is alive and a short run's stderr holds only its
 // messages. Nothing at all when the user asked for quiet (`-q`).
 #pragma once
 
@@ -12,6 +12,10 @@
 #include <string>
 
 namespace rodfit {
+
+/// How a plain progress line starts: a reader of a log (or a test of the messages) tells them
+/// from the messages by it.
+inline constexpr const char* kPlainProgressPrefix = "rodfit: progress: ";
 
 class ProgressLine {
  public:
