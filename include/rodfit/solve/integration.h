@@ -48,7 +48,9 @@ struct SensitivityCarry {
 /// grow beyond its start E0 plus the work W done on it since — by the held points' and clamps'
 /// motion and by the loads beyond Pi (a tip load series, a point force, moment loads) — by more
 /// than this fraction of the run's energy scale (the largest T, the largest |Pi - Pi0| and the
-/// summed |W| of the steps so far) plus round-off (kEnergyEnvelopeRoundOff of the energies'
+/// summed |W| of the steps so far), plus the trapezoidal rule's uncertainty (half the spread of
+/// its two rectangle rules, summed over the steps: a held point's jump is no false alarm), plus
+/// round-off (kEnergyEnvelopeRoundOff of the energies'
 /// magnitudes). W of a step is the change of Pi its free dofs' motion does not explain, by the
 /// trapezoidal rule over the forces at the step's ends, plus the loads' work: the held points'
 /// reactions times their displacements, without evaluating the reactions. Damping and the

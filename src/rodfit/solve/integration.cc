@@ -60,6 +60,10 @@ class EnergyEnvelope {
     if (stepper_.model().nonconservative() || !StillAndUnloaded(last_.pose, next.pose)) {
       stepper_.Difference(before.q, after.q, &dq_);
       unexplained = next.kinetic - last_.kinetic + 0.5 * (last_.gradient + next.gradient).dot(dq_);
+      // The rule's own uncertainty: half the spread between its two rectangle rules. Small for
+      // a resolved step; large where a held point jumps in one step (a recording's first frame
+      // snapping the held markers), whose work the rule cannot resolve.
+      rule_spread_ += 0.5 * std::abs((next.gradient - last_.gradient).dot(dq_));
     }
     excess_ += unexplained;
     // This step's work: its change of E less what is not accounted for.
@@ -73,7 +77,7 @@ class EnergyEnvelope {
         std::max(largest_potential_change_, std::abs(next.potential - potential0_));
     const double scale = largest_kinetic_ + largest_potential_change_ + work_variation_;
     const double margin =
-        kEnergyEnvelopeMargin * scale +
+        kEnergyEnvelopeMargin * scale + rule_spread_ +
         kEnergyEnvelopeRoundOff * (std::abs(potential0_) + std::abs(next.potential) + kinetic0_ +
                                    next.kinetic + work_variation_);
     last_ = std::move(next);
@@ -114,6 +118,7 @@ class EnergyEnvelope {
   double kinetic0_ = 0.0, potential0_ = 0.0;
   double excess_ = 0.0;          // [J] E - E0 - W
   double work_variation_ = 0.0;  // [J] the sum of |W| of every step
+  double rule_spread_ = 0.0;     // [J] the trapezoidal rule's uncertainty summed over the steps
   double largest_kinetic_ = 0.0, largest_potential_change_ = 0.0;
 };
 
