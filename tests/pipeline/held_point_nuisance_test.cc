@@ -175,6 +175,23 @@ TEST(HeldPointNuisance, PriorErrorsNameTheirKeyAndRange) {
   EXPECT_THAT(LoadError(text), HasSubstr("gravity_prior_deg"));
 }
 
+// A moving scene drives its held points along paths: the priors are the static fit's only.
+TEST(HeldPointNuisance, PriorsRefusedInAMovingScene) {
+  const std::string dynamics =
+      "gravity: [0, 0, -9.81]\ndynamics: {time_step: 1.0e-3, duration: 0.1, integrator: bdf2}";
+  std::string text = Loop(20, "      - {type: critical_twist, value_deg: 800, sigma_deg: 2}\n",
+                          false, test::kEndClamp,
+                          "clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1], "
+                          "position_prior: 0.005}");
+  text.replace(text.find("gravity: [0, 0, -9.81]"), 22, dynamics);
+  EXPECT_THAT(LoadError(text), ::testing::AllOf(HasSubstr("clamp.position_prior"),
+                                                HasSubstr("static scene only")));
+  text = Loop(20, "      - {type: critical_twist, value_deg: 800, sigma_deg: 2}\n");
+  text.replace(text.find("gravity: [0, 0, -9.81]"), 22, dynamics + "\ngravity_prior_deg: 3");
+  EXPECT_THAT(LoadError(text),
+              ::testing::AllOf(HasSubstr("gravity_prior_deg"), HasSubstr("static scene only")));
+}
+
 // The critical twist's derivatives by a moved point or gravity are not modelled: refused.
 TEST(HeldPointNuisance, RefusedWithACriticalTwistOfTheSameCase) {
   TempDir dir;
