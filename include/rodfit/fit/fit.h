@@ -46,8 +46,17 @@ struct FitInput {
 
 enum class RobustLoss { kNone, kHuber, kCauchy, kSoftL1 };
 
-/// The loss as files spell it: none, huber, cauchy, soft_l1.
-const char* RobustLossName(RobustLoss loss);
+/// The loss as files spell it: none, huber, cauchy, soft_l1. Inline: the file formats (io's
+/// experiment reader and profile writer) spell it without linking the fit.
+inline const char* RobustLossName(RobustLoss loss) {
+  switch (loss) {
+    case RobustLoss::kNone: return "none";
+    case RobustLoss::kHuber: return "huber";
+    case RobustLoss::kCauchy: return "cauchy";
+    case RobustLoss::kSoftL1: return "soft_l1";
+  }
+  return "none";
+}
 
 struct FitIterationInfo {
   int iteration = 0;

@@ -20,8 +20,8 @@
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/model/rod_radius.h"
-#include "rodfit/solve/integrator.h"
-#include "rodfit/vision/camera_file.h"
+#include "rodfit/model/markup_nesting.h"
+#include "rodfit/vision/camera_file.h"  // kMaxImageSidePx, a constant (io links no vision)
 
 namespace rodfit {
 namespace {
@@ -1243,15 +1243,16 @@ class YamlSettings final : public SettingsArchive {
 
 // Reads a settings block into `config` (its defaults where the block says nothing); returns the
 // block's entries.
-template <class Config>
-Entries ReadSettings(const Reader& r, const Field& f, Config* config) {
+template <class Config, class... Vocabulary>
+Entries ReadSettings(const Reader& r, const Field& f, Config* config,
+                     const Vocabulary&... vocabulary) {
   static const Entries kNoKeys;
   Config scratch;
   YamlSettings keys(r, f, kNoKeys, /*reading=*/false);
-  Serialize(&keys, &scratch);
+  Serialize(&keys, &scratch, vocabulary...);
   const Entries m = r.Map(f, keys.declared());
   YamlSettings read(r, f, m, /*reading=*/true);
-  Serialize(&read, config);
+  Serialize(&read, config, vocabulary...);
   return m;
 }
 
@@ -1306,7 +1307,8 @@ void CheckYamlNodes(const YAML::Node& root, const std::string& path) {
 
 
 Experiment ParseExperiment(const std::string& text, const std::string& path,
-                           const ObservationEntryKinds& kinds, bool parameters_optional) {
+                           const ObservationEntryKinds& kinds,
+                           const std::vector<std::string>& integrators, bool parameters_optional) {
   CheckYamlText(text, path);
   YAML::Node root;
   try {
@@ -1342,7 +1344,7 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   // Before the parameters: whether the scene moves decides which of them may be fitted.
   if (const Field* dynamics = Reader::Find(m, "dynamics")) {
     ex.scene.dynamics.emplace();
-    const Entries block = ReadSettings(r, *dynamics, &*ex.scene.dynamics);
+    const Entries block = ReadSettings(r, *dynamics, &*ex.scene.dynamics, integrators);
     // Where a fit that cannot use the integrator points: its key, or the block's.
     const Field* integrator = Reader::Find(block, "integrator");
     ex.integrator_line = integrator ? integrator->line : dynamics->key_line;
@@ -1389,10 +1391,10 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
 }
 
 Experiment LoadExperiment(const std::string& path, const ObservationEntryKinds& kinds,
-                          bool parameters_optional) {
+                          const std::vector<std::string>& integrators, bool parameters_optional) {
   // Bounded before yaml-cpp sees it: a regular file of at most kMaxInputFileBytes.
   return ParseExperiment(ReadInputFile(path, "a YAML file", kMaxYamlBytes), path, kinds,
-                         parameters_optional);
+                         integrators, parameters_optional);
 }
 
 std::string CameraKey(const ObservationSpec& spec) {

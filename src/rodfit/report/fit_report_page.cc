@@ -21,7 +21,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/io/image_files.h"
+#include "rodfit/pipeline/image_files.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/pipeline/observation_kind.h"
 #include "rodfit/report/fit_report.h"
