@@ -123,7 +123,7 @@ int RunFit(int argc, char** argv) {
                             const std::vector<std::string>& warnings) {
     return rodfit::WriteFitReport(out, e, input, result, warnings);
   };
-  if (progress.enabled())
+  if (progress.enabled() || progress.plain())
     options.progress = [&progress](const std::string& text, double fraction) {
       progress.Update(text, fraction);
     };

@@ -88,7 +88,7 @@ int RunSimulate(int argc, char** argv) {
   }
   // Many cases or long rods: which case it is on (a terminal only; io/progress.h).
   rodfit::ProgressLine progress(quiet, 2);
-  if (progress.enabled())
+  if (progress.enabled() || progress.plain())
     options.progress = [&progress](const std::string& text, double fraction) {
       progress.Update(text, fraction);
     };

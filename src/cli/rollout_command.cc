@@ -218,7 +218,7 @@ int RunRollout(int argc, char** argv) {
   // On a terminal, one updating line while the fit and the rollouts run (io/progress.h); it is
   // erased before a line is printed.
   rodfit::ProgressLine progress(args.quiet, STDERR_FILENO);
-  if (progress.enabled())
+  if (progress.enabled() || progress.plain())
     options.progress = [&progress](const std::string& text, double fraction) {
       progress.Update(text, fraction);
     };

@@ -109,6 +109,26 @@ TEST(ExportCli, HostileProfilesAreRefusedByEveryFormatWithNothingWritten) {
        "parameters.damping.value: 1e+308 is beyond 1e+30");
   with("set_damped", [](nlohmann::json&) {}, "damping=1e308",
        "parameters.damping.value: 1e+308 is beyond 1e+30 (--set damping)");
+  // linear_density's physical range [1e-15, 1e5] kg/m (material_parameters.h): 1e-300 kg/m
+  // would divide the drag cells and the stable step by nothing.
+  with("light", [](nlohmann::json& d) { d["rod"]["linear_density"] = 1e-300; }, "",
+       "rod.linear_density 1e-300 kg/m is outside its physical range [1e-15, 100000] kg/m");
+  with("light_parameter",
+       [](nlohmann::json& d) {
+         d["rod"]["linear_density"] = 1e-300;
+         d["parameters"]["linear_density"] = {{"value", 1e-300}, {"unit", "kg/m"}};
+       },
+       "",
+       "parameters.linear_density.value: 1e-300 is below 1e-15, outside linear_density's "
+       "physical range [1e-15, 100000] kg/m");
+  with("set_light",
+       [](nlohmann::json& d) {
+         d["parameters"]["linear_density"] = {{"value", d["rod"]["linear_density"]},
+                                              {"unit", "kg/m"}};
+       },
+       "linear_density=1e-300",
+       "parameters.linear_density.value: 1e-300 is below 1e-15 (--set linear_density), outside "
+       "linear_density's physical range");
   for (const Case& c : cases) {
     const std::string path = dir.Write(std::string(c.name) + ".json", c.doc.dump(1));
     for (const char* format : {"json", "sofa", "mujoco", "xpbd"}) {

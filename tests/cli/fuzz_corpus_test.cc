@@ -362,7 +362,7 @@ Outcome RunCase(const Case& c, const std::string& dir, const std::string& logs) 
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const std::string err = ReadText(err_file);
+  const std::string err = WithoutProgress(ReadText(err_file));  // messages only
   const std::set<std::string> after = Listing(dir);
   const int status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
   o.detail = "exit " + (WIFSIGNALED(raw) ? "signal " + std::to_string(WTERMSIG(raw))

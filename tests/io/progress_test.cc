@@ -3,11 +3,13 @@
 // ETA only when the work's size is known, and nothing before the delay.
 #include "rodfit/io/progress.h"
 
+#include <algorithm>
 #include <fcntl.h>
 #include <poll.h>
 #include <stdlib.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -83,6 +85,48 @@ TEST(ProgressLine, SilentWhenTheDescriptorIsNotATerminal) {
   std::fseek(file, 0, SEEK_END);
   EXPECT_EQ(std::ftell(file), 0L);
   std::fclose(file);
+}
+
+// Not a terminal (a log, a pipe, CI): after the plain delay, plain lines "rodfit: progress: TEXT  ELAPSED
+// [ETA ...]" each ended by a newline, at most one per plain interval, none erased; quiet: none.
+TEST(ProgressLine, PlainLinesWhenNotATerminalAfterTheDelay) {
+  int fds[2];
+  ASSERT_EQ(pipe(fds), 0);
+  ProgressLine::Options options = Immediate();
+  options.plain_delay_seconds = 0.0;
+  options.plain_interval_seconds = 0.0;
+  {
+    ProgressLine progress(/*quiet=*/false, fds[1], options);
+    EXPECT_FALSE(progress.enabled());
+    EXPECT_TRUE(progress.plain());
+    progress.Update("simulate: 40 % (case swing, t = 0.4 s of 1 s)", 0.4);
+    progress.Update("simulate: 80 % (case swing, t = 0.8 s of 1 s)");
+    progress.Finish();
+  }
+  close(fds[1]);
+  const std::string out = Drain(fds[0]);
+  close(fds[0]);
+  EXPECT_THAT(out, StartsWith("rodfit: progress: simulate: 40 % (case swing, t = 0.4 s of 1 s)  "));
+  EXPECT_THAT(out, HasSubstr("ETA "));
+  EXPECT_THAT(out, HasSubstr("\nrodfit: progress: simulate: 80 % (case swing, t = 0.8 s of 1 s)  "));
+  EXPECT_THAT(out, Not(HasSubstr("\r")));
+  ASSERT_FALSE(out.empty());
+  EXPECT_EQ(out.back(), '\n');
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 2);
+
+  // One line per interval: the second update within it is dropped.
+  ASSERT_EQ(pipe(fds), 0);
+  options.plain_interval_seconds = 3600.0;
+  {
+    ProgressLine progress(false, fds[1], options);
+    progress.Update("step 1");
+    progress.Update("step 2");
+  }
+  close(fds[1]);
+  const std::string one = Drain(fds[0]);
+  close(fds[0]);
+  EXPECT_THAT(one, StartsWith("rodfit: progress: step 1  "));
+  EXPECT_EQ(std::count(one.begin(), one.end(), '\n'), 1) << one;
 }
 
 TEST(ProgressLine, SilentOnATerminalWhenQuiet) {

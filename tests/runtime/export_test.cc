@@ -148,13 +148,17 @@ TEST(ExportValidation, HostileRadiiAndDampingNeverReachTheFile) {
 }
 
 TEST(ExportValidation, NumbersBeyondTheEnvelopeAreRefusedAsWritten) {
-  // Every value within its own range, but a quotient is not: rayleighMass = damping / mu with a
-  // rod of 1e-300 kg/m is 1e300. The writer refuses it, naming the field.
+  // A quotient beyond the envelope: rayleighMass = damping / mu with a rod of 1e-300 kg/m would
+  // be 1e300. Before linear_density had a physical range the writer refused it as written
+  // ("export sofa: rayleighMass would be 1e+300, beyond 1e+100"); now the density itself is
+  // refused before anything is derived from it, naming the key (issue 34), and the writer's check
+  // below stays the backstop for every number written.
   json doc = Suture();
   doc["rod"]["linear_density"] = 1e-300;
   doc["parameters"]["damping"]["value"] = 1.0;
   const std::string error = ExportError(doc, "sofa");
-  EXPECT_THAT(error, HasSubstr("p.json: export sofa: rayleighMass would be 1e+300, beyond 1e+100"));
+  EXPECT_THAT(error, HasSubstr("p.json: "));
+  EXPECT_THAT(error, HasSubstr("rod.linear_density 1e-300 kg/m is outside its physical range"));
   // The checker itself: non-finite and huge numbers, in text and in JSON documents by path.
   const Profile profile = ParseProfile(Suture().dump(), "p.json");
   const ExportNumbers num(profile, "test");

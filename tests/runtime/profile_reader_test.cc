@@ -171,6 +171,32 @@ TEST(ProfileReader, UndeterminedParameterNeedsAnOverride) {
 // A moving fit may list the rod's linear density it fitted (docs/formats.md, profile
 // "parameters"): the row sets the rebuilt rod's masses, must agree with rod.linear_density, is
 // positive and in kg/m, and --set replaces both.
+// Every row of the parameter table has a physical range, finite and positive, that its own
+// bundled values lie in; 0 is taken only for a row that may be 0 (the term off).
+TEST(ProfileReader, EveryParameterRowHasAPhysicalRange) {
+  for (const MaterialParameterInfo& row : MaterialParameters()) {
+    SCOPED_TRACE(row.name);
+    EXPECT_GT(row.lowest, 0.0);
+    EXPECT_LT(row.lowest, row.highest);
+    EXPECT_TRUE(std::isfinite(row.highest));
+    EXPECT_EQ(CheckMaterialParameterRange(row, row.lowest), "");
+    EXPECT_EQ(CheckMaterialParameterRange(row, row.highest), "");
+    EXPECT_NE(CheckMaterialParameterRange(row, 0.5 * row.lowest), "");
+    EXPECT_NE(CheckMaterialParameterRange(row, 2.0 * row.highest), "");
+    EXPECT_NE(CheckMaterialParameterRange(row, std::nan("")), "");
+    EXPECT_EQ(CheckMaterialParameterRange(row, 0.0).empty(), !row.positive);
+  }
+  for (const char* name : {"suture.json", "bowel_drag.json", "bowel_poke.json"}) {
+    const Profile p = LoadProfile(ProfilePath(name));
+    for (const Parameter& parameter : p.parameters)
+      if (const MaterialParameterInfo* row = FindMaterialParameter(parameter.name))
+        EXPECT_EQ(CheckMaterialParameterRange(*row, parameter.value), "") << parameter.name;
+    const MaterialParameterInfo* density = FindMaterialParameter("linear_density");
+    ASSERT_NE(density, nullptr);
+    EXPECT_EQ(CheckMaterialParameterRange(*density, p.scene.rod.linear_density), "");
+  }
+}
+
 TEST(ProfileReader, AFittedLinearDensitySetsTheRod) {
   json doc = ReadJson(ProfilePath("suture.json"));
   const double density = doc["rod"]["linear_density"].get<double>();
@@ -193,6 +219,17 @@ TEST(ProfileReader, AFittedLinearDensitySetsTheRod) {
   wrong["parameters"]["linear_density"]["value"] = 0.0;
   wrong["rod"]["linear_density"] = 0.0;
   EXPECT_THAT(ErrorOf(wrong), HasSubstr("parameters.linear_density.value: must be > 0"));
+  // Outside its physical range [1e-15, 1e5] kg/m: refused on read and on --set, naming the key.
+  wrong = doc;
+  wrong["parameters"]["linear_density"]["value"] = 1e-300;
+  wrong["rod"]["linear_density"] = 1e-300;
+  EXPECT_THAT(ErrorOf(wrong), HasSubstr("p.json: parameters.linear_density.value: 1e-300 is below "
+                                        "1e-15, outside linear_density's physical range"));
+  ProfileReadOptions tiny;
+  tiny.overrides["linear_density"] = 1e-300;
+  EXPECT_THAT(ErrorOf(doc, tiny),
+              HasSubstr("parameters.linear_density.value: 1e-300 is below 1e-15 (--set "
+                        "linear_density)"));
   // A scene read for a profile (parameters optional) may leave its density out: the profile's.
   const Profile p = ParseProfile(doc.dump(), "p.json");
   Scene scene = p.scene;

@@ -45,10 +45,32 @@ struct MaterialParameterInfo {
   /// The RodSpec member it sets (linear_density), or null.
   double RodSpec::*rod_field;
   const char* description;  ///< what it sets, for messages and docs
+  /// The physical range of a value [unit]: outside it a value is a unit or typing mistake (or
+  /// would overflow an engine or an export), refused where a value is read — the profile, its
+  /// --set overrides, exports (CheckMaterialParameterRange). 0 is also taken for a row that is
+  /// not `positive` (the term off).
+  double lowest, highest;
 };
+
+/// The range of every stiffness and damping row: the rod model's envelope (beyond it the
+/// energy's terms lose their round-off to one another or overflow a square).
+inline constexpr double kMinParameterValue = 1e-30;
+inline constexpr double kMaxParameterValue = 1e30;
+/// The range of linear_density [kg/m]: from a rod of the smallest radius rodfit takes
+/// (kMinRodRadius, 0.1 um) of a polymer foam of ~10 kg/m^3 (~3e-13 kg/m), to one of the largest
+/// (kMaxRodRadius, 1 m) of tungsten, 19300 kg/m^3 (~6e4 kg/m), each with room.
+inline constexpr double kMinLinearDensity = 1e-15;
+inline constexpr double kMaxLinearDensity = 1e5;
 
 /// Every row, in the order the profile lists them (the material's, then the rod's density).
 const std::vector<MaterialParameterInfo>& MaterialParameters();
+
+/// Empty when `value` is finite and in `row`'s physical range (or 0 for a row that is not
+/// positive); otherwise the reason, one line without the file or key (the caller names them):
+/// "1e-300 is below 1e-15<note>, outside linear_density's physical range [1e-15, 100000] kg/m",
+/// `note` (e.g. " (--set linear_density)") right after the value.
+std::string CheckMaterialParameterRange(const MaterialParameterInfo& row, double value,
+                                        const std::string& note = "");
 
 /// The row of `name`, or null (a spring zone's own parameter, or an unknown name).
 const MaterialParameterInfo* FindMaterialParameter(const std::string& name);

@@ -47,6 +47,9 @@ struct CaseTrajectory {
   int newton_iterations = 0;          ///< implicit: in all
   double stable_step = 0.0;           ///< explicit: the stable step at the start [s]
   double seconds = 0.0;               ///< wall time of the integration
+  /// The largest excess of the rod's energy over its start plus the work done on it, over the
+  /// energy envelope's margin (integration.h, kEnergyEnvelopeMargin): above 1 it stopped.
+  double energy_excess_ratio = 0.0;
 };
 
 /// The held points' reactions of a moving rod at the end of a step (docs/formats.md,

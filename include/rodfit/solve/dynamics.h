@@ -251,6 +251,7 @@ bool EquilibriumSensitivity(const RodModel& model, const RodState& q,
                             std::string* why);
 
 class TimeIntegrator;  // a scheme of the registry (src/rodfit/solve/integrator.h)
+struct RodFrames;      // an assembly's frames (src/rodfit/solve/rod_energy.h)
 
 /// Integrates a RodModel in time. The stepper owns its scratch (band matrices, factor, states),
 /// kept between steps. The held points' reactions at a step's end are those of
@@ -306,6 +307,14 @@ class DynamicsStepper {
   /// Kinetic energy 1/2 v^T M v [J] and the potential energy Pi of the model's own loads [J].
   double KineticEnergy(const DynamicState& s) const;
   double PotentialEnergy(const RodState& q) const;
+
+  /// The gradient of Pi at q less the loads beyond it (moment loads, the pose's tip and point
+  /// loads), held rows zero: minus the forces the steps integrate, without damping or inertia.
+  /// Into `frames` (the caller's scratch): the stepper's own state is untouched.
+  void LoadedGradient(const RodState& q, const HeldPose& pose, RodFrames* frames, VecX* g) const;
+  /// The free-dof difference b - a as the steps take it (the twists' increments with the
+  /// reference frames' transport; held dofs 0).
+  void Difference(const RodState& a, const RodState& b, VecX* d) const { Delta(a, b, d); }
 
   /// Lumped mass of each free dof [kg or kg m^2] (held dofs: their mass, unused).
   const VecX& mass() const { return mass_; }

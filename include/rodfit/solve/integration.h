@@ -27,6 +27,9 @@ struct IntegrationStats {
   int halved_steps = 0;       ///< implicit steps taken in halves (DynamicsOptions::max_halvings)
   int newton_iterations = 0;  ///< implicit: in all
   double seconds = 0.0;       ///< wall time of the steps
+  /// With the energy envelope: the largest (E - E0 - W) over the envelope's margin of any step
+  /// (above 1 the run stopped there).
+  double energy_excess_ratio = 0.0;
 };
 
 /// Called after each step with the state before it and after it and the step's summary; returns
@@ -40,13 +43,31 @@ struct SensitivityCarry {
   DynamicSensitivity* ds = nullptr;  ///< started by the caller (EquilibriumSensitivity or zero)
 };
 
+/// The energy envelope of a moving run (docs/solvers.md, "Energy envelope"): the rod's kinetic
+/// plus potential energy E = T + Pi (elastic, springs, gravity and the case's dead loads) may not
+/// grow beyond its start E0 plus the work W done on it since — by the held points' and clamps'
+/// motion and by the loads beyond Pi (a tip load series, a point force, moment loads) — by more
+/// than this fraction of the run's energy scale (the largest T, the largest |Pi - Pi0| and the
+/// summed |W| of the steps so far) plus round-off (kEnergyEnvelopeRoundOff of the energies'
+/// magnitudes). W of a step is the change of Pi its free dofs' motion does not explain, by the
+/// trapezoidal rule over the forces at the step's ends, plus the loads' work: the held points'
+/// reactions times their displacements, without evaluating the reactions. Damping and the
+/// schemes' numerical damping only take energy out (their dissipation is >= 0), so the bound
+/// holds for any damping without accounting it. Energy the rod gains beyond it is not physics:
+/// an unstable step (an explicit step above its bound), a blow-up of absurd constants.
+inline constexpr double kEnergyEnvelopeMargin = 0.05;
+inline constexpr double kEnergyEnvelopeRoundOff = 1e-9;
+
 /// Takes up to `steps` steps of `stepper` from *state (advanced in place), calling `observe`
 /// after each and `progress` (when given) with the simulated time. With `sensitivities`, each
 /// step's sensitivities are propagated before the observer sees it. A failed step stops it with
-/// the time and the reason.
+/// the time and the reason. With `energy_envelope`, a step that leaves the energy envelope
+/// (kEnergyEnvelopeMargin) stops it after the observer has seen it, with the time and the
+/// energies.
 IntegrationStats Integrate(DynamicsStepper& stepper, const Drive& drive, int steps,
                            DynamicState* state, const StepObserver& observe,
                            const SensitivityCarry* sensitivities = nullptr,
-                           const std::function<void(double)>& progress = nullptr);
+                           const std::function<void(double)>& progress = nullptr,
+                           bool energy_envelope = false);
 
 }  // namespace rodfit

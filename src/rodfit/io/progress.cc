@@ -33,7 +33,11 @@ size_t Columns(const std::string& s) {
 ProgressLine::ProgressLine(bool quiet, int fd) : ProgressLine(quiet, fd, Options()) {}
 
 ProgressLine::ProgressLine(bool quiet, int fd, Options options)
-    : fd_(fd), enabled_(!quiet && isatty(fd) == 1), options_(options), start_(Clock::now()) {}
+    : fd_(fd),
+      enabled_(!quiet && isatty(fd) == 1),
+      plain_(!quiet && isatty(fd) != 1),
+      options_(options),
+      start_(Clock::now()) {}
 
 ProgressLine::~ProgressLine() { Finish(); }
 
@@ -55,12 +59,28 @@ std::string ProgressLine::FormatDuration(double seconds) {
 }
 
 void ProgressLine::Update(const std::string& text, double fraction_done) {
-  if (!enabled_) return;
+  if (!enabled_ && !plain_) return;
   const Clock::time_point now = Clock::now();
   const double elapsed = std::chrono::duration<double>(now - start_).count();
   if (elapsed < options_.delay_seconds) return;
   if (drawn_ && std::chrono::duration<double>(now - last_draw_).count() < options_.interval_seconds)
     return;
+  if (plain_) {
+    // A log: one plain line every few seconds once the work has lasted a few seconds.
+    if (elapsed < options_.plain_delay_seconds) return;
+    if (drawn_ &&
+        std::chrono::duration<double>(now - last_draw_).count() < options_.plain_interval_seconds)
+      return;
+    std::string line = kPlainProgressPrefix + text + "  " + FormatDuration(elapsed);
+    if (std::isfinite(fraction_done) && fraction_done >= 0.01 && fraction_done <= 1.0)
+      line += "  ETA " + FormatDuration(elapsed * (1.0 - fraction_done) / fraction_done);
+    for (char& c : line)
+      if (c == '\n' || c == '\r') c = ' ';
+    Write(line + "\n");
+    drawn_ = true;  // Finish() erases nothing: drawn_width_ stays 0
+    last_draw_ = now;
+    return;
+  }
   std::string line = text + "  " + FormatDuration(elapsed);
   // An ETA only once enough of the work is done for the rate to mean something.
   if (std::isfinite(fraction_done) && fraction_done >= 0.01 && fraction_done <= 1.0)
@@ -83,7 +103,7 @@ void ProgressLine::Update(const std::string& text, double fraction_done) {
 }
 
 void ProgressLine::Finish() {
-  if (!drawn_) return;
+  if (!drawn_ || plain_) return;  // plain lines stay, each ended
   Write("\r" + std::string(drawn_width_, ' ') + "\r");
   drawn_ = false;
   drawn_width_ = 0;

@@ -4,38 +4,67 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <string>
 
 namespace rodfit {
 const std::vector<MaterialParameterInfo>& MaterialParameters() {
   using K = ParameterKind;
   static const std::vector<MaterialParameterInfo> rows = {
       {"bend_stiffness", "N m^2", true, true, false, K::kRodStiffness, 0, nullptr,
-       &Material::bend_stiffness, nullptr, "B1, bending about d1"},
+       &Material::bend_stiffness, nullptr, "B1, bending about d1",
+       kMinParameterValue, kMaxParameterValue},
       {"bend_stiffness_2", "N m^2", true, false, false, K::kRodStiffness, 1, "bend_stiffness",
-       nullptr, nullptr, "B2, bending about d2 (absent: B1)"},
+       nullptr, nullptr, "B2, bending about d2 (absent: B1)",
+       kMinParameterValue, kMaxParameterValue},
       {"twist_stiffness", "N m^2", true, true, false, K::kRodStiffness, 2, nullptr,
-       &Material::twist_stiffness, nullptr, "GJ, torsion"},
+       &Material::twist_stiffness, nullptr, "GJ, torsion",
+       kMinParameterValue, kMaxParameterValue},
       {"stretch_stiffness", "N", true, true, false, K::kRodStiffness, 3, nullptr,
-       &Material::stretch_stiffness, nullptr, "EA, stretch"},
+       &Material::stretch_stiffness, nullptr, "EA, stretch",
+       kMinParameterValue, kMaxParameterValue},
       {"spring_stiffness", "N/m^2", false, false, false, K::kSpring, -1, nullptr,
        &Material::spring_stiffness, nullptr,
-       "K, tissue springs of zones without a parameter of their own"},
+       "K, tissue springs of zones without a parameter of their own",
+       kMinParameterValue, kMaxParameterValue},
       {"ring_bend_stiffness", "N m^2", true, true, true, K::kRing, 1, nullptr,
-       &Material::ring_bend_stiffness, nullptr, "kb, bending of the section ring"},
+       &Material::ring_bend_stiffness, nullptr, "kb, bending of the section ring",
+       kMinParameterValue, kMaxParameterValue},
       {"ring_stretch_stiffness", "N", true, true, true, K::kRing, 2, nullptr,
-       &Material::ring_stretch_stiffness, nullptr, "ks, stretch of the section ring"},
+       &Material::ring_stretch_stiffness, nullptr, "ks, stretch of the section ring",
+       kMinParameterValue, kMaxParameterValue},
       {"damping", "N s/m^2", false, false, false, K::kDamping, -1, nullptr, &Material::damping,
-       nullptr, "c, external viscous drag per length"},
+       nullptr, "c, external viscous drag per length",
+       kMinParameterValue, kMaxParameterValue},
       {"bend_damping", "N m^2 s", false, false, false, K::kDamping, -1, nullptr,
-       &Material::bend_damping, nullptr, "eta_B, viscosity of the bending rates"},
+       &Material::bend_damping, nullptr, "eta_B, viscosity of the bending rates",
+       kMinParameterValue, kMaxParameterValue},
       {"twist_damping", "N m^2 s", false, false, false, K::kDamping, -1, nullptr,
-       &Material::twist_damping, nullptr, "eta_GJ, viscosity of the twist rate"},
+       &Material::twist_damping, nullptr, "eta_GJ, viscosity of the twist rate",
+       kMinParameterValue, kMaxParameterValue},
       {"stretch_damping", "N s", false, false, false, K::kDamping, -1, nullptr,
-       &Material::stretch_damping, nullptr, "eta_EA, viscosity of the stretch rate"},
+       &Material::stretch_damping, nullptr, "eta_EA, viscosity of the stretch rate",
+       kMinParameterValue, kMaxParameterValue},
       {"linear_density", "kg/m", true, false, false, K::kMass, -1, nullptr, nullptr,
-       &RodSpec::linear_density, "rho A, the rod's mass per length (a moving scene's parameter)"},
+       &RodSpec::linear_density, "rho A, the rod's mass per length (a moving scene's parameter)",
+       kMinLinearDensity, kMaxLinearDensity},
   };
   return rows;
+}
+
+std::string CheckMaterialParameterRange(const MaterialParameterInfo& row, double value,
+                                       const std::string& note) {
+  auto show = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%g", v);
+    return std::string(text);
+  };
+  if (!std::isfinite(value)) return "must be finite (is " + show(value) + ")" + note;
+  if (value == 0.0 && !row.positive) return "";  // the term off
+  if (value >= row.lowest && value <= row.highest) return "";
+  const std::string head = value > row.highest ? show(value) + " is beyond " + show(row.highest)
+                                               : show(value) + " is below " + show(row.lowest);
+  return head + note + ", outside " + row.name + "'s physical range [" + show(row.lowest) + ", " +
+         show(row.highest) + "] " + row.unit + (row.positive ? "" : " (or 0: off)");
 }
 
 const MaterialParameterInfo* FindMaterialParameter(const std::string& name) {

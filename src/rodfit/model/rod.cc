@@ -125,6 +125,11 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
           "rod.length " + Num(rod.length) + " m is outside [1e-9, 1e6] m");
   Require(std::isfinite(rod.linear_density) && rod.linear_density >= 0,
           "rod.linear_density must be non-negative");
+  // 0: a weightless rod (statics); otherwise in its physical range (material_parameters.h).
+  Require(rod.linear_density == 0.0 || (rod.linear_density >= kMinLinearDensity &&
+                                        rod.linear_density <= kMaxLinearDensity),
+          "rod.linear_density " + Num(rod.linear_density) + " kg/m is outside its physical range [" +
+              Num(kMinLinearDensity) + ", " + Num(kMaxLinearDensity) + "] kg/m");
   Require(Finite(rod.rest_curvature), "rod.rest_curvature must be finite");
   Require(rod.rest_curvature_s.size() == rod.rest_curvature_profile.size(),
           "rod.rest_curvature_s and rest_curvature_profile must have one entry each");
@@ -140,8 +145,9 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     const std::string name = row.name;
     const double value = EffectiveMaterialParameter(m, name);
     Require(std::isfinite(value) && value > 0, std::string(name) + " must be positive");
-    Require(value >= 1e-30 && value <= 1e30,
-            std::string(name) + " " + Num(value) + " is outside [1e-30, 1e30]");
+    Require(value >= row.lowest && value <= row.highest,
+            std::string(name) + " " + Num(value) + " is outside [" + Num(row.lowest) + ", " +
+                Num(row.highest) + "]");
   }
   const double B = std::min(m.B1(), m.B2());
   Require(m.stretch_stiffness * rod.length * rod.length / B <= kMaxStretchRatio,

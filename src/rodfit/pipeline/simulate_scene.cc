@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <random>
 #include <stdexcept>
 
@@ -75,7 +76,21 @@ void SimulateMotion(const Experiment& experiment, const SimulateOptions& options
                  std::to_string(scene.cases.size()) + " (" + load_case.name + ")",
              static_cast<double>(k) / scene.cases.size());
     try {
-      trajectory = SimulateCaseDynamics(scene, static_cast<int>(k), experiment.statics);
+      // Each step's simulated time (a long run's log says it is alive: io/progress.h).
+      std::function<void(double)> step_progress;
+      if (options.progress) {
+        const double duration = scene.dynamics->duration;
+        const double cases = static_cast<double>(scene.cases.size());
+        step_progress = [&, k, duration, cases](double t) {
+          const double done = (static_cast<double>(k) + std::min(t / duration, 1.0)) / cases;
+          char text[160];
+          std::snprintf(text, sizeof(text), "simulate: %.0f %% (case %s, t = %.3g s of %.3g s)",
+                        100.0 * done, load_case.name.substr(0, 60).c_str(), t, duration);
+          options.progress(text, done);
+        };
+      }
+      trajectory = SimulateCaseDynamics(scene, static_cast<int>(k), experiment.statics,
+                                        step_progress);
     } catch (const std::invalid_argument& e) {
       throw InputError(experiment.path, experiment.cases[k].line,
                        "cases[" + std::to_string(k) + "]", e.what());

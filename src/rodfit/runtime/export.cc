@@ -131,6 +131,12 @@ void ValidateForExport(const Profile& p) {
     if (const std::string why = CheckRodRadius(rod.radius, rod.length); !why.empty())
       throw ProfileError(p.path, "rod.radius", why);
   for (const Parameter& parameter : p.parameters) {
+    if (const MaterialParameterInfo* row = FindMaterialParameter(parameter.name))
+      if (const std::string why = CheckMaterialParameterRange(
+              *row, parameter.value,
+              parameter.overridden ? " (--set " + parameter.name + ")" : std::string());
+          !why.empty())
+        throw ProfileError(p.path, "parameters." + parameter.name + ".value", why);
     if (!(std::abs(parameter.value) <= kMaxExportParameter))
       throw ProfileError(p.path, "parameters." + parameter.name + ".value",
                          Show(parameter.value) + " is beyond " + Show(kMaxExportParameter) +

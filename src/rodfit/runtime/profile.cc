@@ -260,11 +260,18 @@ Parameter ReadParameter(const Reader& r, const json& v, const std::string& name,
     if (positive && !(x > 0.0)) r.Fail(where, "must be > 0 (is " + Show(x) + ")");
     if (!positive && !(x >= 0.0)) r.Fail(where, "must be >= 0 (is " + Show(x) + ")");
   };
+  // A row's physical range (material_parameters.h): 1e-300 kg/m is a mistake, not a rod.
+  auto in_range = [&](double x, const std::string& note) {
+    if (row)
+      if (const std::string why = CheckMaterialParameterRange(*row, x, note); !why.empty())
+        r.Fail(Reader::Join(key, pf::kValue), why);
+  };
   const json& value = r.Require(v, key, pf::kValue);
   const std::string value_key = Reader::Join(key, pf::kValue);
   const auto override_it = options.overrides.find(name);
   if (override_it != options.overrides.end()) {
     check(override_it->second, value_key + " (--set " + name + ")");
+    in_range(override_it->second, " (--set " + name + ")");
     p.value = override_it->second;
     p.overridden = true;
     p.tied_to.clear();
@@ -280,6 +287,7 @@ Parameter ReadParameter(const Reader& r, const json& v, const std::string& name,
            "is false: the value is not a measurement; give one with --set " + name + "=VALUE");
   p.value = r.Number(value, value_key);
   check(p.value, value_key);
+  in_range(p.value, "");
   return p;
 }
 

@@ -380,8 +380,9 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
         }
         return true;
       },
-      nullptr, progress);
+      nullptr, progress, /*energy_envelope=*/true);
   out.steps = stats.steps;
+  out.energy_excess_ratio = stats.energy_excess_ratio;
   out.halved_steps = stats.halved_steps;
   out.newton_iterations = stats.newton_iterations;
   out.seconds = stats.seconds;

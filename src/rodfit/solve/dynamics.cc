@@ -138,6 +138,25 @@ void AddPointForce(const HeldPose& pose, VecX* g) {
   }
 }
 
+// The loads beyond Pi, subtracted from a gradient at `state` (frames fresh for it): the
+// non-conservative moments and the pose's tip and point loads.
+void AddStepLoads(const RodModel& model, const RodState& state, const RodFrames& frames,
+                  const HeldPose& pose, VecX* g) {
+  const int n = model.num_edges();
+  if (model.nonconservative()) AddMomentLoads(model, state, frames, 1.0, g, nullptr);
+  if (pose.tip_force.squaredNorm() > 0.0) g->segment<3>(RodModel::VertexDof(n)) -= pose.tip_force;
+  AddPointForce(pose, g);
+  if (pose.tip_moment.squaredNorm() > 0.0) {
+    EdgeMoment em;
+    em.edge = n - 1;
+    em.moment = pose.tip_moment;
+    const EdgeMomentForce f = EdgeMomentLoad(em, frames, 1.0);
+    g->segment<3>(RodModel::VertexDof(n)) -= f.Qe;
+    if (n >= 2) g->segment<3>(RodModel::VertexDof(n - 1)) += f.Qe;
+    (*g)[RodModel::TwistDof(n - 1)] -= f.Qt;
+  }
+}
+
 // The point force's potential -f . x(s) at a state.
 double PointForcePotential(const HeldPose& pose, const RodState& q) {
   if (pose.point_vertex < 0 || pose.point_force.squaredNorm() == 0.0) return 0.0;
@@ -239,21 +258,9 @@ class DynamicsStepper::StepProblem : public RodNewtonProblem {
 
  private:
   enum DeltaOf { kNone, kCurrent, kTrial };
-  // The step's loads beyond Pi: the non-conservative moments and the pose's tip and point loads.
+  // The step's loads beyond Pi (AddStepLoads).
   void AddLoads(const RodState& state, const RodFrames& frames, VecX* g) const {
-    const int n = model_.num_edges();
-    if (model_.nonconservative()) AddMomentLoads(model_, state, frames, 1.0, g, nullptr);
-    if (pose_->tip_force.squaredNorm() > 0.0) g->segment<3>(RodModel::VertexDof(n)) -= pose_->tip_force;
-    AddPointForce(*pose_, g);
-    if (pose_->tip_moment.squaredNorm() > 0.0) {
-      EdgeMoment em;
-      em.edge = n - 1;
-      em.moment = pose_->tip_moment;
-      const EdgeMomentForce f = EdgeMomentLoad(em, frames, 1.0);
-      g->segment<3>(RodModel::VertexDof(n)) -= f.Qe;
-      if (n >= 2) g->segment<3>(RodModel::VertexDof(n - 1)) += f.Qe;
-      (*g)[RodModel::TwistDof(n - 1)] -= f.Qt;
-    }
+    AddStepLoads(model_, state, frames, *pose_, g);
   }
   // grad Phi = grad Pi - f + a M (d - y) + c C (d - z), delta holding d; held rows zeroed. Into
   // kept scratch: a step allocates nothing once the stepper has taken one.
@@ -438,21 +445,14 @@ bool DynamicsStepper::Advance(const RodState& q, const VecX& dx, const HeldPose&
 
 
 void DynamicsStepper::Forces(const RodState& q, const HeldPose& pose, VecX* g) {
-  const int n = model_.num_edges();
-  ComputeRodFrames(model_, q, &scratch_->frames);
-  AssembleGradient(model_, q, EnergyTerms(), g, &scratch_->frames);
-  if (model_.nonconservative()) AddMomentLoads(model_, q, scratch_->frames, 1.0, g, nullptr);
-  if (pose.tip_force.squaredNorm() > 0.0) g->segment<3>(RodModel::VertexDof(n)) -= pose.tip_force;
-  AddPointForce(pose, g);
-  if (pose.tip_moment.squaredNorm() > 0.0) {
-    EdgeMoment em;
-    em.edge = n - 1;
-    em.moment = pose.tip_moment;
-    const EdgeMomentForce f = EdgeMomentLoad(em, scratch_->frames, 1.0);
-    g->segment<3>(RodModel::VertexDof(n)) -= f.Qe;
-    if (n >= 2) g->segment<3>(RodModel::VertexDof(n - 1)) += f.Qe;
-    (*g)[RodModel::TwistDof(n - 1)] -= f.Qt;
-  }
+  LoadedGradient(q, pose, &scratch_->frames, g);
+}
+
+void DynamicsStepper::LoadedGradient(const RodState& q, const HeldPose& pose, RodFrames* frames,
+                                     VecX* g) const {
+  ComputeRodFrames(model_, q, frames);
+  AssembleGradient(model_, q, EnergyTerms(), g, frames);
+  AddStepLoads(model_, q, *frames, pose, g);
   for (int k = 0; k < g->size(); ++k)
     if (held_[k]) (*g)[k] = 0.0;
 }

@@ -396,7 +396,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
         if (taken % spec.output_every == 0 || taken == steps) record();
         return true;
       },
-      &carry);
+      &carry, nullptr, /*energy_envelope=*/true);
   out.halved_steps = stats.halved_steps;
   out.seconds = stats.seconds;
   out.reason = stats.reason;
