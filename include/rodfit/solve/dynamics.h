@@ -216,7 +216,9 @@ struct StepSchedule {
   Mode mode = Mode::kRecord;
   std::vector<double> steps;  ///< [s] every accepted substep, in order
   size_t next = 0;            ///< replay: the next substep to take
-  bool departed = false;      ///< replay: a substep failed and the stepper adapted instead
+  /// replay: a substep failed and was taken in smaller pieces instead (the schedule then goes
+  /// on with the next one)
+  bool departed = false;
   void Record() { mode = Mode::kRecord, steps.clear(), next = 0, departed = false; }
   void Replay() { mode = Mode::kReplay, next = 0, departed = false; }
 };
