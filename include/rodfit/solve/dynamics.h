@@ -216,9 +216,7 @@ struct StepSchedule {
   Mode mode = Mode::kRecord;
   std::vector<double> steps;  ///< [s] every accepted substep, in order
   size_t next = 0;            ///< replay: the next substep to take
-  /// replay: a substep failed and was taken in smaller pieces instead (the schedule then goes
-  /// on with the next one)
-  bool departed = false;
+  bool departed = false;      ///< replay: a substep failed and the stepper adapted instead
   void Record() { mode = Mode::kRecord, steps.clear(), next = 0, departed = false; }
   void Replay() { mode = Mode::kReplay, next = 0, departed = false; }
 };

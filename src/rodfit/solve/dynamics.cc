@@ -690,23 +690,11 @@ DynamicsStepSummary DynamicsStepper::StepAdaptive(const Drive& drive, DynamicSta
   std::string last_failure;
   DynamicState before;
   const bool replay = schedule_ && schedule_->mode == StepSchedule::Mode::kReplay;
-  // Replay: the end of a replayed substep that failed, which is then taken in smaller pieces
-  // before the schedule goes on (-1: none). Only that substep's interval is stepped anew, so the
-  // trajectory changes with the parameters as little as it can where a trial's substep fails
-  // (adapting the rest of the recording instead made a fit's objective jump by 5 % between
-  // trials 1e-5 apart in the six-recording motion-fit benchmark, tests/bench/bench_fit.cc: its
-  // whip).
-  double cover_end = -1.0;
   while (t_end - s->t > 1e-12 * dt) {
     const double left = t_end - s->t;
     double step;
     bool replayed = false;
-    const bool covering = cover_end > s->t + 1e-12 * dt;
-    if (covering) {
-      const double rest = cover_end - s->t;
-      const double count = std::ceil(rest / h - 1e-9);
-      step = rest / std::max(count, 1.0);
-    } else if (replay && schedule_->next < schedule_->steps.size()) {
+    if (replay && !schedule_->departed && schedule_->next < schedule_->steps.size()) {
       step = std::min(schedule_->steps[schedule_->next], left);
       replayed = true;
     } else {
@@ -740,15 +728,12 @@ DynamicsStepSummary DynamicsStepper::StepAdaptive(const Drive& drive, DynamicSta
     double error = 0.0;
     if (one.ok) error = LocalError(before, *s, step) / options_.error_tolerance;
     // A replayed substep is taken as it was (a fit's objective stays smooth in the parameters),
-    // unless it fails outright; so are the pieces of one that failed.
-    const bool accept = one.ok && (replayed || covering || error <= 1.0);
+    // unless it fails outright.
+    const bool accept = one.ok && (replayed || error <= 1.0);
     if (!accept) {
       *s = before;
       ++summary.rejected;
-      if (replayed) {
-        schedule_->departed = true;
-        cover_end = before.t + step;
-      }
+      if (replayed) schedule_->departed = true;
       last_failure = one.ok ? "local error above error_tolerance" : one.reason;
       h = one.ok ? step * std::max(kMinStepChange, kStepSafety * std::cbrt(1.0 / error))
                  : step * kFailedStepShrink;
@@ -758,11 +743,6 @@ DynamicsStepSummary DynamicsStepper::StepAdaptive(const Drive& drive, DynamicSta
     ++summary.substeps;
     if (replayed) {
       ++schedule_->next;
-    } else if (covering) {
-      if (cover_end - s->t <= 1e-12 * dt) {  // the failed substep covered: the schedule goes on
-        ++schedule_->next;
-        cover_end = -1.0;
-      }
     } else if (schedule_ && schedule_->mode == StepSchedule::Mode::kRecord) {
       schedule_->steps.push_back(step);
     }
