@@ -129,6 +129,13 @@ bool RestCurvatureOnVertices(const RodModel& model, const ParameterDirection& d,
 
 void ParameterGradient(const RodModel& model, const RodState& q, const ParameterDirection& d,
                        VecX* g) {
+  // A direction that moves no stiffness nor the rest shape (a damping, the density): zero, with
+  // no assembly (which would compute the rod's frames only to add nothing).
+  if (d.bend1 == 0.0 && d.bend2 == 0.0 && d.twist == 0.0 && d.stretch == 0.0 &&
+      d.rest_curvature_profile.empty()) {
+    g->setZero(model.num_free_dofs());
+    return;
+  }
   EnergyTerms terms = EnergyTerms::Only(-1);
   terms.bend1 = d.bend1;
   terms.bend2 = d.bend2;
