@@ -250,6 +250,20 @@ TEST(ProfileReader, RestShapeIsReadAndChecked) {
                         "turns the rod by"));
   EXPECT_THAT(error([](json& r) { r["bend"] = 1.0; }),
               HasSubstr("p.json: rod.rest_shape.bend: unknown key"));
+  // `simulate SCENE --profile P`: a scene without a rest shape takes the profile's; a scene with
+  // another one is refused, naming the key.
+  Scene scene = LoadProfile(ProfilePath("suture.json")).scene;
+  UseProfileMaterial(p, &scene);
+  EXPECT_EQ(scene.rod.rest_curvature_s, p.scene.rod.rest_curvature_s);
+  EXPECT_EQ(scene.rod.rest_curvature_profile, p.scene.rod.rest_curvature_profile);
+  UseProfileMaterial(p, &scene);  // the same one again: accepted
+  scene.rod.rest_curvature_profile[1][0] += 0.5;
+  try {
+    UseProfileMaterial(p, &scene);
+    ADD_FAILURE() << "a scene with another rest shape was accepted";
+  } catch (const ProfileError& e) {
+    EXPECT_THAT(std::string(e.what()), HasSubstr("p.json: rod.rest_shape: differs from the scene's"));
+  }
   // A NaN is written as null by JSON: not a number.
   EXPECT_THAT(error([](json& r) { r["tau_per_m"][0] = std::nan(""); }),
               HasSubstr("p.json: rod.rest_shape.tau_per_m[0]: must be a number"));
