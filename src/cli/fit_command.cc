@@ -58,11 +58,11 @@ void PrintEstimates(const rodfit::FitResult& result) {
     else
       std::fprintf(stderr, "%-18s NOT IDENTIFIABLE: %s\n", p.name.c_str(), p.reason.c_str());
   }
-  // The cases' fitted held frames (nuisances, not material).
+  // The cases' nuisances: fitted held frames, points and gravity (not material).
   for (const rodfit::NuisanceEstimate& n : result.nuisances)
-    std::fprintf(stderr, "case %s, %s rotation: (%.3g, %.3g, %.3g) +- (%.2g, %.2g, %.2g) deg\n",
-                 n.case_name.c_str(), n.held.c_str(), n.rotation_deg[0], n.rotation_deg[1],
-                 n.rotation_deg[2], n.std_deg[0], n.std_deg[1], n.std_deg[2]);
+    std::fprintf(stderr, "case %s, %s %s: (%.3g, %.3g, %.3g) +- (%.2g, %.2g, %.2g) %s\n",
+                 n.case_name.c_str(), n.held.c_str(), n.quantity.c_str(), n.value[0],
+                 n.value[1], n.value[2], n.std[0], n.std[1], n.std[2], n.unit.c_str());
 }
 
 }  // namespace

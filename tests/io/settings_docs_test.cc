@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "io/temp_dir.h"
+#include "rodfit/solve/integrator.h"
 
 namespace rodfit {
 namespace {
@@ -121,7 +122,7 @@ TEST(SettingsDocs, EveryKeyHasItsRangeAndDefaultInTheDocs) {
   Serialize(&fitting, &fit);
   DynamicsSpec dynamics;
   DocsArchive moving("dynamics");
-  Serialize(&moving, &dynamics);
+  Serialize(&moving, &dynamics, IntegratorNames());
   // The numeric keys were all visited (a Serialize that declares none would pass vacuously).
   EXPECT_EQ(solver.keys(), 3);
   EXPECT_EQ(fitting.keys(), 1);

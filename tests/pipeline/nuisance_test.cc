@@ -226,18 +226,18 @@ TEST(Nuisance, RecoversStiffnessesAndClampAnglesOfAPhotographedLoop) {
         const Eigen::Vector3d& truth_deg = n.held == "clamp" ? phi_a : phi_b;
         std::printf("  %s rotation [deg]: (%.2f, %.2f, %.2f) +- (%.2f, %.2f, %.2f), truth "
                     "(%.0f, %.0f, %.0f)\n",
-                    n.held.c_str(), n.rotation_deg[0], n.rotation_deg[1], n.rotation_deg[2],
-                    n.std_deg[0], n.std_deg[1], n.std_deg[2], truth_deg[0], truth_deg[1],
+                    n.held.c_str(), n.value[0], n.value[1], n.value[2],
+                    n.std[0], n.std[1], n.std[2], truth_deg[0], truth_deg[1],
                     truth_deg[2]);
         for (int i = 0; i < 3; ++i) {
-          ASSERT_TRUE(std::isfinite(n.std_deg[i])) << n.held << " " << i;
-          EXPECT_LT(std::abs(n.rotation_deg[i] - truth_deg[i]), 3.0 * n.std_deg[i])
+          ASSERT_TRUE(std::isfinite(n.std[i])) << n.held << " " << i;
+          EXPECT_LT(std::abs(n.value[i] - truth_deg[i]), 3.0 * n.std[i])
               << n.held << " axis " << i << " seed " << seed;
           // The turns off the tangent move the loop: the data determine them (measured std
           // 1.1-5.4 degrees). The roll about the tangent hardly does (a loop held by coaxial
           // clamps twists, its shape barely changes): its std is the prior's (17-29 degrees,
           // scaled by the residual variance), reported, not asserted.
-          if (i > 0) EXPECT_LT(n.std_deg[i], 0.5 * n.prior_deg) << n.held << " axis " << i;
+          if (i > 0) EXPECT_LT(n.std[i], 0.5 * n.prior) << n.held << " axis " << i;
         }
       }
       if (!with_twist) {

@@ -40,7 +40,8 @@ TEST(FitExperimentTest, ReturnsTheProfileOfItsResultAndWritesOnlyWhenAsked) {
   EXPECT_FALSE(run.moving);
   EXPECT_TRUE(run.all_determined);
   EXPECT_FALSE(run.misfit);
-  EXPECT_EQ(run.profile, ProfileJson(experiment, run.options, run.result));
+  EXPECT_EQ(run.profile, ProfileJson(experiment, run.options, run.result,
+                                     CheckResiduals(run.result, run.options)));
   // The profile document's structure: parameters by name, each with its value.
   EXPECT_TRUE(run.profile.at("parameters").at("bend_stiffness").at("value").is_number());
 

@@ -34,6 +34,8 @@ struct FitInput {
   RodSpec rod;
   Material material;  ///< values of every parameter (fitted ones are starts)
   Vec3 gravity = Vec3(0, 0, -9.81);
+  /// [deg] each case's gravity direction a nuisance (Scene::gravity_prior_deg); absent: as given.
+  std::optional<double> gravity_prior_deg;
   std::vector<SpringZone> springs;  ///< attachment zones (tissue)
   std::optional<SectionSpec> section;  ///< the cross-section model, for surface_points
   /// Every parameter the static fit sees, fitted or not (name, value, fit, min, max).
@@ -44,8 +46,17 @@ struct FitInput {
 
 enum class RobustLoss { kNone, kHuber, kCauchy, kSoftL1 };
 
-/// The loss as files spell it: none, huber, cauchy, soft_l1.
-const char* RobustLossName(RobustLoss loss);
+/// The loss as files spell it: none, huber, cauchy, soft_l1. Inline: the file formats (io's
+/// experiment reader and profile writer) spell it without linking the fit.
+inline const char* RobustLossName(RobustLoss loss) {
+  switch (loss) {
+    case RobustLoss::kNone: return "none";
+    case RobustLoss::kHuber: return "huber";
+    case RobustLoss::kCauchy: return "cauchy";
+    case RobustLoss::kSoftL1: return "soft_l1";
+  }
+  return "none";
+}
 
 struct FitIterationInfo {
   int iteration = 0;
@@ -79,16 +90,20 @@ struct FitOptions {
   bool Check(std::string* why) const;
 };
 
-/// A fitted nuisance of a case (a held frame with `rotation_prior_deg`): its rotation vector
-/// R = Exp(phi) R_given [deg] and std [deg] per world axis (NaN where not determined), never
-/// part of the material.
+/// A fitted nuisance of a case, never part of the material: a held frame's rotation vector
+/// (`rotation_prior_deg`, R = Exp(phi) R_given), a held point's offset (`position_prior`) or the
+/// case's gravity turned (`gravity_prior_deg`, a rotation vector perpendicular to gravity), with
+/// its std per world axis (NaN where not determined; 0 along gravity for a gravity turn).
 struct NuisanceEstimate {
   int case_index = 0;
   std::string case_name;
-  std::string held;  ///< "clamp" or "end_clamp"
-  double prior_deg = 0.0;
-  Eigen::Vector3d rotation_deg = Eigen::Vector3d::Zero();
-  Eigen::Vector3d std_deg = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  /// "clamp", "end_clamp", "end_pin", "pins[k]", "grasp" or "gravity".
+  std::string held;
+  std::string quantity = "rotation";  ///< "rotation" or "offset"
+  std::string unit = "deg";           ///< of value, std and prior: "deg" or "m"
+  double prior = 0.0;
+  Eigen::Vector3d value = Eigen::Vector3d::Zero();
+  Eigen::Vector3d std = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 /// A moving case's fitted run at the times it was observed (a moving fit's report).

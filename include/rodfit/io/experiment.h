@@ -16,7 +16,6 @@
 #include "rodfit/io/settings.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
-#include "rodfit/observe/camera.h"
 #include "rodfit/solve/statics.h"
 
 namespace rodfit {
@@ -142,10 +141,6 @@ class ObservationEntryKinds {
 /// camera of a stereo file.
 std::string CameraKey(const ObservationSpec& spec);
 
-/// Loads the camera of an image entry (one camera of a stereo file by its camera_index). Throws
-/// CameraFileError (rodfit/vision/camera_file.h).
-Camera LoadObservationCamera(const ObservationSpec& spec);
-
 /// A case beyond its physics (which is Scene::cases at the same index).
 struct CaseSpec {
   std::vector<ObservationSpec> observations;
@@ -177,14 +172,18 @@ struct Experiment {
   StaticsOptions statics;
 };
 
-/// Reads and validates an experiment / scene YAML, its observation entries by `kinds`: what
-/// rodfit/pipeline/experiment.h's LoadExperiment does with the registry of observation kinds
-/// (see there). Throws InputError (rodfit/io/errors.h).
+/// Reads and validates an experiment / scene YAML, its observation entries by `kinds` and its
+/// `dynamics.integrator` by `integrators` (the registered schemes' names, IntegratorNames() of
+/// rodfit/solve/integrator.h): what rodfit/pipeline/experiment.h's LoadExperiment does with the
+/// registries (see there; io links neither). Throws InputError (rodfit/io/errors.h).
 Experiment LoadExperiment(const std::string& path, const ObservationEntryKinds& kinds,
+                          const std::vector<std::string>& integrators,
                           bool parameters_optional = false);
 
 /// The file text variant; `path` names the file in messages and anchors relative paths.
 Experiment ParseExperiment(const std::string& text, const std::string& path,
-                           const ObservationEntryKinds& kinds, bool parameters_optional = false);
+                           const ObservationEntryKinds& kinds,
+                           const std::vector<std::string>& integrators,
+                           bool parameters_optional = false);
 
 }  // namespace rodfit

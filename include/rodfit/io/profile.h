@@ -21,9 +21,11 @@ inline constexpr int kProfileVersion = 2;
 /// of at most kMaxInputFileBytes (never reads a device or FIFO).
 std::string FileDigest(const std::string& path);
 
-/// The profile document.
+/// The profile document of a fit's result under `options`; `check` is the fit's verdict on its
+/// residuals (CheckResiduals(result, options), rodfit/fit/fit.h: the caller's, so that io, which
+/// writes it, links no fit).
 nlohmann::json ProfileJson(const Experiment& experiment, const FitOptions& options,
-                           const FitResult& result);
+                           const FitResult& result, const ResidualCheck& check);
 
 /// Its text as written: two-space indented JSON and a final newline.
 std::string FormatProfile(const nlohmann::json& profile);

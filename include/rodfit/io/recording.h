@@ -56,8 +56,8 @@ void CheckRecordingFitsRod(const MarkerRecording& recording, double rod_length);
 /// The fitted values of a `rollout --fit` result file (motion_fit.json, docs/cli.md,
 /// "rollout"): per parameter name, its `value` in SI units, in the file's order. Throws
 /// InputError naming the file, the line and the key for a file that cannot be read or is not
-/// JSON, no `parameters` object, a name MotionParameter does not know, or a value that is not a
-/// number > 0.
+/// JSON, no `parameters` object, a name that is not a row of a moving thread's model
+/// (InMotionModel, rodfit/model/material_parameters.h), or a value that is not a number > 0.
 std::vector<std::pair<std::string, double>> ReadMotionFitValues(const std::string& path);
 
 /// The fitted rest shape of a motion_fit.json (`rest_shape`: knots s_m [m] and k1_per_m,

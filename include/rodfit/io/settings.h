@@ -50,8 +50,10 @@ void Serialize(SettingsArchive* a, StaticsOptions* o);
 /// trusted_sigmas).
 void Serialize(SettingsArchive* a, FitOptions* o);
 
-/// `dynamics:` — the integration in time (time_step and duration required).
-void Serialize(SettingsArchive* a, DynamicsSpec* d);
+/// `dynamics:` — the integration in time (time_step and duration required). `integrators`: the
+/// registered schemes' names in the registry's order (IntegratorNames(),
+/// rodfit/solve/integrator.h), given by the caller so that io links no solver.
+void Serialize(SettingsArchive* a, DynamicsSpec* d, const std::vector<std::string>& integrators);
 
 /// The fit's and the dynamics' limits the blocks check.
 inline constexpr int kMaxFitIterations = 10000;   ///< fit.max_iterations

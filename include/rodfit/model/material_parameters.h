@@ -53,6 +53,14 @@ const std::vector<MaterialParameterInfo>& MaterialParameters();
 /// The row of `name`, or null (a spring zone's own parameter, or an unknown name).
 const MaterialParameterInfo* FindMaterialParameter(const std::string& name);
 
+/// Whether a row is part of a moving thread's model: its stiffnesses, its damping and its mass
+/// (the springs and the ring are not). The rows a motion fit fits (fit/motion_fit.h) and a motion
+/// fit file holds (io/recording.h).
+inline bool InMotionModel(const MaterialParameterInfo& row) {
+  return row.kind == ParameterKind::kRodStiffness || row.kind == ParameterKind::kDamping ||
+         row.kind == ParameterKind::kMass;
+}
+
 /// Unit of a parameter: the row's, or "N/m^2" for a spring zone's own parameter.
 const char* MaterialParameterUnit(const std::string& name);
 

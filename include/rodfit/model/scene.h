@@ -68,6 +68,10 @@ struct Clamp {
   /// about the clamp's point) with a zero-mean Gaussian prior of this std per world axis; absent:
   /// the frame is as given. In (0, 90]. Ignored by simulate and synth.
   std::optional<double> rotation_prior_deg;
+  /// [m] a fit's nuisance: the held point offset by a fitted 3-vector with a zero-mean Gaussian
+  /// prior of this std per world axis (the frame moves with it); absent: as given. In (0, 0.1].
+  /// Ignored by simulate and synth.
+  std::optional<double> position_prior;
 };
 
 /// A stretch of arc length [from, to] [m].
@@ -87,6 +91,7 @@ struct SpringZone {
 struct Grasp {
   double s = 0.0;                ///< [m]
   Vec3 position = Vec3::Zero();  ///< [m]
+  std::optional<double> position_prior;  ///< [m] as Clamp::position_prior
 };
 
 /// A clamp at s = L: position and orientation held, with the conventions of Clamp (d3 =
@@ -97,6 +102,7 @@ struct EndClamp {
   std::optional<Vec3> normal;
   /// [deg] as Clamp::rotation_prior_deg (needs the normal).
   std::optional<double> rotation_prior_deg;
+  std::optional<double> position_prior;  ///< [m] as Clamp::position_prior
 };
 
 /// An interior point held in position only (a pin): the material point at s stays at
@@ -104,6 +110,7 @@ struct EndClamp {
 struct Pin {
   double s = 0.0;                ///< [m], in (0, L)
   Vec3 position = Vec3::Zero();  ///< [m]
+  std::optional<double> position_prior;  ///< [m] as Clamp::position_prior
 };
 
 /// A dead moment [N m] applied at arc length s (to the edge there; shared by the two edges
@@ -210,6 +217,7 @@ struct LoadCase {
   std::vector<PointMoment> point_moments;
   std::optional<EndClamp> end_clamp;  ///< s = L held in position and orientation
   std::optional<Vec3> end_pin;        ///< s = L held in position only [m]
+  std::optional<double> end_pin_position_prior;  ///< [m] as Clamp::position_prior
   std::vector<Pin> pins;              ///< interior points held in position
   StartShape start;                   ///< where the solve starts
   std::optional<SymmetryPlane> symmetry;
@@ -227,6 +235,10 @@ struct Scene {
   RodSpec rod;
   Material material;
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s^2]
+  /// [deg] a fit's nuisance per case (the camera's tilt): each case's gravity turned by a fitted
+  /// rotation vector perpendicular to it with a zero-mean Gaussian prior of this std per axis;
+  /// absent: gravity as given. In (0, 90]. Ignored by simulate and synth.
+  std::optional<double> gravity_prior_deg;
   std::vector<SpringZone> springs;        ///< attachment zones shared by every case
   std::optional<SectionSpec> section;     ///< the cross-section model, for pokes
   std::vector<LoadCase> cases;

@@ -1,6 +1,6 @@
 // Reading an experiment / scene YAML (docs/formats.md) as every command and library entry point
 // does: io's reader (rodfit/io/experiment.h) with the observation kinds' keys
-// (rodfit/pipeline/observation_kind.h).
+// (rodfit/pipeline/observation_kind.h) and the time integrators' names (solve/integrator.h).
 #pragma once
 
 #include <string>

@@ -24,6 +24,7 @@
 #include <string>
 #include <utility>
 
+#include "rodfit/model/markup_nesting.h"  // MarkupNestingDepth, the bound camera files are checked against
 #include "rodfit/observe/camera.h"
 
 namespace rodfit {
@@ -40,12 +41,6 @@ struct CameraFileError : std::runtime_error {
 /// "Limits"): synth renders images of that size and extract decodes them.
 inline constexpr int kMaxImageSidePx = 16384;
 inline constexpr long long kMaxImagePixels = 1LL << 26;  // 67,108,864 (8K video is 33 M)
-
-/// The deepest nesting of a YAML, JSON or XML text (by its first character), as an upper bound
-/// found without parsing: what a recursive-descent parser (OpenCV's FileStorage, yaml-cpp) would
-/// recurse into. Camera files and experiment YAML are refused beyond a limit before they are
-/// parsed (docs/formats.md, "Limits").
-int MarkupNestingDepth(const std::string& text);
 
 /// Loads one camera. Camera::name is the file's `camera_name` if present, else the file stem.
 /// Throws CameraFileError.

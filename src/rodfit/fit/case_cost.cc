@@ -58,20 +58,45 @@ std::vector<Nuisance> Nuisances(const FitInput& in, int first_column) {
   int column = first_column;
   for (size_t c = 0; c < in.cases.size(); ++c) {
     const LoadCase& lc = in.cases[c].load_case;
-    auto add = [&](bool end, double sigma_deg) {
+    auto add = [&](Nuisance::Kind kind, const std::string& held, double sigma, bool end,
+                   int pin) {
       Nuisance n;
+      n.kind = kind;
       n.case_index = static_cast<int>(c);
+      n.held = held;
       n.end_clamp = end;
-      n.sigma_rad = sigma_deg * M_PI / 180.0;
+      n.pin = pin;
+      n.sigma = sigma;
       n.first_column = column;
-      column += 3;
+      column += n.size();
       out.push_back(n);
     };
-    if (lc.clamp.rotation_prior_deg) add(false, *lc.clamp.rotation_prior_deg);
+    using K = Nuisance::Kind;
+    constexpr double kRad = M_PI / 180.0;
+    if (lc.clamp.rotation_prior_deg)
+      add(K::kRotation, "clamp", *lc.clamp.rotation_prior_deg * kRad, false, -1);
     if (lc.end_clamp && lc.end_clamp->rotation_prior_deg)
-      add(true, *lc.end_clamp->rotation_prior_deg);
+      add(K::kRotation, "end_clamp", *lc.end_clamp->rotation_prior_deg * kRad, true, -1);
+    if (lc.clamp.position_prior) add(K::kPosition, "clamp", *lc.clamp.position_prior, false, -1);
+    if (lc.end_clamp && lc.end_clamp->position_prior)
+      add(K::kPosition, "end_clamp", *lc.end_clamp->position_prior, true, -1);
+    if (lc.end_pin && lc.end_pin_position_prior)
+      add(K::kPosition, "end_pin", *lc.end_pin_position_prior, false, -1);
+    for (size_t k = 0; k < lc.pins.size(); ++k)
+      if (lc.pins[k].position_prior)
+        add(K::kPosition, "pins[" + std::to_string(k) + "]", *lc.pins[k].position_prior, false,
+            static_cast<int>(k));
+    if (lc.grasp && lc.grasp->position_prior)
+      add(K::kPosition, "grasp", *lc.grasp->position_prior, false, -1);
+    if (in.gravity_prior_deg) add(K::kGravity, "gravity", *in.gravity_prior_deg * kRad, false, -1);
   }
   return out;
+}
+
+int NuisanceColumns(const std::vector<Nuisance>& nuisances) {
+  int columns = 0;
+  for (const Nuisance& n : nuisances) columns += n.size();
+  return columns;
 }
 
 namespace {
@@ -102,35 +127,130 @@ Eigen::Matrix3d RotationLeftJacobian(const Vec3& phi) {
          (theta - std::sin(theta)) / (theta_sq * theta) * K * K;
 }
 
+Eigen::Matrix<double, 3, 2> GravityTiltBasis(const Vec3& gravity) {
+  const Vec3 g = gravity.normalized();
+  int axis = 0;
+  for (int k = 1; k < 3; ++k)
+    if (std::abs(g[k]) < std::abs(g[axis])) axis = k;
+  const Vec3 b1 = (Vec3::Unit(axis) - g[axis] * g).normalized();
+  Eigen::Matrix<double, 3, 2> B;
+  B.col(0) = b1;
+  B.col(1) = b1.cross(g);
+  return B;
+}
+
+namespace {
+Vec3 Phi(const Nuisance& n, const double* x) {
+  return Vec3(x[n.first_column], x[n.first_column + 1], x[n.first_column + 2]);
+}
+// The gravity nuisance's rotation vector psi = a b1 + b b2.
+Vec3 Psi(const Nuisance& n, const Vec3& gravity, const double* x) {
+  return GravityTiltBasis(gravity) * Eigen::Vector2d(x[n.first_column], x[n.first_column + 1]);
+}
+}  // namespace
+
 LoadCase WithNuisances(const LoadCase& load_case, const std::vector<Nuisance>& own,
                        const double* x) {
   LoadCase out = load_case;
   for (const Nuisance& n : own) {
-    const Eigen::Matrix3d R = RotationExp(Vec3(x[n.first_column], x[n.first_column + 1],
-                                    x[n.first_column + 2]));
-    if (n.end_clamp) {
-      out.end_clamp->tangent = R * load_case.end_clamp->tangent;
-      out.end_clamp->normal = R * *load_case.end_clamp->normal;
-    } else {
-      out.clamp.tangent = R * load_case.clamp.tangent;
-      out.clamp.normal = R * load_case.clamp.normal;
+    if (n.kind == Nuisance::Kind::kRotation) {
+      const Eigen::Matrix3d R = RotationExp(Phi(n, x));
+      if (n.end_clamp) {
+        out.end_clamp->tangent = R * load_case.end_clamp->tangent;
+        out.end_clamp->normal = R * *load_case.end_clamp->normal;
+      } else {
+        out.clamp.tangent = R * load_case.clamp.tangent;
+        out.clamp.normal = R * load_case.clamp.normal;
+      }
+    } else if (n.kind == Nuisance::Kind::kPosition) {
+      const Vec3 offset = Phi(n, x);
+      if (n.held == "clamp") out.clamp.position += offset;
+      else if (n.held == "end_clamp") out.end_clamp->position += offset;
+      else if (n.held == "end_pin") *out.end_pin += offset;
+      else if (n.held == "grasp") out.grasp->position += offset;
+      else out.pins[n.pin].position += offset;
     }
   }
   return out;
 }
 
-bool RotationPriorCost::Evaluate(double const* const* parameters, double* residuals,
+Vec3 GravityWithNuisances(const Vec3& gravity, const std::vector<Nuisance>& own,
+                          const double* x) {
+  for (const Nuisance& n : own)
+    if (n.kind == Nuisance::Kind::kGravity) return RotationExp(Psi(n, gravity, x)) * gravity;
+  return gravity;
+}
+
+bool NuisancePriorCost::Evaluate(double const* const* parameters, double* residuals,
                                  double** jacobians) const {
   const int cols = parameter_block_sizes()[0];
-  for (int i = 0; i < 3; ++i)
-    residuals[i] = parameters[0][nuisance_.first_column + i] / nuisance_.sigma_rad;
+  const int rows = nuisance_.size();
+  for (int i = 0; i < rows; ++i)
+    residuals[i] = parameters[0][nuisance_.first_column + i] / nuisance_.sigma;
   if (jacobians && jacobians[0]) {
-    std::fill(jacobians[0], jacobians[0] + 3 * cols, 0.0);
-    for (int i = 0; i < 3; ++i)
-      jacobians[0][i * cols + nuisance_.first_column + i] = 1.0 / nuisance_.sigma_rad;
+    std::fill(jacobians[0], jacobians[0] + rows * cols, 0.0);
+    for (int i = 0; i < rows; ++i)
+      jacobians[0][i * cols + nuisance_.first_column + i] = 1.0 / nuisance_.sigma;
   }
   return true;
 }
+
+namespace {
+
+// The free gradient's derivatives by a held point's offset (free dofs x 3, held rows zero), and
+// in *moved the first free dof of each held vertex (or ghost vertex) the offset moves with it.
+// A held vertex h moved by d changes g by H[:, h] d (H with the held rows and columns kept,
+// EnergyTerms::hold off); dead loads have no Hessian. The clamp at s = 0 holds vertex 0 and its
+// ghost, which are no dofs: the elastic energy depends on differences of positions only and
+// the springs' anchors (the rest shape) move with the clamp, so moving the clamp by d changes g
+// as moving every other vertex (held ones and the end ghost's included) by -d does: -H T d.
+// Moment loads, which are not in H, are refused with a fitted offset (CaseEvaluator).
+void HeldPointOffsetGradients(const RodModel& model, const RodState& state, const Nuisance& n,
+                              Eigen::MatrixXd* dg, std::vector<int>* moved) {
+  EnergyTerms all;
+  all.hold = false;
+  VecX g;
+  BandedSymmetric H;
+  AssembleHessian(model, state, all, &g, &H);
+  const int N = model.num_free_dofs(), edges = model.num_edges();
+  const int last_vertex = edges + (model.has_end_ghost() ? 1 : 0);  // the end ghost's far one
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(N, 3);
+  double sign = 1.0;
+  moved->clear();
+  if (n.held == "clamp") {
+    sign = -1.0;
+    for (int i = 1; i <= last_vertex; ++i) T.middleRows<3>(RodModel::VertexDof(i)).setIdentity();
+  } else {
+    int vertex = -1;
+    for (const HeldVertex& h : model.held())
+      if (h.Label() == n.held) vertex = h.vertex;
+    if (vertex < 1) throw std::logic_error("held point " + n.held + " not in the model");
+    moved->push_back(RodModel::VertexDof(vertex));
+    if (n.held == "end_clamp") moved->push_back(RodModel::VertexDof(edges + 1));
+    for (int d : *moved) T.middleRows<3>(d).setIdentity();
+  }
+  dg->resize(N, 3);
+  for (int k = 0; k < 3; ++k) dg->col(k) = sign * H.Multiply(T.col(k));
+  const std::vector<char>& held = HeldDofs(model);
+  for (int r = 0; r < N; ++r)
+    if (held[r]) dg->row(r).setZero();
+}
+
+// The free gradient's derivatives by the gravity nuisance's two angles (free dofs x 2, held rows
+// zero): the weight w_i = m_i Exp(psi) g of each free vertex turns about J_l(psi) b_k, and the
+// gradient carries -w_i.
+void GravityTiltGradients(const RodModel& model, const Eigen::Matrix<double, 3, 2>& axes,
+                          Eigen::MatrixXd* dg) {
+  dg->setZero(model.num_free_dofs(), 2);
+  for (int i = 1; i <= model.num_edges(); ++i) {
+    if (model.held_at_vertex(i) >= 0) continue;
+    const Vec3 w = model.vertex_weight(i);
+    for (int k = 0; k < 2; ++k)
+      dg->block<3, 1>(RodModel::VertexDof(i), k) = -Vec3(axes.col(k)).cross(w);
+  }
+}
+
+}  // namespace
 
 // What `surface_points` need and what they can determine (fit.h).
 std::vector<Fitted> FittedParameters(const FitInput& in) {
@@ -228,7 +348,7 @@ CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fit
       fitted_(std::move(fitted)), loss_(loss), statics_(in.statics) {
   const int m = static_cast<int>(fitted_.size());
   const std::vector<Nuisance> all = Nuisances(in, m);
-  num_columns_ = m + 3 * static_cast<int>(all.size());
+  num_columns_ = m + NuisanceColumns(all);
   for (const Nuisance& n : all)
     if (n.case_index == case_index) own_nuisances_.push_back(n);
   for (const Fitted& f : fitted_) {
@@ -258,11 +378,35 @@ CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fit
   }
   // The reactions' and the section's derivatives by a held frame's turn, and those of a
   // measurement that reads the frames themselves, are not modelled: refused, not approximated.
-  if (!own_nuisances_.empty() && (needs_reactions_ || needs_section_ || reads_frames))
+  bool rotation = false, moved = false;  // a held frame turned; a held point or gravity moved
+  for (const Nuisance& n : own_nuisances_)
+    (n.kind == Nuisance::Kind::kRotation ? rotation : moved) = true;
+  if (rotation && (needs_reactions_ || needs_section_ || reads_frames))
     throw std::invalid_argument(
         "case " + case_.load_case.name +
         ": rotation_prior_deg (a fitted clamp frame) is not supported with reaction, force, "
         "surface point or roll marker observations of the same case");
+  // A moved held point or a turned gravity: the derivatives of the critical twist, the
+  // reactions, the section and the roll by them are not modelled; nor are those of moment loads
+  // (no part of the Hessian) or of a mirror plane (which a moved point or gravity breaks).
+  if (moved) {
+    const LoadCase& lc = case_.load_case;
+    const char* what = nullptr;
+    if (needs_state_ || needs_reactions_ || needs_section_ || reads_frames)
+      what = "critical twist, reaction, force, surface point or roll marker observations";
+    else if (lc.symmetry)
+      what = "a symmetry plane";
+    for (const Nuisance& n : own_nuisances_)
+      if (n.kind == Nuisance::Kind::kPosition &&
+          (!lc.point_moments.empty() || !lc.tip_moment.isZero() ||
+           !lc.tip_moment_follower.isZero()))
+        what = "moment loads";
+    if (what)
+      throw std::invalid_argument("case " + lc.name +
+                                  ": position_prior and gravity_prior_deg (a fitted held point "
+                                  "or gravity) are not supported with " + what +
+                                  " in the same case");
+  }
 }
 
 // One function, though long: solve, sensitivities and the measurements share the solved state,
@@ -272,9 +416,10 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
   const Material material = MaterialAt(in_, fitted_, logp);
   const LoadCase load_case =
       own_nuisances_.empty() ? case_.load_case : WithNuisances(case_.load_case, own_nuisances_, logp);
+  const Vec3 gravity = GravityWithNuisances(in_.gravity, own_nuisances_, logp);
   std::shared_ptr<const RodModel> model;
   try {
-    model = std::make_shared<const RodModel>(in_.rod, material, in_.gravity, load_case,
+    model = std::make_shared<const RodModel>(in_.rod, material, gravity, load_case,
                                              in_.springs);
   } catch (const std::invalid_argument&) {
     return false;
@@ -292,7 +437,7 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
   Scene scene;
   scene.rod = in_.rod;
   scene.material = material;
-  scene.gravity = in_.gravity;
+  scene.gravity = gravity;
   scene.springs = in_.springs;
   CaseSolution solved = SolveModel(model, scene, nullptr, statics_, &ws, &state);
   if (!(solved.ok() && solved.summary.stable)) {  // a warm start can mislead: retry from the start
@@ -362,7 +507,33 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     }
     // This case's held frames: d phi_k turns the frame about the world axis J_l(phi) e_k at the
     // held point, whose gradient change is exact (ClampTurnGradients); dq = -H^-1 dg.
+    // A held point's offset d: its held rows move by d, the rest answer -H^-1 dg/dd
+    // (HeldPointOffsetGradients). Gravity's tilt: its dead loads' change (GravityTiltGradients),
+    // which keeps an isotropic rod untwisted like any dead load.
     for (const Nuisance& n : own_nuisances_) {
+      if (n.kind == Nuisance::Kind::kPosition) {
+        Eigen::MatrixXd dg_offset, dq_offset;
+        std::vector<int> moved;
+        HeldPointOffsetGradients(*model, state, n, &dg_offset, &moved);
+        if (!GradientSensitivities(*model, state, ws, dg_offset, /*keeps_isotropy=*/false,
+                                   &dq_offset))
+          return false;
+        for (int d : moved) dq_offset.middleRows<3>(d).setIdentity();
+        dq.middleCols(n.first_column, 3) = dq_offset;
+        continue;
+      }
+      if (n.kind == Nuisance::Kind::kGravity) {
+        const Eigen::Matrix<double, 3, 2> B = GravityTiltBasis(in_.gravity);
+        const Eigen::Matrix<double, 3, 2> axes =
+            RotationLeftJacobian(B * Eigen::Vector2d(logp[n.first_column],
+                                                     logp[n.first_column + 1])) * B;
+        Eigen::MatrixXd dg_tilt, dq_tilt;
+        GravityTiltGradients(*model, axes, &dg_tilt);
+        if (!GradientSensitivities(*model, state, ws, dg_tilt, /*keeps_isotropy=*/true, &dq_tilt))
+          return false;
+        dq.middleCols(n.first_column, 2) = dq_tilt;
+        continue;
+      }
       const Eigen::Matrix3d Jl = RotationLeftJacobian(
           Vec3(logp[n.first_column], logp[n.first_column + 1], logp[n.first_column + 2]));
       Eigen::MatrixXd dg_turn, dq_phi;
@@ -377,6 +548,10 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     }
     terms.resize(fitted_terms);
     dx = VertexSensitivities(*model, dq);
+    // The clamp's point, vertex 0, is no dof: its offset moves it.
+    for (const Nuisance& n : own_nuisances_)
+      if (n.kind == Nuisance::Kind::kPosition && n.held == "clamp")
+        dx.block<3, 3>(0, n.first_column).setIdentity();
     if (needs_state_) dq_all = dq;
     if (needs_reactions_) {
       // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows

@@ -35,20 +35,34 @@ struct Fitted {
   int ring = 0;                   ///< 1: ring_bend_stiffness, 2: ring_stretch_stiffness
 };
 
-/// A fitted nuisance of one case (docs/solvers.md, "Nuisance parameters"): a held frame's
-/// rotation vector phi [rad], R = Exp(phi) R_given about the held point, three columns of the
-/// fit after the material's, with a zero-mean Gaussian prior of sigma per world axis.
+/// A fitted nuisance of one case (docs/solvers.md, "Nuisance parameters"), columns of the fit
+/// after the material's with a zero-mean Gaussian prior of sigma per column:
+/// - kRotation: a held frame's rotation vector phi [rad], R = Exp(phi) R_given about the held
+///   point (3 columns);
+/// - kPosition: a held point's offset [m] in world axes (3 columns; a clamp's frame moves with
+///   its point);
+/// - kGravity: the case's gravity turned by Exp(psi), psi = a b1 + b b2 [rad] perpendicular to
+///   gravity (GravityTiltBasis; 2 columns).
 struct Nuisance {
+  enum class Kind { kRotation, kPosition, kGravity };
+  Kind kind = Kind::kRotation;
   int case_index = 0;
-  bool end_clamp = false;  ///< the end clamp's frame, else the clamp's at s = 0
-  double sigma_rad = 0.0;
-  int first_column = 0;    ///< of phi's three in the fit's parameter vector
-  std::string Name() const { return end_clamp ? "end_clamp" : "clamp"; }
+  bool end_clamp = false;  ///< kRotation: the end clamp's frame, else the clamp's at s = 0
+  /// kPosition: "clamp", "end_clamp", "end_pin", "pins[k]" or "grasp"; kGravity: "gravity".
+  std::string held = "clamp";
+  int pin = -1;            ///< kPosition of "pins[k]": k
+  double sigma = 0.0;      ///< [rad] or [m]
+  int first_column = 0;    ///< of its columns in the fit's parameter vector
+  int size() const { return kind == Kind::kGravity ? 2 : 3; }
+  std::string Name() const { return held; }
 };
 
-/// The nuisances of `in`, case by case (clamp, then end clamp), their columns from
+/// The nuisances of `in`, case by case (the clamp's rotation, the end clamp's, then the held
+/// points' offsets: clamp, end clamp, end pin, pins, grasp; then gravity), their columns from
 /// `first_column` on.
 std::vector<Nuisance> Nuisances(const FitInput& in, int first_column);
+/// Their number of columns.
+int NuisanceColumns(const std::vector<Nuisance>& nuisances);
 
 /// Exp(phi) (Rodrigues, exact at any angle; its Taylor series near 0) and the left Jacobian
 /// J_l(phi): d Exp(phi) / d phi_k = [J_l(phi) e_k]x Exp(phi), i.e. a change of phi_k turns the
@@ -56,15 +70,24 @@ std::vector<Nuisance> Nuisances(const FitInput& in, int first_column);
 Eigen::Matrix3d RotationExp(const Vec3& phi);
 Eigen::Matrix3d RotationLeftJacobian(const Vec3& phi);
 
-/// The case's held frames turned by its nuisances' values in `x` (the fit's whole vector).
+/// The two unit axes b1, b2 (columns) perpendicular to `gravity` that a gravity nuisance turns
+/// it about: b1 the world axis least aligned with gravity, made perpendicular to it, and
+/// b2 = b1 x g/|g|.
+Eigen::Matrix<double, 3, 2> GravityTiltBasis(const Vec3& gravity);
+
+/// The case's held frames and points moved by its nuisances' values in `x` (the fit's whole
+/// vector).
 LoadCase WithNuisances(const LoadCase& load_case, const std::vector<Nuisance>& own,
                        const double* x);
+/// The case's gravity, turned by its gravity nuisance's value in `x` if it has one.
+Vec3 GravityWithNuisances(const Vec3& gravity, const std::vector<Nuisance>& own, const double* x);
 
-/// The prior of one nuisance as residuals phi / sigma (3 rows) over the fit's whole vector.
-class RotationPriorCost final : public ceres::CostFunction {
+/// The prior of one nuisance as residuals value / sigma (one row per column) over the fit's
+/// whole vector.
+class NuisancePriorCost final : public ceres::CostFunction {
  public:
-  RotationPriorCost(const Nuisance& nuisance, int num_columns) : nuisance_(nuisance) {
-    set_num_residuals(3);
+  NuisancePriorCost(const Nuisance& nuisance, int num_columns) : nuisance_(nuisance) {
+    set_num_residuals(nuisance.size());
     mutable_parameter_block_sizes()->push_back(num_columns);
   }
   bool Evaluate(double const* const* parameters, double* residuals,

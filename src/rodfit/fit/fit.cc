@@ -392,7 +392,7 @@ ResidualCheck CheckResiduals(const FitResult& result, const FitOptions& options)
 bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_values,
                         Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) {
   const std::vector<Fitted> fitted = FittedParameters(input);
-  const size_t columns = fitted.size() + 3 * Nuisances(input, 0).size();
+  const size_t columns = fitted.size() + NuisanceColumns(Nuisances(input, 0));
   if (log_values.size() != columns) throw std::invalid_argument("log_values size");
   int total = 0;
   std::vector<std::unique_ptr<CaseEvaluator>> evals;
@@ -424,14 +424,14 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   // The parameter vector: the material's logs, then every case's nuisances (their priors'
   // residuals are rows of the fit like any measurement's: counted in N and in the chi-square).
   const std::vector<Nuisance> nuisances = Nuisances(input, m);
-  const int M = m + 3 * static_cast<int>(nuisances.size());
+  const int M = m + NuisanceColumns(nuisances);
   std::vector<double> logp = StartLogValues(input, fitted);
   logp.resize(M, 0.0);
   ResidualCounts counts = CountResiduals(input);
   for (const FitCase& c : input.cases) CheckHeldPoints(input, c);
   if (counts.total == 0) throw std::invalid_argument("cases: no observations to fit");
-  counts.total += 3 * static_cast<int>(nuisances.size());
-  counts.effective += 3 * static_cast<int>(nuisances.size());
+  counts.total += NuisanceColumns(nuisances);
+  counts.effective += NuisanceColumns(nuisances);
   if (counts.total <= M)
     throw std::invalid_argument("cases: fewer residuals than fitted parameters");
 
@@ -461,7 +461,7 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
     if (e->num_residuals() > 0) observed.push_back(e.get());
   problem.AddResidualBlock(new AllCasesCost(observed, options.num_threads), nullptr, logp.data());
   for (const Nuisance& n : nuisances)
-    problem.AddResidualBlock(new RotationPriorCost(n, M), nullptr, logp.data());
+    problem.AddResidualBlock(new NuisancePriorCost(n, M), nullptr, logp.data());
 
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
@@ -503,9 +503,11 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   std::vector<std::string> names;
   for (const Fitted& f : fitted) names.push_back(f.name);
   for (const Nuisance& n : nuisances)
-    for (const char* axis : {"x", "y", "z"})
+    for (int k = 0; k < n.size(); ++k)
       names.push_back("case " + input.cases[n.case_index].load_case.name + " " + n.Name() +
-                      " rotation " + axis);
+                      (n.kind == Nuisance::Kind::kPosition ? " offset " : " rotation ") +
+                      (n.kind == Nuisance::Kind::kGravity ? (k == 0 ? "b1" : "b2")
+                                                          : std::string(1, "xyz"[k])));
   const Identifiability id =
       Identify(J, names, &problem, logp.data(), covariance_scale, options.max_log_std);
   const Eigen::MatrixXd& cov_log = id.cov_log;
@@ -515,18 +517,29 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       result.correlation(i, j) = cov_log(i, j) / std::sqrt(cov_log(i, i) * cov_log(j, j));
 
   ReportParameters(input, fitted, logp, id, &result);
-  // The nuisances: values and std [deg] (the std from the whole covariance, NaN where the fit
-  // could not separate them).
+  // The nuisances: values and std per world axis, [deg] or [m] (the std from the whole
+  // covariance, NaN where the fit could not separate them). Gravity's two angles about b1, b2
+  // are reported as the rotation vector B (a, b) with the covariance B C B^T (0 along gravity).
   for (const Nuisance& n : nuisances) {
     NuisanceEstimate e;
     e.case_index = n.case_index;
     e.case_name = input.cases[n.case_index].load_case.name;
     e.held = n.Name();
-    e.prior_deg = n.sigma_rad * 180.0 / M_PI;
+    const bool offset = n.kind == Nuisance::Kind::kPosition;
+    const double scale = offset ? 1.0 : 180.0 / M_PI;
+    e.quantity = offset ? "offset" : "rotation";
+    e.unit = offset ? "m" : "deg";
+    e.prior = n.sigma * scale;
+    Eigen::MatrixXd B = Eigen::MatrixXd::Identity(3, 3);
+    if (n.kind == Nuisance::Kind::kGravity) B = GravityTiltBasis(input.gravity);
+    const Eigen::VectorXd v =
+        B * Eigen::Map<const Eigen::VectorXd>(logp.data() + n.first_column, n.size());
+    const Eigen::MatrixXd C =
+        B * cov_log.block(n.first_column, n.first_column, n.size(), n.size()) * B.transpose();
     for (int i = 0; i < 3; ++i) {
-      const int k = n.first_column + i;
-      e.rotation_deg[i] = logp[k] * 180.0 / M_PI;
-      e.std_deg[i] = std::sqrt(cov_log(k, k)) * 180.0 / M_PI;
+      e.value[i] = v[i] * scale;
+      e.std[i] = std::sqrt(std::max(0.0, C(i, i))) * scale;
+      if (std::isnan(C(i, i))) e.std[i] = std::numeric_limits<double>::quiet_NaN();
     }
     result.nuisances.push_back(e);
   }

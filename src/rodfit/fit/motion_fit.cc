@@ -288,18 +288,13 @@ class Budget : public ceres::IterationCallback {
 
 namespace {
 
-// The rows a motion sees: the rod's stiffnesses, its damping and its mass (springs and the ring
-// are not part of a moving thread's model).
+// The rows a motion sees (InMotionModel).
 const MaterialParameterInfo& MotionRow(const std::string& name) {
-  auto moving = [](const MaterialParameterInfo& p) {
-    return p.kind == ParameterKind::kRodStiffness || p.kind == ParameterKind::kDamping ||
-           p.kind == ParameterKind::kMass;
-  };
   const MaterialParameterInfo* row = FindMaterialParameter(name);
-  if (!row || !moving(*row)) {
+  if (!row || !InMotionModel(*row)) {
     std::string allowed;  // so that a typo is answered with the list
     for (const MaterialParameterInfo& p : MaterialParameters())
-      if (moving(p)) allowed += std::string(allowed.empty() ? "" : ", ") + p.name;
+      if (InMotionModel(p)) allowed += std::string(allowed.empty() ? "" : ", ") + p.name;
     throw std::invalid_argument("a motion fit cannot fit '" + name.substr(0, 60) + "' (it fits " +
                                 allowed + ", " + kRestCurvatureParameter + ")");
   }

@@ -20,8 +20,8 @@
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/model/rod_radius.h"
-#include "rodfit/solve/integrator.h"
-#include "rodfit/vision/camera_file.h"
+#include "rodfit/model/markup_nesting.h"
+#include "rodfit/vision/camera_file.h"  // kMaxImageSidePx, a constant (io links no vision)
 
 namespace rodfit {
 namespace {
@@ -372,10 +372,22 @@ std::optional<double> ReadRotationPrior(const Reader& r, const Entries& m) {
   return sigma;
 }
 
+// `position_prior: sigma` of a held point [m]: (0, 0.1] (a point misplaced by more than 10 cm
+// is a wrong scene, not a nuisance).
+std::optional<double> ReadPositionPrior(const Reader& r, const Entries& m) {
+  const Field* f = Reader::Find(m, "position_prior");
+  if (!f) return std::nullopt;
+  const double sigma = r.Positive(*f);
+  if (sigma > 0.1) r.Fail(*f, "must be at most 0.1 (metres per axis), got " + Show(sigma));
+  return sigma;
+}
+
 Clamp ReadClamp(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg"});
+  const Entries m =
+      r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg", "position_prior"});
   Clamp clamp;
   clamp.rotation_prior_deg = ReadRotationPrior(r, m);
+  clamp.position_prior = ReadPositionPrior(r, m);
   clamp.position = r.Vector3(r.Require(m, f, "position"));
   const Field& tangent = r.Require(m, f, "tangent");
   const Field& normal = r.Require(m, f, "normal");
@@ -685,9 +697,11 @@ Vec3 Direction(const Reader& r, const Field& f) {
 }
 
 EndClamp ReadEndClamp(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg"});
+  const Entries m =
+      r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg", "position_prior"});
   EndClamp ec;
   ec.rotation_prior_deg = ReadRotationPrior(r, m);
+  ec.position_prior = ReadPositionPrior(r, m);
   ec.position = r.Vector3(r.Require(m, f, "position"));
   const Field& tangent = r.Require(m, f, "tangent");
   ec.tangent = Direction(r, tangent);
@@ -1013,7 +1027,15 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
              "rotation_prior_deg fits the frame in a static scene only (not with a dynamics: "
              "block)");
   };
-  static_only("clamp", c.clamp.rotation_prior_deg.has_value());  const double L = ex->scene.rod.length;
+  static_only("clamp", c.clamp.rotation_prior_deg.has_value());
+  // A held point's fitted offset, likewise the static fit's only.
+  auto static_point = [&](const Entries& held) {
+    if (const Field* p = Reader::Find(held, "position_prior"); p && ex->scene.dynamics)
+      r.Fail(*p, "fits the held point in a static scene only (not with a dynamics: block)");
+  };
+  const std::vector<std::string> frame_keys = {"position", "tangent", "normal",
+                                               "rotation_prior_deg", "position_prior"};
+  static_point(r.Map(r.Require(m, f, "clamp"), frame_keys));  const double L = ex->scene.rod.length;
   const Field* end_clamp = Reader::Find(m, "end_clamp");
   const Field* end_pin = Reader::Find(m, "end_pin");
   if (end_clamp && end_pin)
@@ -1021,10 +1043,13 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   if (end_clamp) {
     c.end_clamp = ReadEndClamp(r, *end_clamp);
     static_only("end_clamp", c.end_clamp->rotation_prior_deg.has_value());
+    static_point(r.Map(*end_clamp, frame_keys));
   }
   if (end_pin) {
-    const Entries pm = r.Map(*end_pin, {"position"});
+    const Entries pm = r.Map(*end_pin, {"position", "position_prior"});
     c.end_pin = r.Vector3(r.Require(pm, *end_pin, "position"));
+    c.end_pin_position_prior = ReadPositionPrior(r, pm);
+    static_point(pm);
   }
   const char* held_end = end_clamp ? "end_clamp" : "end_pin";
   if (const Field* tf = Reader::Find(m, "tip_force")) {
@@ -1054,8 +1079,10 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
   if (const Field* pins = Reader::Find(m, "pins")) {
     std::vector<std::pair<double, int>> seen;
     for (const Field& item : r.Sequence(*pins)) {
-      const Entries pm = r.Map(item, {"s", "position"});
+      const Entries pm = r.Map(item, {"s", "position", "position_prior"});
       Pin p;
+      p.position_prior = ReadPositionPrior(r, pm);
+      static_point(pm);
       const Field& s_field = r.Require(pm, item, "s");
       p.s = r.Number(s_field);
       if (!(p.s > 0.0 && p.s < L))
@@ -1099,8 +1126,10 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
     }
   }
   if (const Field* grasp = Reader::Find(m, "grasp")) {
-    const Entries gm = r.Map(*grasp, {"s", "position"});
+    const Entries gm = r.Map(*grasp, {"s", "position", "position_prior"});
     Grasp g;
+    g.position_prior = ReadPositionPrior(r, gm);
+    static_point(gm);
     const Field& s_field = r.Require(gm, *grasp, "s");
     g.s = r.InRange(s_field, 0.0, ex->scene.rod.length);
     if (g.s < 0.5 * ex->scene.rod.length / ex->scene.rod.segments) {
@@ -1214,15 +1243,16 @@ class YamlSettings final : public SettingsArchive {
 
 // Reads a settings block into `config` (its defaults where the block says nothing); returns the
 // block's entries.
-template <class Config>
-Entries ReadSettings(const Reader& r, const Field& f, Config* config) {
+template <class Config, class... Vocabulary>
+Entries ReadSettings(const Reader& r, const Field& f, Config* config,
+                     const Vocabulary&... vocabulary) {
   static const Entries kNoKeys;
   Config scratch;
   YamlSettings keys(r, f, kNoKeys, /*reading=*/false);
-  Serialize(&keys, &scratch);
+  Serialize(&keys, &scratch, vocabulary...);
   const Entries m = r.Map(f, keys.declared());
   YamlSettings read(r, f, m, /*reading=*/true);
-  Serialize(&read, config);
+  Serialize(&read, config, vocabulary...);
   return m;
 }
 
@@ -1277,7 +1307,8 @@ void CheckYamlNodes(const YAML::Node& root, const std::string& path) {
 
 
 Experiment ParseExperiment(const std::string& text, const std::string& path,
-                           const ObservationEntryKinds& kinds, bool parameters_optional) {
+                           const ObservationEntryKinds& kinds,
+                           const std::vector<std::string>& integrators, bool parameters_optional) {
   CheckYamlText(text, path);
   YAML::Node root;
   try {
@@ -1294,8 +1325,8 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   ex.directory = fs::path(path).parent_path().string();
   const Field top{root, "", 1, 0};
   const Entries m = r.Map(
-      top, {"rod", "parameters", "gravity", "springs", "section", "cases", "fit", "solver",
-            "dynamics"});
+      top, {"rod", "parameters", "gravity", "gravity_prior_deg", "springs", "section", "cases",
+            "fit", "solver", "dynamics"});
   const Field* params = Reader::Find(m, "parameters");
   // The rod's density given as a parameter (a row of the rod's, in a moving scene).
   bool density_in_parameters = false;
@@ -1313,7 +1344,7 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   // Before the parameters: whether the scene moves decides which of them may be fitted.
   if (const Field* dynamics = Reader::Find(m, "dynamics")) {
     ex.scene.dynamics.emplace();
-    const Entries block = ReadSettings(r, *dynamics, &*ex.scene.dynamics);
+    const Entries block = ReadSettings(r, *dynamics, &*ex.scene.dynamics, integrators);
     // Where a fit that cannot use the integrator points: its key, or the block's.
     const Field* integrator = Reader::Find(block, "integrator");
     ex.integrator_line = integrator ? integrator->line : dynamics->key_line;
@@ -1322,6 +1353,15 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   if (params || !parameters_optional)
     ReadParameters(r, params ? *params : r.Require(m, top, "parameters"), &ex, zone_parameters);
   if (const Field* g = Reader::Find(m, "gravity")) ex.scene.gravity = r.Vector3(*g);
+  // `gravity_prior_deg: sigma`: each case's gravity (the camera's tilt) a nuisance of the static
+  // fit, (0, 90] degrees per axis.
+  if (const Field* g = Reader::Find(m, "gravity_prior_deg")) {
+    const double sigma = r.Positive(*g);
+    if (sigma > 90.0) r.Fail(*g, "must be at most 90 (degrees per axis), got " + Show(sigma));
+    if (ex.scene.dynamics) r.Fail(*g, "fits gravity in a static scene only (not with a dynamics: block)");
+    if (!(ex.scene.gravity.norm() > 0.0)) r.Fail(*g, "needs a non-zero gravity to turn");
+    ex.scene.gravity_prior_deg = sigma;
+  }
   if (const Field* fit = Reader::Find(m, "fit")) {
     ReadSettings(r, *fit, static_cast<FitOptions*>(&ex.fit));
     ex.fit.line = fit->key_line;
@@ -1351,10 +1391,10 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
 }
 
 Experiment LoadExperiment(const std::string& path, const ObservationEntryKinds& kinds,
-                          bool parameters_optional) {
+                          const std::vector<std::string>& integrators, bool parameters_optional) {
   // Bounded before yaml-cpp sees it: a regular file of at most kMaxInputFileBytes.
   return ParseExperiment(ReadInputFile(path, "a YAML file", kMaxYamlBytes), path, kinds,
-                         parameters_optional);
+                         integrators, parameters_optional);
 }
 
 std::string CameraKey(const ObservationSpec& spec) {

@@ -128,9 +128,90 @@ std::string FileDigest(const std::string& path) {
   return out;
 }
 
-// One function, though long: it writes the profile's keys in the order docs/formats.md lists
-// them, so that the code reads as the format.
-nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const FitResult& r) {
+namespace {
+
+// The profile's `fit` object: the fit's summary, its correlations, per entry its rms, per case
+// its nuisances, and a digest of every input file.
+nlohmann::json FitJson(const Experiment& e, const FitOptions& options, const FitResult& r,
+                       const ResidualCheck& check) {
+  using nlohmann::json;
+  json fit;
+  fit["success"] = r.success;
+  fit["termination"] = r.message;
+  fit["iterations"] = r.iterations;
+  fit["global_evaluations"] = r.global_evaluations;
+  fit["initial_cost"] = r.initial_cost;
+  fit["final_cost"] = r.final_cost;
+  fit["num_residuals"] = r.num_residuals;
+  fit["residual_variance"] = r.residual_variance;
+  fit["residual_variance_band"] = {check.band.low, check.band.high};
+  fit["residuals_explained"] = !check.above;
+  fit["sigmas_trusted"] = options.trusted_sigmas;
+  fit["loss"] = RobustLossName(options.loss);
+  fit["loss_scale"] = options.loss_scale;
+  fit["correlation"] = {{"parameters", r.fitted_names}, {"matrix", json::array()}};
+  for (int i = 0; i < r.correlation.rows(); ++i) {
+    json row = json::array();
+    for (int j = 0; j < r.correlation.cols(); ++j)
+      row.push_back(std::isfinite(r.correlation(i, j)) ? json(r.correlation(i, j)) : json(nullptr));
+    fit["correlation"]["matrix"].push_back(row);
+  }
+  json rms = json::array();
+  for (const ObservationFit& o : r.observations) {
+    json entry = {{"case", o.case_name},  {"observation", o.label}, {"type", o.type},
+                  {"count", o.num_measurements}, {"rms", o.rms}, {"unit", o.unit}};
+    if (std::isfinite(o.rms_moment)) {
+      entry["rms_moment"] = o.rms_moment;
+      entry["unit_moment"] = "N m";
+    }
+    if (std::isfinite(o.rms_roll)) {
+      entry["rms_roll"] = o.rms_roll;
+      entry["unit_roll"] = "deg";
+    }
+    if (!o.warning.empty()) entry["warning"] = o.warning;
+    rms.push_back(entry);
+  }
+  fit["rms"] = rms;
+  // The cases' nuisances (fitted held frames, points, gravity): per case, never part of the
+  // material. Keys carry the unit: rotation_deg / std_deg / prior_deg, offset_m / std_m / prior_m.
+  if (!r.nuisances.empty()) {
+    json cases = json::array();
+    for (const NuisanceEstimate& n : r.nuisances) {
+      json value = json::array(), std_dev = json::array();
+      for (int i = 0; i < 3; ++i) {
+        value.push_back(n.value[i]);
+        std_dev.push_back(std::isfinite(n.std[i]) ? json(n.std[i]) : json(nullptr));
+      }
+      cases.push_back({{"case", n.case_name}, {"held", n.held},
+                       {n.quantity + "_" + n.unit, value}, {"std_" + n.unit, std_dev},
+                       {"prior_" + n.unit, n.prior}});
+    }
+    fit["cases"] = cases;
+  }
+  // Digest of every input file: the experiment, the data files and the cameras.
+  json inputs = json::array();
+  std::set<std::string> seen;
+  auto add = [&](const std::string& path) {
+    if (path.empty() || !seen.insert(path).second) return;
+    inputs.push_back({{"file", std::filesystem::path(path).lexically_normal().string()},
+                      {"fnv1a64", FileDigest(path)}});
+  };
+  add(e.path);
+  for (const CaseSpec& c : e.cases)
+    for (const ObservationSpec& o : c.observations) {
+      add(o.file);
+      add(o.camera);
+    }
+  fit["inputs"] = inputs;
+  return fit;
+}
+
+}  // namespace
+
+// The profile's keys in the order docs/formats.md lists them, so that the code reads as the
+// format (the `fit` object in FitJson).
+nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const FitResult& r,
+                           const ResidualCheck& check) {
   using nlohmann::json;
   json p;
   p[pf::kFormat] = pf::kFormatName;
@@ -219,74 +300,7 @@ nlohmann::json ProfileJson(const Experiment& e, const FitOptions& options, const
   }
   p[pf::kParameters] = params;
   p[pf::kDerived] = DerivedJson(fitted, rod, undetermined);
-  json fit;
-  fit["success"] = r.success;
-  fit["termination"] = r.message;
-  fit["iterations"] = r.iterations;
-  fit["global_evaluations"] = r.global_evaluations;
-  fit["initial_cost"] = r.initial_cost;
-  fit["final_cost"] = r.final_cost;
-  fit["num_residuals"] = r.num_residuals;
-  fit["residual_variance"] = r.residual_variance;
-  const ResidualCheck check = CheckResiduals(r, options);
-  fit["residual_variance_band"] = {check.band.low, check.band.high};
-  fit["residuals_explained"] = !check.above;
-  fit["sigmas_trusted"] = options.trusted_sigmas;
-  fit["loss"] = RobustLossName(options.loss);
-  fit["loss_scale"] = options.loss_scale;
-  fit["correlation"] = {{"parameters", r.fitted_names}, {"matrix", json::array()}};
-  for (int i = 0; i < r.correlation.rows(); ++i) {
-    json row = json::array();
-    for (int j = 0; j < r.correlation.cols(); ++j)
-      row.push_back(std::isfinite(r.correlation(i, j)) ? json(r.correlation(i, j)) : json(nullptr));
-    fit["correlation"]["matrix"].push_back(row);
-  }
-  json rms = json::array();
-  for (const ObservationFit& o : r.observations) {
-    json entry = {{"case", o.case_name},  {"observation", o.label}, {"type", o.type},
-                  {"count", o.num_measurements}, {"rms", o.rms}, {"unit", o.unit}};
-    if (std::isfinite(o.rms_moment)) {
-      entry["rms_moment"] = o.rms_moment;
-      entry["unit_moment"] = "N m";
-    }
-    if (std::isfinite(o.rms_roll)) {
-      entry["rms_roll"] = o.rms_roll;
-      entry["unit_roll"] = "deg";
-    }
-    if (!o.warning.empty()) entry["warning"] = o.warning;
-    rms.push_back(entry);
-  }
-  fit["rms"] = rms;
-  // The cases' nuisances (fitted held frames): per case, never part of the material.
-  if (!r.nuisances.empty()) {
-    json cases = json::array();
-    for (const NuisanceEstimate& n : r.nuisances) {
-      json rotation = json::array(), std_deg = json::array();
-      for (int i = 0; i < 3; ++i) {
-        rotation.push_back(n.rotation_deg[i]);
-        std_deg.push_back(std::isfinite(n.std_deg[i]) ? json(n.std_deg[i]) : json(nullptr));
-      }
-      cases.push_back({{"case", n.case_name}, {"held", n.held}, {"rotation_deg", rotation},
-                       {"std_deg", std_deg}, {"prior_deg", n.prior_deg}});
-    }
-    fit["cases"] = cases;
-  }
-  // Digest of every input file: the experiment, the data files and the cameras.
-  json inputs = json::array();
-  std::set<std::string> seen;
-  auto add = [&](const std::string& path) {
-    if (path.empty() || !seen.insert(path).second) return;
-    inputs.push_back({{"file", std::filesystem::path(path).lexically_normal().string()},
-                      {"fnv1a64", FileDigest(path)}});
-  };
-  add(e.path);
-  for (const CaseSpec& c : e.cases)
-    for (const ObservationSpec& o : c.observations) {
-      add(o.file);
-      add(o.camera);
-    }
-  fit["inputs"] = inputs;
-  p[pf::kFit] = fit;
+  p[pf::kFit] = FitJson(e, options, r, check);
   return p;
 }
 

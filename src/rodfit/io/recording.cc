@@ -9,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "rodfit/fit/motion_fit.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/model/material_parameters.h"
 #include "rodfit/model/scene.h"
 
 namespace rodfit {
@@ -46,6 +46,69 @@ struct TimeFrames {
   double interval = 0.0;      // [s]
 };
 
+// The least-squares line t = t0 + k dt through the frames' times: its slope dt and the means of
+// k and t (t0 = mean_t - mean_k dt).
+struct FrameLine {
+  double dt, mean_k, mean_t;
+};
+
+FrameLine FitFrameLine(const std::vector<long>& frame, const std::vector<double>& times) {
+  const size_t n = times.size();
+  double mk = 0.0, mt = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    mk += frame[i];
+    mt += times[i];
+  }
+  mk /= n;
+  mt /= n;
+  double skk = 0.0, skt = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    skk += (frame[i] - mk) * (frame[i] - mk);
+    skt += (frame[i] - mk) * (times[i] - mt);
+  }
+  return {skt / skk, mk, mt};
+}
+
+// Motion capture runs at a whole number of hertz: an interval whose rate is within 0.1 % of one
+// is taken as it, so the rollout's time step can divide the interval exactly.
+double WholeHertz(double dt) {
+  const double rate = 1.0 / dt, whole = std::round(rate);
+  return whole >= 1.0 && std::abs(rate - whole) <= 1e-3 * rate ? 1.0 / whole : dt;
+}
+
+// The documented rule is a bound: some t0 + k dt within kMaxJitter dt of every time. The
+// least-squares line can miss it where one exists (alternating jitter near the bound over few
+// frames tilts it): then the line of least largest offset (t0 the offsets' mid-range; dt,
+// unless the frame rate is given, by a golden-section search on the offsets' range, which is
+// convex in dt) is taken, when it keeps every time within the bound.
+void MinimaxFrameLine(const TimeFrames& out, double frame_rate, double* dt, double* t0) {
+  const size_t n = out.times.size();
+  auto half_range = [&](double interval, double* start) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (size_t i = 0; i < n; ++i) {
+      const double r = out.times[i] - out.frame[i] * interval;
+      lo = std::min(lo, r);
+      hi = std::max(hi, r);
+    }
+    *start = 0.5 * (lo + hi);
+    return 0.5 * (hi - lo);
+  };
+  double interval = *dt, start = 0.0;
+  if (!(frame_rate > 0.0)) {
+    double a = 0.8 * *dt, b = 1.2 * *dt;
+    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+    for (int it = 0; it < 100 && b - a > 1e-15 * *dt; ++it) {
+      const double c = b - g * (b - a), d = a + g * (b - a);
+      if (half_range(c, &start) <= half_range(d, &start)) b = d; else a = c;
+    }
+    interval = WholeHertz(0.5 * (a + b));
+  }
+  if (half_range(interval, &start) <= kMaxJitter * interval) {
+    *dt = interval;
+    *t0 = start;
+  }
+}
+
 TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
                          const std::string& path, double frame_rate) {
   TimeFrames out;
@@ -71,16 +134,7 @@ TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
   for (int round = 0; round < 5; ++round) {
     for (size_t i = 1; i < n; ++i)
       out.frame[i] = out.frame[i - 1] + std::max(1L, std::lround(diff[i - 1] / dt));
-    double mk = 0.0, mt = 0.0;
-    for (size_t i = 0; i < n; ++i) mk += out.frame[i], mt += out.times[i];
-    mk /= n;
-    mt /= n;
-    double skk = 0.0, skt = 0.0;
-    for (size_t i = 0; i < n; ++i) {
-      skk += (out.frame[i] - mk) * (out.frame[i] - mk);
-      skt += (out.frame[i] - mk) * (out.times[i] - mt);
-    }
-    const double refined = skt / skk;
+    const double refined = FitFrameLine(out.frame, out.times).dt;
     if (!(refined > 0.0) || std::abs(refined - dt) <= 1e-12 * dt) break;
     dt = refined;
   }
@@ -99,19 +153,8 @@ TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
   if (out.frame.back() >= 100000)
     throw InputError(path, line_of(out.times.back()), "t", "more than 100000 frames");
   // Least squares t = t0 + k dt.
-  double mk = 0.0, mt = 0.0;
-  for (size_t i = 0; i < n; ++i) {
-    mk += out.frame[i];
-    mt += out.times[i];
-  }
-  mk /= n;
-  mt /= n;
-  double skk = 0.0, skt = 0.0;
-  for (size_t i = 0; i < n; ++i) {
-    skk += (out.frame[i] - mk) * (out.frame[i] - mk);
-    skt += (out.frame[i] - mk) * (out.times[i] - mt);
-  }
-  const double fitted = skt / skk;
+  const FrameLine line = FitFrameLine(out.frame, out.times);
+  const double fitted = line.dt;
   if (frame_rate > 0.0) {
     dt = 1.0 / frame_rate;
     if (std::abs(fitted - dt) > 0.01 * dt) {
@@ -122,49 +165,13 @@ TimeFrames FramesOfTimes(const CsvTable& table, const std::vector<double>& t,
       throw InputError(path, 1, "t", text);
     }
   } else {
-    dt = fitted;
-    // Motion capture runs at a whole number of hertz: a fitted rate within 0.1 % of one is
-    // taken as it, so the rollout's time step can divide the interval exactly.
-    const double rate = 1.0 / dt, whole = std::round(rate);
-    if (whole >= 1.0 && std::abs(rate - whole) <= 1e-3 * rate) dt = 1.0 / whole;
+    dt = WholeHertz(fitted);
   }
-  // The documented rule is a bound: some t0 + k dt within kMaxJitter dt of every time. The
-  // least-squares line can miss it where one exists (alternating jitter near the bound over few
-  // frames tilts it): then the line of least largest offset (t0 the offsets' mid-range; dt,
-  // unless the frame rate is given, by a golden-section search on the offsets' range, which is
-  // convex in dt) is taken.
-  auto half_range = [&](double interval, double* start) {
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (size_t i = 0; i < n; ++i) {
-      const double r = out.times[i] - out.frame[i] * interval;
-      lo = std::min(lo, r);
-      hi = std::max(hi, r);
-    }
-    *start = 0.5 * (lo + hi);
-    return 0.5 * (hi - lo);
-  };
-  double t0 = mt - mk * dt;
+  double t0 = line.mean_t - line.mean_k * dt;
   bool within = true;
   for (size_t i = 0; i < n && within; ++i)
     within = std::abs(out.times[i] - (t0 + out.frame[i] * dt)) <= kMaxJitter * dt;
-  if (!within) {
-    double interval = dt, start = 0.0;
-    if (!(frame_rate > 0.0)) {
-      double a = 0.8 * dt, b = 1.2 * dt;
-      const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-      for (int it = 0; it < 100 && b - a > 1e-15 * dt; ++it) {
-        const double c = b - g * (b - a), d = a + g * (b - a);
-        if (half_range(c, &start) <= half_range(d, &start)) b = d; else a = c;
-      }
-      interval = 0.5 * (a + b);
-      const double rate = 1.0 / interval, whole = std::round(rate);
-      if (whole >= 1.0 && std::abs(rate - whole) <= 1e-3 * rate) interval = 1.0 / whole;
-    }
-    if (half_range(interval, &start) <= kMaxJitter * interval) {
-      dt = interval;
-      t0 = start;
-    }
-  }
+  if (!within) MinimaxFrameLine(out, frame_rate, &dt, &t0);
   for (size_t i = 0; i < n; ++i) {
     const double off = out.times[i] - (t0 + out.frame[i] * dt);
     if (std::abs(off) > kMaxJitter * dt) {
@@ -432,16 +439,13 @@ std::vector<std::pair<std::string, double>> ReadMotionFitValues(const std::strin
     throw InputError(path, JsonKeyLine(text, "parameters"), "parameters",
                      "a motion fit file has a parameters object with each fitted value (written "
                      "by rollout --fit)");
-  Scene probe;
   std::vector<std::pair<std::string, double>> values;
   for (const auto& [name, entry] : doc["parameters"].items()) {
     const int line = JsonKeyLine(text, name, params_at == std::string::npos ? 0 : params_at);
-    try {
-      MotionParameter(name, probe);
-    } catch (const std::invalid_argument&) {
+    const MaterialParameterInfo* row = FindMaterialParameter(name);
+    if (!row || !InMotionModel(*row))
       throw InputError(path, line, "parameters." + ClipForMessage(name),
                        "not a parameter of the motion (bend_stiffness, damping, ...)");
-    }
     if (!entry.is_object() || !entry.contains("value") || !entry["value"].is_number() ||
         !(entry["value"].get<double>() > 0.0) || !std::isfinite(entry["value"].get<double>()))
       throw InputError(path, line, "parameters." + name + ".value", "must be a number > 0");

@@ -3,8 +3,6 @@
 
 #include <cstdio>
 
-#include "rodfit/solve/integrator.h"
-
 namespace rodfit {
 namespace {
 
@@ -48,7 +46,7 @@ void Serialize(SettingsArchive* a, FitOptions* o) {
   a->Bool("trusted_sigmas", &o->trusted_sigmas);
 }
 
-void Serialize(SettingsArchive* a, DynamicsSpec* d) {
+void Serialize(SettingsArchive* a, DynamicsSpec* d, const std::vector<std::string>& integrators) {
   a->Require("time_step");
   a->Number("time_step", &d->time_step, 1e-12, 10.0);
   a->Require("duration");
@@ -56,8 +54,8 @@ void Serialize(SettingsArchive* a, DynamicsSpec* d) {
   a->Check(d->duration / d->time_step <= kMaxDynamicSteps, "time_step",
            "gives " + Show(d->duration / d->time_step) + " steps, above the limit of " +
                Show(kMaxDynamicSteps));
-  // The registered schemes (solve/integrator.h), and `implicit` for the default implicit one.
-  std::vector<std::string> words = IntegratorNames();
+  // The registered schemes, and `implicit` for the default implicit one.
+  std::vector<std::string> words = integrators;
   words.insert(words.begin() + 1, "implicit");
   std::vector<std::string> names = words;
   names[1] = kDefaultIntegrator;

@@ -91,7 +91,7 @@ void Finish(const Experiment& experiment, const FitInput& input, const FitRunOpt
   run->misfit = check.gross;
   for (const Parameter& p : run->result.parameters)
     if (p.fit && !p.identifiable) run->all_determined = false;
-  run->profile = ProfileJson(experiment, run->options, run->result);
+  run->profile = ProfileJson(experiment, run->options, run->result, check);
   if (!options.profile_path.empty())
     run->report_warnings =
         WriteOutputs(experiment, input, run->result, run->profile, options, run->warnings);

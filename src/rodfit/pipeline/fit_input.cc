@@ -55,6 +55,7 @@ FitInput BuildFitInput(const Experiment& e) {
   in.rod = e.scene.rod;
   in.material = e.scene.material;
   in.gravity = e.scene.gravity;
+  in.gravity_prior_deg = e.scene.gravity_prior_deg;
   in.springs = e.scene.springs;
   in.section = e.scene.section;
   in.parameters = FitParametersOf(e);

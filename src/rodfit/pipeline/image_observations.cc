@@ -7,7 +7,7 @@
 #include <filesystem>
 
 #include "rodfit/io/errors.h"
-#include "rodfit/io/image_files.h"
+#include "rodfit/pipeline/image_files.h"
 
 namespace rodfit {
 namespace {

@@ -13,7 +13,7 @@
 #include <opencv2/core.hpp>
 
 #include "rodfit/io/experiment.h"
-#include "rodfit/io/image_files.h"
+#include "rodfit/pipeline/image_files.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/observe/camera.h"
 #include "rodfit/observe/triangulate.h"

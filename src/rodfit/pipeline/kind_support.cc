@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "rodfit/io/errors.h"
+#include "rodfit/pipeline/image_files.h"
 
 namespace rodfit {
 

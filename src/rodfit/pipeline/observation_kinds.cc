@@ -7,6 +7,7 @@
 #include "rodfit/io/errors.h"
 #include "rodfit/pipeline/experiment.h"
 #include "rodfit/pipeline/observation_kind.h"
+#include "rodfit/solve/integrator.h"
 
 // The registration: one line per kind, the variable its file kinds/<name>.cc defines with
 // RODFIT_OBSERVATION_KIND, in the order messages list the kinds.
@@ -69,12 +70,13 @@ const ObservationEntryKinds& ObservationEntryKindsOf() {
 }
 
 Experiment LoadExperiment(const std::string& path, bool parameters_optional) {
-  return LoadExperiment(path, ObservationEntryKindsOf(), parameters_optional);
+  return LoadExperiment(path, ObservationEntryKindsOf(), IntegratorNames(), parameters_optional);
 }
 
 Experiment ParseExperiment(const std::string& text, const std::string& path,
                            bool parameters_optional) {
-  return ParseExperiment(text, path, ObservationEntryKindsOf(), parameters_optional);
+  return ParseExperiment(text, path, ObservationEntryKindsOf(), IntegratorNames(),
+                         parameters_optional);
 }
 
 #else  // the whole kinds

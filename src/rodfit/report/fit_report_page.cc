@@ -21,7 +21,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/io/image_files.h"
+#include "rodfit/pipeline/image_files.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/pipeline/observation_kind.h"
 #include "rodfit/report/fit_report.h"
@@ -1741,19 +1741,19 @@ class Builder {
       h << "</td></tr>\n";
     }
     h << "</table>\n";
-    // The cases' fitted held frames (nuisances, never material): rotation vectors and std.
+    // The cases' nuisances (held frames, points, gravity; never material): values and std.
     if (!r_.nuisances.empty()) {
-      h << "<h3>Fitted held frames (nuisances)</h3>\n<table class=\"rms\">\n<tr><th>case</th>"
-           "<th>held</th><th>rotation vector [deg]</th><th>std [deg]</th><th>prior [deg]</th>"
-           "</tr>\n";
+      h << "<h3>Fitted nuisances (per case, not material)</h3>\n<table class=\"rms\">\n"
+           "<tr><th>case</th><th>held</th><th>fitted (world x, y, z)</th><th>std</th>"
+           "<th>prior</th></tr>\n";
       for (const NuisanceEstimate& n : r_.nuisances) {
-        char b[200];
-        std::snprintf(b, sizeof(b), "%.3g, %.3g, %.3g</td><td class=\"num\">%.2g, %.2g, %.2g",
-                      n.rotation_deg[0], n.rotation_deg[1], n.rotation_deg[2], n.std_deg[0],
-                      n.std_deg[1], n.std_deg[2]);
+        char b[240];
+        std::snprintf(b, sizeof(b), "%s %.3g, %.3g, %.3g %s</td><td class=\"num\">%.2g, %.2g, %.2g",
+                      n.quantity.c_str(), n.value[0], n.value[1], n.value[2], n.unit.c_str(),
+                      n.std[0], n.std[1], n.std[2]);
         h << "<tr><td>" << Escape(DisplayCaseName(n.case_name)) << "</td><td>" << Escape(n.held)
-          << "</td><td class=\"num\">" << b << "</td><td class=\"num\">" << n.prior_deg
-          << "</td></tr>\n";
+          << "</td><td class=\"num\">" << b << "</td><td class=\"num\">" << n.prior << " "
+          << n.unit << "</td></tr>\n";
       }
       h << "</table>\n";
     }

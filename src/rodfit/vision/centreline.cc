@@ -501,6 +501,124 @@ double Angle(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   return std::acos(std::clamp(a.dot(b) / std::max(a.norm() * b.norm(), 1e-12), -1.0, 1.0));
 }
 
+// Prunes the spurs shorter than spur_len at each junction (thinning artefacts at the caps and
+// on bumps), keeping a straight continuation where the thread ends. Whether any was pruned.
+bool PruneSpurs(double spur_len, double probe, Graph* g) {
+  bool changed = false;
+  for (int j = 0; j < static_cast<int>(g->nodes.size()); ++j) {
+    if (!g->nodes[j].alive || !g->nodes[j].junction) continue;
+    std::vector<std::pair<double, int>> spurs;
+    for (int e : g->nodes[j].ends) {
+      const Branch& b = g->branches[e / 2];
+      const int other = b.node[1 - e % 2];
+      if (other != j && !g->nodes[other].junction && PathLength(b.px) < spur_len)
+        spurs.emplace_back(PathLength(b.px), e);
+    }
+    std::sort(spurs.begin(), spurs.end());
+    if (!spurs.empty() && g->nodes[j].ends.size() == spurs.size() + 1) {
+      // Only one long branch: the thread ends here. A spur that continues it straight is its
+      // last few pixels, not a thinning artefact; keep the straightest one within 30 degrees.
+      int main_e = -1;
+      for (int e : g->nodes[j].ends)
+        if (std::none_of(spurs.begin(), spurs.end(), [e](const auto& sp) { return sp.second == e; }))
+          main_e = e;
+      const Eigen::Vector2d in = -DirectionFrom(*g, main_e, probe);
+      double best = kPi / 6;
+      size_t tail = spurs.size();
+      for (size_t k = 0; k < spurs.size(); ++k) {
+        const double turn = Angle(in, DirectionFrom(*g, spurs[k].second, probe));
+        if (turn < best) { best = turn; tail = k; }
+      }
+      if (tail < spurs.size()) spurs.erase(spurs.begin() + tail);
+    }
+    for (const auto& [len, e] : spurs) {
+      Node& jn = g->nodes[j];
+      if (jn.ends.size() <= 1) break;  // keep the longest: a short piece is still a piece
+      Branch& b = g->branches[e / 2];
+      b.alive = false;
+      g->nodes[b.node[1 - e % 2]].alive = false;
+      jn.ends.erase(std::find(jn.ends.begin(), jn.ends.end(), e));
+      jn.px.push_back(b.px[b.px.size() / 2]);  // the junction keeps a trace of where it was
+      changed = true;
+    }
+  }
+  return changed;
+}
+
+// Contracts the junctions joined by branches shorter than merge_len. Whether any was.
+bool MergeJunctions(double merge_len, Graph* g) {
+  bool changed = false;
+  for (Branch& b : g->branches) {
+    if (!b.alive || !g->nodes[b.node[0]].junction || !g->nodes[b.node[1]].junction ||
+        PathLength(b.px) >= merge_len)
+      continue;
+    const int id = static_cast<int>(&b - g->branches.data());
+    const int j = b.node[0], k = b.node[1];
+    Node& jn = g->nodes[j];
+    if (k != j) {
+      Node& kn = g->nodes[k];
+      jn.px.insert(jn.px.end(), kn.px.begin(), kn.px.end());
+      for (int e : kn.ends) {
+        if (e / 2 == id) continue;
+        jn.ends.push_back(e);
+        g->branches[e / 2].node[e % 2] = j;
+      }
+      kn.alive = false;
+    }
+    jn.ends.erase(std::remove_if(jn.ends.begin(), jn.ends.end(),
+                                 [id](int e) { return e / 2 == id; }),
+                  jn.ends.end());
+    jn.px.insert(jn.px.end(), b.px.begin(), b.px.end());
+    b.alive = false;
+    changed = true;
+  }
+  return changed;
+}
+
+// Dissolves the junctions left with no branch, one or two, and turns a cusp (two branches
+// leaving in a V, a spur shorter than cusp_len along its bisector) into one path out to the tip
+// and back. Whether any changed.
+bool DissolveJunctions(double cusp_len, double probe, Graph* g) {
+  bool changed = false;
+  for (int j = 0; j < static_cast<int>(g->nodes.size()); ++j) {
+    Node& jn = g->nodes[j];
+    if (!jn.alive || !jn.junction) continue;
+    if (jn.ends.empty()) {
+      g->dots.push_back(jn.px.front());
+      jn.alive = false;
+      changed = true;
+    } else if (jn.ends.size() == 1) {
+      jn.junction = false;
+      changed = true;
+    } else if (jn.ends.size() == 2 && jn.ends[0] / 2 != jn.ends[1] / 2) {
+      JoinThrough(j, jn.ends[0], jn.ends[1], {}, g);
+      changed = true;
+    } else if (jn.ends.size() == 3) {
+      int spur = -1;  // the shortest branch out to a free end
+      for (int e : jn.ends) {
+        const Branch& b = g->branches[e / 2];
+        if (g->nodes[b.node[1 - e % 2]].junction || PathLength(b.px) >= cusp_len) continue;
+        if (spur < 0 || PathLength(b.px) < PathLength(g->branches[spur / 2].px)) spur = e;
+      }
+      if (spur < 0) continue;
+      std::vector<int> legs;
+      for (int e : jn.ends) if (e != spur) legs.push_back(e);
+      if (legs[0] / 2 == legs[1] / 2) continue;  // a loop with a tail: the thread touches itself
+      const Eigen::Vector2d da = DirectionFrom(*g, legs[0], probe);
+      const Eigen::Vector2d db = DirectionFrom(*g, legs[1], probe);
+      const Eigen::Vector2d ds = DirectionFrom(*g, spur, probe);
+      if (Angle(da, db) > kPi / 3 || Angle(ds, -(da + db)) > kPi / 4) continue;
+      std::vector<cv::Point> tip = FromNode(*g, spur), back(tip.rbegin() + 1, tip.rend());
+      tip.insert(tip.end(), back.begin(), back.end());
+      g->branches[spur / 2].alive = false;
+      g->nodes[g->branches[spur / 2].node[1 - spur % 2]].alive = false;
+      JoinThrough(j, legs[0], legs[1], tip, g);
+      changed = true;
+    }
+  }
+  return changed;
+}
+
 // Simplifies the skeleton of a thread of half-width hw until nothing changes: prunes spurs
 // shorter than spur_len (thinning artefacts at the caps and on bumps), contracts junctions
 // joined by branches shorter than 8 hw + 6 (a crossing thins to two forks up to about
@@ -510,104 +628,10 @@ double Angle(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
 void Simplify(double hw, double spur_len, Graph* g) {
   const double merge_len = 8 * hw + 6, cusp_len = 6 * hw + 6, probe = 2 * hw + 4;
   for (int pass = 0; pass < 1000; ++pass) {
-    bool changed = false;
-    for (int j = 0; j < static_cast<int>(g->nodes.size()); ++j) {
-      if (!g->nodes[j].alive || !g->nodes[j].junction) continue;
-      std::vector<std::pair<double, int>> spurs;
-      for (int e : g->nodes[j].ends) {
-        const Branch& b = g->branches[e / 2];
-        const int other = b.node[1 - e % 2];
-        if (other != j && !g->nodes[other].junction && PathLength(b.px) < spur_len)
-          spurs.emplace_back(PathLength(b.px), e);
-      }
-      std::sort(spurs.begin(), spurs.end());
-      if (!spurs.empty() && g->nodes[j].ends.size() == spurs.size() + 1) {
-        // Only one long branch: the thread ends here. A spur that continues it straight is its
-        // last few pixels, not a thinning artefact; keep the straightest one within 30 degrees.
-        int main_e = -1;
-        for (int e : g->nodes[j].ends)
-          if (std::none_of(spurs.begin(), spurs.end(), [e](const auto& sp) { return sp.second == e; }))
-            main_e = e;
-        const Eigen::Vector2d in = -DirectionFrom(*g, main_e, probe);
-        double best = kPi / 6;
-        size_t tail = spurs.size();
-        for (size_t k = 0; k < spurs.size(); ++k) {
-          const double turn = Angle(in, DirectionFrom(*g, spurs[k].second, probe));
-          if (turn < best) { best = turn; tail = k; }
-        }
-        if (tail < spurs.size()) spurs.erase(spurs.begin() + tail);
-      }
-      for (const auto& [len, e] : spurs) {
-        Node& jn = g->nodes[j];
-        if (jn.ends.size() <= 1) break;  // keep the longest: a short piece is still a piece
-        Branch& b = g->branches[e / 2];
-        b.alive = false;
-        g->nodes[b.node[1 - e % 2]].alive = false;
-        jn.ends.erase(std::find(jn.ends.begin(), jn.ends.end(), e));
-        jn.px.push_back(b.px[b.px.size() / 2]);  // the junction keeps a trace of where it was
-        changed = true;
-      }
-    }
-    for (Branch& b : g->branches) {
-      if (!b.alive || !g->nodes[b.node[0]].junction || !g->nodes[b.node[1]].junction ||
-          PathLength(b.px) >= merge_len)
-        continue;
-      const int id = static_cast<int>(&b - g->branches.data());
-      const int j = b.node[0], k = b.node[1];
-      Node& jn = g->nodes[j];
-      if (k != j) {
-        Node& kn = g->nodes[k];
-        jn.px.insert(jn.px.end(), kn.px.begin(), kn.px.end());
-        for (int e : kn.ends) {
-          if (e / 2 == id) continue;
-          jn.ends.push_back(e);
-          g->branches[e / 2].node[e % 2] = j;
-        }
-        kn.alive = false;
-      }
-      jn.ends.erase(std::remove_if(jn.ends.begin(), jn.ends.end(),
-                                   [id](int e) { return e / 2 == id; }),
-                    jn.ends.end());
-      jn.px.insert(jn.px.end(), b.px.begin(), b.px.end());
-      b.alive = false;
-      changed = true;
-    }
-    for (int j = 0; j < static_cast<int>(g->nodes.size()); ++j) {
-      Node& jn = g->nodes[j];
-      if (!jn.alive || !jn.junction) continue;
-      if (jn.ends.empty()) {
-        g->dots.push_back(jn.px.front());
-        jn.alive = false;
-        changed = true;
-      } else if (jn.ends.size() == 1) {
-        jn.junction = false;
-        changed = true;
-      } else if (jn.ends.size() == 2 && jn.ends[0] / 2 != jn.ends[1] / 2) {
-        JoinThrough(j, jn.ends[0], jn.ends[1], {}, g);
-        changed = true;
-      } else if (jn.ends.size() == 3) {
-        int spur = -1;  // the shortest branch out to a free end
-        for (int e : jn.ends) {
-          const Branch& b = g->branches[e / 2];
-          if (g->nodes[b.node[1 - e % 2]].junction || PathLength(b.px) >= cusp_len) continue;
-          if (spur < 0 || PathLength(b.px) < PathLength(g->branches[spur / 2].px)) spur = e;
-        }
-        if (spur < 0) continue;
-        std::vector<int> legs;
-        for (int e : jn.ends) if (e != spur) legs.push_back(e);
-        if (legs[0] / 2 == legs[1] / 2) continue;  // a loop with a tail: the thread touches itself
-        const Eigen::Vector2d da = DirectionFrom(*g, legs[0], probe);
-        const Eigen::Vector2d db = DirectionFrom(*g, legs[1], probe);
-        const Eigen::Vector2d ds = DirectionFrom(*g, spur, probe);
-        if (Angle(da, db) > kPi / 3 || Angle(ds, -(da + db)) > kPi / 4) continue;
-        std::vector<cv::Point> tip = FromNode(*g, spur), back(tip.rbegin() + 1, tip.rend());
-        tip.insert(tip.end(), back.begin(), back.end());
-        g->branches[spur / 2].alive = false;
-        g->nodes[g->branches[spur / 2].node[1 - spur % 2]].alive = false;
-        JoinThrough(j, legs[0], legs[1], tip, g);
-        changed = true;
-      }
-    }
+    // Each phase on the graph the one before left, as one pass did.
+    bool changed = PruneSpurs(spur_len, probe, g);
+    changed |= MergeJunctions(merge_len, g);
+    changed |= DissolveJunctions(cusp_len, probe, g);
     if (!changed) return;
   }
 }

@@ -2,9 +2,11 @@
 // thread, reduced to `image_points` without s by segmentation, thinning and ordering
 // (pipeline/image_observations.h) inside the entry's `roi` and `mask`.
 #include "rodfit/io/errors.h"
-#include "rodfit/pipeline/image_observations.h"
 #include "rodfit/pipeline/kind_support.h"
+#ifndef RODFIT_ENTRY_FORMATS_ONLY  // the extraction and the renderer: OpenCV's
+#include "rodfit/pipeline/image_observations.h"
 #include "rodfit/synth/synth_entry.h"
+#endif
 
 namespace rodfit {
 namespace {

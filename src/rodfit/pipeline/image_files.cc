@@ -1,5 +1,5 @@
 // Image files and camera files as the experiment names them (image_files.h).
-#include "rodfit/io/image_files.h"
+#include "rodfit/pipeline/image_files.h"
 
 #include <algorithm>
 #include <array>
@@ -10,7 +10,6 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
-#include "rodfit/io/experiment.h"
 #include "rodfit/vision/camera_file.h"
 #include "rodfit/vision/image_codec.h"
 

@@ -1,7 +1,5 @@
-// The nesting bound of camera_file.h (MarkupNestingDepth), apart from the camera readers: the
-// experiment reader (io/experiment.cc) bounds its YAML with it too, and an object of its own keeps
-// that reader, and so `rodfit simulate`, from linking OpenCV (docs/cli.md, "Start-up").
-#include "rodfit/vision/camera_file.h"
+// The nesting bound of markup texts (markup_nesting.h).
+#include "rodfit/model/markup_nesting.h"
 
 #include <algorithm>
 #include <string>

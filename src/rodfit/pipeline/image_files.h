@@ -1,14 +1,21 @@
-// Image files as rodfit reads and writes them (camera images, masks, synth's renders), through
-// vision/image_codec.h's decoders: sizes checked before decoding, errors naming the file.
+// Image files and camera files as an experiment names them (camera images, masks, synth's
+// renders; an entry's camera), through vision's decoders (vision/image_codec.h) and camera
+// readers (vision/camera_file.h): sizes checked before decoding, errors naming the file. In the
+// pipeline rather than io, so that io reads and writes its formats without linking vision.
 #pragma once
 
 #include <string>
 
 #include <opencv2/core.hpp>
 
+#include "rodfit/io/experiment.h"
 #include "rodfit/observe/camera.h"
 
 namespace rodfit {
+
+/// Loads the camera of an image entry (one camera of a stereo file by its camera_index). Throws
+/// CameraFileError (rodfit/vision/camera_file.h).
+Camera LoadObservationCamera(const ObservationSpec& spec);
 
 /// Reads an image file as stored (8- or 16-bit; grey, BGR or BGRA). Throws InputError
 /// "PATH: cannot read the image" when it is missing or not an image, and names the limit when
