@@ -467,8 +467,9 @@ TEST(RestShapeExport, EveryFormatCarriesItOrRefusesByKey) {
   clamp_only["gravity"] = {0.0, 0.0, 0.0};
   ASSERT_EQ(ExportError(clamp_only, "mujoco", &text), "");
   for (const Element& e : Elements(text)) {
-    if (e.name == "config" && e.attributes.at("key") == "flat")
+    if (e.name == "config" && e.attributes.at("key") == "flat") {
       EXPECT_EQ(e.attributes.at("value"), "false");
+    }
     if (e.name == "composite") {
       const std::vector<double> v = Numbers(e.attributes.at("vertex"));
       ASSERT_EQ(v.size(), 3u * (n + 2));  // the clamp's half segment, then the n + 1 vertices

@@ -155,7 +155,8 @@ std::string MotionFitProfile(const Experiment& experiment, const Scene& fitted,
   }
   Experiment e = experiment;
   e.scene = fitted;
-  return FormatProfile(ProfileJson(e, FitOptions(), r));
+  const FitOptions options;
+  return FormatProfile(ProfileJson(e, options, r, CheckResiduals(r, options)));
 }
 
 // The motion fit of options.fit to the recordings, its values set in `scene`. False: a
