@@ -338,7 +338,9 @@ def rollout(source: Union[PathLike, Mapping[str, Any], Experiment],
     (frames, markers, 3) [m, or mm with unit="mm"], NaN where not seen, which need
     ``frame_rate`` [Hz]. Returns {"recordings": [{"predicted": (frames, markers, 3) [m],
     "marker_s" [m], "held", "mae_all" [m], "mae_predicted" [m], ...}], "fit": motion_fit.json
-    as Python data or None, "error_all" [m], "error_predicted" [m], "warnings", "misfit",
+    as Python data or None, "profile": the fit's profile.json as Python data (the rod as
+    fitted, its rest shape in rod.rest_shape; a path for ``simulate(profile=...)`` and
+    ``Runtime``) or None, "error_all" [m], "error_predicted" [m], "warnings", "misfit",
     "failures" (per recording whose rollout failed: "FILE: reason"; the others ran),
     "fit_not_converged", "fit_undetermined"} -- what ``rodfit rollout`` exits 5, 3 and 4 for,
     each also issued as a FitWarning (a fit that did not converge returns its best point).

@@ -235,6 +235,8 @@ py::dict RunRollout(const rodfit::Experiment& scene, const std::vector<std::stri
   out["fit_not_converged"] = run.fit_not_converged;
   out["fit_undetermined"] = run.fit_undetermined;
   out["fit"] = run.fit ? JsonToPython(run.fit_json.dump()) : py::object(py::none());
+  // profile.json of the fit (the rod as fitted, its rest shape included), as `rodfit.fit`'s.
+  out["profile"] = run.profile_text.empty() ? py::object(py::none()) : JsonToPython(run.profile_text);
   py::list results;
   for (size_t r = 0; r < run.results.size(); ++r) {
     const rodfit::RolloutResult& result = run.results[r];

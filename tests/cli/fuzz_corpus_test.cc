@@ -49,6 +49,7 @@ namespace {
 namespace fs = std::filesystem;
 using test::ReadText;
 using test::TempDir;
+using test::WithoutProgress;
 
 /// A message is one line of at most this many characters.
 constexpr size_t kMaxLineChars = 300;

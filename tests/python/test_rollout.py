@@ -70,6 +70,12 @@ def test_rollout_fit_equals_cli(tmp_path, source_dir, cli, recording):
     result = rodfit.rollout(scene, [recording], fit=["bend_stiffness"])
     assert expected["converged"] and expected["evaluations"] > 1
     assert_documents_match(expected, result["fit"])
+    # The fit's profile.json, as the CLI writes it (the inputs' digests aside: the same files).
+    profile = json.loads((tmp_path / "cli" / "profile.json").read_text())
+    assert_documents_match(profile["parameters"], result["profile"]["parameters"])
+    assert_documents_match(profile["rod"], result["profile"]["rod"])
+    assert_documents_match(expected["parameters"]["bend_stiffness"]["value"],
+                           profile["parameters"]["bend_stiffness"]["value"])
 
 
 def test_rollout_fit_that_does_not_converge_returns_its_best_point(tmp_path, source_dir, cli, recording):

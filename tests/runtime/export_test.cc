@@ -13,10 +13,12 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "rodfit/model/rod.h"
 #include "rodfit/model/rod_radius.h"
 #include "rodfit/runtime/export.h"
 #include "rodfit/runtime/export_format.h"  // internal: ExportNumbers
@@ -395,6 +397,98 @@ TEST(MujocoExport, HeldEndsAreWeldsAndConnects) {
   // A curved rest shape with held points besides the clamp has no cable form: refused.
   doc["rod"]["rest_curvature"] = {0.0, 2.0, 0.0};
   EXPECT_THAT(ExportError(doc, "mujoco"), HasSubstr("p.json: rod.rest_curvature: "));
+}
+
+// --- The rest shape (rod.rest_shape) -------------------------------------------------------------
+
+// The suture with a rest shape out of every plane: both bending curvatures varying along it
+// (knots at 0, L/2, L), no rest twist unless asked.
+json CurvedSuture(double tau = 0.0) {
+  json doc = Suture();
+  doc["rod"]["rest_shape"] = {{"s_m", {0.0, 0.1, 0.2}},
+                              {"k1_per_m", {0.0, 5.0, 10.0}},
+                              {"k2_per_m", {8.0, 8.0, 4.0}},
+                              {"tau_per_m", {0.0, tau, 0.0}}};
+  return doc;
+}
+
+// Every format carries the rest shape or refuses it by its key. json: the block as read. SOFA:
+// rest_position is the curved rest state (its beams' reference). XPBD: rest positions and each
+// joint's rest Darboux rotation, which chained from the clamp rebuild the rest positions (an
+// independent check of the rotations: edge j = l_j d3 of the product). MuJoCo: a rod held at the
+// clamp alone starts in its rest shape with flat=false (the plugin's reference configuration);
+// with pins, or with a rest twist, refused naming rod.rest_shape.
+TEST(RestShapeExport, EveryFormatCarriesItOrRefusesByKey) {
+  const json doc = CurvedSuture();
+  const Profile p = ParseProfile(doc.dump(), "p.json");
+  const RodModel model(p.scene.rod, p.scene.material, p.scene.gravity, p.scene.cases[0]);
+  ASSERT_TRUE(model.curved_at_rest());
+  const RodState rest = model.RestState();
+  const int n = model.num_edges();
+  // The rest shape bends the suture well away from the straight line (a check that it is used).
+  ASSERT_GT((rest.x.col(n) - Vec3(0.2, 0.0, 0.0)).norm(), 0.05);
+
+  std::string text;
+  ASSERT_EQ(ExportError(doc, "json", &text), "");
+  EXPECT_EQ(json::parse(text)["rod"]["rest_shape"], doc["rod"]["rest_shape"]);
+
+  ASSERT_EQ(ExportError(doc, "sofa", &text), "");
+  for (const Element& e : Elements(text))
+    if (e.name == "MechanicalObject") {
+      const std::vector<double> r = Numbers(e.attributes.at("rest_position"));
+      ASSERT_EQ(r.size(), 7u * (n + 1));
+      for (int i = 0; i <= n; ++i)
+        EXPECT_LT((Vec3(r[7 * i], r[7 * i + 1], r[7 * i + 2]) - rest.x.col(i)).norm(), 1e-12)
+            << "vertex " << i;
+    }
+
+  ASSERT_EQ(ExportError(doc, "xpbd", &text, {}, 1e-3), "");
+  const json x = json::parse(text);
+  ASSERT_EQ(x["joints"].size(), static_cast<size_t>(n));
+  Eigen::Quaterniond frame = [&] {
+    Eigen::Matrix3d r;
+    r << model.clamp_d1(), model.clamp_tangent().cross(model.clamp_d1()), model.clamp_tangent();
+    return Eigen::Quaterniond(r);
+  }();
+  Vec3 at = model.clamp_position();
+  double worst = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const json& joint = x["joints"][i];
+    const std::vector<double> q = joint["rest_rotation"].get<std::vector<double>>();
+    frame = frame * Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
+    at += model.rest_edge_length(i) * (frame * Vec3::UnitZ());
+    const std::vector<double> p1 = x["vertices"][i + 1]["rest_position"].get<std::vector<double>>();
+    worst = std::max(worst, (at - Vec3(p1[0], p1[1], p1[2])).norm());
+    // The turn at a vertex of a pure bend: 2 atan(|kappa°| l_v / 2) (the tan-form curvature).
+    const std::vector<double> k = joint["rest_curvature"].get<std::vector<double>>();
+    const double lv = joint["voronoi_length"].get<double>();
+    EXPECT_NEAR(2.0 * std::acos(std::min(1.0, q[0])), 2.0 * std::atan(std::hypot(k[0], k[1]) * lv / 2.0),
+                1e-9) << "joint " << i;
+  }
+  EXPECT_LT(worst, 1e-12);
+
+  json clamp_only = doc;
+  clamp_only["gravity"] = {0.0, 0.0, 0.0};
+  ASSERT_EQ(ExportError(clamp_only, "mujoco", &text), "");
+  for (const Element& e : Elements(text)) {
+    if (e.name == "config" && e.attributes.at("key") == "flat") {
+      EXPECT_EQ(e.attributes.at("value"), "false");
+    }
+    if (e.name == "composite") {
+      const std::vector<double> v = Numbers(e.attributes.at("vertex"));
+      ASSERT_EQ(v.size(), 3u * (n + 2));  // the clamp's half segment, then the n + 1 vertices
+      for (int i = 0; i <= n; ++i)
+        EXPECT_LT((Vec3(v[3 * (i + 1)], v[3 * (i + 1) + 1], v[3 * (i + 1) + 2]) - rest.x.col(i)).norm(),
+                  1e-12);
+    }
+  }
+  json pinned = doc;
+  pinned["held"]["pins"] = {{{"s", 0.1}, {"position", {0.05, 0.05, 0.0}}}};
+  EXPECT_THAT(ExportError(pinned, "mujoco"),
+              HasSubstr("p.json: rod.rest_shape: a curved rest shape with held points besides "
+                        "the clamp"));
+  EXPECT_THAT(ExportError(CurvedSuture(2.0), "mujoco"),
+              HasSubstr("p.json: rod.rest_shape.tau_per_m: a rest twist has no MJCF cable"));
 }
 
 }  // namespace

@@ -245,5 +245,66 @@ TEST(ProfileReader, AFittedLinearDensitySetsTheRod) {
   }
 }
 
+// rod.rest_shape: the knots of the rod's natural shape read into the rod, each list checked
+// (finite, one entry per knot, arc lengths increasing within the rod, a turn per segment the
+// discrete rod can hold), every mistake named by its key.
+TEST(ProfileReader, RestShapeIsReadAndChecked) {
+  json doc = ReadJson(ProfilePath("suture.json"));
+  const double length = doc["rod"]["length"].get<double>();
+  doc["rod"]["rest_shape"] = {{"s_m", {0.0, 0.5 * length, length}},
+                              {"k1_per_m", {1.0, 2.0, 3.0}},
+                              {"k2_per_m", {-1.0, 0.0, 0.5}},
+                              {"tau_per_m", {0.0, 0.0, 0.25}}};
+  const Profile p = ParseProfile(doc.dump(), "p.json");
+  ASSERT_EQ(p.scene.rod.rest_curvature_s.size(), 3u);
+  EXPECT_EQ(p.scene.rod.rest_curvature_s[1], 0.5 * length);
+  ASSERT_EQ(p.scene.rod.rest_curvature_profile.size(), 3u);
+  EXPECT_EQ(p.scene.rod.rest_curvature_profile[0], Vec3(1.0, -1.0, 0.0));
+  EXPECT_EQ(p.scene.rod.rest_curvature_profile[2], Vec3(3.0, 0.5, 0.25));
+  // A profile without one: a rod without one.
+  EXPECT_TRUE(LoadProfile(ProfilePath("suture.json")).scene.rod.rest_curvature_s.empty());
+
+  auto error = [&](const std::function<void(json&)>& edit) {
+    json wrong = doc;
+    edit(wrong["rod"]["rest_shape"]);
+    return ErrorOf(wrong);
+  };
+  EXPECT_THAT(error([](json& r) { r["k1_per_m"] = {1.0, 2.0}; }),
+              HasSubstr("p.json: rod.rest_shape.k1_per_m: must have one entry per knot of s_m (3"));
+  EXPECT_THAT(error([](json& r) { r.erase("tau_per_m"); }),
+              HasSubstr("p.json: rod.rest_shape.tau_per_m: must have one entry per knot"));
+  EXPECT_THAT(error([](json& r) { r["k2_per_m"][1] = "x"; }),
+              HasSubstr("p.json: rod.rest_shape.k2_per_m[1]: must be a number"));
+  EXPECT_THAT(error([](json& r) { r["s_m"][1] = 0.0; }),
+              HasSubstr("p.json: rod.rest_shape.s_m[1]: must increase strictly"));
+  EXPECT_THAT(error([length](json& r) { r["s_m"][2] = 1.5 * length; }),
+              HasSubstr("p.json: rod.rest_shape.s_m[2]: must lie in [0, rod.length"));
+  EXPECT_THAT(error([](json& r) { r["s_m"] = json::array(); }),
+              HasSubstr("p.json: rod.rest_shape.s_m: must list the knots"));
+  // 1e5 1/m over a segment of 4 mm: a turn of 400 per segment, refused.
+  EXPECT_THAT(error([](json& r) { r["k1_per_m"][2] = 1e5; }),
+              HasSubstr("p.json: rod.rest_shape.k1_per_m[2]: the rest curvature at this knot "
+                        "turns the rod by"));
+  EXPECT_THAT(error([](json& r) { r["bend"] = 1.0; }),
+              HasSubstr("p.json: rod.rest_shape.bend: unknown key"));
+  // `simulate SCENE --profile P`: a scene without a rest shape takes the profile's; a scene with
+  // another one is refused, naming the key.
+  Scene scene = LoadProfile(ProfilePath("suture.json")).scene;
+  UseProfileMaterial(p, &scene);
+  EXPECT_EQ(scene.rod.rest_curvature_s, p.scene.rod.rest_curvature_s);
+  EXPECT_EQ(scene.rod.rest_curvature_profile, p.scene.rod.rest_curvature_profile);
+  UseProfileMaterial(p, &scene);  // the same one again: accepted
+  scene.rod.rest_curvature_profile[1][0] += 0.5;
+  try {
+    UseProfileMaterial(p, &scene);
+    ADD_FAILURE() << "a scene with another rest shape was accepted";
+  } catch (const ProfileError& e) {
+    EXPECT_THAT(std::string(e.what()), HasSubstr("p.json: rod.rest_shape: differs from the scene's"));
+  }
+  // A NaN is written as null by JSON: not a number.
+  EXPECT_THAT(error([](json& r) { r["tau_per_m"][0] = std::nan(""); }),
+              HasSubstr("p.json: rod.rest_shape.tau_per_m[0]: must be a number"));
+}
+
 }  // namespace
 }  // namespace rodfit

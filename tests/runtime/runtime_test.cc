@@ -3,12 +3,15 @@
 // derivative of the equilibrium energy, and the haptic-loop guarantees (a failed step keeps the
 // last good state, nothing turns non-finite).
 #include <algorithm>
+#include <fstream>
+#include <sstream>
 #include <cmath>
 #include <ostream>
 #include <vector>
 #include <string>
 
 #include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -22,6 +25,13 @@ namespace rodfit {
 namespace {
 
 using ::testing::HasSubstr;
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
 
 Profile Bundled(const std::string& name) {
   return LoadProfile(std::string(RODFIT_SOURCE_DIR) + "/data/profiles/" + name);
@@ -716,6 +726,93 @@ TEST(Runtime, InvalidOptionsAreRefused) {
   options.hold_orientation = true;  // a quasi-static grasp's only
   options.mode = RuntimeMode::kDynamic;
   EXPECT_THROW(Runtime(p, options), std::invalid_argument);
+}
+
+// The rod's natural shape carried by the profile (rod.rest_shape) into the runtime's model: a
+// weightless suture whose rest shape is a helix (curvature 30 1/m, torsion 10 1/m, one turn over
+// its 0.2 m: out of every plane), its knots the intrinsic curvature of 401 points of the helix
+// (RestCurvatureOfCentreline, as `rod.rest_shape: FILE` reads a centre-line). Held at the clamp
+// only and grasped at its tip where the rest shape puts it, the runtime's rod is the helix, with
+// no force on the tool; dragged 1 cm away and back, it returns to it (the rest shape is the
+// energy's minimum, not only the start). The discrete rod's curvature (tan form, DESIGN's
+// (pi/N)^2 / 3 for a circle) gives a shape error falling as 1/N^2: measured 1.08e-3 L at 50
+// segments and 2.7e-4 L at 100 (a ratio of 4.0); allowed 1.5e-3 L and 4e-4 L, and a ratio
+// above 3.5.
+TEST(Runtime, ProfileRestShapeIsTheWeightlessEquilibrium) {
+  const double a = 0.03, b = 0.01, c = std::hypot(a, b), length = 0.2;
+  auto helix = [&](double s) {
+    const double t = s / c;
+    return Vec3(a * std::sin(t), a * (1.0 - std::cos(t)), b * t);
+  };
+  const Vec3 tangent0(a / c, 0.0, b / c), normal0(0.0, 1.0, 0.0);  // r'(0), and d1 across it
+  const int points = 401;
+  std::vector<double> s(points);
+  Mat3X curve(3, points);
+  for (int k = 0; k < points; ++k) {
+    s[k] = length * k / (points - 1);
+    curve.col(k) = helix(s[k]);
+  }
+  std::vector<double> knots;
+  std::vector<Vec3> profile;
+  RestCurvatureOfCentreline(s, curve, normal0, length, &knots, &profile);
+
+  nlohmann::json doc = nlohmann::json::parse(ReadFile(std::string(RODFIT_SOURCE_DIR) +
+                                                      "/data/profiles/suture.json"));
+  doc["gravity"] = {0.0, 0.0, 0.0};
+  doc["held"]["clamp"] = {{"position", {0.0, 0.0, 0.0}},
+                          {"tangent", {tangent0.x(), tangent0.y(), tangent0.z()}},
+                          {"normal", {normal0.x(), normal0.y(), normal0.z()}}};
+  nlohmann::json rest = {{"s_m", knots}};
+  for (const char* key : {"k1_per_m", "k2_per_m", "tau_per_m"}) rest[key] = nlohmann::json::array();
+  for (const Vec3& k : profile) {
+    rest["k1_per_m"].push_back(k[0]);
+    rest["k2_per_m"].push_back(k[1]);
+    rest["tau_per_m"].push_back(k[2]);
+  }
+  doc["rod"]["rest_shape"] = rest;
+
+  std::vector<double> errors;
+  for (int segments : {50, 100}) {
+    doc["rod"]["segments"] = segments;
+    const Profile p = ParseProfile(doc.dump(), "helix.json");
+    ASSERT_EQ(p.scene.rod.rest_curvature_s.size(), knots.size());
+    const double allowed = (segments == 50 ? 1.5e-3 : 4e-4) * length;
+    for (RuntimeMode mode : {RuntimeMode::kQuasiStatic, RuntimeMode::kDynamic}) {
+      SCOPED_TRACE(std::string(mode == RuntimeMode::kQuasiStatic ? "quasi-static" : "dynamic") +
+                   ", " + std::to_string(segments) + " segments");
+      RuntimeOptions options;
+      options.tool_s = length;
+      options.mode = mode;
+      Runtime rt(p, options);
+      auto error = [&] {
+        const Mat3X& x = rt.Shape();
+        double worst = 0.0;
+        for (int i = 0; i < x.cols(); ++i)
+          worst = std::max(worst, (x.col(i) - helix(length * i / (x.cols() - 1))).norm());
+        return worst;
+      };
+      const double at_start = error();
+      std::printf("helix, %d segments: max |x - r(s)| = %.3e m (%.3e L), tool force %.3e N\n",
+                  segments, at_start, at_start / length, rt.ToolForce().norm());
+      EXPECT_LT(at_start, allowed);
+      EXPECT_LT(rt.ToolForce().norm(), 1e-9);
+      if (mode == RuntimeMode::kDynamic) {
+        // Steps at rest stay at rest: the rest shape is in balance with no load.
+        for (int k = 0; k < 50; ++k) ASSERT_TRUE(rt.Step().ok());
+        EXPECT_LT(std::abs(error() - at_start), 1e-6 * length);
+        continue;
+      }
+      errors.push_back(at_start);
+      const Vec3 home = rt.ToolPosition();
+      Drag(&rt, home + Vec3(0.0, 0.01, -0.005), 60);
+      EXPECT_GT(error(), 2e-3);  // the drag did bend it
+      Drag(&rt, home, 60);
+      EXPECT_LT(std::abs(error() - at_start), 1e-6 * length);
+    }
+  }
+  ASSERT_EQ(errors.size(), 2u);
+  std::printf("error ratio 50 / 100 segments: %.2f\n", errors[0] / errors[1]);
+  EXPECT_GT(errors[0] / errors[1], 3.5);  // second order
 }
 
 }  // namespace

@@ -101,7 +101,8 @@ inline std::vector<Eigen::Matrix3Xd> Recording(double seconds, double noise, dou
 //  - kFold: over 1.5 s the end gripper comes to 0.1 m from the clamp and turns to face it, the
 //    cable folded back on itself.
 // The truth is integrated with adaptive steps to a tight local error (1e-6 m); markers every 4th
-// vertex at 100 Hz, with noise and drops as Recording's.
+// vertex at 100 Hz, with noise and drops as Recording's. `material` and `rod` (when given) replace
+// the cable's (e.g. curved at rest: the synthetic benchmark of tests/bench/bench_rest_shape.cc).
 enum class HardMotion { kWhip, kPull, kLoop, kFold };
 
 inline const char* HardMotionName(HardMotion m) {
@@ -115,8 +116,12 @@ inline const char* HardMotionName(HardMotion m) {
 }
 
 inline std::vector<Eigen::Matrix3Xd> HardRecording(HardMotion motion, double seconds, double noise,
-                                                   double drop, unsigned seed) {
+                                                   double drop, unsigned seed,
+                                                   const Material* material = nullptr,
+                                                   const RodSpec* rod = nullptr) {
   Scene s = Cable();
+  if (material) s.material = *material;
+  if (rod) s.rod = *rod;
   // Twist damped with bending's retardation time (DefaultTwistDamping, as `rodfit rollout`
   // does): undamped, the edges' fast twist mode, once a step resolves it, grows until Newton
   // fails (the whip at 2 ms and 0.5 ms steps: at t = 0.12-0.15 s).

@@ -150,7 +150,7 @@ struct RolloutRunOptions {
   /// the file they came from (for messages and the inputs an output may not overwrite).
   std::vector<std::pair<std::string, double>> parameters;
   std::string parameters_path;
-  /// Where to write rollout.csv (and motion_fit.json with `fit`); empty: nowhere.
+  /// Where to write rollout.csv (and motion_fit.json and profile.json with `fit`); empty: nowhere.
   std::string output_dir;
   std::string report_dir;             ///< the report's directory (needs write_report, output_dir)
   RolloutReportWriter write_report;
@@ -170,6 +170,10 @@ struct RolloutRun {
   /// With `fit`: motion_fit.json (docs/cli.md, "rollout"), its text as written and its document.
   std::string fit_text;
   nlohmann::json fit_json;
+  /// With `fit`: profile.json, the rod as fitted (its values and rest shape) as `rodfit fit`
+  /// writes a profile (docs/formats.md, "Profile JSON"); empty when a fitted rest-shape knot is
+  /// not identifiable (a warning says which).
+  std::string profile_text;
   std::string csv;  ///< rollout.csv
   /// [m] mean absolute coordinate error over the recordings: all markers, predicted ones.
   double error_all = 0.0, error_predicted = 0.0;

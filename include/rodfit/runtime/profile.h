@@ -66,8 +66,9 @@ Profile ParseProfile(const std::string& text, const std::string& path,
 /// Puts the profile's material into `scene` in place of the scene's own parameters (what
 /// `rodfit simulate SCENE --profile P` does). The scene keeps its cases, springs, section and
 /// gravity; its rod must be the profile's (length, segments, radius, linear density: a scene read
-/// with parameters optional may leave the density out, NaN, and takes the profile's), and every
-/// spring zone's own parameter must be in the profile. Throws ProfileError naming the
+/// with parameters optional may leave the density out, NaN, and takes the profile's; a scene
+/// without a rest shape takes the profile's `rod.rest_shape`, one with another is refused), and
+/// every spring zone's own parameter must be in the profile. Throws ProfileError naming the
 /// profile's key.
 void UseProfileMaterial(const Profile& profile, Scene* scene);
 

@@ -88,8 +88,62 @@ inline bool Parallel(const Vec3& tangent, const Vec3& normal) {
 
 }  // namespace internal
 
+/// `rod.rest_shape`: the rod's natural shape as the intrinsic curvature at knots along it
+/// (RodSpec::rest_curvature_s / rest_curvature_profile: linear between knots, constant beyond,
+/// added to `rest_curvature`), from `rod.rest_shape: FILE` of a scene or fitted by
+/// `rollout --fit rest_curvature`. The keys are those of motion_fit.json's `rest_shape` block.
+inline constexpr char kRestShape[] = "rest_shape";
+inline constexpr char kRestShapeS[] = "s_m";          // [m] the knots' arc lengths
+inline constexpr char kRestShapeK1[] = "k1_per_m";    // [1/m] k1° at each knot
+inline constexpr char kRestShapeK2[] = "k2_per_m";    // [1/m] k2°
+inline constexpr char kRestShapeTau[] = "tau_per_m";  // [1/m] tau° (rest twist)
+/// A rest curvature whose turn over one segment, |kappa°| L / segments, exceeds this (a quarter
+/// of a turn at a vertex, 2 tan(pi/4)) is refused: the discrete rod cannot hold it faithfully.
+inline constexpr double kMaxRestTurnPerSegment = 2.0;
+
+/// The knots of `rod.rest_shape` as the profile lists them.
+struct RestShapeKnots {
+  std::vector<double> s, k1, k2, tau;
+};
+
+/// `rod.rest_shape`: one entry per knot in each list (at least one), the arc lengths increasing
+/// strictly within [0, length], every curvature finite (the reader's numbers) and within
+/// kMaxRestTurnPerSegment per segment.
+template <class A>
+void VisitRestShape(A& a, RestShapeKnots& k, double length, int segments) {
+  a.NumberList(kRestShapeS, &k.s);
+  a.NumberList(kRestShapeK1, &k.k1);
+  a.NumberList(kRestShapeK2, &k.k2);
+  a.NumberList(kRestShapeTau, &k.tau);
+  if (!a.reading()) return;
+  const size_t n = k.s.size();
+  a.Check(n >= 1, kRestShapeS, "must list the knots' arc lengths (at least one)");
+  for (const char* key : {kRestShapeK1, kRestShapeK2, kRestShapeTau}) {
+    const std::vector<double>& v =
+        key == kRestShapeK1 ? k.k1 : key == kRestShapeK2 ? k.k2 : k.tau;
+    a.Check(v.size() == n, key,
+            "must have one entry per knot of s_m (" + std::to_string(n) + "; has " +
+                std::to_string(v.size()) + ")");
+  }
+  if (k.k1.size() != n || k.k2.size() != n || k.tau.size() != n) return;
+  for (size_t j = 0; j < n; ++j) {
+    const std::string at = std::string(kRestShapeS) + "[" + std::to_string(j) + "]";
+    a.Check(k.s[j] >= 0.0 && k.s[j] <= length, at.c_str(),
+            "must lie in [0, rod.length = " + internal::Show(length) + "] (is " +
+                internal::Show(k.s[j]) + ")");
+    a.Check(j == 0 || k.s[j] > k.s[j - 1], at.c_str(), "must increase strictly");
+    const double turn = std::sqrt(k.k1[j] * k.k1[j] + k.k2[j] * k.k2[j] + k.tau[j] * k.tau[j]) *
+                        length / segments;
+    a.Check(turn <= kMaxRestTurnPerSegment, (std::string(kRestShapeK1) + "[" + std::to_string(j) + "]").c_str(),
+            "the rest curvature at this knot turns the rod by " + internal::Show(turn) +
+                " per segment (at most " + internal::Show(kMaxRestTurnPerSegment) +
+                "): more segments, or a curvature in 1/m?");
+  }
+}
+
 /// `rod`: length [m], segments, radius [m] (0: the fit had none), linear_density [kg/m],
-/// rest_curvature [1/m], and vertex_s [m] when the rod's vertices are not evenly spaced.
+/// rest_curvature [1/m], rest_shape (VisitRestShape; written when the rod has one), and
+/// vertex_s [m] when the rod's vertices are not evenly spaced.
 template <class A>
 void VisitRod(A& a, RodSpec& rod) {
   a.Number("length", &rod.length, kPositive);
@@ -99,6 +153,26 @@ void VisitRod(A& a, RodSpec& rod) {
                                                 "radius", CheckRodRadius(rod.radius, rod.length));
   a.Number("linear_density", &rod.linear_density, kNonNegative);
   a.Vector("rest_curvature", &rod.rest_curvature, kOptional);
+  std::optional<RestShapeKnots> rest;
+  if (!rod.rest_curvature_s.empty()) {  // writing (a reader's rod starts without one)
+    RestShapeKnots k;
+    k.s = rod.rest_curvature_s;
+    for (const Vec3& c : rod.rest_curvature_profile)
+      k.k1.push_back(c[0]), k.k2.push_back(c[1]), k.tau.push_back(c[2]);
+    rest = k;
+  }
+  const double length = rod.length;
+  const int segments = rod.segments;
+  a.OptionalObject(kRestShape, &rest, [&](A& o, RestShapeKnots& k) {
+    VisitRestShape(o, k, length, segments);
+  });
+  if (a.reading() && rest && rest->s.size() == rest->k1.size() &&
+      rest->s.size() == rest->k2.size() && rest->s.size() == rest->tau.size()) {
+    rod.rest_curvature_s = rest->s;
+    rod.rest_curvature_profile.clear();
+    for (size_t j = 0; j < rest->s.size(); ++j)
+      rod.rest_curvature_profile.push_back(Vec3(rest->k1[j], rest->k2[j], rest->tau[j]));
+  }
   a.NumberList("vertex_s", &rod.vertex_s);
   if (!a.reading() || rod.vertex_s.empty()) return;
   const std::vector<double>& s = rod.vertex_s;

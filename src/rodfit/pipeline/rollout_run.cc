@@ -12,6 +12,7 @@
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
 #include "rodfit/io/output_dir.h"
+#include "rodfit/io/profile.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/check.h"
 #include "rodfit/model/rod.h"
@@ -112,6 +113,52 @@ std::string MotionFitText(const MotionFitResult& fit, const MotionFitOptions& fi
   return text + "]\n}\n";
 }
 
+// profile.json of a motion fit (docs/cli.md, "rollout"): the scene with the fitted values and
+// rest shape (`fitted`) through the profile writer `rodfit fit` uses, the fit's log-parameters as
+// its fitted parameters (value, start, std, identifiable), the rest shape in rod.rest_shape.
+// Empty, with the reason in *why, when a rest-shape knot is not identifiable: a profile's rest
+// shape has no way to say that one of its numbers is not a measurement.
+std::string MotionFitProfile(const Experiment& experiment, const Scene& fitted,
+                             const MotionFitResult& fit, std::string* why) {
+  const size_t knots = fit.rest_curvature_s.size(), logs = fit.names.size() - 2 * knots;
+  for (size_t k = logs; k < fit.names.size(); ++k)
+    if (!fit.identifiable[k]) {
+      *why = "profile.json not written: " + fit.names[k] + " is not identifiable (" +
+             fit.reason[k] + ")";
+      return "";
+    }
+  FitResult r;
+  r.success = fit.converged;
+  r.message = fit.message;
+  r.iterations = fit.iterations;
+  r.initial_cost = fit.initial_cost;
+  r.final_cost = fit.final_cost;
+  r.num_residuals = fit.residuals;
+  r.residual_variance = fit.residual_variance;
+  r.residual_dof = std::max(1, fit.noise_residuals - static_cast<int>(fit.names.size()));
+  r.correlation.resize(static_cast<int>(logs), static_cast<int>(logs));
+  for (size_t k = 0; k < logs; ++k) {
+    Parameter p;
+    p.name = fit.names[k];
+    p.value = fit.values[k];
+    p.fit = true;
+    p.start = fit.start[k];
+    p.identifiable = fit.identifiable[k];
+    if (p.identifiable && std::isfinite(fit.std[k])) p.std = fit.std[k];
+    p.reason = fit.reason[k];
+    p.at_bound = fit.at_bound[k];
+    r.parameters.push_back(p);
+    r.fitted_names.push_back(p.name);
+    for (size_t j = 0; j < logs; ++j)
+      r.correlation(k, j) = fit.covariance_log(k, j) /
+                            std::sqrt(fit.covariance_log(k, k) * fit.covariance_log(j, j));
+  }
+  Experiment e = experiment;
+  e.scene = fitted;
+  const FitOptions options;
+  return FormatProfile(ProfileJson(e, options, r, CheckResiduals(r, options)));
+}
+
 // The motion fit of options.fit to the recordings, its values set in `scene`. False: a
 // least-squares fit that did not converge (run->error says so).
 bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& options,
@@ -164,6 +211,12 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
     run->fit_undetermined = run->fit_undetermined || !fit.identifiable[k];
   run->fit_text = MotionFitText(fit, fit_options, names, rest_tau);
   run->fit_json = nlohmann::json::parse(run->fit_text);
+  std::string no_profile;
+  run->profile_text = MotionFitProfile(experiment, *scene, fit, &no_profile);
+  if (!no_profile.empty()) {
+    Note(options, no_profile);
+    run->warnings.push_back(no_profile);
+  }
   char line[320];
   std::snprintf(line, sizeof(line),
                 "fitted over %zu recording(s) in %d rollouts (%s, %.3g s): mean error %.4g m -> "
@@ -340,6 +393,7 @@ void WriteOutputs(const Experiment& experiment, const RolloutRunOptions& options
   out.Write("recordings.csv", run->table, "output file name");
   out.Write("rollout_error.csv", run->over_time, "output file name");
   if (!run->fit_text.empty()) out.Write("motion_fit.json", run->fit_text, "output file name");
+  if (!run->profile_text.empty()) out.Write("profile.json", run->profile_text, "output file name");
   if (report_out)
     CommitAll({report_out.get(), &out});
   else
@@ -376,7 +430,8 @@ RolloutRun Rollout(const Experiment& experiment, std::vector<MarkerRecording> re
   // The output rule before any work: no output over an input, a FIFO, a directory, or to ''.
   if (!options.output_dir.empty()) {
     const std::vector<InputFile> inputs = RolloutInputs(experiment, run.recordings, options);
-    CheckOutputDirectory(options.output_dir, {"rollout.csv", "motion_fit.json"}, inputs);
+    CheckOutputDirectory(options.output_dir, {"rollout.csv", "motion_fit.json", "profile.json"},
+                         inputs);
     if (!options.report_dir.empty()) CheckOutputDirectory(options.report_dir, {"index.html"}, inputs);
   }
   Scene scene = experiment.scene;

@@ -16,6 +16,10 @@
 // (`vertex`), an end clamp is a half-segment body welded where it is, pins and an end pin are
 // `connect` constraints where they are (MuJoCo's equality constraints hold the initial relative
 // pose), and the plugin's `flat` makes the rest shape straight (omega0 = 0), whatever the start.
+// A curved rest shape (`rod.rest_curvature`, `rod.rest_shape`) is the plugin's reference
+// configuration when the cable starts in it (flat=false: omega0 from the bodies' initial poses,
+// whose turning angle at a vertex, 2 atan(kappa° l / 2), is the discrete rod's rest turn), which
+// only a rod held at the clamp alone allows; a rest twist has no cable form.
 //
 // What the cable drops or does differently, said in the file too: stretch (the cable is
 // inextensible: EA and stretch_damping are not used), the external drag per length (`damping`;
@@ -63,12 +67,24 @@ std::string WriteMujoco(const ExportInput& input) {
                          "segments of different lengths: the composite cable gives every body "
                          "one geom (one mass); export a profile with equal segments");
   const std::vector<ExportHolder> holders = ExportHolders(model);
-  const bool curved_rest = p.scene.rod.rest_curvature.squaredNorm() > 0.0;
+  // A rest shape (rod.rest_shape's knots) or a uniform rest curvature: the key that gives it.
+  const bool curved_rest = model.curved_at_rest();
+  const char* rest_key =
+      p.scene.rod.rest_curvature_s.empty() ? "rod.rest_curvature" : "rod.rest_shape";
   if (curved_rest && holders.size() > 1)
-    throw ProfileError(p.path, "rod.rest_curvature",
+    throw ProfileError(p.path, rest_key,
                        "a curved rest shape with held points besides the clamp has no MJCF "
                        "cable: the plugin takes a curved rest shape from the start shape, and the "
                        "equality constraints hold the start pose");
+  // The cable's bodies are framed along its vertices without a twist of their own (MuJoCo's
+  // cable composite), so a rest twist has nothing to be read from.
+  for (int i = 0; i <= model.num_edges(); ++i)
+    if (model.rest_curvature(i)[2] != 0.0)
+      throw ProfileError(p.path,
+                         p.scene.rod.rest_curvature[2] != 0.0 ? "rod.rest_curvature"
+                                                              : "rod.rest_shape.tau_per_m",
+                         "a rest twist has no MJCF cable: the composite frames its bodies along "
+                         "the start shape's vertices, untwisted");
   bool end_clamp = false;
   for (const ExportHolder& h : holders) end_clamp = end_clamp || (h.frame && h.vertex == n);
 

@@ -8,9 +8,15 @@
 //   stretch of segment j:  E = EA / (2 l_j) (|e| - l_j)^2      -> k = EA / l_j,  alpha = l_j / EA
 //   bend/twist at vertex i: E = B / (2 l_v) (l_v kappa)^2       -> k = B / l_v,   alpha = l_v / B
 // with l_v the vertex's Voronoi length (half a cell at the clamp) and (l_v kappa) the turning
-// angle between the neighbouring frames [rad]. Tissue springs: k = K * (the zone's share of
-// the vertex's cell) [N/m].
+// angle between the neighbouring frames [rad], measured from their rest rotation. Tissue
+// springs: k = K * (the zone's share of the vertex's cell) [N/m]. The rest shape (a uniform
+// `rod.rest_curvature` or `rod.rest_shape`'s knots) is each joint's rest Darboux rotation: the
+// quaternion q_{i-1}^* q_i between the neighbouring material frames of the rest state (the
+// clamp's frame before edge 0), as position-based Cosserat rods take it (Kugelstadt & Schömer
+// 2016, the rest Darboux vector), with the intrinsic curvature (k1°, k2°, tau°) it comes from.
 #include <string>
+
+#include <Eigen/Geometry>
 
 #include <nlohmann/json.hpp>
 
@@ -42,6 +48,10 @@ std::string WriteXpbd(const ExportInput& input) {
       {"bend_2", "alpha = voronoi_length / B2 (about d2)"},
       {"twist", "alpha = voronoi_length / GJ (about the tangent)"},
       {"anchor", "alpha = 1 / (K * cell length in the zone) (vertex to its rest position)"},
+      {"rest_rotation", "q_{i-1}^* q_i (w, x, y, z): the rotation from the frame before the "
+                        "joint (the clamp's at vertex 0) to the one after it at rest, in the "
+                        "former's axes (d1, d2, d3); the identity for a rod straight at rest"},
+      {"rest_curvature", "(k1, k2, tau) at rest [1/m]: the rest turn over voronoi_length"},
       {"compliance_dt", "alpha~ = alpha / time_step^2 (XPBD)"}};
   json segments = json::array();
   for (int j = 0; j < model.num_edges(); ++j) {
@@ -54,6 +64,14 @@ std::string WriteXpbd(const ExportInput& input) {
   }
   doc["segments"] = segments;
   json joints = json::array();
+  // The rest state's material frames as rotations (columns d1, d2, d3), the clamp's first.
+  auto rotation = [](const Vec3& d1, const Vec3& d2, const Vec3& d3) {
+    Eigen::Matrix3d r;
+    r << d1, d2, d3;
+    return Eigen::Quaterniond(r).normalized();
+  };
+  Eigen::Quaterniond before = rotation(model.clamp_d1(), model.clamp_tangent().cross(model.clamp_d1()),
+                                       model.clamp_tangent());
   for (int i = 0; i < model.num_edges(); ++i) {
     // Vertex 0 bends against the clamp (half a cell); vertex i > 0 between edges i - 1 and i.
     const double lv = model.voronoi_length(i);
@@ -65,6 +83,14 @@ std::string WriteXpbd(const ExportInput& input) {
     joint["bend_1_compliance_dt"] = a1 / dt2;
     joint["bend_2_compliance_dt"] = a2 / dt2;
     joint["twist_compliance_dt"] = at / dt2;
+    const EdgeFrame f = model.MaterialFrame(rest, i);
+    const Eigen::Quaterniond after = rotation(f.d1, f.d2, f.d3);
+    Eigen::Quaterniond darboux = before.conjugate() * after;
+    if (darboux.w() < 0.0) darboux.coeffs() *= -1.0;  // the short way round
+    joint["rest_rotation"] = {darboux.w(), darboux.x(), darboux.y(), darboux.z()};
+    const Vec3 k = model.rest_curvature(i);
+    joint["rest_curvature"] = {k.x(), k.y(), k.z()};
+    before = after;
     joints.push_back(joint);
   }
   doc["joints"] = joints;

@@ -457,6 +457,18 @@ void UseProfileMaterial(const Profile& profile, Scene* scene) {
   if (std::isnan(b.linear_density)) scene->rod.linear_density = a.linear_density;
   else if (a.linear_density != b.linear_density)
     differ("rod.linear_density", a.linear_density, b.linear_density);
+  // The rod's natural shape is the rod's, fitted with it (`rollout --fit rest_curvature`): a
+  // scene without one takes the profile's; a scene with another one is another rod.
+  if (!a.rest_curvature_s.empty()) {
+    if (b.rest_curvature_s.empty()) {
+      scene->rod.rest_curvature_s = a.rest_curvature_s;
+      scene->rod.rest_curvature_profile = a.rest_curvature_profile;
+    } else if (a.rest_curvature_s != b.rest_curvature_s ||
+               a.rest_curvature_profile != b.rest_curvature_profile) {
+      throw ProfileError(profile.path, Reader::Join(pf::kRod, pf::kRestShape),
+                         "differs from the scene's rod.rest_shape (a profile belongs to its rod)");
+    }
+  }
   for (const SpringZone& zone : scene->springs)
     if (!zone.parameter.empty() && !profile.Find(zone.parameter))
       throw ProfileError(profile.path, Reader::Join(pf::kParameters, zone.parameter),

@@ -129,6 +129,13 @@ bool RestCurvatureOnVertices(const RodModel& model, const ParameterDirection& d,
 
 void ParameterGradient(const RodModel& model, const RodState& q, const ParameterDirection& d,
                        VecX* g) {
+  // A direction that moves no stiffness nor the rest shape (a damping, the density): zero, with
+  // no assembly (which would compute the rod's frames only to add nothing).
+  if (d.bend1 == 0.0 && d.bend2 == 0.0 && d.twist == 0.0 && d.stretch == 0.0 &&
+      d.rest_curvature_profile.empty()) {
+    g->setZero(model.num_free_dofs());
+    return;
+  }
   EnergyTerms terms = EnergyTerms::Only(-1);
   terms.bend1 = d.bend1;
   terms.bend2 = d.bend2;
@@ -285,10 +292,20 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   Delta(before.q, after.q, &d);
   const VecX w = d - z;  // the damping's displacement
 
-  // The Newton matrix at the solution.
-  BandedSymmetric H, C, Cp, Cm;
+  // The Newton matrix at the solution, K + a M + c (D + C): K as its bending and twist part,
+  // which the passes below need on its own, plus the rest (stretch, springs) — one assembly of
+  // the bending stencils rather than two.
+  BandedSymmetric H, C, Cp, Cm, K_bend_twist;
   VecX g;
-  AssembleHessian(model_, after.q, EnergyTerms(), &g, &H);
+  EnergyTerms bend_twist = EnergyTerms::Only(-1);
+  bend_twist.bend1 = bend_twist.bend2 = bend_twist.twist = 1.0;
+  EnergyTerms others;  // everything else in the step's energy
+  others.bend1 = others.bend2 = others.twist = 0.0;
+  RodFrames after_frames;
+  ComputeRodFrames(model_, after.q, &after_frames);
+  AssembleHessian(model_, after.q, bend_twist, &g, &K_bend_twist, &after_frames);
+  AssembleHessian(model_, after.q, others, &g, &H, &after_frames);
+  H.band() += K_bend_twist.band();
   for (int k = 0; k < N; ++k) H.At(k, k) += a * mass_[k] + c * drag_[k];
   if (internal_damping_) {
     DampingMatrix(model_, before.q, held_, 1.0, 1.0, 1.0, &C);
@@ -381,10 +398,6 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   //    the second derivative of the reference twist (relative error ~1e-3 in a rod that twists
   //    as it moves): the exact product is a central difference of their gradient, the state
   //    moved by 1e-6 L, less the assembled one.
-  BandedSymmetric K_bend_twist;
-  EnergyTerms bend_twist = EnergyTerms::Only(-1);
-  bend_twist.bend1 = bend_twist.bend2 = bend_twist.twist = 1.0;
-  AssembleHessian(model_, after.q, bend_twist, &g, &K_bend_twist);
   VecX gp, gm;
   RodState qp, qm;
   auto missing = [&](const VecX& v, VecX* out) {
@@ -405,13 +418,15 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   };
   Eigen::MatrixXd next = rhs;
   factor.SolveInPlace(next);
-  bool settled = false;
   std::vector<double> last_change(m, 0.0);  // per column, the previous pass's relative change
+  std::vector<char> settled(m, 0);          // per column: no further pass changes it
+  int open = m;
   VecX extra;
-  for (int pass = 0; pass < 30 && !settled; ++pass) {
+  for (int pass = 0; pass < 30 && open > 0; ++pass) {
     TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
     Eigen::MatrixXd again = rhs;
     for (int k = 0; k < m; ++k) {
+      if (settled[k]) continue;
       if (!missing(next.col(k), &extra)) {
         *why = "the step's sensitivities: a perturbed state folds an edge back";
         return false;
@@ -421,21 +436,30 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
     for (int r = 0; r < N; ++r)
       if (held_[r]) again.row(r).setZero();
     factor.SolveInPlace(again);
-    // The central differences' round-off (~1e-10 relative; ~1e-9 in a rod curved at rest, which
-    // twists as it bends) bounds how far the passes settle: a column has settled when its change
-    // is below 1e-9 of it, or below 1e-7 of it and no longer shrinking (the round-off's floor,
-    // where the passes contract by 1e-3 or better until they reach it).
-    settled = true;
+    // A column has settled when the error left in it is below 1e-9 of it: by its change in this
+    // pass when that is below 1e-9, or by the change times theta / (1 - theta), theta the
+    // passes' contraction measured as this change over the last (the stopping rule of the
+    // simplified Newton iteration, Hairer & Wanner II, IV.8): the passes contract by 1e-3 or
+    // better, so a column usually settles in two passes rather than three. The central
+    // differences' round-off (~1e-10 relative; ~1e-9 in a rod curved at rest, which twists as
+    // it bends) bounds how far they settle: a change below 1e-7 of it that no longer shrinks
+    // is that floor. A settled column is passed on as it is.
     for (int k = 0; k < m; ++k) {
+      if (settled[k]) {
+        again.col(k) = next.col(k);
+        continue;
+      }
       const double change = (again.col(k) - next.col(k)).cwiseAbs().maxCoeff() /
                             std::max(next.col(k).cwiseAbs().maxCoeff(), 1e-300);
+      const double theta = pass > 0 && last_change[k] > 0.0 ? change / last_change[k] : 1.0;
+      const bool estimated = theta < 0.5 && theta / (1.0 - theta) * change <= 1e-9;
       const bool floor = pass > 0 && change <= 1e-7 && change >= 0.1 * last_change[k];
-      settled = settled && (change <= 1e-9 || floor);
+      if (change <= 1e-9 || estimated || floor) settled[k] = 1, --open;
       last_change[k] = change;
     }
     next = again;
   }
-  if (!settled || !next.allFinite()) {
+  if (open > 0 || !next.allFinite()) {
     *why = "the step's sensitivities did not settle (the rod turns or twists too far in one step)";
     return false;
   }

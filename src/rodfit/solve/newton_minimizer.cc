@@ -78,6 +78,14 @@ double NewtonMinimizer::TrialMerit() {
 // Factors the assembled matrix with the smallest shift of 0, then ShiftBase() x 10^k, that works,
 // up to kShiftCap times its largest diagonal entry. *shift_failed: the last shift that failed
 // (-1: none).
+// A shift s that factors H + s I factors it with every larger one (positive definiteness is
+// monotone in s), so the lowest rung that works is searched for rather than climbed to: from the
+// rung the last call needed (a step's matrices, and the shift they need, change little from one
+// iteration or step to the next), downwards while it factors and upwards with a doubling stride
+// while it does not, then by bisection between the highest rung known to fail and the lowest
+// known to work. It is the rung a climb from the bottom finds: on the six-recording motion-fit
+// benchmark (grippers whipping a cable, whose Newton matrices need shifts of ~10^8 ShiftBase at
+// the predictor) a climb took 8.5 failed factorizations per shifted iteration.
 bool NewtonMinimizer::FactorWithShift(double* shift, double* shift_failed) {
   LinearSolver& solver = p_->Solver();
   *shift = 0.0;
@@ -88,16 +96,47 @@ bool NewtonMinimizer::FactorWithShift(double* shift, double* shift_failed) {
   if (!std::isfinite(diagonal)) return false;
   const double cap = kShiftCap * std::max(diagonal, 1e-300);
   *shift_failed = 0.0;
-  for (double s = std::min(p_->ShiftBase(), cap); s <= cap; s *= kShiftGrowth) {
-    ++summary_.factorizations;
-    if (solver.Factor(s)) {
-      *shift = s;
-      return true;
-    }
-    *shift_failed = s;
+  // The rungs first x kShiftGrowth^i up to the cap, each by the same products as a climb takes;
+  // a first rung of 0 (or below) is the only one.
+  const double first = std::min(p_->ShiftBase(), cap);
+  auto rung = [&](int i) {
+    double s = first;
+    for (int k = 0; k < i; ++k) s *= kShiftGrowth;
+    return s;
+  };
+  int rungs = 0;
+  for (double s = first; s <= cap; s *= kShiftGrowth) {
+    ++rungs;
     if (!(s > 0.0)) break;
   }
-  return false;
+  if (rungs == 0) return false;
+  int fail = -1;     // the highest rung known to fail (-1: the unshifted matrix)
+  int works = rungs;  // the lowest rung known to work (rungs: none)
+  int held = -1;     // the rung whose factor the solver holds
+  auto probe = [&](int i) {
+    ++summary_.factorizations;
+    held = i;
+    const bool ok = solver.Factor(rung(i));
+    (ok ? works : fail) = i;
+    return ok;
+  };
+  if (probe(std::clamp(shift_rung_, 0, rungs - 1))) {
+    for (int stride = 1; fail < works - 1; stride *= 2)
+      if (!probe(std::max(fail + 1, works - stride))) break;
+  } else {
+    for (int stride = 1; works == rungs && fail < rungs - 1; stride *= 2)
+      probe(std::min(rungs - 1, fail + stride));
+  }
+  while (works - fail > 1) probe((fail + works) / 2);
+  if (fail >= 0) *shift_failed = rung(fail);
+  if (works == rungs) return false;
+  shift_rung_ = works;
+  *shift = rung(works);
+  if (held != works) {
+    ++summary_.factorizations;
+    solver.Factor(*shift);
+  }
+  return true;
 }
 
 // Convergence by the residual alone.

@@ -299,6 +299,7 @@ class NewtonMinimizer {
   double energy_ = 0.0;
   bool energy_known_ = false;
   bool merit_not_finite_ = false;  // the last line search met only non-finite merits
+  int shift_rung_ = 0;  // the ladder's rung the last shifted factor needed (FactorWithShift)
   Clock::time_point deadline_;
 };
 
