@@ -43,6 +43,16 @@ class EnergyEnvelope {
   EnergyEnvelope(DynamicsStepper& stepper, const Drive& drive, const DynamicState& start)
       : stepper_(stepper), drive_(drive) {
     Evaluate(start, &last_);
+    // The floor of a moving boundary's energy scale: the energy of lifting the rod by its own
+    // length under standard gravity (whatever the scene's gravity). The trapezoidal work of a
+    // boundary that starts moving from rest is resolved only after a few steps, while the run's
+    // own scale is still near zero: without a floor, a gripper's start-up on a rod at rest (a
+    // recording's pull from frame 0) read as energy from nowhere. A blow-up grows without
+    // bound and still leaves it; a rod whose boundary stays still keeps the exact check.
+    const RodModel& model = stepper_.model();
+    double mass = 0.0;  // [kg]
+    for (int i = 0; i <= model.num_edges(); ++i) mass += model.vertex_mass(i);
+    moving_floor_ = mass * kStandardGravity * model.length();
     kinetic0_ = last_.kinetic;
     potential0_ = last_.potential;
     largest_kinetic_ = kinetic0_;
@@ -64,6 +74,7 @@ class EnergyEnvelope {
       // a resolved step; large where a held point jumps in one step (a recording's first frame
       // snapping the held markers), whose work the rule cannot resolve.
       rule_spread_ += 0.5 * std::abs((next.gradient - last_.gradient).dot(dq_));
+      boundary_moved_ = true;
     }
     excess_ += unexplained;
     // This step's work: its change of E less what is not accounted for.
@@ -75,7 +86,8 @@ class EnergyEnvelope {
     largest_kinetic_ = std::max(largest_kinetic_, next.kinetic);
     largest_potential_change_ =
         std::max(largest_potential_change_, std::abs(next.potential - potential0_));
-    const double scale = largest_kinetic_ + largest_potential_change_ + work_variation_;
+    const double scale = std::max(largest_kinetic_ + largest_potential_change_ + work_variation_,
+                                  boundary_moved_ ? moving_floor_ : 0.0);
     const double margin =
         kEnergyEnvelopeMargin * scale + rule_spread_ +
         kEnergyEnvelopeRoundOff * (std::abs(potential0_) + std::abs(next.potential) + kinetic0_ +
@@ -120,6 +132,9 @@ class EnergyEnvelope {
   double work_variation_ = 0.0;  // [J] the sum of |W| of every step
   double rule_spread_ = 0.0;     // [J] the trapezoidal rule's uncertainty summed over the steps
   double largest_kinetic_ = 0.0, largest_potential_change_ = 0.0;
+  double moving_floor_ = 0.0;  // [J] m g0 L, the scale's floor once the boundary has moved
+  bool boundary_moved_ = false;
+  static constexpr double kStandardGravity = 9.80665;  // [m/s^2], g0
 };
 
 }  // namespace
