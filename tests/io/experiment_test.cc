@@ -155,6 +155,18 @@ TEST_F(ExperimentTest, NonPositiveSizesAndStiffnesses) {
   ExpectError(With("min: 1.0e-9", "min: 0"), 8, "parameters.bend_stiffness.min");
 }
 
+// A value outside its row's physical range (the one the profile reader, --set and the exports
+// check) is refused where the scene is read, naming the key: a 1e-300 kg/m rod was read and
+// only refused when its model was built, naming the case instead.
+TEST_F(ExperimentTest, ValuesOutsideTheirPhysicalRangeAreNamedByKey) {
+  ExpectError(With("linear_density: 5.0e-5", "linear_density: 1.0e-300"), 5,
+              "rod.linear_density");
+  EXPECT_THAT(Error(With("linear_density: 5.0e-5", "linear_density: 1.0e-300")),
+              HasSubstr("physical range"));
+  ExpectError(With("{value: 8.0e-7}", "{value: 1.0e-40}"), 9, "parameters.twist_stiffness.value");
+  ExpectError(With("{value: 245}", "{value: 1.0e+40}"), 10, "parameters.stretch_stiffness.value");
+}
+
 TEST_F(ExperimentTest, ZeroStiffnessSpringIsAllowed) {
   const Experiment ex = LoadExperiment(dir_.Write("scene.yaml", kBase));
   EXPECT_EQ(ex.scene.material.spring_stiffness, 0.0);

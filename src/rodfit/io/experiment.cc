@@ -268,7 +268,15 @@ RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool de
     if (const Field* d = Reader::Find(m, "linear_density"))
       r.Fail(*d, "given twice: here and as parameters.linear_density (keep one)");
   } else if (const Field* d = Reader::Find(m, "linear_density"); d || !density_optional) {
-    rod.linear_density = r.NonNegative(d ? *d : r.Require(m, f, "linear_density"));
+    const Field& density = d ? *d : r.Require(m, f, "linear_density");
+    rod.linear_density = r.NonNegative(density);
+    // 0 is a massless rod; any other value in the row's physical range.
+    const std::string why =
+        rod.linear_density == 0.0
+            ? std::string()
+            : CheckMaterialParameterRange(*FindMaterialParameter("linear_density"),
+                                          rod.linear_density);
+    if (!why.empty()) r.Fail(density, why);
   } else {
     rod.linear_density = std::numeric_limits<double>::quiet_NaN();
   }
@@ -316,6 +324,10 @@ Parameter ReadParameter(const Reader& r, const Field& f, const std::string& name
   // spring_stiffness = 0 means no springs and zero damping none (docs/model.md, "What a scene
   // builds"); every stiffness of the rod is > 0. A zone's own parameter is a spring stiffness.
   p.value = row && row->positive ? r.Positive(value) : r.NonNegative(value);
+  if (row) {  // the row's physical range, as the profile reader, --set and the exports check it
+    const std::string why = CheckMaterialParameterRange(*row, p.value);
+    if (!why.empty()) r.Fail(value, why);
+  }
   p.start = p.value;
   if (const Field* fit = Reader::Find(m, "fit")) {
     p.fit = r.Bool(*fit);
