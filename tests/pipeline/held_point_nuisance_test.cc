@@ -13,6 +13,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "rodfit/fit/case_cost.h"
@@ -397,6 +399,49 @@ TEST(HeldPointNuisance, RecoversStiffnessAndPinAndGraspOffsets) {
       }
     }
   }
+}
+
+// The bundled suture cantilever (synthetic, gravity exactly -z, markers and two cameras) with
+// `gravity_prior_deg: 2` from the recipe's start (B and B2 at 3e-6, about 3x too soft). Fitted
+// jointly from there, gravity tilted to hold the soft rod up and the fit ran its 100
+// iterations without converging; the fit now also runs the material first with the nuisances
+// at 0 and keeps the path that ends lower. Measured: B 9.198e-6 +- 7e-8 and B2 1.100e-5 +-
+// 4.9e-8 (truth 9.2e-6, 1.1e-5: calibration/suture_cantilever/truth.json), every tilt within
+// 1.2 sigma of 0, residual variance 0.916, 23 iterations.
+TEST(HeldPointNuisance, GravityPriorFromAFarStartConvergesToTheTruth) {
+  const std::string recipe = std::string(RODFIT_SOURCE_DIR) + "/calibration/suture_cantilever/";
+  std::ifstream in(recipe + "experiment.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string yaml = text.str();
+  auto replace_all = [&](const std::string& from, const std::string& to) {
+    for (size_t at = yaml.find(from); at != std::string::npos; at = yaml.find(from, at + to.size()))
+      yaml.replace(at, from.size(), to);
+  };
+  replace_all("file: ", "file: " + recipe);
+  replace_all("camera: ", "camera: " + recipe);
+  const std::string g = "gravity: [0, 0, -9.81]";
+  ASSERT_NE(yaml.find(g), std::string::npos);
+  yaml.replace(yaml.find(g), g.size(), g + "\ngravity_prior_deg: 2");
+  TempDir dir;
+  const FitInput input = BuildFitInput(LoadExperiment(dir.Write("tilted.yaml", yaml)));
+  const FitResult r = Fit(input, FitOptions());
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_LT(r.residual_variance, 1.3);
+  for (const auto& [name, truth] : {std::pair<std::string, double>{"bend_stiffness", 9.2e-6},
+                                    {"bend_stiffness_2", 1.1e-5}}) {
+    const Parameter& p = Estimate(r, name);
+    ASSERT_TRUE(p.identifiable && p.std) << name << ": " << p.reason;
+    std::printf("%s %.5g +- %.2g (%+.2f sigma)\n", name.c_str(), p.value, *p.std,
+                (p.value - truth) / *p.std);
+    EXPECT_LT(std::abs(p.value - truth), 3.0 * *p.std) << name;
+  }
+  ASSERT_EQ(r.nuisances.size(), 4u);  // one tilt per case
+  for (const NuisanceEstimate& n : r.nuisances)
+    for (int k = 0; k < 2; ++k) {
+      ASSERT_TRUE(std::isfinite(n.std[k])) << n.case_name;
+      EXPECT_LT(std::abs(n.value[k]), 3.0 * n.std[k]) << n.case_name << " axis " << k;
+    }
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 // then the case's measurements, measurement.h), and all cases as one Ceres block.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <memory>
 #include <mutex>
@@ -224,6 +225,39 @@ class AllCasesCost final : public ceres::CostFunction {
   std::vector<const CaseEvaluator*> cases_;
   std::vector<int> first_row_;
   int num_threads_;
+};
+
+/// `full` over the first `m` parameters alone, the rest held at `held` (the material with the
+/// nuisances at their priors' mean: the fit's first stage, fit.cc).
+class MaterialOnlyCost final : public ceres::CostFunction {
+ public:
+  MaterialOnlyCost(std::unique_ptr<ceres::CostFunction> full, int m, std::vector<double> held)
+      : full_(std::move(full)), m_(m), held_(std::move(held)) {
+    set_num_residuals(full_->num_residuals());
+    mutable_parameter_block_sizes()->push_back(m_);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const int M = m_ + static_cast<int>(held_.size());
+    std::vector<double> x(M);
+    std::copy(parameters[0], parameters[0] + m_, x.begin());
+    std::copy(held_.begin(), held_.end(), x.begin() + m_);
+    const double* blocks[] = {x.data()};
+    if (!jacobians || !jacobians[0]) return full_->Evaluate(blocks, residuals, nullptr);
+    const int rows = num_residuals();
+    std::vector<double> J(static_cast<size_t>(rows) * M);  // row-major, as Ceres writes it
+    double* jac[] = {J.data()};
+    if (!full_->Evaluate(blocks, residuals, jac)) return false;
+    for (int r = 0; r < rows; ++r)
+      std::copy(J.begin() + static_cast<size_t>(r) * M, J.begin() + static_cast<size_t>(r) * M + m_,
+                jacobians[0] + static_cast<size_t>(r) * m_);
+    return true;
+  }
+
+ private:
+  std::unique_ptr<ceres::CostFunction> full_;
+  int m_;
+  std::vector<double> held_;
 };
 
 }  // namespace fit_internal
