@@ -83,5 +83,20 @@ inline std::vector<double> StartLogs(const FitInput& in) {
   return logp;
 }
 
+// Markers along the untwisted loop, `s,x,y,z` (their values do not matter for a derivative
+// check).
+inline std::string LoopMarkers() {
+  std::string csv = "s,x,y,z\n";
+  const double L = 1.5, R = L / (2 * kPi);
+  for (int k = 1; k <= 10; ++k) {
+    const double s = L * k / 10.5, phi = s / R;
+    char row[128];
+    std::snprintf(row, sizeof(row), "%.6f,%.6f,0.01,%.6f\n", s, R * std::sin(phi),
+                  -R * (1 - std::cos(phi)));
+    csv += row;
+  }
+  return csv;
+}
+
 }  // namespace test
 }  // namespace rodfit

@@ -29,26 +29,13 @@ namespace {
 using test::kB;
 using test::kPi;
 using test::LoadLoop;
+using test::LoopMarkers;
 using test::Loop;
 using test::TempDir;
 using test::WriteStart;
 using ::testing::HasSubstr;
 
 constexpr double kDeg = kPi / 180.0;
-
-// Markers along the untwisted loop (their values do not matter for a derivative check).
-std::string LoopMarkers() {
-  std::string csv = "s,x,y,z\n";
-  const double L = 1.5, R = L / (2 * kPi);
-  for (int k = 1; k <= 10; ++k) {
-    const double s = L * k / 10.5, phi = s / R;
-    char row[128];
-    std::snprintf(row, sizeof(row), "%.6f,%.6f,0.01,%.6f\n", s, R * std::sin(phi),
-                  -R * (1 - std::cos(phi)));
-    csv += row;
-  }
-  return csv;
-}
 
 // Columns x[c] against central differences of the forward map (steps h_log for the material's
 // logs, h for the nuisances'), the first `rows` residuals; prints each column's error.

@@ -30,6 +30,7 @@ using test::kB;
 using test::kGJ;
 using test::kPi;
 using test::LoadLoop;
+using test::LoopMarkers;
 using test::Loop;
 using test::TempDir;
 using test::WriteStart;
@@ -63,20 +64,6 @@ TEST(Nuisance, ExponentialMapAndItsLeftJacobian) {
   }
 }
 
-// Markers along the untwisted loop (their values do not matter for a derivative check).
-std::string Markers() {
-  std::string csv = "s,x,y,z\n";
-  const double L = 1.5, R = L / (2 * kPi);
-  for (int k = 1; k <= 10; ++k) {
-    const double s = L * k / 10.5, phi = s / R;
-    char row[128];
-    std::snprintf(row, sizeof(row), "%.6f,%.6f,0.01,%.6f\n", s, R * std::sin(phi),
-                  -R * (1 - std::cos(phi)));
-    csv += row;
-  }
-  return csv;
-}
-
 constexpr char kClampWithPrior[] =
     "clamp: {position: [0, 0, 0], tangent: [1, 0, 0], normal: [0, 0, 1], rotation_prior_deg: 20}";
 constexpr char kEndClampWithPrior[] =
@@ -92,7 +79,7 @@ constexpr char kEndClampWithPrior[] =
 // included, which the shape hardly depends on); the critical twist's to 1e-7 relative.
 TEST(Nuisance, JacobianByTheClampRotationsEqualsCentralDifferences) {
   TempDir dir;
-  dir.Write("markers.csv", Markers());
+  dir.Write("markers.csv", LoopMarkers());
   const FitInput in = LoadLoop(
       dir, Loop(30,
                 "      - {type: markers3d, file: markers.csv, sigma: 1.0e-3}\n"
