@@ -259,6 +259,126 @@ void BM_RestShapeSyntheticBenchmark(benchmark::State& st) {
   st.counters["start_fitted_mm"] = 1e3 * start_fitted;
   st.counters["start_straight_mm"] = 1e3 * start_straight;
 }
+// The grippers model's floor taken apart (no fit; the true parameters on the noise-free
+// recordings): each recording rolled out with the gripper frames the markers give, with the true
+// frames (the grippers that made it), with the markers' tangent and the true roll, with the true
+// tangent and the markers' roll, and with the markers' frames turned by the constant rotation
+// that makes them true at t = 0 (what a constant nuisance per gripper can do at best from
+// there). Also the markers' frames' error against the true ones over time (tangent tilt and
+// roll, [deg], mean and largest), which tells whether a constant rotation can stand for it.
+Eigen::Matrix3d FrameOf(const Vec3& tangent, const Vec3& normal) {
+  const Vec3 t = tangent.normalized();
+  const Vec3 d1 = (normal - normal.dot(t) * t).normalized();
+  Eigen::Matrix3d F;
+  F << d1, t.cross(d1), t;
+  return F;
+}
+
+// The true frame of a gripper's drive at time t (its samples linear in time, as the engine
+// interpolates them).
+Eigen::Matrix3d TrueFrame(const DrivenPoint& d, double t) {
+  const TimeSeries& p = d.path;
+  size_t j = 0;
+  while (j + 1 < p.t.size() && p.t[j + 1] <= t) ++j;
+  Vec3 b = p.b[j], c = p.c[j];
+  if (j + 1 < p.t.size() && t > p.t[j]) {
+    const double w = (t - p.t[j]) / (p.t[j + 1] - p.t[j]);
+    b = (1 - w) * p.b[j] + w * p.b[j + 1];
+    c = (1 - w) * p.c[j] + w * p.c[j + 1];
+  }
+  return FrameOf(b, c);
+}
+
+void BM_GripperFrameDiagnosis(benchmark::State& st) {
+  struct Case {
+    std::string name;
+    bool gentle;
+    testing::HardMotion motion;
+    double seconds;
+  };
+  const std::vector<Case> cases = {{"gentle (train)", true, testing::HardMotion::kPull, 4.0},
+                                   {"whip (train)", false, testing::HardMotion::kWhip, 3.0},
+                                   {"pull (held out)", false, testing::HardMotion::kPull, 3.0},
+                                   {"loop (held out)", false, testing::HardMotion::kLoop, 3.0}};
+  Scene truth = UserScene();
+  truth.material = TruthMaterial();
+  truth.rod = CurvedRod();
+  const char* variants[] = {"pins", "markers' frames", "true frames", "markers' tangent + true roll",
+                            "true tangent + markers' roll", "markers' + constant R(t=0)"};
+  const int V = 6;
+  std::vector<double> held_out_mae(V, 0.0);
+  for (auto _ : st) {
+    for (const Case& cs : cases) {
+      Recordings rec;
+      Add(cs.name, cs.gentle, cs.motion, cs.seconds, 1, &rec);
+      const std::vector<DrivenPoint> grippers =
+          cs.gentle ? testing::GentleGrippers(cs.seconds) : testing::HardGrippers(cs.motion, cs.seconds);
+      const std::vector<Eigen::Matrix3Xd>& frames = rec.clean[0].frames;
+      // The markers' frames against the true ones, over the recording's frames.
+      double tilt_sum[2] = {0, 0}, tilt_max[2] = {0, 0}, roll_sum[2] = {0, 0}, roll_max[2] = {0, 0};
+      int samples = 0;
+      Eigen::Matrix3d at_start[2];  // the markers' frame at t = 0, as the rollout holds it
+      RolloutOptions probe;
+      probe.held_ends = RolloutOptions::HeldEnds::kGrippers;
+      probe.gripper_frame = [&](int g, double t, const Eigen::Matrix3d& from_markers) {
+        const Eigen::Matrix3d T = TrueFrame(grippers[g], t);
+        if (t == 0.0) at_start[g] = from_markers;
+        const double tilt = std::acos(std::clamp(T.col(2).dot(from_markers.col(2)), -1.0, 1.0));
+        // The roll: the markers' d1 carried onto the true tangent, its angle from the true d1.
+        const Eigen::Matrix3d M = FrameOf(T.col(2), from_markers.col(0));
+        const double roll = std::atan2(M.col(0).dot(T.col(1)), M.col(0).dot(T.col(0)));
+        tilt_sum[g] += tilt;
+        tilt_max[g] = std::max(tilt_max[g], tilt);
+        roll_sum[g] += std::abs(roll);
+        roll_max[g] = std::max(roll_max[g], std::abs(roll));
+        if (g == 0) ++samples;
+        return from_markers;
+      };
+      Rollout(truth, testing::kFrameInterval, frames, probe, StaticsOptions());
+      const double deg = 180.0 / M_PI;
+      std::printf("%s: markers' frame vs true [deg]: clamp tilt mean %.2f max %.2f, roll mean "
+                  "%.2f max %.2f; end tilt mean %.2f max %.2f, roll mean %.2f max %.2f\n",
+                  cs.name.c_str(), deg * tilt_sum[0] / samples, deg * tilt_max[0],
+                  deg * roll_sum[0] / samples, deg * roll_max[0], deg * tilt_sum[1] / samples,
+                  deg * tilt_max[1], deg * roll_sum[1] / samples, deg * roll_max[1]);
+      Eigen::Matrix3d R0[2];
+      for (int g = 0; g < 2; ++g) {
+        R0[g] = at_start[g].transpose() * TrueFrame(grippers[g], 0.0);
+        const Eigen::AngleAxisd aa(R0[g]);
+        const Vec3 w = aa.angle() * aa.axis() * deg;
+        std::printf("  %s R(t=0) in its frame [deg]: (%.2f, %.2f, %.2f)\n", g ? "end" : "clamp",
+                    w.x(), w.y(), w.z());
+      }
+      for (int v = 0; v < V; ++v) {
+        RolloutOptions o;
+        o.held_ends = v == 0 ? RolloutOptions::HeldEnds::kPinnedPairs
+                             : RolloutOptions::HeldEnds::kGrippers;
+        if (v >= 2 && v <= 4)
+          o.gripper_frame = [&, v](int g, double t, const Eigen::Matrix3d& from_markers) {
+            const Eigen::Matrix3d T = TrueFrame(grippers[g], t);
+            if (v == 2) return T;
+            if (v == 3) return FrameOf(from_markers.col(2), T.col(0));
+            return FrameOf(T.col(2), from_markers.col(0));
+          };
+        if (v == 5)
+          o.gripper_frame = [&](int g, double, const Eigen::Matrix3d& from_markers) {
+            return Eigen::Matrix3d(from_markers * R0[g]);
+          };
+        const RolloutResult r = Rollout(truth, testing::kFrameInterval, frames, o, StaticsOptions());
+        std::printf("  %-32s MAE %7.2f mm%s%s\n", variants[v], 1e3 * r.mae_predicted,
+                    r.ok ? "" : "  FAILED: ", r.ok ? "" : r.reason.c_str());
+        if (!cs.gentle && cs.motion != testing::HardMotion::kWhip)
+          held_out_mae[v] += 0.5 * r.mae_predicted;
+      }
+    }
+  }
+  std::printf("held-out (pull, loop) mean MAE [mm]:");
+  for (int v = 0; v < V; ++v) std::printf(" %s %.2f;", variants[v], 1e3 * held_out_mae[v]);
+  std::printf("\n");
+  for (int v = 0; v < V; ++v) st.counters["held_out_mm_" + std::to_string(v)] = 1e3 * held_out_mae[v];
+}
+BENCHMARK(BM_GripperFrameDiagnosis)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+
 BENCHMARK(BM_RestShapeSyntheticBenchmark)
     ->ArgNames({"grippers", "self_consistent", "staged"})
     ->Args({0, 0, 0})

@@ -36,6 +36,26 @@ inline Scene Cable() {
   return s;
 }
 
+// The true grippers of Recording: the clamp's and the end clamp's drives (position, tangent,
+// normal; the tangent not normalised), sampled every 10 ms.
+inline std::vector<DrivenPoint> GentleGrippers(double seconds) {
+  DrivenPoint left, right;
+  left.point = "clamp";
+  right.point = "end_clamp";
+  for (int k = 0; k <= 100 * seconds; ++k) {
+    const double t = 0.01 * k;
+    left.path.t.push_back(t);
+    left.path.a.push_back(Vec3(0.05 * std::sin(2.0 * t), 0.08 * std::sin(1.3 * t), 0.04 * std::sin(3.1 * t)));
+    left.path.b.push_back(Vec3(1, 0.2 * std::sin(1.7 * t), 0));
+    left.path.c.push_back(Vec3(0, 0, 1));
+    right.path.t.push_back(t);
+    right.path.a.push_back(Vec3(0.7 + 0.1 * std::sin(1.5 * t), 0.15 * std::sin(2.3 * t), 0.1 * (1 - std::cos(1.9 * t))));
+    right.path.b.push_back(Vec3(1, 0, 0.3 * std::sin(1.1 * t)));
+    right.path.c.push_back(Vec3(0, 0, 1));
+  }
+  return {left, right};
+}
+
 // The truth: both grippers (clamps at s = 0 and s = L) moved along smooth paths for `seconds`;
 // the markers are vertices (every 4th of 44 edges), sampled at 100 Hz with noise and drops.
 inline std::vector<Eigen::Matrix3Xd> Recording(double seconds, double noise, double drop, unsigned seed,
@@ -56,21 +76,7 @@ inline std::vector<Eigen::Matrix3Xd> Recording(double seconds, double noise, dou
   end.tangent = Vec3(1, 0, 0);
   end.normal = Vec3(0, 0, 1);
   c.end_clamp = end;
-  DrivenPoint left, right;
-  left.point = "clamp";
-  right.point = "end_clamp";
-  for (int k = 0; k <= 100 * seconds; ++k) {
-    const double t = 0.01 * k;
-    left.path.t.push_back(t);
-    left.path.a.push_back(Vec3(0.05 * std::sin(2.0 * t), 0.08 * std::sin(1.3 * t), 0.04 * std::sin(3.1 * t)));
-    left.path.b.push_back(Vec3(1, 0.2 * std::sin(1.7 * t), 0));
-    left.path.c.push_back(Vec3(0, 0, 1));
-    right.path.t.push_back(t);
-    right.path.a.push_back(Vec3(0.7 + 0.1 * std::sin(1.5 * t), 0.15 * std::sin(2.3 * t), 0.1 * (1 - std::cos(1.9 * t))));
-    right.path.b.push_back(Vec3(1, 0, 0.3 * std::sin(1.1 * t)));
-    right.path.c.push_back(Vec3(0, 0, 1));
-  }
-  c.drives = {left, right};
+  c.drives = GentleGrippers(seconds);
   s.cases = {c};
   const CaseTrajectory truth = SimulateCaseDynamics(s, 0, StaticsOptions());
   // No test framework here: the benchmarks build recordings too.
@@ -115,24 +121,9 @@ inline const char* HardMotionName(HardMotion m) {
   return "?";
 }
 
-inline std::vector<Eigen::Matrix3Xd> HardRecording(HardMotion motion, double seconds, double noise,
-                                                   double drop, unsigned seed,
-                                                   const Material* material = nullptr,
-                                                   const RodSpec* rod = nullptr) {
-  Scene s = Cable();
-  if (material) s.material = *material;
-  if (rod) s.rod = *rod;
-  // Twist damped with bending's retardation time (DefaultTwistDamping, as `rodfit rollout`
-  // does): undamped, the edges' fast twist mode, once a step resolves it, grows until Newton
-  // fails (the whip at 2 ms and 0.5 ms steps: at t = 0.12-0.15 s).
-  DefaultTwistDamping(&s.material);
-  s.dynamics->time_step = kFrameInterval;
-  s.dynamics->error_tolerance = 1e-6;
-  s.dynamics->min_time_step = 1e-8;
-  s.dynamics->duration = seconds;
-  s.dynamics->output_every = static_cast<int>(std::lround(kFrameInterval / s.dynamics->time_step));
-  LoadCase c;
-  c.name = HardMotionName(motion);
+// The true grippers of HardRecording: the clamp's and the end clamp's drives (position,
+// tangent, normal; the tangent not normalised), sampled every millisecond.
+inline std::vector<DrivenPoint> HardGrippers(HardMotion motion, double seconds) {
   DrivenPoint left, right;
   left.point = "clamp";
   right.point = "end_clamp";
@@ -184,6 +175,29 @@ inline std::vector<Eigen::Matrix3Xd> HardRecording(HardMotion motion, double sec
     right.path.b.push_back(b1);
     right.path.c.push_back(Vec3(0, 0, 1));
   }
+  return {left, right};
+}
+
+inline std::vector<Eigen::Matrix3Xd> HardRecording(HardMotion motion, double seconds, double noise,
+                                                   double drop, unsigned seed,
+                                                   const Material* material = nullptr,
+                                                   const RodSpec* rod = nullptr) {
+  Scene s = Cable();
+  if (material) s.material = *material;
+  if (rod) s.rod = *rod;
+  // Twist damped with bending's retardation time (DefaultTwistDamping, as `rodfit rollout`
+  // does): undamped, the edges' fast twist mode, once a step resolves it, grows until Newton
+  // fails (the whip at 2 ms and 0.5 ms steps: at t = 0.12-0.15 s).
+  DefaultTwistDamping(&s.material);
+  s.dynamics->time_step = kFrameInterval;
+  s.dynamics->error_tolerance = 1e-6;
+  s.dynamics->min_time_step = 1e-8;
+  s.dynamics->duration = seconds;
+  s.dynamics->output_every = static_cast<int>(std::lround(kFrameInterval / s.dynamics->time_step));
+  LoadCase c;
+  c.name = HardMotionName(motion);
+  const std::vector<DrivenPoint> grippers = HardGrippers(motion, seconds);
+  const DrivenPoint &left = grippers[0], &right = grippers[1];
   c.clamp.position = left.path.a.front();
   c.clamp.tangent = left.path.b.front();
   c.clamp.normal = Vec3(0, 0, 1);

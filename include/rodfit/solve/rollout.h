@@ -4,6 +4,8 @@
 // coordinate error against the recording.
 #pragma once
 
+#include <array>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -45,6 +47,19 @@ struct RolloutOptions {
     kFreeRoll,
   };
   HeldEnds held_ends = HeldEnds::kPinnedPairs;
+  /// With grippers (kGrippers, kFreeRoll), per gripper ([0] the clamp at marker 0, [1] the end
+  /// at marker n-1): a constant rotation [rad], a rotation vector in the gripper's own frame
+  /// (d1, d2, d3 = the tangent: about d1 and d2 it tilts the tangent, about d3 it turns the
+  /// roll), applied on top of the frame the markers give at every time, the start's included
+  /// (the equilibrium start is held by the rotated frames). The motion fit's held-frame
+  /// nuisances (MotionFitOptions::gripper_prior_deg); zero: the markers' frames as they are.
+  /// With kFreeRoll the end's roll is free, so a turn about its tangent does nothing.
+  std::array<Vec3, 2> gripper_rotation{Vec3::Zero(), Vec3::Zero()};
+  /// A diagnostic (unset: none): with grippers, each gripper's frame [d1 d2 d3] at time t [s]
+  /// is replaced by what this returns given the frame the markers give (e.g. the true frame of
+  /// a synthetic recording, or its tangent with the markers' roll), before gripper_rotation.
+  std::function<Eigen::Matrix3d(int gripper, double t, const Eigen::Matrix3d& from_markers)>
+      gripper_frame;
   /// [m] adaptive steps' local error bound (DynamicsOptions::error_tolerance) where the scene's
   /// dynamics block sets none: a rollout adapts its steps instead of aborting on a fast motion
   /// (a whip at 10 ms steps), landing on every frame.

@@ -94,6 +94,23 @@ Eigen::Matrix3d FrameOf(const Vec3& tangent, const Vec3& normal) {
   return F;
 }
 
+// The rotation of the rotation vector w [rad].
+Eigen::Matrix3d RotationOf(const Vec3& w) {
+  const double angle = w.norm();
+  if (angle == 0.0) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+}
+
+// Gripper `g`'s frame at time t as the rollout holds it: the markers' frame, replaced by the
+// diagnostic's (RolloutOptions::gripper_frame) when set, then turned by the gripper's constant
+// rotation in its own frame (RolloutOptions::gripper_rotation).
+Eigen::Matrix3d GripperFrame(const RolloutOptions& options, int g, double t,
+                             const Eigen::Matrix3d& from_markers) {
+  Eigen::Matrix3d F = options.gripper_frame ? options.gripper_frame(g, t, from_markers)
+                                            : from_markers;
+  return F * RotationOf(options.gripper_rotation[g]);
+}
+
 // The rollout's scene (its one case: the clamp, pins and end driven along the held markers'
 // paths, the start) and the vertex of each marker; fills out->held and out->marker_s. Shared by
 // Rollout and RolloutWithSensitivities, so both integrate the same problem.
@@ -169,8 +186,9 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   if (grippers && out.held[1] && M >= 3) {
     const Vec3 t_fit = EndTangent(frames, out.marker_s, 0);
     clamp_offset = FrameOf(t0, n0).transpose() * FrameOf(t_fit, n0);
-    c.clamp.tangent = t_fit;
-    c.clamp.normal = FrameOf(t_fit, n0).col(0);
+    const Eigen::Matrix3d F = GripperFrame(options, 0, 0.0, FrameOf(t_fit, n0));
+    c.clamp.tangent = F.col(2);
+    c.clamp.normal = F.col(0);
   }
   {
     // The clamp's frame over time: its tangent towards marker 1 (interpolated over frames where
@@ -185,7 +203,8 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
       normal = ParallelTransport<double, double>(tangent, tn, normal);
       normal = (normal - normal.dot(tn) * tn).normalized();
       tangent = tn;
-      const Eigen::Matrix3d F = FrameOf(tangent, normal) * clamp_offset;
+      Eigen::Matrix3d F = FrameOf(tangent, normal) * clamp_offset;
+      if (grippers && out.held[1]) F = GripperFrame(options, 0, cp.t[k], F);
       cp.b.push_back(F.col(2));
       cp.c.push_back(F.col(0));
     }
@@ -228,7 +247,8 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
         normal = ParallelTransport<double, double>(tangent, tn, normal);
         normal = (normal - normal.dot(tn) * tn).normalized();
         tangent = tn;
-        const Eigen::Matrix3d F = FrameOf(tangent, normal) * end_offset;
+        const Eigen::Matrix3d F =
+            GripperFrame(options, 1, d.path.t[k], FrameOf(tangent, normal) * end_offset);
         d.path.b.push_back(F.col(2));
         if (end_roll_held) d.path.c.push_back(F.col(0));
       }
