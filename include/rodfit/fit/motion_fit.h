@@ -15,6 +15,7 @@
 // vertex Jacobian chained with the trajectory's sensitivities d x / d log p.
 #pragma once
 
+#include <array>
 #include <functional>
 #include <memory>
 #include <string>
@@ -64,6 +65,16 @@ struct MotionFitOptions {
   int rest_curvature_knots = 5;
   double rest_curvature_smoothness = 2.0;
   double max_rest_curvature = 30.0;
+  /// Held-frame nuisances (docs/cli.md, "rollout --fit", "--gripper-prior-deg"): with
+  /// grippers (RolloutOptions::kGrippers or kFreeRoll, markers 0, 1, n-2, n-1 held) and this
+  /// > 0, each recording's two grippers carry a fitted constant tilt of the tangent (the
+  /// rotation about the gripper's d1 and d2, RolloutOptions::gripper_rotation; the roll is not
+  /// fitted: at the truth of the synthetic benchmark the roll's share of the floor is small and
+  /// it drifts in time, which a constant cannot follow), with a Gaussian prior of this std [deg]
+  /// centred on 0 (its rows count among the residuals and in the residual variance, as the
+  /// static fit's rotation_prior_deg). Their derivatives are central differences of each
+  /// recording's rollout (that recording's only). Least squares only. 0: none.
+  double gripper_prior_deg = 0.0;
   /// Called after each Levenberg–Marquardt iteration (`iteration`, `cost`, `seconds`; `budget`
   /// is max_evaluations, `global` false): a caller's progress line.
   std::function<void(const FitIterationInfo&)> progress;
@@ -109,7 +120,24 @@ struct MotionFitResult {
   /// are in 1/m (not log-parameters; covariance_log's rows for them are of kappa° L).
   std::vector<double> rest_curvature_s;
   int prior_residuals = 0;  ///< the smoothness prior's rows among `residuals`
+  /// With held-frame nuisances (MotionFitOptions::gripper_prior_deg): per recording, per
+  /// gripper ([0] the clamp, [1] the end), the fitted rotation vector in the gripper's frame
+  /// [deg] (its d3 component 0: no roll), to be set as RolloutOptions::gripper_rotation (in rad)
+  /// for that recording; and the std of its components [deg] (NaN where not identifiable).
+  /// Not among `names`: nuisances of the recordings, never the rod's parameters. Empty without.
+  std::vector<std::array<Vec3, 2>> gripper_rotation_deg, gripper_rotation_std_deg;
+  int gripper_prior_residuals = 0;  ///< the nuisances' prior rows among `residuals`
 };
+
+/// The derivatives of a rollout's predicted markers with respect to its grippers' tilts
+/// (RolloutOptions::gripper_rotation about each gripper's d1 and d2; columns clamp d1, clamp d2,
+/// end d1, end d2, per rad), by central differences of step `step` [rad] about options' rotations:
+/// (*d_predicted)[k] is 3 M x 4 for frame k, as RolloutWithSensitivities lays it out. With
+/// `schedule`, every run replays it. False with the reason when a run fails.
+bool GripperTiltDerivatives(const Scene& scene, const MotionRecordingData& recording,
+                            const RolloutOptions& options, const StaticsOptions& statics,
+                            double step, std::vector<Eigen::MatrixXd>* d_predicted,
+                            std::string* why, StepSchedule* schedule = nullptr);
 
 /// The name FitMotion takes for the rest shape (MotionFitOptions::rest_curvature_knots).
 inline constexpr const char* kRestCurvatureParameter = "rest_curvature";

@@ -67,6 +67,13 @@ struct Ctx {
   double prior_sigma = 1.0;
   const RolloutOptions* options = nullptr;
   const StaticsOptions* statics = nullptr;
+  // The grippers' held-frame nuisances (MotionFitOptions::gripper_prior_deg): per recording,
+  // kGripperTilts unknowns [rad] from nuisance_first + kGripperTilts * recording (after the
+  // material's and the rest shape's, which `directions` differentiate), their prior's rows after
+  // the rest shape's. -1: none.
+  int nuisance_first = -1;
+  double nuisance_sigma = 1.0;  // [rad] the prior's std
+  bool nuisances() const { return nuisance_first >= 0; }
   std::vector<ParameterDirection> directions;
   std::vector<std::vector<char>> held;  // per recording, per marker: driven
   double sigma = 1.0;
@@ -119,6 +126,22 @@ struct Ctx {
     return "recording " + (name.empty() ? std::to_string(recording + 1) : name) + ": ";
   }
 };
+
+// Per recording, its grippers' tilts: clamp about d1, d2, end about d1, d2 (GripperTiltDerivatives'
+// columns), and the step of their central differences [rad] (0.06 degrees: small against the
+// prior's degrees, large against the rollout's round-off).
+constexpr int kGripperTilts = 4;
+constexpr double kGripperTiltStep = 1e-3;
+
+// The rollout options of recording `ri` at unknowns x: the given ones, its grippers' tilts added
+// when they are fitted.
+RolloutOptions OptionsFor(const Ctx& c, size_t ri, const double* x) {
+  RolloutOptions o = *c.options;
+  if (!c.nuisances()) return o;
+  const double* w = x + c.nuisance_first + kGripperTilts * ri;
+  for (int j = 0; j < kGripperTilts; ++j) o.gripper_rotation[j / 2][j % 2] += w[j];
+  return o;
+}
 
 // The predicted markers' mean absolute coordinate error averaged over the recordings (the score
 // the held-out data is judged by), at log-parameters `logp`.
@@ -221,6 +244,7 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
   struct Run {
     RolloutResult out;
     std::vector<Eigen::MatrixXd> dp;
+    std::vector<Eigen::MatrixXd> d_tilt;  // the held-frame nuisances' columns (when fitted)
     std::string failure;
   };
   std::vector<Run> runs(count);
@@ -231,10 +255,18 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
     const MotionRecordingData& rec = (*c->recordings)[ri];
     Run& run = runs[ri];
     try {
-      run.out = RolloutWithSensitivities(s, rec.frame_interval, rec.frames, *c->options,
+      const RolloutOptions options = OptionsFor(*c, ri, c->cached_logp.data());
+      run.out = RolloutWithSensitivities(s, rec.frame_interval, rec.frames, options,
                                          *c->statics, c->directions, &run.dp, schedules[ri]);
-      if (!run.out.ok || run.out.predicted.size() != rec.frames.size())
+      if (!run.out.ok || run.out.predicted.size() != rec.frames.size()) {
         run.failure = c->Named(ri) + run.out.reason;
+        return;
+      }
+      std::string why;
+      if (c->nuisances() &&
+          !GripperTiltDerivatives(s, rec, options, *c->statics, kGripperTiltStep, &run.d_tilt,
+                                  &why, schedules[ri]))
+        run.failure = c->Named(ri) + "the held frames' derivatives: " + why;
     } catch (const std::exception& e) {
       run.failure = c->Named(ri) + e.what();
     }
@@ -268,7 +300,10 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
         if (c->held[ri][mk] || !rec.frames[k].col(mk).allFinite()) continue;
         for (int a = 0; a < 3; ++a, ++row) {
           c->cached_r[row] = (run.out.predicted[k](a, mk) - rec.frames[k](a, mk)) / c->sigma;
-          c->cached_J.row(row) = run.dp[k].row(3 * mk + a) / c->sigma;
+          c->cached_J.row(row).head(run.dp[k].cols()) = run.dp[k].row(3 * mk + a) / c->sigma;
+          if (c->nuisances())
+            c->cached_J.row(row).segment<kGripperTilts>(c->nuisance_first + kGripperTilts * ri) =
+                run.d_tilt[k].row(3 * mk + a) / c->sigma;
         }
       }
   }
@@ -287,6 +322,12 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
         c->cached_J(row, kp) = w;
       }
   }
+  // The held-frame nuisances' prior: each tilt over its std.
+  if (c->nuisances())
+    for (int k = c->nuisance_first; k < c->parameters; ++k, ++row) {
+      c->cached_r[row] = c->cached_logp[k] / c->nuisance_sigma;
+      c->cached_J(row, k) = 1.0 / c->nuisance_sigma;
+    }
   c->cached_mae = mae / static_cast<double>(count);
   return true;
 }
@@ -399,6 +440,10 @@ bool MotionFitOptions::Check(std::string* why) const {
   }
   if (!(max_rest_curvature > 0.0) || !std::isfinite(max_rest_curvature)) {
     *why = "max_rest_curvature must be a finite curvature > 0";
+    return false;
+  }
+  if (!(gripper_prior_deg >= 0.0) || !std::isfinite(gripper_prior_deg)) {
+    *why = "gripper_prior_deg must be a finite angle >= 0";
     return false;
   }
   if (max_evaluations < 1) {
@@ -522,6 +567,74 @@ void AddRestKnots(const Scene& scene, const MotionFitOptions& fit_options,
   result->prior_residuals = ctx->prior_rows;
 }
 
+// The grippers' held-frame nuisances after the other unknowns (MotionFitOptions::
+// gripper_prior_deg): per recording, its clamp's and end's tilts about d1 and d2 [rad], started
+// at 0 within +-60 degrees (beyond, the markers' pair no longer tells the gripper at all), and
+// their prior's rows. Named in `result` until SplitGripperTilts takes them out.
+void AddGripperTilts(const std::vector<MotionRecordingData>& recordings,
+                     const RolloutOptions& options, const MotionFitOptions& fit_options,
+                     MotionFitResult* result, Ctx* ctx, std::vector<double>* x,
+                     std::vector<double>* lo, std::vector<double>* hi) {
+  if (fit_options.method != MotionFitMethod::kLevenbergMarquardt)
+    throw std::invalid_argument("gripper_prior_deg: the held frames' nuisances are fitted by "
+                                "least squares only");
+  if (options.held_ends == RolloutOptions::HeldEnds::kPinnedPairs)
+    throw std::invalid_argument("gripper_prior_deg: the held frames' nuisances need grippers "
+                                "(held ends grippers or free-roll), not pins");
+  for (const MotionRecordingData& r : recordings) {
+    const int M = r.frames.empty() ? 0 : static_cast<int>(r.frames[0].cols());
+    const std::vector<char> held = HeldMarkers(options, M);
+    if (M < 5 || !held[1] || !held[M - 2] || !held[M - 1])
+      throw std::invalid_argument("gripper_prior_deg: the grippers need markers 0, 1, n-2 and "
+                                  "n-1 held (and a marker between them)");
+  }
+  ctx->nuisance_first = static_cast<int>(x->size());
+  ctx->nuisance_sigma = fit_options.gripper_prior_deg * M_PI / 180.0;
+  const char* tilt[kGripperTilts] = {"clamp.d1", "clamp.d2", "end.d1", "end.d2"};
+  for (size_t r = 0; r < recordings.size(); ++r)
+    for (int j = 0; j < kGripperTilts; ++j) {
+      result->names.push_back("gripper_tilt[" + std::to_string(r) + "]." + tilt[j]);
+      result->start.push_back(0.0);
+      x->push_back(0.0);
+      lo->push_back(-M_PI / 3.0);
+      hi->push_back(M_PI / 3.0);
+    }
+  result->gripper_prior_residuals = kGripperTilts * static_cast<int>(recordings.size());
+}
+
+// The nuisances out of the result's per-name vectors into gripper_rotation_deg and
+// gripper_rotation_std_deg (their covariance marginalised: the names' block of it).
+void SplitGripperTilts(const Ctx& ctx, size_t recordings, MotionFitResult* result) {
+  if (!ctx.nuisances()) return;
+  const int first = ctx.nuisance_first;
+  const double deg = 180.0 / M_PI;
+  auto at = [&](const std::vector<double>& v, int k) {
+    return k < static_cast<int>(v.size()) ? v[k] : std::numeric_limits<double>::quiet_NaN();
+  };
+  for (size_t r = 0; r < recordings; ++r) {
+    std::array<Vec3, 2> value{Vec3::Zero(), Vec3::Zero()}, sd{Vec3::Zero(), Vec3::Zero()};
+    for (int j = 0; j < kGripperTilts; ++j) {
+      const int k = first + kGripperTilts * static_cast<int>(r) + j;
+      value[j / 2][j % 2] = deg * at(result->values, k);
+      sd[j / 2][j % 2] = deg * at(result->std, k);
+    }
+    result->gripper_rotation_deg.push_back(value);
+    result->gripper_rotation_std_deg.push_back(sd);
+  }
+  auto cut = [first](auto* v) {
+    if (static_cast<int>(v->size()) > first) v->resize(first);
+  };
+  cut(&result->names);
+  cut(&result->start);
+  cut(&result->values);
+  cut(&result->std);
+  cut(&result->identifiable);
+  cut(&result->reason);
+  cut(&result->at_bound);
+  if (result->covariance_log.rows() > first)
+    result->covariance_log = Eigen::MatrixXd(result->covariance_log.topLeftCorner(first, first));
+}
+
 // Levenberg–Marquardt from x within [lo, hi]. False (with the result filled as a failed fit)
 // when the forward map fails at the start.
 bool SearchLeastSquares(Ctx* ctx, std::vector<double>* x_io, const std::vector<double>& lo,
@@ -592,8 +705,10 @@ void Uncertainty(Ctx* ctx, std::vector<double>* x_io, const std::vector<double>&
   result->values.resize(m);
   result->at_bound.resize(m);
   const int logs = static_cast<int>(ctx->names->size());  // then the rest shape's kappa° L
+  // then the grippers' tilts [rad]
+  const int knots_end = ctx->nuisances() ? ctx->nuisance_first : m;
   for (int k = 0; k < m; ++k) {
-    result->values[k] = k < logs ? std::exp(x[k]) : x[k] / ctx->knots.length;
+    result->values[k] = k < logs ? std::exp(x[k]) : k < knots_end ? x[k] / ctx->knots.length : x[k];
     result->at_bound[k] = std::abs(x[k] - lo[k]) < 1e-6 || std::abs(x[k] - hi[k]) < 1e-6;
   }
   result->std.assign(m, std::numeric_limits<double>::quiet_NaN());
@@ -623,9 +738,9 @@ void Uncertainty(Ctx* ctx, std::vector<double>* x_io, const std::vector<double>&
       if (!verdict.identifiable[k]) continue;
       const double s = std::sqrt(verdict.cov_log(k, k));
       // The delta method for a log-parameter; a rest curvature's unknown is kappa° L.
-      result->std[k] = k < logs ? result->values[k] * s : s / ctx->knots.length;
+      result->std[k] = k < logs ? result->values[k] * s : k < knots_end ? s / ctx->knots.length : s;
     }
-    for (int k = logs; k < m; ++k)
+    for (int k = logs; k < knots_end; ++k)
       if (!verdict.identifiable[k] && verdict.reason[k].rfind("determined only within", 0) == 0) {
         char text[160];
         std::snprintf(text, sizeof(text),
@@ -643,6 +758,35 @@ void Uncertainty(Ctx* ctx, std::vector<double>* x_io, const std::vector<double>&
 }
 
 }  // namespace
+
+bool GripperTiltDerivatives(const Scene& scene, const MotionRecordingData& recording,
+                            const RolloutOptions& options, const StaticsOptions& statics,
+                            double step, std::vector<Eigen::MatrixXd>* d_predicted,
+                            std::string* why, StepSchedule* schedule) {
+  // The engine's sensitivities move the parameters, not a driven clamp's frame: central
+  // differences of the whole rollout, one pair per tilt, each on the same steps (the schedule).
+  d_predicted->clear();
+  const size_t frames = recording.frames.size();
+  const int M = frames ? static_cast<int>(recording.frames[0].cols()) : 0;
+  std::vector<Eigen::MatrixXd> d(frames, Eigen::MatrixXd::Zero(3 * M, kGripperTilts));
+  for (int j = 0; j < kGripperTilts; ++j)
+    for (const double sign : {1.0, -1.0}) {
+      RolloutOptions o = options;
+      o.gripper_rotation[j / 2][j % 2] += sign * step;
+      if (schedule) schedule->Replay();
+      const RolloutResult r =
+          Rollout(scene, recording.frame_interval, recording.frames, o, statics, schedule);
+      if (!r.ok || r.predicted.size() != frames) {
+        *why = r.reason.empty() ? "the rollout stopped early" : r.reason;
+        return false;
+      }
+      for (size_t k = 0; k < frames; ++k)
+        d[k].col(j) += sign / (2.0 * step) *
+                       Eigen::Map<const Eigen::VectorXd>(r.predicted[k].data(), 3 * M);
+    }
+  *d_predicted = std::move(d);
+  return true;
+}
 
 MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingData>& recordings,
                           const std::vector<std::string>& names, const RolloutOptions& options,
@@ -665,9 +809,12 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
       material_names.push_back(name);
     }
   }
-  if (material_names.empty() && !rest) throw std::invalid_argument("no parameters to fit");
+  // The grippers' tilts alone (a calibration of the held frames at given parameters) are a fit too.
+  const bool tilts = fit_options.gripper_prior_deg > 0.0;
+  if (material_names.empty() && !rest && !tilts) throw std::invalid_argument("no parameters to fit");
   SetUpParameters(scene, material_names, fit_options, &result, &ctx, &x, &lo, &hi);
   if (rest) AddRestKnots(scene, fit_options, &result, &ctx, &x, &lo, &hi);
+  if (tilts) AddGripperTilts(recordings, options, fit_options, &result, &ctx, &x, &lo, &hi);
   ctx.parameters = static_cast<int>(x.size());
   const int m = ctx.parameters;
   if (fit_options.method == MotionFitMethod::kLevenbergMarquardt && scene.dynamics &&
@@ -700,7 +847,8 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
         if (!ctx.held.back()[mk] && r.frames[k].col(mk).allFinite()) ctx.residuals += 3;
   }
   const int data_rows = ctx.residuals;
-  ctx.residuals += ctx.prior_rows;  // the rest shape's prior: rows that carry its noise too
+  // The priors' rows (the rest shape's, the grippers' tilts'): rows that carry their noise too.
+  ctx.residuals += ctx.prior_rows + result.gripper_prior_residuals;
   ctx.noise_residuals = ctx.residuals;
   if (data_rows <= m)
     throw std::invalid_argument("the recordings have " + std::to_string(data_rows) +
@@ -738,10 +886,12 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
                          : "BOBYQA status " + std::to_string(static_cast<int>(status));
     result.iterations = ctx.evaluations;
   } else if (!SearchLeastSquares(&ctx, &x, lo, hi, fit_options, &result)) {
+    SplitGripperTilts(ctx, recordings.size(), &result);
     result.seconds = std::chrono::duration<double>(Clock::now() - started).count();
     return result;
   }
   Uncertainty(&ctx, &x, lo, hi, fit_options, &result);
+  SplitGripperTilts(ctx, recordings.size(), &result);
   result.seconds = std::chrono::duration<double>(Clock::now() - started).count();
   result.run_seconds = ctx.run_seconds;
   return result;
