@@ -44,6 +44,7 @@ struct RolloutArgs {
   bool quiet = false;
   int rest_knots = rodfit::MotionFitOptions().rest_curvature_knots;
   double fit_smoothness = rodfit::MotionFitOptions().rest_curvature_smoothness;
+  double gripper_prior_deg = rodfit::MotionFitOptions().gripper_prior_deg;
   std::string parameters_path;
 };
 
@@ -101,6 +102,11 @@ void DeclareOptions(CLI::App& app, RolloutArgs* a) {
                  "[1/m] with --fit rest_curvature: the std of the curvature's second difference "
                  "over neighbouring knots (default " + Shortest(a->fit_smoothness) + ")")
       ->check(CLI::Range(1e-9, 1e9));
+  app.add_option("--gripper-prior-deg", a->gripper_prior_deg,
+                 "[deg] with --fit and --held-ends grippers or free-roll: each recording's "
+                 "grippers carry a fitted tilt (about d1 and d2) with a Gaussian prior of this "
+                 "std, reported per recording, never a parameter of the rod (0, the default: none)")
+      ->check(CLI::Range(0.0, 90.0));
   app.add_option("--parameters", a->parameters_path,
                  "a motion_fit.json of rollout --fit on other recordings of the rod: its values "
                  "replace the scene's (with --fit: the start)");
@@ -152,6 +158,7 @@ rodfit::RolloutRunOptions RunOptions(const RolloutArgs& a) {
     options.fit_options.marker_sigma = a.marker_sigma;
     options.fit_options.rest_curvature_knots = a.rest_knots;
     options.fit_options.rest_curvature_smoothness = a.fit_smoothness;
+    options.fit_options.gripper_prior_deg = a.gripper_prior_deg;
   }
   options.output_dir = a.output_dir;
   options.report_dir = a.report_dir;

@@ -580,6 +580,35 @@ TEST(Rollout, PredictsARecordingMadeBySimulate) {
   std::ifstream by(dir.File("y/motion_fit.json"));
   const std::string bjson((std::istreambuf_iterator<char>(by)), std::istreambuf_iterator<char>());
   EXPECT_THAT(bjson, HasSubstr("BOBYQA"));
+  // The grippers' tilts as nuisances (--gripper-prior-deg): printed per recording, written in
+  // motion_fit.json's gripper_tilts (a pair of angles and of std per gripper), not among its
+  // parameters; with pins (the default held ends) refused in one line, nothing written.
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("tilts")) + " --held-ends grippers --fit "
+                           "damping --gripper-prior-deg 10 --max-evaluations 20");
+  ASSERT_NE(run.status, 1) << run.err;
+  EXPECT_THAT(run.out, HasSubstr("gripper tilts (about d1, d2) of "));
+  {
+    std::ifstream tin(dir.File("tilts/motion_fit.json"));
+    const nlohmann::json tj = nlohmann::json::parse(tin);
+    ASSERT_TRUE(tj.contains("gripper_tilts")) << tj.dump();
+    EXPECT_EQ(tj["gripper_tilts"]["prior_std_deg"].get<double>(), 10.0);
+    EXPECT_EQ(tj["gripper_tilts"]["prior_residuals"].get<int>(), 4);
+    ASSERT_EQ(tj["gripper_tilts"]["recordings"].size(), 1u);
+    const nlohmann::json& one = tj["gripper_tilts"]["recordings"][0];
+    EXPECT_THAT(one["file"].get<std::string>(), HasSubstr("rec.csv"));
+    for (const char* key : {"clamp_deg", "clamp_std_deg", "end_deg", "end_std_deg"})
+      EXPECT_EQ(one[key].size(), 2u) << key;
+    EXPECT_EQ(tj["parameters"].size(), 1u);
+    EXPECT_TRUE(tj["parameters"].contains("damping"));
+    EXPECT_EQ(tj["names"].size(), 1u);
+  }
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("tilts_pins")) + " --fit damping "
+                           "--gripper-prior-deg 10");
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("need grippers"));
+  EXPECT_FALSE(std::ifstream(dir.File("tilts_pins/motion_fit.json")).good());
   run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
                            " -o " + Quote(dir.File("g")) + " --fit length");
   EXPECT_EQ(run.status, 1);

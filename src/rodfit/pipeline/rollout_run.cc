@@ -35,7 +35,8 @@ void Note(const RolloutRunOptions& options, const std::string& line) {
 // motion_fit.json (docs/cli.md, "rollout"): the fit's summary, every parameter's start, value,
 // std and identifiability, and the correlation of their logarithms.
 std::string MotionFitText(const MotionFitResult& fit, const MotionFitOptions& fit_options,
-                          const std::vector<std::string>& names, const std::vector<double>& rest_tau) {
+                          const std::vector<std::string>& names, const std::vector<double>& rest_tau,
+                          const std::vector<MotionRecordingData>& recordings) {
   auto num = [](double v) { return std::isfinite(v) ? FormatDouble(v) : std::string("null"); };
   auto quoted = [](const std::string& text) {
     std::string q = "\"";
@@ -99,6 +100,22 @@ std::string MotionFitText(const MotionFitResult& fit, const MotionFitOptions& fi
             ", \"prior_residuals\": " + std::to_string(fit.prior_residuals) +
             ", \"max_correlation_with_bend_stiffness\": " + num(confounded) + "},";
   }
+  // The held frames' nuisances (MotionFitOptions::gripper_prior_deg): per recording, its
+  // grippers' tilts about d1 and d2, apart from the parameters (never the rod's).
+  if (!fit.gripper_rotation_deg.empty()) {
+    auto pair = [&](const Vec3& v) { return "[" + num(v.x()) + ", " + num(v.y()) + "]"; };
+    text += "\n  \"gripper_tilts\": {\"prior_std_deg\": " + num(fit_options.gripper_prior_deg) +
+            ", \"prior_residuals\": " + std::to_string(fit.gripper_prior_residuals) +
+            ", \"recordings\": [";
+    for (size_t r = 0; r < fit.gripper_rotation_deg.size(); ++r)
+      text += std::string(r ? "," : "") + "\n    {\"file\": " +
+              quoted(r < recordings.size() ? recordings[r].name : std::string()) +
+              ", \"clamp_deg\": " + pair(fit.gripper_rotation_deg[r][0]) +
+              ", \"clamp_std_deg\": " + pair(fit.gripper_rotation_std_deg[r][0]) +
+              ", \"end_deg\": " + pair(fit.gripper_rotation_deg[r][1]) +
+              ", \"end_std_deg\": " + pair(fit.gripper_rotation_std_deg[r][1]) + "}";
+    text += "]},";
+  }
   text += "\n  \"names\": [";
   for (size_t k = 0; k < fit.names.size(); ++k) text += std::string(k ? ", " : "") + quoted(fit.names[k]);
   text += "],\n  \"correlation\": [";
@@ -135,7 +152,8 @@ std::string MotionFitProfile(const Experiment& experiment, const Scene& fitted,
   r.final_cost = fit.final_cost;
   r.num_residuals = fit.residuals;
   r.residual_variance = fit.residual_variance;
-  r.residual_dof = std::max(1, fit.noise_residuals - static_cast<int>(fit.names.size()));
+  r.residual_dof = std::max(1, fit.noise_residuals - static_cast<int>(fit.names.size()) -
+                                  fit.gripper_prior_residuals);  // one prior row per nuisance
   r.correlation.resize(static_cast<int>(logs), static_cast<int>(logs));
   for (size_t k = 0; k < logs; ++k) {
     Parameter p;
@@ -209,7 +227,7 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
   }
   for (size_t k = 0; k < fit.names.size(); ++k)
     run->fit_undetermined = run->fit_undetermined || !fit.identifiable[k];
-  run->fit_text = MotionFitText(fit, fit_options, names, rest_tau);
+  run->fit_text = MotionFitText(fit, fit_options, names, rest_tau, data);
   run->fit_json = nlohmann::json::parse(run->fit_text);
   std::string no_profile;
   run->profile_text = MotionFitProfile(experiment, *scene, fit, &no_profile);
@@ -237,13 +255,24 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
     }
     Note(options, text + (fit.at_bound[k] ? " [at its bound]" : ""));
   }
+  for (size_t r = 0; r < fit.gripper_rotation_deg.size(); ++r) {
+    const std::array<Vec3, 2>& v = fit.gripper_rotation_deg[r];
+    const std::array<Vec3, 2>& sd = fit.gripper_rotation_std_deg[r];
+    std::snprintf(line, sizeof(line),
+                  "  gripper tilts (about d1, d2) of %s: clamp (%.3g, %.3g) +- (%.2g, %.2g) deg, "
+                  "end (%.3g, %.3g) +- (%.2g, %.2g) deg",
+                  data[r].name.c_str(), v[0].x(), v[0].y(), sd[0].x(), sd[0].y(), v[1].x(),
+                  v[1].y(), sd[1].x(), sd[1].y());
+    Note(options, line);
+  }
   // The residual variance says whether the rollout's model explains the recordings to the
   // markers' noise (stated, or estimated from the recordings): above its chi-square band
   // (stated) or above kEstimatedNoiseVarianceLimit (estimated: the estimate has its own error),
   // the values absorb model error (e.g. pins standing in for gripper clamps) and their std
   // understates it.
   constexpr double kEstimatedNoiseVarianceLimit = 2.0;  // the model's error as large as the noise
-  const int dof = fit.noise_residuals - static_cast<int>(fit.names.size());
+  const int dof = fit.noise_residuals - static_cast<int>(fit.names.size()) -
+                  fit.gripper_prior_residuals;  // the nuisances, one prior row each
   if (fit.marker_sigma > 0.0 && dof > 0 && std::isfinite(fit.residual_variance)) {
     const VarianceBand band = ResidualVarianceBand(dof);
     const double limit = fit.marker_sigma_estimated ? kEstimatedNoiseVarianceLimit : band.high;
@@ -285,8 +314,13 @@ bool RollOut(const Experiment& experiment, const RolloutRunOptions& options, con
       options.progress("rollout: recording " + std::to_string(r + 1) + " of " +
                            std::to_string(count),
                        static_cast<double>(r) / count);
+    // A fitted recording is rolled out with its grippers' fitted tilts (the fit's nuisances).
+    RolloutOptions rollout = options.rollout;
+    if (run->fit && r < run->fit->gripper_rotation_deg.size())
+      for (int g = 0; g < 2; ++g)
+        rollout.gripper_rotation[g] += run->fit->gripper_rotation_deg[r][g] * (M_PI / 180.0);
     try {
-      result = Rollout(scene, rec.frame_interval, rec.frames, options.rollout, experiment.statics);
+      result = Rollout(scene, rec.frame_interval, rec.frames, rollout, experiment.statics);
     } catch (const std::invalid_argument& e) {
       throw InputError(rec.file, 0, "", e.what());
     }
