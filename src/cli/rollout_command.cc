@@ -148,6 +148,9 @@ rodfit::RolloutRunOptions RunOptions(const RolloutArgs& a) {
     options.parameters = rodfit::ReadMotionFitValues(a.parameters_path);
     options.parameters_path = a.parameters_path;
   }
+  // The tilts are fitted only with --fit: said, not ignored.
+  if (a.gripper_prior_deg > 0.0 && a.fit_text.empty())
+    throw std::invalid_argument("--gripper-prior-deg: the grippers' tilts are fitted with --fit");
   if (!a.fit_text.empty()) {
     SilenceCeresLogging();
     std::stringstream fit(a.fit_text);

@@ -610,6 +610,12 @@ TEST(Rollout, PredictsARecordingMadeBySimulate) {
   EXPECT_THAT(run.err, HasSubstr("need grippers"));
   EXPECT_FALSE(std::ifstream(dir.File("tilts_pins/motion_fit.json")).good());
   run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
+                           " -o " + Quote(dir.File("tilts_nofit")) + " --held-ends grippers "
+                           "--gripper-prior-deg 10");
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.err, HasSubstr("--gripper-prior-deg: the grippers' tilts are fitted with --fit"));
+  EXPECT_FALSE(std::ifstream(dir.File("tilts_nofit/rollout.csv")).good());
+  run = RunRodfit(dir, "rollout " + Quote(high_drag) + " " + Quote(dir.File("rec.csv")) +
                            " -o " + Quote(dir.File("g")) + " --fit length");
   EXPECT_EQ(run.status, 1);
   EXPECT_THAT(run.err, HasSubstr("--fit: a motion fit cannot fit 'length'"));
