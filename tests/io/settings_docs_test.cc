@@ -1,8 +1,12 @@
-// The settings' one declaration (rodfit/io/settings.h) against their documentation: every key
-// that Serialize declares for `solver:`, `fit:` and `dynamics:` has its row in docs/formats.md's
-// table, and that row states the key's range and its default as the structs declare them (or
-// that it is required), so that neither can change without the other.
+// The settings' one declaration (rodfit/model/settings_archive.h) against their documentation:
+// every key that Serialize declares for `solver:`, `fit:` and `dynamics:` has its row in
+// docs/formats.md's table, and every key of the rollout's and the motion fit's in docs/cli.md's
+// ("rollout", "Settings"), and that row states the key's range and its default as the structs
+// declare them (or that it is required) — and in docs/cli.md its command-line option, or `—` —
+// so that neither can change without the other, and a setting added without its row fails here.
 #include "rodfit/io/settings.h"
+
+#include <set>
 
 #include <cstdlib>
 #include <string>
@@ -11,18 +15,35 @@
 #include <gtest/gtest.h>
 
 #include "io/temp_dir.h"
+#include "rodfit/fit/motion_fit.h"
 #include "rodfit/solve/integrator.h"
+#include "rodfit/solve/rollout.h"
 
 namespace rodfit {
 namespace {
 
-// The documentation row of `key` in docs/formats.md, or "" when there is none.
-std::string Row(const std::string& key) {
-  static const std::string docs = test::ReadText(RODFIT_SOURCE_DIR "/docs/formats.md");
+const char kFormatsDoc[] = RODFIT_SOURCE_DIR "/docs/formats.md";
+const char kCliDoc[] = RODFIT_SOURCE_DIR "/docs/cli.md";
+
+// The documentation row of `key` in `doc`, or "" when there is none.
+std::string Row(const std::string& doc, const std::string& key) {
+  const std::string docs = test::ReadText(doc);
   const std::string start = "| `" + key + "` |";
   const size_t at = docs.find(start);
   if (at == std::string::npos) return "";
   return docs.substr(at, docs.find('\n', at) - at);
+}
+
+// The keys of the rows of `doc` whose key starts with `block.` (a table's first column).
+std::set<std::string> RowKeys(const std::string& doc, const std::string& block) {
+  const std::string docs = test::ReadText(doc);
+  const std::string start = "\n| `" + block + ".";
+  std::set<std::string> keys;
+  for (size_t at = docs.find(start); at != std::string::npos; at = docs.find(start, at + 1)) {
+    const size_t from = at + start.size();
+    keys.insert(docs.substr(from, docs.find('`', from) - from));
+  }
+  return keys;
 }
 
 // The numbers a text states right after `marker` (e.g. "[", "default "), in order.
@@ -42,11 +63,14 @@ std::vector<double> NumbersAfter(const std::string& text, const std::string& mar
   return out;
 }
 
-// Checks each declared key's row: its range, its default or that it is required.
+// Checks each declared key's row: its range, its default or that it is required; in a table
+// with an option column (`options`), the key's command-line option or `—`.
 class DocsArchive final : public SettingsArchive {
  public:
-  explicit DocsArchive(std::string block) : block_(std::move(block)) {}
+  explicit DocsArchive(std::string block, std::string doc = kFormatsDoc, bool options = false)
+      : block_(std::move(block)), doc_(std::move(doc)), options_(options) {}
   int keys() const { return keys_; }
+  const std::set<std::string>& visited() const { return visited_; }
 
   bool reading() const override { return false; }
   void Integer(const char* key, int* value, int lo, int hi) override {
@@ -80,13 +104,28 @@ class DocsArchive final : public SettingsArchive {
     required_.push_back(key);
     EXPECT_NE(RowOf(key).find("| yes |"), std::string::npos) << RowOf(key);
   }
+  void IntegerList(const char* key, std::vector<int>* value) override {
+    std::string list;
+    for (int v : *value) list += (list.empty() ? "" : ",") + std::to_string(v);
+    EXPECT_NE(RowOf(key).find("default " + list), std::string::npos) << RowOf(key);
+  }
   bool Has(const char*) const override { return false; }
   void Check(bool, const char*, const std::string&) override {}
+  void Describe(const char* key, const char* option, const std::string& help) override {
+    EXPECT_FALSE(help.empty()) << key;
+    described_key_ = key;
+    described_option_ = option;
+  }
 
  private:
   std::string RowOf(const char* key) {
-    const std::string row = Row(block_ + "." + key);
-    EXPECT_FALSE(row.empty()) << block_ << "." << key << " has no row in docs/formats.md";
+    const std::string row = Row(doc_, block_ + "." + key);
+    EXPECT_FALSE(row.empty()) << block_ << "." << key << " has no row in " << doc_;
+    if (visited_.insert(key).second && options_) {
+      // The option the visitor describes right before the key, or none.
+      const std::string option = described_key_ == key ? "`" + described_option_ + "`" : "—";
+      EXPECT_NE(row.find("| " + option + " |"), std::string::npos) << option << " in " << row;
+    }
     return row;
   }
   void Range(const char* key, double lo, double hi) {
@@ -108,8 +147,11 @@ class DocsArchive final : public SettingsArchive {
     EXPECT_DOUBLE_EQ(d[0], value) << row;
   }
 
-  std::string block_;
+  std::string block_, doc_;
+  bool options_;
   std::vector<std::string> required_;
+  std::set<std::string> visited_;
+  std::string described_key_, described_option_;
   int keys_ = 0;
 };
 
@@ -127,6 +169,25 @@ TEST(SettingsDocs, EveryKeyHasItsRangeAndDefaultInTheDocs) {
   EXPECT_EQ(solver.keys(), 3);
   EXPECT_EQ(fitting.keys(), 1);
   EXPECT_EQ(moving.keys(), 6);
+}
+
+// docs/cli.md's rollout settings: a row per key of RolloutOptions and MotionFitOptions with its
+// option, range and default, and no row for a key the visitors do not declare.
+TEST(SettingsDocs, RolloutSettingsHaveTheirRowsInTheCliDocs) {
+  RolloutOptions rollout;
+  DocsArchive rolling("rollout", kCliDoc, /*options=*/true);
+  Serialize(&rolling, &rollout);
+  MotionFitOptions fit;
+  DocsArchive fitting("motion_fit", kCliDoc, /*options=*/true);
+  Serialize(&fitting, &fit);
+  // The numeric keys were all visited (smooth_frames, error_tolerance; max_evaluations, range,
+  // marker_sigma, rest_curvature_knots, rest_curvature_smoothness).
+  EXPECT_EQ(rolling.keys(), 2);
+  EXPECT_EQ(fitting.keys(), 5);
+  EXPECT_EQ(RowKeys(kCliDoc, "rollout"), rolling.visited());
+  EXPECT_EQ(RowKeys(kCliDoc, "motion_fit"), fitting.visited());
+  EXPECT_EQ(rolling.visited().size(), 5u);
+  EXPECT_EQ(fitting.visited().size(), 9u);
 }
 
 }  // namespace
