@@ -9,6 +9,8 @@
 // the runtime included, can declare its settings here.
 #pragma once
 
+#include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -55,6 +57,54 @@ class SettingsArchive {
   virtual void Describe(const char* key, const char* option, const std::string& help) {
     (void)key, (void)option, (void)help;
   }
+};
+
+/// A configuration's values held to their declared ranges (a library caller's options, checked
+/// by the declaration the files and the command line are read with): the first setting outside
+/// its range, as `key must be in [lo, hi] (is v)`, `key must be > 0 (is v)` or `key ` and the
+/// visitor's own check's message. Usage: `SettingsCheck c; Serialize(&c, &copy); c.ok()`.
+class SettingsCheck final : public SettingsArchive {
+ public:
+  bool ok() const { return why_.empty(); }
+  const std::string& why() const { return why_; }
+
+  bool reading() const override { return true; }
+  void Integer(const char* key, int* value, int lo, int hi) override {
+    if (*value < lo || *value > hi)
+      Fail(key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "] (is " +
+                    std::to_string(*value) + ")");
+  }
+  void Count(const char* key, int* value, int lo, int hi) override { Integer(key, value, lo, hi); }
+  void Number(const char* key, double* value, double lo, double hi) override {
+    if (!(*value >= lo && *value <= hi))
+      Fail(key, "must be in [" + Show(lo) + ", " + Show(hi) + "] (is " + Show(*value) + ")");
+  }
+  void Positive(const char* key, double* value) override {
+    if (!(*value > 0.0) || !std::isfinite(*value))
+      Fail(key, "must be > 0 (is " + Show(*value) + ")");
+  }
+  void Bool(const char*, bool*) override {}
+  void Choice(const char* key, int* index, const std::vector<std::string>& words,
+              const std::string& expected) override {
+    if (*index < 0 || *index >= static_cast<int>(words.size())) Fail(key, expected);
+  }
+  void IntegerList(const char*, std::vector<int>*) override {}
+  void Require(const char*) override {}
+  bool Has(const char*) const override { return true; }
+  void Check(bool ok, const char* key, const std::string& message) override {
+    if (!ok) Fail(key, message);
+  }
+
+ private:
+  static std::string Show(double v) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.10g", v);
+    return text;
+  }
+  void Fail(const char* key, const std::string& message) {
+    if (why_.empty()) why_ = std::string(key) + " " + message;
+  }
+  std::string why_;
 };
 
 }  // namespace rodfit

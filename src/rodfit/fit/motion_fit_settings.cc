@@ -65,4 +65,15 @@ void Serialize(SettingsArchive* a, MotionFitOptions* o) {
   a->Positive("max_rest_curvature", &o->max_rest_curvature);  // [1/m]
 }
 
+// The options within their declared ranges (Serialize above: the command line's and the
+// library's one range per setting).
+bool MotionFitOptions::Check(std::string* why) const {
+  MotionFitOptions values = *this;
+  SettingsCheck check;
+  Serialize(&check, &values);
+  if (check.ok()) return true;
+  *why = check.why();
+  return false;
+}
+
 }  // namespace rodfit
