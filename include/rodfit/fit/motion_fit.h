@@ -16,6 +16,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -64,6 +65,13 @@ struct MotionFitOptions {
   int rest_curvature_knots = 5;
   double rest_curvature_smoothness = 2.0;
   double max_rest_curvature = 30.0;
+  /// With "rest_curvature" fitted: before the motion fit, start the rest knots where the
+  /// recordings' first frames put them (the rod is at rest there): the knots, fitted by least
+  /// squares from the scene's profile with the material at its start values and the same prior,
+  /// that make each recording's frame-0 equilibrium (its held markers at frame 0, as the
+  /// rollout starts) pass through its free markers. A straight start 3x too stiff otherwise
+  /// leads the fit into another minimum (docs/performance.md, "bench_rest_shape").
+  bool rest_start_from_first_frames = true;
   /// Called after each Levenberg–Marquardt iteration (`iteration`, `cost`, `seconds`; `budget`
   /// is max_evaluations, `global` false): a caller's progress line.
   std::function<void(const FitIterationInfo&)> progress;
@@ -109,6 +117,14 @@ struct MotionFitResult {
   /// are in 1/m (not log-parameters; covariance_log's rows for them are of kappa° L).
   std::vector<double> rest_curvature_s;
   int prior_residuals = 0;  ///< the smoothness prior's rows among `residuals`
+  /// The rest start from the first frames (MotionFitOptions::rest_start_from_first_frames): the
+  /// free markers' mean distance [m] from their frame-0 equilibrium positions with the scene's
+  /// rest shape and with the start found (NaN when not run), the short runs it took (each: every
+  /// recording's equilibrium and first frame), and how its search ended.
+  double rest_start_misfit_before = std::numeric_limits<double>::quiet_NaN();
+  double rest_start_misfit_after = std::numeric_limits<double>::quiet_NaN();
+  int rest_start_runs = 0;
+  std::string rest_start_message;
 };
 
 /// The name FitMotion takes for the rest shape (MotionFitOptions::rest_curvature_knots).
