@@ -223,11 +223,12 @@ TEST(MotionFit, FitsTheRestCurvatureWithTheBendingStiffness) {
 }
 
 // The rest shape's start from the recordings' first frames (MotionFitOptions::
-// rest_start_from_first_frames, the default): the cable of the test above, its recording's free
+// rest_start_from_first_frames): the cable of the test above, its recording's free
 // markers at frame 0 (the rod at rest) and the stiffness at the truth, fitted from straight. The
-// frame-0 equilibrium then matches the first frame about as well as the truth's rest shape does
-// (the same marker arc lengths, re-read from frame 0, make neither exact), far better than the
-// straight start.
+// frame-0 equilibrium then matches the first frame better than the truth's rest shape does
+// (frame 0 here is the grippers' recording, not the rollout's equilibrium) and far better than
+// the straight start. Measured: 71 mm straight, 2.4 mm from the first frames (145 short runs),
+// 17 mm with the truth's rest shape.
 TEST(MotionFit, StartsTheRestShapeFromTheFirstFrames) {
   Scene truth = testing::Cable();
   truth.material.bend_damping = 0.0;
@@ -257,6 +258,7 @@ TEST(MotionFit, StartsTheRestShapeFromTheFirstFrames) {
   MotionFitOptions options;
   options.rest_curvature_knots = 4;
   options.max_evaluations = 1;  // the start is what is tested
+  options.rest_start_from_first_frames = true;
   const MotionFitResult r = FitMotion(start, {rec}, {"bend_stiffness", kRestCurvatureParameter},
                                       RolloutOptions(), StaticsOptions(), options);
   std::printf("frame-0 misfit: straight %.3f mm, rest start %.3f mm (%d runs: %s), truth %.3f mm\n",
