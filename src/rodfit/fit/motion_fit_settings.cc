@@ -63,6 +63,9 @@ void Serialize(SettingsArchive* a, MotionFitOptions* o) {
   a->Number("rest_curvature_smoothness", &o->rest_curvature_smoothness, 1e-9, 1e9);
 
   a->Positive("max_rest_curvature", &o->max_rest_curvature);  // [1/m]
+
+  // The rest knots started from the recordings' first frames (MotionFitOptions).
+  a->Bool("rest_start_from_first_frames", &o->rest_start_from_first_frames);
 }
 
 // The options within their declared ranges (Serialize above: the command line's and the
