@@ -56,7 +56,7 @@ TEST(SettingsDocs, RolloutSettingsHaveTheirRowsInTheCliDocs) {
   EXPECT_EQ(RowKeys(kCliDoc, "rollout"), rolling.visited());
   EXPECT_EQ(RowKeys(kCliDoc, "motion_fit"), fitting.visited());
   EXPECT_EQ(rolling.visited().size(), 5u);
-  EXPECT_EQ(fitting.visited().size(), 10u);
+  EXPECT_EQ(fitting.visited().size(), 11u);  // with rest_start_from_first_frames, gripper_prior_deg
 }
 
 // MotionFitOptions::Check holds a library caller's values to the ranges the command line

@@ -48,8 +48,12 @@ TEST(RuntimeSettings, CheckRefusesEachValueOutsideItsDeclaredRange) {
   o.max_tool_move = 0.0;
   EXPECT_EQ(Why(o), "max_tool_move must be > 0 (is 0)");
   o = ok;
-  o.time_budget = std::numeric_limits<double>::infinity();
-  EXPECT_EQ(Why(o), "time_budget must be in [0, 3600] (is inf)");
+  o.time_budget = -1e-3;
+  EXPECT_EQ(Why(o), "time_budget must be in [0, inf] (is -0.001)");
+  o.time_budget = std::nan("");
+  EXPECT_EQ(Why(o), "time_budget must be in [0, inf] (is nan)");
+  o.time_budget = std::numeric_limits<double>::infinity();  // no budget (Runtime's test)
+  EXPECT_TRUE(o.Check(&why)) << why;
   o = ok;
   o.gradient_tolerance = std::nan("");
   EXPECT_EQ(Why(o), "gradient_tolerance must be > 0 (is nan)");

@@ -165,6 +165,29 @@ TEST(NewtonMinimizer, StopsAtItsIterationCap) {
   EXPECT_LE(r.iterations, 2);
 }
 
+// A wall-time budget beyond what the steady clock's 64-bit nanoseconds hold (1e308 s, infinity)
+// is no limit: the solve is the one without a budget. Converting it unchecked was undefined
+// behaviour (a signed overflow, which the sanitized C API corpus aborted on when the runtime still
+// passed such budgets) and in the release build put the deadline in the past: a quasi-static tick
+// stopped at its time budget after one Newton iteration.
+TEST(NewtonMinimizer, HugeTimeBudgetIsNoLimit) {
+  Quartic start(2, 1.0, 0.3);
+  start.x().setConstant(50.0);  // far: several iterations, so a deadline already past would bite
+  Quartic unlimited = start;
+  const NewtonSummary expected = NewtonMinimizer().Minimize(&unlimited);
+  ASSERT_TRUE(expected.converged()) << expected.message();
+  ASSERT_GT(expected.iterations, 1);
+  for (const double budget : {1e308, std::numeric_limits<double>::infinity(), 2e9}) {
+    Quartic p = start;
+    NewtonOptions o;
+    o.time_budget = budget;
+    const NewtonSummary r = NewtonMinimizer(o).Minimize(&p);
+    EXPECT_EQ(r.termination, expected.termination) << "budget " << budget << ": " << r.message();
+    EXPECT_EQ(r.iterations, expected.iterations) << "budget " << budget;
+    EXPECT_EQ(p.x(), unlimited.x()) << "budget " << budget;
+  }
+}
+
 // Every termination has its own fixed message.
 TEST(NewtonMinimizer, EveryTerminationHasAMessage) {
   for (int t = 0; t <= static_cast<int>(Termination::kRetractionFailed); ++t) {

@@ -17,6 +17,7 @@
 
 #include <array>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -76,6 +77,18 @@ struct MotionFitOptions {
   /// static fit's rotation_prior_deg). Their derivatives are central differences of each
   /// recording's rollout (that recording's only). Least squares only. 0: none.
   double gripper_prior_deg = 0.0;
+  /// With "rest_curvature" fitted: before the motion fit, start the rest knots where the
+  /// recordings' first frames put them (the rod is at rest there): the knots, fitted by least
+  /// squares from the scene's profile with the material at its start values and the same prior,
+  /// that make each recording's frame-0 equilibrium (its held markers at frame 0, as the
+  /// rollout starts) pass through its free markers; then the material searched with the knots
+  /// slaved to it (refitted to the first frames at each of its evaluations), then all together.
+  /// Off by default: on recordings the rollout's model explains, from a straight start 3x too
+  /// stiff, it halves the held-out error (docs/performance.md, "bench_rest_shape") but doubles
+  /// the fit's time; where the first frame is not the model's equilibrium (17 mm off on
+  /// tests/fit/motion_fit_test.cc's gripper recording) it leads the fit astray (150 rollouts
+  /// without converging, where the straight start converges in 28).
+  bool rest_start_from_first_frames = false;
   /// Called after each Levenberg–Marquardt iteration (`iteration`, `cost`, `seconds`; `budget`
   /// is max_evaluations, `global` false): a caller's progress line.
   std::function<void(const FitIterationInfo&)> progress;
@@ -134,6 +147,14 @@ struct MotionFitResult {
   /// Not among `names`: nuisances of the recordings, never the rod's parameters. Empty without.
   std::vector<std::array<Vec3, 2>> gripper_rotation_deg, gripper_rotation_std_deg;
   int gripper_prior_residuals = 0;  ///< the nuisances' prior rows among `residuals`
+  /// The rest start from the first frames (MotionFitOptions::rest_start_from_first_frames): the
+  /// free markers' mean distance [m] from their frame-0 equilibrium positions with the scene's
+  /// rest shape and with the start found (NaN when not run), the short runs it took (each: every
+  /// recording's equilibrium and first frame), and how its search ended.
+  double rest_start_misfit_before = std::numeric_limits<double>::quiet_NaN();
+  double rest_start_misfit_after = std::numeric_limits<double>::quiet_NaN();
+  int rest_start_runs = 0;
+  std::string rest_start_message;
 };
 
 /// The derivatives of a rollout's predicted markers with respect to its grippers' tilts
@@ -164,7 +185,8 @@ void SetMotionParameter(const std::string& name, double value, Scene* scene);
 double MotionParameter(const std::string& name, const Scene& scene);
 
 /// Fits `names` (each with a start value > 0 in the scene; "rest_curvature": the rest shape,
-/// started from the scene's) to the recordings. Throws
+/// started from the scene's, or from the recordings' first frames with the other names searched
+/// first with the knots slaved to them: rest_start_from_first_frames) to the recordings. Throws
 /// std::invalid_argument for an ill-posed request (no names or recordings, an unknown name, a
 /// start value <= 0, a recording the rollout refuses). A fit that does not converge returns its
 /// last point with converged false and the reason in `message`; a rollout that fails counts as

@@ -25,6 +25,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Runs the rest start's search may take (RestStartFromFirstFrames; each a few equilibria, far
+// cheaper than one rollout of the recordings).
+constexpr int kRestStartRuns = 50;
+
 // The scene at log-parameters `logp` (the material names'), and the fitted rest shape's knots.
 struct RestKnots {
   std::vector<double> s;   // [m] the knots, evenly along the rod
@@ -76,6 +80,9 @@ struct Ctx {
   bool nuisances() const { return nuisance_first >= 0; }
   std::vector<ParameterDirection> directions;
   std::vector<std::vector<char>> held;  // per recording, per marker: driven
+  // The rest start's problem (RestStartFromFirstFrames): each recording's frame 0 compared (its
+  // equilibrium), not its frames >= 1.
+  bool first_frames = false;
   double sigma = 1.0;
   int residuals = 0;
   int noise_residuals = 0;  // those that carry noise: the residual variance's count
@@ -237,6 +244,28 @@ bool EvaluateWithSensitivities(const double* logp, Ctx* c) {
   return c->cached_ok;
 }
 
+// The frames of a recording whose free markers are compared: 1.. (0 is the start), or the
+// rest start's frame 0 alone.
+size_t FirstCompared(const Ctx& c) { return c.first_frames ? 0 : 1; }
+size_t EndCompared(const Ctx& c, const MotionRecordingData& r) {
+  return c.first_frames ? 1 : r.frames.size();
+}
+
+// The recordings' residuals' layout: every coordinate of a marker the rollout does not drive,
+// in every frame compared that saw it; their number.
+int LayOutRecordings(Ctx* c) {
+  c->held.clear();
+  int rows = 0;
+  for (const MotionRecordingData& r : *c->recordings) {
+    if (r.frames.size() < 2) throw std::invalid_argument("a recording needs at least 2 frames");
+    c->held.push_back(HeldMarkers(*c->options, static_cast<int>(r.frames[0].cols())));
+    for (size_t k = FirstCompared(*c); k < EndCompared(*c, r); ++k)
+      for (int mk = 0; mk < static_cast<int>(r.frames[k].cols()); ++mk)
+        if (!c->held.back()[mk] && r.frames[k].col(mk).allFinite()) rows += 3;
+  }
+  return rows;
+}
+
 // The recordings' residuals and Jacobian at scene `s` (rollouts with sensitivities), the
 // recordings run in parallel threads (each its own rollout, schedule and rows).
 bool RecordingsForward(const Scene& s, Ctx* c) {
@@ -295,7 +324,7 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
     const MotionRecordingData& rec = (*c->recordings)[ri];
     mae += run.out.mae_predicted;
     const int M = static_cast<int>(rec.frames[0].cols());
-    for (size_t k = 1; k < rec.frames.size(); ++k)
+    for (size_t k = FirstCompared(*c); k < EndCompared(*c, rec); ++k)
       for (int mk = 0; mk < M; ++mk) {
         if (c->held[ri][mk] || !rec.frames[k].col(mk).allFinite()) continue;
         for (int a = 0; a < 3; ++a, ++row) {
@@ -721,6 +750,195 @@ void Uncertainty(Ctx* ctx, std::vector<double>* x_io, const std::vector<double>&
   result->evaluations = ctx->evaluations;
 }
 
+// The free markers' mean distance [m] from the frame-0 equilibria in the rest start's cached
+// residuals (3 rows a marker, the prior's rows after them).
+double FirstFramesMisfit(const Ctx& c) {
+  const int markers = (c.residuals - c.prior_rows) / 3;
+  double sum = 0.0;
+  for (int k = 0; k < markers; ++k) sum += c.cached_r.segment<3>(3 * k).norm();
+  return markers > 0 ? c.sigma * sum / markers : 0.0;
+}
+
+// The rest knots y (kappa° L) fitted at fixed material logs p to every recording's frame-0 free
+// markers, each predicted by the equilibrium the rollout starts from (its held markers at frame
+// 0), with the motion fit's smoothness prior, by the least squares above from *y. The recordings
+// start at rest, so their first frames show the rest shape bent by gravity and the held ends. At
+// one configuration the rest curvature and the stiffness trade off (kappa° = kappa - M / B): the
+// fit is the rest shape consistent with the stiffness p, and with `derivative` its change with p
+// (dy/dp = -J_y^+ J_p of the frame-0 residuals at the fit, the prior's rows in J_y). Each run is
+// every recording's equilibrium with its sensitivities and one frame after it (the rollout's
+// start), far cheaper than a rollout of the recordings.
+struct FirstFramesFit {
+  bool ok = false;
+  std::string message;
+  int runs = 0;
+  double misfit_before = std::numeric_limits<double>::quiet_NaN();  // [m] FirstFramesMisfit
+  double misfit_after = std::numeric_limits<double>::quiet_NaN();
+  Eigen::MatrixXd dy_dp;  // knots' unknowns x material logs
+};
+
+FirstFramesFit RestToFirstFrames(const Ctx& ctx, const std::vector<double>& p,
+                                 std::vector<double>* y, const std::vector<double>& ylo,
+                                 const std::vector<double>& yhi,
+                                 const MotionFitOptions& fit_options, bool derivative) {
+  FirstFramesFit out;
+  const size_t logs = ctx.names->size();
+  std::vector<MotionRecordingData> firsts = *ctx.recordings;
+  for (MotionRecordingData& r : firsts) r.frames.resize(2);  // the start and its velocity
+  const RestKnots scene_rest;  // the material at p; the knots are the unknowns below
+  const Scene material = SceneAt(*ctx.scene, *ctx.names, scene_rest, p.data());
+  const std::vector<std::string> no_names;
+  Ctx sub;
+  sub.scene = &material;
+  sub.recordings = &firsts;
+  sub.names = &no_names;
+  sub.knots = ctx.knots;
+  sub.parameters = static_cast<int>(y->size());
+  sub.prior_rows = ctx.prior_rows;
+  sub.prior_sigma = ctx.prior_sigma;
+  sub.options = ctx.options;
+  sub.statics = ctx.statics;
+  sub.directions.assign(ctx.directions.begin() + static_cast<long>(logs), ctx.directions.end());
+  sub.sigma = ctx.sigma;
+  sub.first_frames = true;
+  sub.forward = RecordingsForward;
+  const int data_rows = LayOutRecordings(&sub);
+  if (data_rows == 0) {
+    out.message = "no free marker is seen in a first frame";
+    return out;
+  }
+  sub.residuals = data_rows + sub.prior_rows;
+  sub.noise_residuals = sub.residuals;
+  MotionFitOptions options = fit_options;
+  options.progress = nullptr;
+  options.max_evaluations = kRestStartRuns;
+  MotionFitResult search;
+  search.start.assign(y->size(), 0.0);
+  if (EvaluateWithSensitivities(y->data(), &sub)) out.misfit_before = FirstFramesMisfit(sub);
+  if (!SearchLeastSquares(&sub, y, ylo, yhi, options, &search)) {
+    out.runs = sub.evaluations;
+    out.message = search.message;
+    return out;
+  }
+  if (EvaluateWithSensitivities(y->data(), &sub)) out.misfit_after = FirstFramesMisfit(sub);
+  out.runs = sub.evaluations;
+  out.message = search.message;
+  if (derivative) {
+    // The frame-0 residuals' Jacobian in the material too, at (p, y).
+    Ctx all = sub;
+    all.names = ctx.names;
+    all.parameters = static_cast<int>(logs + y->size());
+    all.directions = ctx.directions;
+    all.cached_logp.clear();
+    all.recent.clear();
+    all.best = Ctx::Evaluation();
+    all.evaluations = 0;
+    all.scene = ctx.scene;
+    std::vector<double> x = p;
+    x.insert(x.end(), y->begin(), y->end());
+    const bool ran = EvaluateWithSensitivities(x.data(), &all);
+    out.runs += all.evaluations;
+    if (!ran) {
+      out.message = all.last_failure;
+      return out;
+    }
+    const Eigen::MatrixXd Jy = all.cached_J.rightCols(static_cast<long>(y->size()));
+    out.dy_dp = -Jy.colPivHouseholderQr().solve(all.cached_J.leftCols(static_cast<long>(logs)));
+  }
+  out.ok = true;
+  return out;
+}
+
+// The search before the joint one (variable projection, Golub & Pereyra): the material logs
+// alone, the rest knots slaved to them by RestToFirstFrames (each evaluation fits them to the
+// first frames at its material, warm-started from the last), the Jacobian the total one,
+// J_p + J_y dy/dp. From a straight start 3x too stiff the joint search trades the rest shape
+// against the stiffness into another minimum (docs/performance.md, "bench_rest_shape"); along
+// the first frames' valley the stiffness is found first, then the joint search refines all from
+// there. x's knots become those slaved to its material at the end. Its rollouts count in
+// ctx->evaluations.
+void SearchWithSlavedRest(Ctx* ctx, std::vector<double>* x, const std::vector<double>& lo,
+                          const std::vector<double>& hi, const MotionFitOptions& fit_options,
+                          MotionFitResult* result) {
+  const size_t logs = ctx->names->size();
+  const size_t unknowns = x->size() - logs;
+  std::vector<double> p(x->begin(), x->begin() + static_cast<long>(logs));
+  std::vector<double> y(x->begin() + static_cast<long>(logs), x->end());
+  const std::vector<double> plo(lo.begin(), lo.begin() + static_cast<long>(logs));
+  const std::vector<double> phi(hi.begin(), hi.begin() + static_cast<long>(logs));
+  const std::vector<double> ylo(lo.begin() + static_cast<long>(logs), lo.end());
+  const std::vector<double> yhi(hi.begin() + static_cast<long>(logs), hi.end());
+  // The start: the rest shape of the first frames at the start's material.
+  const FirstFramesFit first = RestToFirstFrames(*ctx, p, &y, ylo, yhi, fit_options, false);
+  result->rest_start_runs += first.runs;
+  result->rest_start_misfit_before = first.misfit_before;
+  if (!first.ok) {
+    result->rest_start_message = "the scene's rest shape kept (its first frames: " +
+                                 first.message + ")";
+    return;
+  }
+  result->rest_start_misfit_after = first.misfit_after;
+  std::copy(y.begin(), y.end(), x->begin() + static_cast<long>(logs));
+  for (size_t k = logs; k < x->size(); ++k) result->start[k] = (*x)[k] / ctx->knots.length;
+  if (logs == 0) {
+    result->rest_start_message = "the first frames' rest shape: " + first.message;
+    return;
+  }
+  Ctx full = *ctx;  // the joint problem's rollouts, with their own step schedules
+  Ctx outer = *ctx;
+  outer.knots = RestKnots();  // the knots are not outer's unknowns: `forward` sets them
+  outer.parameters = static_cast<int>(logs);
+  outer.prior_rows = 0;       // full's rows (its prior's among them) are outer's
+  outer.directions.resize(logs);
+  std::string inner_failure;
+  outer.forward = [&](const Scene&, Ctx* o) {
+    const FirstFramesFit f = RestToFirstFrames(*ctx, o->cached_logp, &y, ylo, yhi, fit_options, true);
+    result->rest_start_runs += f.runs;
+    if (!f.ok) {
+      o->last_failure = "the rest shape from the first frames: " + f.message;
+      return false;
+    }
+    full.cached_logp = o->cached_logp;
+    full.cached_logp.insert(full.cached_logp.end(), y.begin(), y.end());
+    full.cached_r.setZero(full.residuals);
+    full.cached_J.setZero(full.residuals, full.parameters);
+    const Scene s = SceneAt(*full.scene, *full.names, full.knots, full.cached_logp.data());
+    if (!RecordingsForward(s, &full)) {
+      o->last_failure = full.last_failure;
+      return false;
+    }
+    o->cached_r = full.cached_r;
+    o->cached_J = full.cached_J.leftCols(static_cast<long>(logs)) +
+                  full.cached_J.rightCols(static_cast<long>(unknowns)) * f.dy_dp;
+    o->cached_mae = full.cached_mae;
+    return true;
+  };
+  MotionFitResult search;
+  search.start.assign(logs, 0.0);
+  const bool searched = SearchLeastSquares(&outer, &p, plo, phi, fit_options, &search);
+  ctx->evaluations += outer.evaluations;
+  ctx->run_seconds += outer.run_seconds;
+  if (!searched) {
+    result->rest_start_message = "the first frames' rest shape (the search with it slaved "
+                                 "failed: " + search.message + ")";
+    return;
+  }
+  // The knots slaved to the material found (the last evaluation may have been a rejected trial).
+  const FirstFramesFit last = RestToFirstFrames(*ctx, p, &y, ylo, yhi, fit_options, false);
+  result->rest_start_runs += last.runs;
+  if (!last.ok) {
+    result->rest_start_message = "the first frames' rest shape (at the slaved search's material "
+                                 "it failed: " + last.message + ")";
+    return;
+  }
+  std::copy(p.begin(), p.end(), x->begin());
+  std::copy(y.begin(), y.end(), x->begin() + static_cast<long>(logs));
+  result->rest_start_message = "the first frames' rest shape, then the material with it slaved: " +
+                               std::to_string(outer.evaluations) + " rollouts, " +
+                               std::to_string(search.iterations) + " iterations (" +
+                               search.message + ")";
+}
+
 }  // namespace
 
 bool GripperTiltDerivatives(const Scene& scene, const MotionRecordingData& recording,
@@ -778,6 +996,11 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
   if (material_names.empty() && !rest && !tilts) throw std::invalid_argument("no parameters to fit");
   SetUpParameters(scene, material_names, fit_options, &result, &ctx, &x, &lo, &hi);
   if (rest) AddRestKnots(scene, fit_options, &result, &ctx, &x, &lo, &hi);
+  // The rest start from the first frames searches the material and knots alone (its unknowns
+  // end with the knots): not combined with the tilts.
+  if (tilts && rest && fit_options.rest_start_from_first_frames)
+    throw std::invalid_argument("gripper_prior_deg: the grippers' tilts are not fitted with "
+                                "rest_start_from_first_frames");
   if (tilts) AddGripperTilts(recordings, options, fit_options, &result, &ctx, &x, &lo, &hi);
   ctx.parameters = static_cast<int>(x.size());
   const int m = ctx.parameters;
@@ -801,16 +1024,8 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
     result.marker_sigma_estimated = result.marker_sigma > 0.0;
   }
   ctx.sigma = result.marker_sigma > 0.0 ? result.marker_sigma : 1.0;
-  // The residuals' layout: every coordinate of a marker the rollout does not drive, in every
-  // frame after the first that saw it.
-  for (const MotionRecordingData& r : recordings) {
-    if (r.frames.size() < 2) throw std::invalid_argument("a recording needs at least 2 frames");
-    ctx.held.push_back(HeldMarkers(options, static_cast<int>(r.frames[0].cols())));
-    for (size_t k = 1; k < r.frames.size(); ++k)
-      for (int mk = 0; mk < static_cast<int>(r.frames[k].cols()); ++mk)
-        if (!ctx.held.back()[mk] && r.frames[k].col(mk).allFinite()) ctx.residuals += 3;
-  }
-  const int data_rows = ctx.residuals;
+  const int data_rows = LayOutRecordings(&ctx);
+  ctx.residuals = data_rows;
   // The priors' rows (the rest shape's, the grippers' tilts'): rows that carry their noise too.
   ctx.residuals += ctx.prior_rows + result.gripper_prior_residuals;
   ctx.noise_residuals = ctx.residuals;
@@ -818,6 +1033,9 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
     throw std::invalid_argument("the recordings have " + std::to_string(data_rows) +
                                 " predicted marker coordinates: too few for " +
                                 std::to_string(m) + " parameters");
+
+  if (rest && fit_options.rest_start_from_first_frames)
+    SearchWithSlavedRest(&ctx, &x, lo, hi, fit_options, &result);
 
   if (fit_options.method == MotionFitMethod::kBobyqa) {
     result.method = "bobyqa";

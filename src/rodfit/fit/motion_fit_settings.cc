@@ -70,6 +70,9 @@ void Serialize(SettingsArchive* a, MotionFitOptions* o) {
               "per recording, never a parameter of the rod (default " +
                   Shortest(o->gripper_prior_deg) + ": none)");
   a->Number("gripper_prior_deg", &o->gripper_prior_deg, 0.0, 90.0);
+
+  // The rest knots started from the recordings' first frames (MotionFitOptions).
+  a->Bool("rest_start_from_first_frames", &o->rest_start_from_first_frames);
 }
 
 // The options within their declared ranges (Serialize above: the command line's and the

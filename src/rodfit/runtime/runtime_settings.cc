@@ -1,5 +1,6 @@
 // The runtime's options (RuntimeOptions, rodfit/runtime/runtime.h): their one declaration, and
 // the check of a caller's values against it.
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -20,8 +21,9 @@ void Serialize(SettingsArchive* a, RuntimeOptions* o) {
   a->Integer("max_iterations", &o->max_iterations, 1, 10000);
   a->Positive("gradient_tolerance", &o->gradient_tolerance);
   a->Positive("step_tolerance", &o->step_tolerance);
-  // [s] 0: no budget; an hour per tick is no haptic loop.
-  a->Number("time_budget", &o->time_budget, 0.0, 3600.0);
+  // [s] 0: no budget; so is any budget beyond the steady clock's range, infinity included
+  // (solve/deadline.h).
+  a->Number("time_budget", &o->time_budget, 0.0, std::numeric_limits<double>::infinity());
   a->Positive("time_step", &o->time_step);  // [s]
   a->Positive("max_tool_move", &o->max_tool_move);
   a->Check(o->max_tool_move <= 1.0, "max_tool_move", "must be <= 1");
