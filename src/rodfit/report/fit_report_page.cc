@@ -749,7 +749,8 @@ class Builder {
     for (const auto& [camera_key, entries] : EntriesByCamera(c)) CameraView(c, camera_key, entries);
   }
 
-  void CameraView(size_t c, const std::string& camera_key, const std::vector<CameraEntry>& entries) {
+  void CameraView(size_t c, const std::string& camera_key,
+                  const std::vector<CameraEntry>& entries) {
     const Mat3X& shape = r_.shapes[c];
     // A camera of a stereo file is "FILE[i]": its name is the file's stem with the index.
     const size_t bracket = camera_key.back() == ']' ? camera_key.rfind('[') : std::string::npos;

@@ -177,7 +177,8 @@ std::string WriteMujoco(const ExportInput& input) {
   Cable cable;
   const double l = cable.l = model.rest_edge_length(0);
   cable.curved_rest = model.curved_at_rest();
-  for (const ExportHolder& h : holders) cable.end_clamp = cable.end_clamp || (h.frame && h.vertex == n);
+  for (const ExportHolder& h : holders)
+    cable.end_clamp = cable.end_clamp || (h.frame && h.vertex == n);
   const double area_moment = M_PI * std::pow(rod.radius, 4) / 4.0;  // I of the capsule
   cable.E = 0.5 * (m.B1() + m.B2()) / area_moment;
   cable.G = m.twist_stiffness / (2.0 * area_moment);
