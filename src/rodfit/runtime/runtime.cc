@@ -411,6 +411,9 @@ struct Runtime::Impl {
   StepReport StepDynamic();
   // Dynamic mode: the rod at rest where it is (rates zero, BDF2's history dropped).
   void CatchAtRest();
+  // StepQuasiStatic's steps: a stopped-short solve resumed; a grasp's move predicted.
+  StepReport ResumeTick(Clock::time_point start, StepReport report);
+  bool PredictGraspMove(const Vec3& d, const Eigen::AngleAxisd& turn);
   // The constructor's steps once the model and its first equilibrium are set: the tool's
   // vertices and targets, the grasp's reach, the kept factor and the minimizer, the dynamic
   // stepper (sized by a throwaway step), the poke mesh's scratch (sized by a throwaway dent).
@@ -1026,9 +1029,102 @@ StepReport Runtime::Impl::GiveUp(StepStatus status, StepReport report) {
   return report;
 }
 
+// Resumes the solve the last tick stopped short (its iteration cap or the budget): on from where
+// it stopped, towards its target, instead of throwing its iterations away. Its merit only fell
+// on the way, so the solve goes on as if it had not been cut.
+StepReport Runtime::Impl::ResumeTick(Clock::time_point start, StepReport report) {
+  std::swap(state, pending);
+  target = pending_target;
+  rotation = pending_rotation;
+  applied_force = pending_force;
+  const StepStatus status = Newton(start, options.max_iterations, false, &report);
+  if (status != StepStatus::kConverged) return GiveUp(status, report);
+  resumed_ticks = 0;
+  corrections = 0;
+  move_scale = std::min(1.0, 2.0 * move_scale);
+  report.status = StepStatus::kConverged;
+  return report;
+}
+
+// The rod's answer to the grasp's move d (and an oriented grasp's turn) predicted from the
+// factor kept at the last equilibrium: x_free += -K_ff^-1 K_fh d, the linear response with the
+// held dofs as a Dirichlet boundary, plus the last ticks' second-order correction; taken into
+// state through one retraction (true) when it keeps every turn small and the held edge exact.
+bool Runtime::Impl::PredictGraspMove(const Vec3& d, const Eigen::AngleAxisd& turn) {
+  const RodModel& m = *model;
+  const int v = tool_vertex;
+  const double d_norm = d.norm();
+  // K_fh d from the kept Hessian's columns of the grasped vertex (held rows left in), the
+  // Hessian the kept factor was made from: the band couples them to 2 blocks either side.
+  // Held moves: the grasped vertex's d; an oriented grasp's far vertex and its twist (to
+  // first order, the turn about the edge).
+  step.setZero();
+  const int p = hessian_full.bandwidth();
+  const int rows = static_cast<int>(step.size());
+  auto add_column = [&](int c, double move) {
+    for (int i = std::max(0, c - p); i <= std::min(rows - 1, c + p); ++i)
+      step[i] -= hessian_full.Get(i, c) * move;
+  };
+  Vec3 d_w = Vec3::Zero();
+  double d_twist = 0.0;
+  if (oriented) {
+    d_w = target - rotation * edge0 - state.x.col(edge_vertex);
+    d_twist = turn.angle() * turn.axis().dot(state.e.col(edge_vertex).normalized());
+    for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(edge_vertex) + c, d_w[c]);
+    add_column(held_twist, d_twist);
+  }
+  for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(v) + c, d[c]);
+  ApplyHeldRows(held_rows, &step, nullptr);
+  factor.SolveInPlace(step);
+  if (corrections >= 1 && turn.angle() == 0.0) {
+    // The linear response misses the move's second-order part, which along a steady drag
+    // changes little from one tick to the next: the last ticks measured it (the sum of
+    // their steps after the prediction), scaled here as a quadratic in the move along the
+    // last one, and extrapolated from the two last ticks when the moves are steady. This
+    // tick's correction counts from the linear prediction, like theirs.
+    const double s = d.dot(last_move) / last_move.squaredNorm();
+    correction = (s * s) * last_correction;
+    if (corrections >= 2 && (d - last_move).norm() <= kSteadyMove * d_norm &&
+        (last_move - older_move).norm() <= kSteadyMove * d_norm)
+      correction += (s * s) * (last_correction - older_correction);
+    step += correction;
+  }
+  // The whole predicted motion, the grasp's own move included, goes through one edge-wise
+  // retraction from the last equilibrium, which changes every edge's length by its linear
+  // part only. (Moving the free vertices first and then the grasped vertex would pin it at
+  // its old place during the retraction, whose closure pulls the rod before it back by d,
+  // and then stretch its edge by the whole move: against a stiff EA a force of EA d / l that
+  // Newton must first undo.) ApplyStep keeps held vertices where its input state has them
+  // and reads no other vertex position but x_0, so its input is the last equilibrium with
+  // the grasped vertex already at the target.
+  step.segment<3>(RodModel::VertexDof(v)) = d;
+  moved = state;  // same sizes: no allocation
+  moved.x.col(v) = target;
+  if (oriented) {
+    step.segment<3>(RodModel::VertexDof(edge_vertex)) = d_w;
+    step[held_twist] = d_twist;
+    moved.x.col(edge_vertex) += d_w;
+  }
+  if (MaxTurnAndStrainChange(m, state, step).turn <= kMaxTurnPerStep &&
+      ApplyStep(m, moved, step, 1.0, &trial) && trial.x.allFinite()) {
+    bool held_exactly = true;
+    if (oriented) {
+      // The held edge exactly as the tool holds it (the retraction gave its length to first
+      // order), its twist from the tool's d1.
+      trial.e.col(edge_vertex) = trial.x.col(v) - trial.x.col(edge_vertex);
+      held_exactly = UpdateReferenceFrames(m, state, &trial);
+      HoldTwist(&trial);
+    }
+    if (held_exactly) {
+      std::swap(state, trial);
+      return true;
+    }
+  }
+  return false;
+}
+
 StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   StepReport report;
-  const RodModel& m = *model;
   last_good = state;
   rotation_good = rotation;
   last_good_force = applied_force;
@@ -1044,22 +1140,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
             : (tool_force - pending_force).norm() < (tool_force - applied_force).norm();
     if (!towards) resumed_ticks = 0;
   }
-  if (resumed_ticks > 0) {
-    // The last tick's solve stopped short (its iteration cap or the budget): on from where it
-    // stopped, towards its target, instead of throwing its iterations away. Its merit only fell
-    // on the way, so the solve goes on as if it had not been cut.
-    std::swap(state, pending);
-    target = pending_target;
-    rotation = pending_rotation;
-    applied_force = pending_force;
-    const StepStatus status = Newton(start, options.max_iterations, false, &report);
-    if (status != StepStatus::kConverged) return GiveUp(status, report);
-    resumed_ticks = 0;
-    corrections = 0;
-    move_scale = std::min(1.0, 2.0 * move_scale);
-    report.status = StepStatus::kConverged;
-    return report;
-  }
+  if (resumed_ticks > 0) return ResumeTick(start, report);
   ApplyForce();
   bool predicted_start = false;
   Vec3 move = Vec3::Zero();  // the grasp's move this tick [m]
@@ -1089,76 +1170,9 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     const double d_norm = d.norm();
     move = d;
     turned = turn.angle() > 0.0;
-    bool predicted = false;
-    if (factor_on_branch && factor.valid() && (d_norm > 0.0 || turn.angle() > 0.0)) {
-      // K_fh d from the kept Hessian's columns of the grasped vertex (held rows left in), the
-      // Hessian the kept factor was made from: the band couples them to 2 blocks either side.
-      // Held moves: the grasped vertex's d; an oriented grasp's far vertex and its twist (to
-      // first order, the turn about the edge).
-      step.setZero();
-      const int p = hessian_full.bandwidth();
-      const int rows = static_cast<int>(step.size());
-      auto add_column = [&](int c, double move) {
-        for (int i = std::max(0, c - p); i <= std::min(rows - 1, c + p); ++i)
-          step[i] -= hessian_full.Get(i, c) * move;
-      };
-      Vec3 d_w = Vec3::Zero();
-      double d_twist = 0.0;
-      if (oriented) {
-        d_w = target - rotation * edge0 - state.x.col(edge_vertex);
-        d_twist = turn.angle() * turn.axis().dot(state.e.col(edge_vertex).normalized());
-        for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(edge_vertex) + c, d_w[c]);
-        add_column(held_twist, d_twist);
-      }
-      for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(v) + c, d[c]);
-      ApplyHeldRows(held_rows, &step, nullptr);
-      factor.SolveInPlace(step);
-      if (corrections >= 1 && turn.angle() == 0.0) {
-        // The linear response misses the move's second-order part, which along a steady drag
-        // changes little from one tick to the next: the last ticks measured it (the sum of
-        // their steps after the prediction), scaled here as a quadratic in the move along the
-        // last one, and extrapolated from the two last ticks when the moves are steady. This
-        // tick's correction counts from the linear prediction, like theirs.
-        const double s = d.dot(last_move) / last_move.squaredNorm();
-        correction = (s * s) * last_correction;
-        if (corrections >= 2 && (d - last_move).norm() <= kSteadyMove * d_norm &&
-            (last_move - older_move).norm() <= kSteadyMove * d_norm)
-          correction += (s * s) * (last_correction - older_correction);
-        step += correction;
-      }
-      // The whole predicted motion, the grasp's own move included, goes through one edge-wise
-      // retraction from the last equilibrium, which changes every edge's length by its linear
-      // part only. (Moving the free vertices first and then the grasped vertex would pin it at
-      // its old place during the retraction, whose closure pulls the rod before it back by d,
-      // and then stretch its edge by the whole move: against a stiff EA a force of EA d / l that
-      // Newton must first undo.) ApplyStep keeps held vertices where its input state has them
-      // and reads no other vertex position but x_0, so its input is the last equilibrium with
-      // the grasped vertex already at the target.
-      step.segment<3>(RodModel::VertexDof(v)) = d;
-      moved = state;  // same sizes: no allocation
-      moved.x.col(v) = target;
-      if (oriented) {
-        step.segment<3>(RodModel::VertexDof(edge_vertex)) = d_w;
-        step[held_twist] = d_twist;
-        moved.x.col(edge_vertex) += d_w;
-      }
-      if (MaxTurnAndStrainChange(m, state, step).turn <= kMaxTurnPerStep &&
-          ApplyStep(m, moved, step, 1.0, &trial) && trial.x.allFinite()) {
-        bool held_exactly = true;
-        if (oriented) {
-          // The held edge exactly as the tool holds it (the retraction gave its length to first
-          // order), its twist from the tool's d1.
-          trial.e.col(edge_vertex) = trial.x.col(v) - trial.x.col(edge_vertex);
-          held_exactly = UpdateReferenceFrames(m, state, &trial);
-          HoldTwist(&trial);
-        }
-        if (held_exactly) {
-          std::swap(state, trial);
-          predicted = true;
-          predicted_start = true;
-        }
-      }
-    }
+    const bool predicted = factor_on_branch && factor.valid() &&
+                           (d_norm > 0.0 || turn.angle() > 0.0) && PredictGraspMove(d, turn);
+    predicted_start = predicted;
     if (!predicted) {
       // No usable factor: the grasped vertex alone moves, Newton brings the rest along.
       if (!MoveGrasp(last_good, target, &trial)) {
