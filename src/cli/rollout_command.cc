@@ -15,6 +15,7 @@
 #include <CLI/CLI.hpp>
 
 #include "cli_common.h"
+#include "cli_settings.h"
 #include "commands.h"
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
@@ -27,32 +28,24 @@
 
 namespace {
 
-// The command line as given, before it is turned into the run's options.
+// The command line as given, before it is turned into the run's options. The rollout's and the
+// fit's settings are their configurations' (RolloutOptions, MotionFitOptions: each setting's
+// option, default, range and help declared once, by their Serialize; cli_settings.h).
 struct RolloutArgs {
-  std::string scene_path, output_dir, held_text = "0,1,-2,-1", initial = "equilibrium", fit_text;
+  std::string scene_path, output_dir, fit_text;
   std::vector<std::string> recording_paths;
-  // The fit's settings start at the library's defaults (MotionFitOptions, the one place each is
-  // declared); the help states them from there.
-  int max_evaluations = rodfit::MotionFitOptions().max_evaluations;
   double frame_rate = 0.0;
-  int smooth_frames = 5;
-  std::string held_ends = "pins";
-  std::string method = "lm";
-  double marker_sigma = rodfit::MotionFitOptions().marker_sigma;
   std::string unit = "m";
   std::string report_dir;
   bool quiet = false;
-  int rest_knots = rodfit::MotionFitOptions().rest_curvature_knots;
-  double fit_smoothness = rodfit::MotionFitOptions().rest_curvature_smoothness;
   std::string parameters_path;
+  CliSettings settings{[](rodfit::SettingsArchive* a) {
+    rodfit::RolloutOptions rollout;
+    rodfit::MotionFitOptions fit;
+    Serialize(a, &rollout);
+    Serialize(a, &fit);
+  }};
 };
-
-// A default as the help states it: the shortest text that reads back as the number.
-std::string Shortest(double v) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%g", v);
-  return text;
-}
 
 void DeclareOptions(CLI::App& app, RolloutArgs* a) {
   app.add_option("scene", a->scene_path, "scene YAML with a dynamics: block (docs/formats.md)")->required();
@@ -63,47 +56,27 @@ void DeclareOptions(CLI::App& app, RolloutArgs* a) {
     if (rodfit::InMotionModel(row)) fittable += (fittable.empty() ? "" : ", ") + std::string(row.name);
   app.add_option("--fit", a->fit_text, "parameters to fit to the recordings, comma separated (" +
                                            fittable + "); their scene values are the start, > 0");
-  app.add_option("--smooth", a->smooth_frames,
-                 "held markers' paths smoothed by a centred quadratic over +-N frames (0: as recorded)")
-      ->check(CLI::Range(0, 1000));
-  app.add_option("--held-ends", a->held_ends,
-                 "how the held end markers hold the rod: pins (default: a clamp at marker 0 towards "
-                 "marker 1, markers 1 and n-2 pinned), grippers (clamps at markers 0 and n-1, "
-                 "their tangents from the first frames, roll by the minimal-twist frame) or "
-                 "free-roll (as grippers, the end free to turn about its tangent)")
-      ->check(CLI::IsMember({"grippers", "free-roll", "pins"}));
-  app.add_option("--max-evaluations", a->max_evaluations,
-                 "rollouts of every recording the fit may take (default " +
-                     std::to_string(a->max_evaluations) + ")")
-      ->check(CLI::Range(1, 100000));
-  app.add_option("--method", a->method,
-                 "lm (default): least squares with the rollout's exact sensitivities, with "
-                 "covariance; bobyqa: derivative-free on the mean absolute error")
-      ->check(CLI::IsMember({"lm", "bobyqa"}));
-  app.add_option("--marker-sigma", a->marker_sigma, "[m] the markers' noise, weighting the fit's residuals")
-      ->check(FiniteRange(0.0, 1e9));
+  a->settings.Add(&app, "smooth_frames");
+  a->settings.Add(&app, "held_ends");
+  a->settings.Add(&app, "max_evaluations");
+  a->settings.Add(&app, "method");
+  a->settings.Add(&app, "marker_sigma");
   app.add_option("-o,--output", a->output_dir, "output directory, created if missing")->required();
   app.add_option("--frame-rate", a->frame_rate, "[Hz] with a frame column (with a t column: must agree with its times)")->check(FiniteRange(1e-6, 1e9));
   app.add_option("--unit", a->unit, "the recordings' positions: m (default) or mm")
       ->check(CLI::IsMember({"m", "mm"}));
-  app.add_option("--held", a->held_text, "driven markers, comma separated; negative from the last (default 0,1,-2,-1)");
-  app.add_option("--initial", a->initial, "equilibrium (default) or markers: the start shape")
-      ->check(CLI::IsMember({"equilibrium", "markers"}));
+  a->settings.Add(&app, "held_markers");
+  a->settings.Add(&app, "initial");
   app.add_option("--report", a->report_dir,
                  "also write a report into DIR: index.html (error table, fitted parameters, per "
                  "recording a 3-D view over time and each marker's path) and its figures");
   app.add_flag("-q,--quiet", a->quiet, "no progress line");
-  app.add_option("--rest-knots", a->rest_knots,
-                 "with --fit rest_curvature: knots evenly along the rod (default " +
-                     std::to_string(a->rest_knots) + ")")
-      ->check(CLI::Range(3, 200));
-  app.add_option("--rest-smoothness", a->fit_smoothness,
-                 "[1/m] with --fit rest_curvature: the std of the curvature's second difference "
-                 "over neighbouring knots (default " + Shortest(a->fit_smoothness) + ")")
-      ->check(CLI::Range(1e-9, 1e9));
+  a->settings.Add(&app, "rest_curvature_knots");
+  a->settings.Add(&app, "rest_curvature_smoothness");
   app.add_option("--parameters", a->parameters_path,
                  "a motion_fit.json of rollout --fit on other recordings of the rod: its values "
                  "replace the scene's (with --fit: the start)");
+  a->settings.CheckAllAdded();
 }
 
 // The output folders, checked before any work: -o '' would mean "write nothing" to the library
@@ -121,23 +94,9 @@ void CheckOutputs(const RolloutArgs& a) {
 }
 
 // The run's options from the command line (its --parameters file read here).
-rodfit::RolloutRunOptions RunOptions(const RolloutArgs& a) {
+rodfit::RolloutRunOptions RunOptions(RolloutArgs& a) {
   rodfit::RolloutRunOptions options;
-  rodfit::RolloutOptions& rollout = options.rollout;
-  rollout.initial_equilibrium = a.initial == "equilibrium";
-  rollout.smooth_frames = a.smooth_frames;
-  rollout.held_ends = a.held_ends == "grippers"    ? rodfit::RolloutOptions::HeldEnds::kGrippers
-                      : a.held_ends == "free-roll" ? rodfit::RolloutOptions::HeldEnds::kFreeRoll
-                                                   : rodfit::RolloutOptions::HeldEnds::kPinnedPairs;
-  rollout.held_markers.clear();
-  std::stringstream held(a.held_text);
-  std::string item;
-  while (std::getline(held, item, ',')) {
-    double v = 0.0;
-    if (!rodfit::ParseDouble(item, &v) || v != static_cast<int>(v))
-      throw std::invalid_argument("--held: not an integer: '" + item.substr(0, 40) + "'");
-    rollout.held_markers.push_back(static_cast<int>(v));
-  }
+  a.settings.Read([&](rodfit::SettingsArchive* s) { Serialize(s, &options.rollout); });
   if (!a.parameters_path.empty()) {
     options.parameters = rodfit::ReadMotionFitValues(a.parameters_path);
     options.parameters_path = a.parameters_path;
@@ -145,13 +104,9 @@ rodfit::RolloutRunOptions RunOptions(const RolloutArgs& a) {
   if (!a.fit_text.empty()) {
     SilenceCeresLogging();
     std::stringstream fit(a.fit_text);
+    std::string item;
     while (std::getline(fit, item, ',')) options.fit.push_back(item);
-    options.fit_options.method = a.method == "bobyqa" ? rodfit::MotionFitMethod::kBobyqa
-                                                      : rodfit::MotionFitMethod::kLevenbergMarquardt;
-    options.fit_options.max_evaluations = a.max_evaluations;
-    options.fit_options.marker_sigma = a.marker_sigma;
-    options.fit_options.rest_curvature_knots = a.rest_knots;
-    options.fit_options.rest_curvature_smoothness = a.fit_smoothness;
+    a.settings.Read([&](rodfit::SettingsArchive* s) { Serialize(s, &options.fit_options); });
   }
   options.output_dir = a.output_dir;
   options.report_dir = a.report_dir;

@@ -3,11 +3,11 @@
 // simulate and the runtime refuse; sofa wrote nan/inf for hostile radii and damping); the SOFA
 // scene checked against a named list of SOFA components, their fields and the modules that
 // provide them; the MuJoCo cable's numbers against the elasticity plugin's formulas.
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
-#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -216,10 +216,35 @@ struct Element {
   int depth = 0;
 };
 
+// A tag's attributes name="value" (a name: a letter or '_', then letters, digits, '_' or '.'),
+// scanned by hand: libstdc++'s std::regex matcher recurses once per character of a value, and the
+// SOFA export's position lists (thousands of characters) overflowed the stack of the test program
+// built with AddressSanitizer, whose frames are larger.
+std::map<std::string, std::string> Attributes(const std::string& tag) {
+  const auto name_char = [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.';
+  };
+  std::map<std::string, std::string> out;
+  size_t at = 0;
+  while ((at = tag.find("=\"", at)) != std::string::npos) {
+    size_t begin = at;
+    while (begin > 0 && name_char(tag[begin - 1])) --begin;
+    while (begin < at && !(std::isalpha(static_cast<unsigned char>(tag[begin])) || tag[begin] == '_'))
+      ++begin;
+    const size_t close = tag.find('"', at + 2);
+    if (close == std::string::npos) {
+      ADD_FAILURE() << "unclosed attribute value in <" << tag << ">";
+      break;
+    }
+    if (begin < at) out[tag.substr(begin, at - begin)] = tag.substr(at + 2, close - at - 2);
+    at = close + 1;
+  }
+  return out;
+}
+
 // The elements of an XML text, comments and the declaration skipped, with their nesting depth.
 std::vector<Element> Elements(const std::string& xml) {
   std::vector<Element> out;
-  const std::regex attribute(R"re(([A-Za-z_][\w.]*)="([^"]*)")re");
   int depth = 0;
   size_t at = 0;
   while ((at = xml.find('<', at)) != std::string::npos) {
@@ -240,8 +265,7 @@ std::vector<Element> Elements(const std::string& xml) {
     Element e;
     e.name = tag.substr(0, tag.find_first_of(" \n/"));
     e.depth = depth;
-    for (std::sregex_iterator it(tag.begin(), tag.end(), attribute), stop; it != stop; ++it)
-      e.attributes[(*it)[1]] = (*it)[2];
+    e.attributes = Attributes(tag);
     if (tag.back() != '/') ++depth;
     out.push_back(e);
   }

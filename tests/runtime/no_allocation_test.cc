@@ -1,6 +1,7 @@
 // A tick does not allocate: this test program interposes malloc and its family (glibc resolves
 // them to the executable's definitions first; operator new and Eigen's dynamic matrices both
-// allocate through malloc) and counts calls while a flag is up, around ticks of every kind — a
+// allocate through malloc; under AddressSanitizer, ASan's allocation hook instead, see below) and
+// counts calls while a flag is up, around ticks of every kind — a
 // drag (quasi-static, with and without the held orientation, and dynamic) and a poke
 // (quasi-static and dynamic) — each read back as a haptic loop does: Step(), the shape, the tool's force and torque, and the tube
 // mesh with the poke's dent into a kept buffer (Runtime::Mesh(TubeMesh*)). Every other test of
@@ -22,6 +23,28 @@
 #include "rodfit/runtime/runtime.h"
 #include "runtime/allocation_counter.h"
 
+// AddressSanitizer owns malloc: its run-time library defines malloc and its family, and the
+// executable's definitions below would win over them, so that (1) the program's heap would be
+// glibc's, unchecked, and (2) the first allocation — made by the dynamic loader inside ASan's own
+// start-up, before ASan has mapped its shadow memory — runs Count() (instrumented code reading
+// g_counting through the shadow) and the program dies of SIGSEGV before main. Under ASan the
+// count therefore comes from ASan's allocation hook instead (the sanitizers' public
+// __sanitizer_install_malloc_and_free_hooks, declared in LLVM's sanitizer/allocator_interface.h,
+// which GCC does not install; libasan exports it), called for every allocation the program makes:
+// malloc, calloc, realloc, the aligned allocators and operator new. Same count, same test.
+#if defined(__SANITIZE_ADDRESS__)
+#define RODFIT_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define RODFIT_TEST_ASAN 1
+#endif
+#endif
+
+#ifdef RODFIT_TEST_ASAN
+extern "C" int __sanitizer_install_malloc_and_free_hooks(
+    void (*malloc_hook)(const volatile void* p, std::size_t size),
+    void (*free_hook)(const volatile void* p));
+#else
 extern "C" {
 void* __libc_malloc(std::size_t size);
 void* __libc_calloc(std::size_t count, std::size_t size);
@@ -29,6 +52,7 @@ void* __libc_realloc(void* p, std::size_t size);
 void* __libc_memalign(std::size_t alignment, std::size_t size);
 void __libc_free(void* p);
 }
+#endif
 
 namespace {
 std::atomic<bool> g_counting{false};
@@ -39,8 +63,27 @@ void Count() {
     if (std::getenv("RODFIT_TRAP_ALLOCATION")) __builtin_trap();  // debugging: where from
   }
 }
+
+#ifdef RODFIT_TEST_ASAN
+void CountHook(const volatile void*, std::size_t) { Count(); }
+void IgnoreFree(const volatile void*) {}
+// Installed once, before main (ASan is initialised before any of the program's constructors);
+// 0 when ASan has no free hook slot left, which StartCounting() reports as a failure rather than
+// counting nothing.
+const int g_hook_installed = __sanitizer_install_malloc_and_free_hooks(&CountHook, &IgnoreFree);
+#endif
+
+// Starts counting from zero.
+void StartCounting() {
+#ifdef RODFIT_TEST_ASAN
+  if (g_hook_installed == 0) ADD_FAILURE() << "ASan refused the allocation hook: nothing counted";
+#endif
+  g_allocations = 0;
+  g_counting = true;
+}
 }  // namespace
 
+#ifndef RODFIT_TEST_ASAN
 extern "C" {
 void* malloc(std::size_t size) {
   Count();
@@ -69,13 +112,11 @@ int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
 }
 void free(void* p) { __libc_free(p); }
 }
+#endif
 
 namespace rodfit_test {
 
-void StartCountingAllocations() {
-  g_allocations = 0;
-  g_counting = true;
-}
+void StartCountingAllocations() { StartCounting(); }
 
 long StopCountingAllocations() {
   g_counting = false;
@@ -88,8 +129,7 @@ namespace rodfit {
 namespace {
 
 long AllocationsDuring(const std::function<void(int)>& tick, int ticks) {
-  g_allocations = 0;
-  g_counting = true;
+  StartCounting();
   for (int k = 0; k < ticks; ++k) tick(k);
   g_counting = false;
   return g_allocations.load();

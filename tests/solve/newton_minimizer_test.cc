@@ -199,5 +199,23 @@ TEST(DenseCholeskySolver, NonFiniteEntriesFailTheFactor) {
   }
 }
 
+// Storage sized ahead has a defined status: ReserveDenseCholesky factors the identity. Eigen's
+// sizing constructor LLT(n) left the status uninitialized, and assigning it copied that — undefined
+// behaviour (an invalid enum value), which the sanitized runtime tests aborted on in the ring
+// solver. The storage is the size asked for, and a copy keeps the status.
+TEST(DenseCholeskySolver, ReservedStorageHasADefinedStatus) {
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  ReserveDenseCholesky(12, &llt);
+  EXPECT_EQ(llt.info(), Eigen::Success);
+  EXPECT_EQ(llt.matrixLLT().rows(), 12);
+  EXPECT_EQ(llt.matrixLLT().cols(), 12);
+  const Eigen::LLT<Eigen::MatrixXd> copy = llt;
+  EXPECT_EQ(copy.info(), Eigen::Success);
+  DenseCholeskySolver solver;
+  solver.Resize(12);
+  EXPECT_EQ(solver.llt().info(), Eigen::Success);
+  EXPECT_EQ(solver.llt().matrixLLT().rows(), 12);
+}
+
 }  // namespace
 }  // namespace rodfit

@@ -25,6 +25,7 @@
 #include "rodfit/fit/fit.h"
 #include "rodfit/model/scene.h"
 #include "rodfit/fit/measurement.h"
+#include "rodfit/model/settings_archive.h"
 #include "rodfit/solve/rollout.h"
 
 namespace rodfit {
@@ -69,6 +70,12 @@ struct MotionFitOptions {
   std::function<void(const FitIterationInfo&)> progress;
   bool Check(std::string* why) const;
 };
+
+/// The motion fit's settings, declared once (docs/cli.md, "rollout", its settings table): each
+/// key with its default (the initializers above), range, and for those the command line takes
+/// its option and help text (rodfit/model/settings_archive.h). `lower`, `upper` (per fitted
+/// name) and `progress` are a caller's, not settings.
+void Serialize(SettingsArchive* a, MotionFitOptions* o);
 
 struct MotionFitResult {
   std::vector<std::string> names;

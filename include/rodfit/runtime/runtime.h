@@ -30,6 +30,7 @@
 #include <Eigen/Core>
 
 #include "rodfit/model/rod.h"
+#include "rodfit/model/settings_archive.h"
 #include "rodfit/model/tube_mesh.h"
 #include "rodfit/runtime/profile.h"
 
@@ -96,6 +97,11 @@ struct RuntimeOptions {
   bool hold_orientation = false;
   bool Check(std::string* why) const;
 };
+
+/// The runtime's options, declared once (docs/library.md, "Runtime", its options table): each
+/// key with its default (the initializers above) and range; Check holds the options to them.
+/// The C API's rodfit_options and Python's keywords take their defaults from RuntimeOptions.
+void Serialize(SettingsArchive* a, RuntimeOptions* o);
 
 enum class StepStatus {
   kConverged,      ///< the new state is the step's solution

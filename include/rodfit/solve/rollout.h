@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "rodfit/model/scene.h"
+#include "rodfit/model/settings_archive.h"
 #include "rodfit/solve/dynamics.h"
 #include "rodfit/solve/statics.h"
 
@@ -50,6 +51,11 @@ struct RolloutOptions {
   /// (a whip at 10 ms steps), landing on every frame.
   double error_tolerance = 1e-4;
 };
+
+/// The rollout's settings, declared once (docs/cli.md, "rollout", its settings table): each
+/// key with its default (the initializers above), range, and the command line's option and help
+/// text (rodfit/model/settings_archive.h). `error_tolerance` is the library's alone.
+void Serialize(SettingsArchive* a, RolloutOptions* o);
 
 struct RolloutResult {
   bool ok = false;

@@ -388,38 +388,6 @@ double EstimateMarkerNoise(const std::vector<MotionRecordingData>& recordings,
   return d4[d4.size() / 2] / (0.6745 * std::sqrt(70.0));
 }
 
-bool MotionFitOptions::Check(std::string* why) const {
-  if (rest_curvature_knots < 3) {
-    *why = "rest_curvature_knots must be at least 3";
-    return false;
-  }
-  if (!(rest_curvature_smoothness > 0.0) || !std::isfinite(rest_curvature_smoothness)) {
-    *why = "rest_curvature_smoothness must be a finite curvature > 0";
-    return false;
-  }
-  if (!(max_rest_curvature > 0.0) || !std::isfinite(max_rest_curvature)) {
-    *why = "max_rest_curvature must be a finite curvature > 0";
-    return false;
-  }
-  if (max_evaluations < 1) {
-    *why = "max_evaluations must be at least 1";
-    return false;
-  }
-  if (!(range > 1.0) || !std::isfinite(range)) {
-    *why = "range must be a finite factor > 1";
-    return false;
-  }
-  if (!(marker_sigma >= 0.0) || !std::isfinite(marker_sigma)) {
-    *why = "marker_sigma must be a finite length >= 0";
-    return false;
-  }
-  if (!(max_log_std > 0.0)) {
-    *why = "max_log_std must be > 0";
-    return false;
-  }
-  return true;
-}
-
 // Where the row says: the material, or the rod (linear_density).
 void SetMotionParameter(const std::string& name, double value, Scene* scene) {
   AssignMaterialParameter(MotionRow(name).name, value, &scene->material, &scene->rod);

@@ -121,26 +121,6 @@ void Bracket(const RodModel& model, double s, int* j, double* w) {
 
 }  // namespace
 
-bool RuntimeOptions::Check(std::string* why) const {
-  if (!(tool_s > 0.0)) return *why = "tool_s must be > 0 (the tool's arc length)", false;
-  if (max_iterations < 1) return *why = "max_iterations must be >= 1", false;
-  if (!(gradient_tolerance > 0.0)) return *why = "gradient_tolerance must be > 0", false;
-  if (!(step_tolerance > 0.0)) return *why = "step_tolerance must be > 0", false;
-  if (!(time_budget >= 0.0)) return *why = "time_budget must be >= 0", false;
-  if (!(time_step > 0.0)) return *why = "time_step must be > 0", false;
-  if (!(max_tool_move > 0.0)) return *why = "max_tool_move must be > 0", false;
-  if (dynamic_newton_iterations < 1) return *why = "dynamic_newton_iterations must be >= 1", false;
-  if (mesh_ring_vertices < 3 || mesh_ring_vertices > kMaxMeshRingVertices)
-    return *why = "mesh_ring_vertices must be in [3, " + std::to_string(kMaxMeshRingVertices) + "]",
-           false;
-  if (!(max_strain > 0.0 && max_strain <= 1.0))
-    return *why = "max_strain must be in (0, 1]", false;
-  if (!(max_tool_move <= 1.0)) return *why = "max_tool_move must be <= 1", false;
-  if (hold_orientation && (tool != ToolKind::kGrasp || mode != RuntimeMode::kQuasiStatic))
-    return *why = "hold_orientation is for a quasi-static grasp only", false;
-  return true;
-}
-
 const char* ToString(StepStatus status) {
   switch (status) {
     case StepStatus::kConverged: return "converged";

@@ -10,6 +10,7 @@
 
 #include "rodfit/model/frames.h"
 #include "rodfit/solve/banded.h"
+#include "rodfit/solve/deadline.h"
 #include "rodfit/solve/integrator.h"
 #include "rodfit/solve/linear_solvers.h"
 #include "rodfit/solve/newton_minimizer.h"
@@ -507,9 +508,7 @@ DynamicsStepSummary DynamicsStepper::Step(const Drive& drive, DynamicState* s) {
   if (scheme_->implicit()) {
     substeps_.clear();  // keeps its capacity: no allocation in a step that is not halved
     if (options_.time_budget > 0.0)
-      deadline_ = std::chrono::steady_clock::now() +
-                  std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                      std::chrono::duration<double>(options_.time_budget));
+      deadline_ = DeadlineAfter(options_.time_budget);
     if (options_.error_tolerance > 0.0) return StepAdaptive(drive, s);
     DynamicsStepSummary summary = StepImplicit(drive, options_.time_step, s);
     if (summary.ok || summary.out_of_time || options_.max_halvings == 0) return summary;

@@ -96,11 +96,15 @@ bool EdgeCoordinateSolver::Factor(double shift) {
   return moment_scale_ > 0.0 ? ok : ok && edge_->positive_definite();
 }
 
+void ReserveDenseCholesky(int n, Eigen::LLT<Eigen::MatrixXd>* llt) {
+  llt->compute(Eigen::MatrixXd::Identity(n, n));
+}
+
 void DenseCholeskySolver::Resize(int n) {
   if (matrix_.rows() == n) return;
   matrix_.setZero(n, n);
   work_.setZero(n, n);
-  llt_ = Eigen::LLT<Eigen::MatrixXd>(n);
+  ReserveDenseCholesky(n, &llt_);
 }
 
 bool DenseCholeskySolver::Factor(double shift) {

@@ -97,6 +97,13 @@ class EdgeCoordinateSolver : public LinearSolver {
   double moment_scale_ = 0.0;
 };
 
+/// Sizes `llt`'s storage for n x n matrices, so that factoring one later allocates nothing, by
+/// factoring the n x n identity. Not `*llt = Eigen::LLT<Eigen::MatrixXd>(n)`: Eigen's sizing
+/// constructor leaves the factorization's status (an enum) uninitialized, and the assignment copies
+/// it, which is undefined behaviour (an invalid enum value; the sanitized runtime tests aborted on
+/// it in the ring solver).
+void ReserveDenseCholesky(int n, Eigen::LLT<Eigen::MatrixXd>* llt);
+
 /// A = L L^T of a small dense symmetric matrix (Eigen's LLT), the shift added on a kept copy:
 /// no allocation once sized.
 class DenseCholeskySolver : public LinearSolver {

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "rodfit/solve/deadline.h"
+
 namespace rodfit {
 
 const char* TerminationMessage(Termination termination) {
@@ -272,8 +274,7 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
   Reserve(p_->NumDofs());
   energy_known_ = false;
   if (options_.time_budget > 0.0)
-    deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                   std::chrono::duration<double>(options_.time_budget));
+    deadline_ = DeadlineAfter(options_.time_budget);
   loop_ = Loop();
   loop_.chord_basis = options_.chords == ChordPolicy::kWhenFinishing &&
                       (start.factor_current || start.factor_nearby);

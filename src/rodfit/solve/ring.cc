@@ -158,7 +158,7 @@ RingSolver::RingSolver(const SectionSpec& spec, const RingStiffness& stiffness,
   hess_.setZero(m, m);
   work_.setZero(m, m);
   hr_.setZero(m - 3, m - 3);
-  llt_ = Eigen::LLT<Eigen::MatrixXd>(m - 3);
+  ReserveDenseCholesky(m - 3, &llt_);
   problem_ = std::make_unique<Problem>(this);
   minimizer_ = std::make_unique<NewtonMinimizer>();
   NewtonOptions& o = minimizer_->options();
