@@ -379,6 +379,36 @@ TEST(Runtime, DynamicTimeBudgetReturnsTheLastGoodState) {
   EXPECT_EQ(rt.Shape(), caught_up);
 }
 
+// A budget beyond what the steady clock's 64-bit nanoseconds hold (1e308 s, infinity: both
+// accepted, as >= 0) is no limit: each tick, quasi-static and dynamic, is the tick without a
+// budget. Before, the budget was converted to nanoseconds unchecked — undefined behaviour, which
+// the sanitized C API corpus aborted on (a signed overflow in the deadline's arithmetic) and
+// which in the release build put the deadline in the past (a quasi-static tick ran out of time
+// after its first Newton iteration).
+TEST(Runtime, HugeTimeBudgetIsNoLimit) {
+  const Profile p = Bundled("bowel_drag.json");
+  for (const RuntimeMode mode : {RuntimeMode::kQuasiStatic, RuntimeMode::kDynamic}) {
+    RuntimeOptions options;
+    options.tool_s = 0.1;
+    options.mode = mode;
+    Runtime unlimited(p, options);
+    const Vec3 moved = unlimited.ToolPosition() + Vec3(0.0, 1e-3, 0.0);
+    unlimited.SetToolPosition(moved);
+    const StepReport reference = unlimited.Step();
+    ASSERT_EQ(reference.status, StepStatus::kConverged);
+    ASSERT_GT(reference.iterations, 1);  // so a deadline already past would bite
+    for (const double budget : {1e308, std::numeric_limits<double>::infinity(), 2e9}) {
+      options.time_budget = budget;
+      Runtime rt(p, options);
+      rt.SetToolPosition(moved);
+      const StepReport r = rt.Step();
+      EXPECT_EQ(r.status, StepStatus::kConverged) << "budget " << budget;
+      EXPECT_EQ(r.iterations, reference.iterations) << "budget " << budget;
+      EXPECT_EQ(rt.Shape(), unlimited.Shape()) << "budget " << budget;
+    }
+  }
+}
+
 // A poke: the force on the tool is the tissue pushing back, and the mesh carries the dent.
 TEST(Runtime, PokeDentsTheMesh) {
   const Profile p = Bundled("bowel_poke.json");

@@ -167,9 +167,9 @@ TEST(NewtonMinimizer, StopsAtItsIterationCap) {
 
 // A wall-time budget beyond what the steady clock's 64-bit nanoseconds hold (1e308 s, infinity)
 // is no limit: the solve is the one without a budget. Converting it unchecked was undefined
-// behaviour (a signed overflow, which the sanitized C API corpus aborted on when the runtime still
-// passed such budgets) and in the release build put the deadline in the past: a quasi-static tick
-// stopped at its time budget after one Newton iteration.
+// behaviour (a signed overflow, which the sanitized C API corpus aborted on) and in the release
+// build put the deadline in the past: a quasi-static tick stopped at its time budget after one
+// Newton iteration (Runtime.HugeTimeBudgetIsNoLimit tests the runtime).
 TEST(NewtonMinimizer, HugeTimeBudgetIsNoLimit) {
   Quartic start(2, 1.0, 0.3);
   start.x().setConstant(50.0);  // far: several iterations, so a deadline already past would bite

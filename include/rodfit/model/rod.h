@@ -245,6 +245,20 @@ class RodModel {
   void ForEachHeldSpan(const std::function<void(double, double, const std::string&,
                                                 const std::string&)>& visit) const;
   void SetUpSymmetry();
+  // The constructor's steps, in its order (each refuses what it cannot represent).
+  void SetUpEnds();
+  void SetUpRestGeometry();
+  // The sizes of the lumped loads, for the load checks and the load scale.
+  struct Loads {
+    double weight = 0.0;           // [N] the rod's weight
+    double point_force_sum = 0.0;  // [N] sum of |point force| (pokes included)
+    double moment_sum = 0.0;       // [N m] sum of |moment|, tip moments included
+  };
+  Loads LumpLoads();
+  void SetUpSpringZones();
+  void RequireCarryable(const Loads& loads) const;
+  uint64_t HessianDigest() const;
+  double ForceScale(const Loads& loads) const;
 
   RodSpec rod_;
   Material material_;

@@ -409,8 +409,8 @@ CaseEvaluator::CaseEvaluator(const FitInput& in, int case_index, std::vector<Fit
   }
 }
 
-// One function, though long: solve, sensitivities and the measurements share the solved state,
-// the kept factor and the timing; each measurement evaluates itself (measurement.h).
+// Solve, derivatives, measurements: they share the solved state, the kept factor and the timing;
+// each measurement evaluates itself (measurement.h).
 bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jacobian, Mat3X* shape,
               RodState* final_state) const {
   const Material material = MaterialAt(in_, fitted_, logp);
@@ -456,121 +456,10 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     data_failure_ = false;
     return false;
   }
-  const int m = static_cast<int>(fitted_.size());  // the material's columns
-  const int M = num_columns_;                        // and every case's nuisances
-  Eigen::MatrixXd dx, dq_all;
-  std::vector<CriticalTwistParameter> column_terms = column_terms_;
-  // Per measured holder: d(reaction) / d log p, 6 x m (force rows, then moment rows).
-  std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
+  Derivatives d;
+  d.column_terms = column_terms_;
   if (jacobian) {
-    // One unit-term gradient per parameter: the terms of every stiffness it drives together
-    // (U is linear in each), so a tied bend_stiffness scales B1 and B2 alike, which keeps an
-    // isotropic rod isotropic (sensitivities after a twist-eliminated solve need no full
-    // Hessian then, sensitivity.cc).
-    std::vector<EnergyTerms> terms;
-    std::vector<int> owner;
-    for (int k = 0; k < m; ++k) {
-      if (!fitted_[k].drives.empty()) {
-        EnergyTerms unit = EnergyTerms::Only(-1);
-        for (Stiffness st : fitted_[k].drives) {
-          switch (st) {
-            case Stiffness::kBend1: unit.bend1 = 1.0; break;
-            case Stiffness::kBend2: unit.bend2 = 1.0; break;
-            case Stiffness::kTwist: unit.twist = 1.0; break;
-            case Stiffness::kStretch: unit.stretch = 1.0; break;
-          }
-        }
-        terms.push_back(unit);
-        owner.push_back(k);
-      }
-      if (fitted_[k].spring) {
-        terms.push_back(EnergyTerms::OnlySprings(&fitted_[k].spring_zone_name));
-        owner.push_back(k);
-      }
-    }
-    const size_t fitted_terms = terms.size();
-    if (fixed_columns_) {
-      // What the fit would cost without skipping the fixed stiffnesses: their columns are
-      // computed alongside (same factor, one back-substitution each) and dropped.
-      for (int st = 0; st < 4; ++st) {
-        bool driven = false;
-        for (const Fitted& f : fitted_)
-          for (Stiffness d : f.drives) driven = driven || static_cast<int>(d) == st;
-        if (!driven) terms.push_back(EnergyTerms::Only(st));
-      }
-    }
-    Eigen::MatrixXd dq_terms;
-    Eigen::MatrixXd dq = Eigen::MatrixXd::Zero(model->num_free_dofs(), M);
-    if (!terms.empty()) {  // ring parameters alone leave the rod unchanged
-      if (!TermSensitivities(*model, state, ws, terms, &dq_terms)) return false;
-      for (size_t t = 0; t < fitted_terms; ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
-    }
-    // This case's held frames: d phi_k turns the frame about the world axis J_l(phi) e_k at the
-    // held point, whose gradient change is exact (ClampTurnGradients); dq = -H^-1 dg.
-    // A held point's offset d: its held rows move by d, the rest answer -H^-1 dg/dd
-    // (HeldPointOffsetGradients). Gravity's tilt: its dead loads' change (GravityTiltGradients),
-    // which keeps an isotropic rod untwisted like any dead load.
-    for (const Nuisance& n : own_nuisances_) {
-      if (n.kind == Nuisance::Kind::kPosition) {
-        Eigen::MatrixXd dg_offset, dq_offset;
-        std::vector<int> moved;
-        HeldPointOffsetGradients(*model, state, n, &dg_offset, &moved);
-        if (!GradientSensitivities(*model, state, ws, dg_offset, /*keeps_isotropy=*/false,
-                                   &dq_offset))
-          return false;
-        for (int d : moved) dq_offset.middleRows<3>(d).setIdentity();
-        dq.middleCols(n.first_column, 3) = dq_offset;
-        continue;
-      }
-      if (n.kind == Nuisance::Kind::kGravity) {
-        const Eigen::Matrix<double, 3, 2> B = GravityTiltBasis(in_.gravity);
-        const Eigen::Matrix<double, 3, 2> axes =
-            RotationLeftJacobian(B * Eigen::Vector2d(logp[n.first_column],
-                                                     logp[n.first_column + 1])) * B;
-        Eigen::MatrixXd dg_tilt, dq_tilt;
-        GravityTiltGradients(*model, axes, &dg_tilt);
-        if (!GradientSensitivities(*model, state, ws, dg_tilt, /*keeps_isotropy=*/true, &dq_tilt))
-          return false;
-        dq.middleCols(n.first_column, 2) = dq_tilt;
-        continue;
-      }
-      const Eigen::Matrix3d Jl = RotationLeftJacobian(
-          Vec3(logp[n.first_column], logp[n.first_column + 1], logp[n.first_column + 2]));
-      Eigen::MatrixXd dg_turn, dq_phi;
-      ClampTurnGradients(*model, state, n.end_clamp, &dg_turn);
-      if (!GradientSensitivities(*model, state, ws, dg_turn * Jl, /*keeps_isotropy=*/false,
-                                 &dq_phi))
-        return false;
-      dq.middleCols(n.first_column, 3) = dq_phi;
-      for (int k = 0; k < 3; ++k)
-        column_terms[n.first_column + k] =
-            CriticalTwistParameter::Rotation(n.end_clamp, Jl.col(k));
-    }
-    terms.resize(fitted_terms);
-    dx = VertexSensitivities(*model, dq);
-    // The clamp's point, vertex 0, is no dof: its offset moves it.
-    for (const Nuisance& n : own_nuisances_)
-      if (n.kind == Nuisance::Kind::kPosition && n.held == "clamp")
-        dx.block<3, 3>(0, n.first_column).setIdentity();
-    if (needs_state_) dq_all = dq;
-    if (needs_reactions_) {
-      // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
-      // included), the equilibrium's dq, and which spring zones each parameter stiffens.
-      Eigen::MatrixXd dr = Eigen::MatrixXd::Zero(model->num_free_dofs(), M);
-      for (size_t t = 0; t < terms.size(); ++t) {
-        EnergyTerms unit = terms[t];
-        unit.hold = false;
-        VecX gu;
-        AssembleGradient(*model, state, unit, &gu);
-        dr.col(owner[t]) += gu;
-      }
-      std::vector<std::vector<int>> zones(M);
-      for (int k = 0; k < m; ++k)
-        if (fitted_[k].spring)
-          for (int z = 0; z < model->num_spring_zones(); ++z)
-            if (model->spring_zone(z).parameter == fitted_[k].spring_zone_name) zones[k].push_back(z);
-      d_reactions = HeldReactionDerivatives(*model, state, dq, dr, zones);
-    }
+    if (!Differentiate(*model, state, ws, logp, &d)) return false;
     Charge(&timing_.jacobian, &t0);
   }
   PokeResult poke;
@@ -583,14 +472,166 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
   view.state = &state;
   view.reactions = &solved.reactions;
   view.poke = &poke;
-  view.num_parameters = M;
+  view.num_parameters = num_columns_;
   if (jacobian) {
-    view.d_x = &dx;
-    view.d_q = &dq_all;
-    view.d_reactions = &d_reactions;
+    view.d_x = &d.dx;
+    view.d_q = &d.dq;
+    view.d_reactions = &d.d_reactions;
     view.d_ring = &d_ring;
-    view.parameters = &column_terms;
+    view.parameters = &d.column_terms;
   }
+  if (!EvaluateMeasurements(view, residuals, jacobian)) return false;
+  Charge(&timing_.observation, &t0);
+  if (!AllFinite(residuals, jacobian)) return false;
+  // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
+  // the start): trial steps start from the last iterate's state but do not replace it, so a
+  // rejected trial that slipped onto another equilibrium (an extra twist turn, a flipped
+  // loop) cannot carry the fit onto that branch.
+  if (jacobian) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    warm_ = state;
+    has_warm_ = true;
+    workspace_ = ws;
+  }
+  if (shape) *shape = state.x;
+  if (final_state) *final_state = state;
+  return true;
+}
+
+// One unit-term gradient per parameter: the terms of every stiffness it drives together (U is
+// linear in each), so a tied bend_stiffness scales B1 and B2 alike, which keeps an isotropic rod
+// isotropic (sensitivities after a twist-eliminated solve need no full Hessian then,
+// sensitivity.cc).
+void CaseEvaluator::UnitTerms(std::vector<EnergyTerms>* terms, std::vector<int>* owner) const {
+  const int m = static_cast<int>(fitted_.size());
+  for (int k = 0; k < m; ++k) {
+    if (!fitted_[k].drives.empty()) {
+      EnergyTerms unit = EnergyTerms::Only(-1);
+      for (Stiffness st : fitted_[k].drives) {
+        switch (st) {
+          case Stiffness::kBend1: unit.bend1 = 1.0; break;
+          case Stiffness::kBend2: unit.bend2 = 1.0; break;
+          case Stiffness::kTwist: unit.twist = 1.0; break;
+          case Stiffness::kStretch: unit.stretch = 1.0; break;
+        }
+      }
+      terms->push_back(unit);
+      owner->push_back(k);
+    }
+    if (fitted_[k].spring) {
+      terms->push_back(EnergyTerms::OnlySprings(&fitted_[k].spring_zone_name));
+      owner->push_back(k);
+    }
+  }
+  if (fixed_columns_) {
+    // What the fit would cost without skipping the fixed stiffnesses: their columns are
+    // computed alongside (same factor, one back-substitution each) and dropped.
+    for (int st = 0; st < 4; ++st) {
+      bool driven = false;
+      for (const Fitted& f : fitted_)
+        for (Stiffness d : f.drives) driven = driven || static_cast<int>(d) == st;
+      if (!driven) terms->push_back(EnergyTerms::Only(st));
+    }
+  }
+}
+
+// The derivatives of the equilibrium by the material's columns (one unit-term gradient each) and
+// by this case's nuisances, then of the vertices and the held points' reactions.
+bool CaseEvaluator::Differentiate(const RodModel& model, const RodState& state,
+                                  const StaticsWorkspace& ws, const double* logp,
+                                  Derivatives* d) const {
+  const int m = static_cast<int>(fitted_.size());  // the material's columns
+  const int M = num_columns_;                        // and every case's nuisances
+  std::vector<EnergyTerms> terms;
+  std::vector<int> owner;
+  UnitTerms(&terms, &owner);
+  const size_t fitted_terms = owner.size();
+  Eigen::MatrixXd dq_terms;
+  Eigen::MatrixXd dq = Eigen::MatrixXd::Zero(model.num_free_dofs(), M);
+  if (!terms.empty()) {  // ring parameters alone leave the rod unchanged
+    if (!TermSensitivities(model, state, ws, terms, &dq_terms)) return false;
+    for (size_t t = 0; t < fitted_terms; ++t) dq.col(owner[t]) += dq_terms.col(static_cast<int>(t));
+  }
+  if (!NuisanceSensitivities(model, state, ws, logp, &dq, &d->column_terms)) return false;
+  terms.resize(fitted_terms);
+  d->dx = VertexSensitivities(model, dq);
+  // The clamp's point, vertex 0, is no dof: its offset moves it.
+  for (const Nuisance& n : own_nuisances_)
+    if (n.kind == Nuisance::Kind::kPosition && n.held == "clamp")
+      d->dx.block<3, 3>(0, n.first_column).setIdentity();
+  if (needs_state_) d->dq = dq;
+  if (needs_reactions_) {
+    // The reactions' derivatives: the unconstrained unit gradients at fixed q (held rows
+    // included), the equilibrium's dq, and which spring zones each parameter stiffens.
+    Eigen::MatrixXd dr = Eigen::MatrixXd::Zero(model.num_free_dofs(), M);
+    for (size_t t = 0; t < terms.size(); ++t) {
+      EnergyTerms unit = terms[t];
+      unit.hold = false;
+      VecX gu;
+      AssembleGradient(model, state, unit, &gu);
+      dr.col(owner[t]) += gu;
+    }
+    std::vector<std::vector<int>> zones(M);
+    for (int k = 0; k < m; ++k)
+      if (fitted_[k].spring)
+        for (int z = 0; z < model.num_spring_zones(); ++z)
+          if (model.spring_zone(z).parameter == fitted_[k].spring_zone_name) zones[k].push_back(z);
+    d->d_reactions = HeldReactionDerivatives(model, state, dq, dr, zones);
+  }
+  return true;
+}
+
+// This case's nuisance columns of dq. Its held frames: d phi_k turns the frame about the world
+// axis J_l(phi) e_k at the held point, whose gradient change is exact (ClampTurnGradients);
+// dq = -H^-1 dg. A held point's offset d: its held rows move by d, the rest answer -H^-1 dg/dd
+// (HeldPointOffsetGradients). Gravity's tilt: its dead loads' change (GravityTiltGradients),
+// which keeps an isotropic rod untwisted like any dead load.
+bool CaseEvaluator::NuisanceSensitivities(const RodModel& model, const RodState& state,
+                                          const StaticsWorkspace& ws, const double* logp,
+                                          Eigen::MatrixXd* dq,
+                                          std::vector<CriticalTwistParameter>* column_terms) const {
+  for (const Nuisance& n : own_nuisances_) {
+    if (n.kind == Nuisance::Kind::kPosition) {
+      Eigen::MatrixXd dg_offset, dq_offset;
+      std::vector<int> moved;
+      HeldPointOffsetGradients(model, state, n, &dg_offset, &moved);
+      if (!GradientSensitivities(model, state, ws, dg_offset, /*keeps_isotropy=*/false,
+                                 &dq_offset))
+        return false;
+      for (int d : moved) dq_offset.middleRows<3>(d).setIdentity();
+      dq->middleCols(n.first_column, 3) = dq_offset;
+      continue;
+    }
+    if (n.kind == Nuisance::Kind::kGravity) {
+      const Eigen::Matrix<double, 3, 2> B = GravityTiltBasis(in_.gravity);
+      const Eigen::Matrix<double, 3, 2> axes =
+          RotationLeftJacobian(B * Eigen::Vector2d(logp[n.first_column],
+                                                   logp[n.first_column + 1])) * B;
+      Eigen::MatrixXd dg_tilt, dq_tilt;
+      GravityTiltGradients(model, axes, &dg_tilt);
+      if (!GradientSensitivities(model, state, ws, dg_tilt, /*keeps_isotropy=*/true, &dq_tilt))
+        return false;
+      dq->middleCols(n.first_column, 2) = dq_tilt;
+      continue;
+    }
+    const Eigen::Matrix3d Jl = RotationLeftJacobian(
+        Vec3(logp[n.first_column], logp[n.first_column + 1], logp[n.first_column + 2]));
+    Eigen::MatrixXd dg_turn, dq_phi;
+    ClampTurnGradients(model, state, n.end_clamp, &dg_turn);
+    if (!GradientSensitivities(model, state, ws, dg_turn * Jl, /*keeps_isotropy=*/false,
+                               &dq_phi))
+      return false;
+    dq->middleCols(n.first_column, 3) = dq_phi;
+    for (int k = 0; k < 3; ++k)
+      (*column_terms)[n.first_column + k] =
+          CriticalTwistParameter::Rotation(n.end_clamp, Jl.col(k));
+  }
+  return true;
+}
+
+bool CaseEvaluator::EvaluateMeasurements(const SolvedCase& view, double* residuals,
+                                         double* jacobian) const {
+  const int M = num_columns_;
   int row = 0;
   for (const auto& meas : measurements_) {
     double* r = residuals + row;
@@ -611,20 +652,6 @@ bool CaseEvaluator::Evaluate(const double* logp, double* residuals, double* jaco
     }
     row += meas->num_residuals();
   }
-  Charge(&timing_.observation, &t0);
-  if (!AllFinite(residuals, jacobian)) return false;
-  // The trust-region minimizer asks for the Jacobian only at the iterates it accepts (and at
-  // the start): trial steps start from the last iterate's state but do not replace it, so a
-  // rejected trial that slipped onto another equilibrium (an extra twist turn, a flipped
-  // loop) cannot carry the fit onto that branch.
-  if (jacobian) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    warm_ = state;
-    has_warm_ = true;
-    workspace_ = ws;
-  }
-  if (shape) *shape = state.x;
-  if (final_state) *final_state = state;
   return true;
 }
 

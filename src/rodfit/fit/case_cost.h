@@ -171,6 +171,26 @@ class CaseEvaluator {
   // fitted ring parameters (SolvedCase::d_ring); false when it has no stable solution.
   bool SolveSection(const RodModel& model, const RodState& state, const Material& material,
                     PokeResult* poke, std::vector<Eigen::Matrix3Xd>* d_ring) const;
+  // Evaluate's steps after the solve. The derivatives by the columns (log p and the nuisances)
+  // of what the measurements read.
+  struct Derivatives {
+    Eigen::MatrixXd dx;  // vertex positions, 3 (n + 1) x columns
+    Eigen::MatrixXd dq;  // free dofs (when a measurement reads the state)
+    std::vector<CriticalTwistParameter> column_terms;  // what each column moves
+    // Per measured holder: d(reaction), 6 x columns (force rows, then moment rows).
+    std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> d_reactions;
+  };
+  bool Differentiate(const RodModel& model, const RodState& state, const StaticsWorkspace& ws,
+                     const double* logp, Derivatives* d) const;
+  // The unit energy terms whose gradients are the fitted stiffnesses' (owner: each one's
+  // column), then with fixed_columns_ those of the stiffnesses not fitted.
+  void UnitTerms(std::vector<EnergyTerms>* terms, std::vector<int>* owner) const;
+  bool NuisanceSensitivities(const RodModel& model, const RodState& state,
+                             const StaticsWorkspace& ws, const double* logp, Eigen::MatrixXd* dq,
+                             std::vector<CriticalTwistParameter>* column_terms) const;
+  // The measurements at the solved case, each through the loss; false (the failure recorded)
+  // when one cannot be evaluated.
+  bool EvaluateMeasurements(const SolvedCase& view, double* residuals, double* jacobian) const;
 
   const FitInput& in_;
   const FitCase& case_;

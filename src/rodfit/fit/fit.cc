@@ -414,6 +414,163 @@ bool EvaluateForwardMap(const FitInput& input, const std::vector<double>& log_va
   return true;
 }
 
+namespace {
+
+// The fit's problem over x (the material's logs with their bounds, then the nuisances): every
+// case's rows and the nuisances' prior rows. With `material_only`, over the material's logs
+// alone, the nuisances held where x has them.
+struct ProblemMaker {
+  const FitInput& input;
+  const std::vector<Fitted>& fitted;
+  const std::vector<Nuisance>& nuisances;
+  const std::vector<const CaseEvaluator*>& observed;
+  int num_threads;
+  int m, M;  // the material's columns, all columns
+  std::unique_ptr<ceres::Problem> operator()(std::vector<double>* x, bool material_only) const {
+    ceres::Problem::Options problem_options;
+    problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+    auto problem = std::make_unique<ceres::Problem>(problem_options);
+    problem->AddParameterBlock(x->data(), material_only ? m : M);
+    for (int k = 0; k < m; ++k) {
+      const Parameter& p = input.parameters[fitted[k].input_index];
+      if (p.min) problem->SetParameterLowerBound(x->data(), k, std::log(*p.min));
+      if (p.max) problem->SetParameterUpperBound(x->data(), k, std::log(*p.max));
+    }
+    if (material_only) {
+      problem->AddResidualBlock(
+          new MaterialOnlyCost(std::make_unique<AllCasesCost>(observed, num_threads), m,
+                               std::vector<double>(x->begin() + m, x->end())),
+          nullptr, x->data());
+      return problem;
+    }
+    problem->AddResidualBlock(new AllCasesCost(observed, num_threads), nullptr, x->data());
+    for (const Nuisance& n : nuisances)
+      problem->AddResidualBlock(new NuisancePriorCost(n, M), nullptr, x->data());
+    return problem;
+  }
+};
+
+// One path of the fit from x: its problem, where it ended and its iterations' costs.
+struct FitPath {
+  std::vector<double> x;
+  std::unique_ptr<ceres::Problem> problem;
+  ceres::Solver::Summary summary;
+  double initial_cost = 0.0;
+  std::vector<double> costs, seconds;
+  bool usable() const { return summary.IsSolutionUsable() && std::isfinite(summary.final_cost); }
+};
+
+// The fit from x, all columns together; `staged`: the material's alone first, the nuisances
+// held, then all together from there (one cost history, times since `start`).
+FitPath RunPath(const ceres::Solver::Options& so, const ProblemMaker& make_problem,
+                Clock::time_point start, std::vector<double> x, bool staged) {
+  FitPath path;
+  path.x = std::move(x);
+  if (staged) {
+    const std::unique_ptr<ceres::Problem> material = make_problem(&path.x, true);
+    ceres::Solver::Summary first;
+    const double at = std::chrono::duration<double>(Clock::now() - start).count();
+    ceres::Solve(so, material.get(), &first);
+    path.initial_cost = first.initial_cost;
+    for (const ceres::IterationSummary& it : first.iterations) {
+      path.costs.push_back(it.cost);
+      path.seconds.push_back(at + it.cumulative_time_in_seconds);
+    }
+  }
+  path.problem = make_problem(&path.x, false);
+  const double at = std::chrono::duration<double>(Clock::now() - start).count();
+  ceres::Solve(so, path.problem.get(), &path.summary);
+  if (!staged) path.initial_cost = path.summary.initial_cost;
+  for (const ceres::IterationSummary& it : path.summary.iterations) {
+    if (staged && &it == &path.summary.iterations.front()) continue;  // the stage's end
+    path.costs.push_back(it.cost);
+    path.seconds.push_back(at + it.cumulative_time_in_seconds);
+  }
+  return path;
+}
+
+// The fit's Ceres options (the cases run in parallel inside AllCasesCost, in a fixed order).
+ceres::Solver::Options SolverOptions(const FitOptions& options) {
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = options.max_iterations;
+  so.num_threads = 1;
+  so.function_tolerance = 1e-12;
+  so.parameter_tolerance = 1e-10;
+  so.gradient_tolerance = 1e-14;
+  so.logging_type = ceres::SILENT;
+  return so;
+}
+
+// The final cost, and whether the fit converged, with its message.
+void ReportTermination(const ceres::Solver::Summary& summary, FitResult* result) {
+  result->final_cost = summary.final_cost;
+  result->message = summary.message;
+  result->success = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
+  if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
+    result->success = false;
+    result->message = "no usable solution: " + summary.message;
+  } else if (summary.termination_type == ceres::NO_CONVERGENCE) {
+    result->message = "did not converge within max_iterations: " + summary.message;
+  }
+}
+
+// The names of the fit's columns: the material's parameters, then each nuisance's components.
+std::vector<std::string> ColumnNames(const FitInput& input, const std::vector<Fitted>& fitted,
+                                     const std::vector<Nuisance>& nuisances) {
+  std::vector<std::string> names;
+  for (const Fitted& f : fitted) names.push_back(f.name);
+  for (const Nuisance& n : nuisances)
+    for (int k = 0; k < n.size(); ++k)
+      names.push_back("case " + input.cases[n.case_index].load_case.name + " " + n.Name() +
+                      (n.kind == Nuisance::Kind::kPosition ? " offset " : " rotation ") +
+                      (n.kind == Nuisance::Kind::kGravity ? (k == 0 ? "b1" : "b2")
+                                                          : std::string(1, "xyz"[k])));
+  return names;
+}
+
+// The nuisances: values and std per world axis, [deg] or [m] (the std from the whole covariance
+// cov_log, NaN where the fit could not separate them). Gravity's two angles about b1, b2 are
+// reported as the rotation vector B (a, b) with the covariance B C B^T (0 along gravity).
+void ReportNuisances(const FitInput& input, const std::vector<Nuisance>& nuisances,
+                     const std::vector<double>& logp, const Eigen::MatrixXd& cov_log,
+                     FitResult* out) {
+  FitResult& result = *out;
+  for (const Nuisance& n : nuisances) {
+    NuisanceEstimate e;
+    e.case_index = n.case_index;
+    e.case_name = input.cases[n.case_index].load_case.name;
+    e.held = n.Name();
+    const bool offset = n.kind == Nuisance::Kind::kPosition;
+    const double scale = offset ? 1.0 : 180.0 / M_PI;
+    e.quantity = offset ? "offset" : "rotation";
+    e.unit = offset ? "m" : "deg";
+    e.prior = n.sigma * scale;
+    Eigen::MatrixXd B = Eigen::MatrixXd::Identity(3, 3);
+    if (n.kind == Nuisance::Kind::kGravity) B = GravityTiltBasis(input.gravity);
+    const Eigen::VectorXd v =
+        B * Eigen::Map<const Eigen::VectorXd>(logp.data() + n.first_column, n.size());
+    const Eigen::MatrixXd C =
+        B * cov_log.block(n.first_column, n.first_column, n.size(), n.size()) * B.transpose();
+    for (int i = 0; i < 3; ++i) {
+      e.value[i] = v[i] * scale;
+      e.std[i] = std::sqrt(std::max(0.0, C(i, i))) * scale;
+      if (std::isnan(C(i, i))) e.std[i] = std::numeric_limits<double>::quiet_NaN();
+    }
+    result.nuisances.push_back(e);
+  }
+}
+
+// A case's time spent, added to the fit's.
+void AddTiming(const CaseEvaluator::Timing& t, FitResult* result) {
+  result->solve_seconds += t.solve;
+  result->jacobian_seconds += t.jacobian;
+  result->observation_seconds += t.observation;
+  result->forward_solves += t.solves;
+}
+
+}  // namespace
+
 FitResult Fit(const FitInput& input, const FitOptions& options) {
   const Clock::time_point start = Clock::now();
   std::string why;
@@ -450,88 +607,19 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   std::vector<const CaseEvaluator*> observed;
   for (auto& e : evals)
     if (e->num_residuals() > 0) observed.push_back(e.get());
-  ceres::Problem::Options problem_options;
-  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
-  // The fit's problem over x (the material's logs with their bounds, then the nuisances): every
-  // case's rows and the nuisances' prior rows. With `material_only`, over the material's logs
-  // alone, the nuisances held where x has them.
-  auto make_problem = [&](std::vector<double>* x, bool material_only) {
-    auto problem = std::make_unique<ceres::Problem>(problem_options);
-    problem->AddParameterBlock(x->data(), material_only ? m : M);
-    for (int k = 0; k < m; ++k) {
-      const Parameter& p = input.parameters[fitted[k].input_index];
-      if (p.min) problem->SetParameterLowerBound(x->data(), k, std::log(*p.min));
-      if (p.max) problem->SetParameterUpperBound(x->data(), k, std::log(*p.max));
-    }
-    if (material_only) {
-      problem->AddResidualBlock(
-          new MaterialOnlyCost(std::make_unique<AllCasesCost>(observed, options.num_threads), m,
-                               std::vector<double>(x->begin() + m, x->end())),
-          nullptr, x->data());
-      return problem;
-    }
-    problem->AddResidualBlock(new AllCasesCost(observed, options.num_threads), nullptr,
-                              x->data());
-    for (const Nuisance& n : nuisances)
-      problem->AddResidualBlock(new NuisancePriorCost(n, M), nullptr, x->data());
-    return problem;
-  };
-
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = options.max_iterations;
-  so.num_threads = 1;  // the cases run in parallel inside AllCasesCost, in a fixed order
-  so.function_tolerance = 1e-12;
-  so.parameter_tolerance = 1e-10;
-  so.gradient_tolerance = 1e-14;
-  so.logging_type = ceres::SILENT;
+  const ProblemMaker make_problem{input, fitted, nuisances, observed, options.num_threads, m, M};
+  ceres::Solver::Options so = SolverOptions(options);
   ProgressCallback callback(options, start);
   so.callbacks.push_back(&callback);
-  // One path of the fit from x: its problem, where it ended and its iterations' costs.
-  struct Path {
-    std::vector<double> x;
-    std::unique_ptr<ceres::Problem> problem;
-    ceres::Solver::Summary summary;
-    double initial_cost = 0.0;
-    std::vector<double> costs, seconds;
-    bool usable() const {
-      return summary.IsSolutionUsable() && std::isfinite(summary.final_cost);
-    }
-  };
-  auto run = [&](std::vector<double> x, bool staged) {
-    Path path;
-    path.x = std::move(x);
-    if (staged) {
-      const std::unique_ptr<ceres::Problem> material = make_problem(&path.x, true);
-      ceres::Solver::Summary first;
-      const double at = std::chrono::duration<double>(Clock::now() - start).count();
-      ceres::Solve(so, material.get(), &first);
-      path.initial_cost = first.initial_cost;
-      for (const ceres::IterationSummary& it : first.iterations) {
-        path.costs.push_back(it.cost);
-        path.seconds.push_back(at + it.cumulative_time_in_seconds);
-      }
-    }
-    path.problem = make_problem(&path.x, false);
-    const double at = std::chrono::duration<double>(Clock::now() - start).count();
-    ceres::Solve(so, path.problem.get(), &path.summary);
-    if (!staged) path.initial_cost = path.summary.initial_cost;
-    for (const ceres::IterationSummary& it : path.summary.iterations) {
-      if (staged && &it == &path.summary.iterations.front()) continue;  // the stage's end
-      path.costs.push_back(it.cost);
-      path.seconds.push_back(at + it.cumulative_time_in_seconds);
-    }
-    return path;
-  };
   // With nuisances, two paths, and the one that ends lower: all together from the start, and the
   // material first with every nuisance at its prior's mean (0; the global search's order), then
   // all together from there. Neither order is right for every experiment: from a start 3x too
   // soft, the joint path can let a nuisance hold the rod up (a gravity tilted 50 degrees under
   // a 2 degree prior) and stay in that minimum; with clamps 20 degrees off, the material-first
   // path drives a stiffness to its bound to absorb the clamps' error and stays there.
-  Path chosen = run(logp, false);
+  FitPath chosen = RunPath(so, make_problem, start, logp, false);
   if (M > m) {
-    Path staged = run(logp, true);
+    FitPath staged = RunPath(so, make_problem, start, logp, true);
     if (staged.usable() && (!chosen.usable() || staged.summary.final_cost < chosen.summary.final_cost))
       chosen = std::move(staged);
   }
@@ -542,16 +630,8 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   result.cost_per_iteration = chosen.costs;
   result.seconds_per_iteration = chosen.seconds;
   result.initial_cost = chosen.initial_cost;
-  result.final_cost = summary.final_cost;
   result.num_residuals = counts.total;
-  result.message = summary.message;
-  result.success = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
-  if (!summary.IsSolutionUsable() || !std::isfinite(summary.final_cost)) {
-    result.success = false;
-    result.message = "no usable solution: " + summary.message;
-  } else if (summary.termination_type == ceres::NO_CONVERGENCE) {
-    result.message = "did not converge within max_iterations: " + summary.message;
-  }
+  ReportTermination(summary, &result);
 
   const Eigen::MatrixXd J = JacobianAtSolution(&problem, evals, &result);
   const int dof = std::max(1, counts.effective - M);
@@ -560,16 +640,8 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
   // Trusted sigmas leave the covariance as the sigmas state it; the variance is still reported,
   // so that a model that does not explain the data is not passed silently.
   const double covariance_scale = options.trusted_sigmas ? 1.0 : result.residual_variance;
-  std::vector<std::string> names;
-  for (const Fitted& f : fitted) names.push_back(f.name);
-  for (const Nuisance& n : nuisances)
-    for (int k = 0; k < n.size(); ++k)
-      names.push_back("case " + input.cases[n.case_index].load_case.name + " " + n.Name() +
-                      (n.kind == Nuisance::Kind::kPosition ? " offset " : " rotation ") +
-                      (n.kind == Nuisance::Kind::kGravity ? (k == 0 ? "b1" : "b2")
-                                                          : std::string(1, "xyz"[k])));
-  const Identifiability id =
-      Identify(J, names, &problem, logp.data(), covariance_scale, options.max_log_std);
+  const Identifiability id = Identify(J, ColumnNames(input, fitted, nuisances), &problem,
+                                     logp.data(), covariance_scale, options.max_log_std);
   const Eigen::MatrixXd& cov_log = id.cov_log;
   result.correlation.setZero(m, m);
   for (int i = 0; i < m; ++i)
@@ -577,40 +649,9 @@ FitResult Fit(const FitInput& input, const FitOptions& options) {
       result.correlation(i, j) = cov_log(i, j) / std::sqrt(cov_log(i, i) * cov_log(j, j));
 
   ReportParameters(input, fitted, logp, id, &result);
-  // The nuisances: values and std per world axis, [deg] or [m] (the std from the whole
-  // covariance, NaN where the fit could not separate them). Gravity's two angles about b1, b2
-  // are reported as the rotation vector B (a, b) with the covariance B C B^T (0 along gravity).
-  for (const Nuisance& n : nuisances) {
-    NuisanceEstimate e;
-    e.case_index = n.case_index;
-    e.case_name = input.cases[n.case_index].load_case.name;
-    e.held = n.Name();
-    const bool offset = n.kind == Nuisance::Kind::kPosition;
-    const double scale = offset ? 1.0 : 180.0 / M_PI;
-    e.quantity = offset ? "offset" : "rotation";
-    e.unit = offset ? "m" : "deg";
-    e.prior = n.sigma * scale;
-    Eigen::MatrixXd B = Eigen::MatrixXd::Identity(3, 3);
-    if (n.kind == Nuisance::Kind::kGravity) B = GravityTiltBasis(input.gravity);
-    const Eigen::VectorXd v =
-        B * Eigen::Map<const Eigen::VectorXd>(logp.data() + n.first_column, n.size());
-    const Eigen::MatrixXd C =
-        B * cov_log.block(n.first_column, n.first_column, n.size(), n.size()) * B.transpose();
-    for (int i = 0; i < 3; ++i) {
-      e.value[i] = v[i] * scale;
-      e.std[i] = std::sqrt(std::max(0.0, C(i, i))) * scale;
-      if (std::isnan(C(i, i))) e.std[i] = std::numeric_limits<double>::quiet_NaN();
-    }
-    result.nuisances.push_back(e);
-  }
+  ReportNuisances(input, nuisances, logp, cov_log, &result);
   ReportCases(input, fitted, logp, evals, &result);
-  for (const auto& e : evals) {
-    const CaseEvaluator::Timing t = e->timing();
-    result.solve_seconds += t.solve;
-    result.jacobian_seconds += t.jacobian;
-    result.observation_seconds += t.observation;
-    result.forward_solves += t.solves;
-  }
+  for (const auto& e : evals) AddTiming(e->timing(), &result);
   result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return result;
 }

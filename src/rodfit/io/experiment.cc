@@ -987,8 +987,235 @@ void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, int inde
   }
 }
 
-// One function, though long: a case's keys are read in the order the format lists them
-// (docs/formats.md), each with its own one-line check; splitting them would scatter that list.
+// The case's name (case<index> when not given): checked as the file name and the message text
+// it becomes, unique in the file (name_lines: each name's line).
+std::string ReadCaseName(const Reader& r, const Field& f, const Entries& m, int index,
+                         std::map<std::string, int>* name_lines) {
+  std::string name_text = "case" + std::to_string(index);
+  const Field* name = Reader::Find(m, "name");
+  if (!name) {
+    if (name_lines->count(name_text))
+      r.Fail(f, "duplicate case name '" + name_text + "' (give this case a name)");
+    (*name_lines)[name_text] = f.line;
+    return name_text;
+  }
+  name_text = r.Text(*name);
+  // Names go unquoted into shapes.csv and error messages.
+  if (name_text.find_first_of(",\"\n\r") != std::string::npos) {
+    r.Fail(*name, "must not contain commas, quotes or line breaks");
+  }
+  // Names become file names (simulate's CASE.obj, the report's plots): never a path, never a
+  // hidden file, never '.' or '..'.
+  if (name_text.find_first_of(std::string("/\\\0", 3)) != std::string::npos) {
+    r.Fail(*name, "must not contain '/', '\\' or NUL (it is used as a file name), got '" +
+                      ClipForMessage(name_text) + "'");
+  }
+  // A file name has at most 255 bytes (with ".obj" and the report's suffixes), and a name is
+  // echoed in messages of at most a line.
+  if (name_text.size() > kMaxCaseNameLength) {
+    r.Fail(*name, "must have at most " + std::to_string(kMaxCaseNameLength) +
+                      " characters (it is used as a file name), got " +
+                      std::to_string(name_text.size()) + ": '" + ClipForMessage(name_text) + "'");
+  }
+  if (name_text[0] == '.') {
+    r.Fail(*name, "must not start with '.' (it is used as a file name), got '" +
+                      ClipForMessage(name_text) + "'");
+  }
+  const auto seen = name_lines->find(name_text);
+  if (seen != name_lines->end()) {
+    r.Fail(*name, "duplicate case name '" + ClipForMessage(name_text) + "' (first at line " +
+                      std::to_string(seen->second) + ")");
+  }
+  (*name_lines)[name_text] = name->line;
+  return name_text;
+}
+
+// Fitted frames (rotation_prior_deg under `key`) are the static fit's: a moving fit drives its
+// held points along paths.
+void RequireStaticFrame(const Reader& r, const Entries& m, const char* key, bool prior,
+                        const Experiment& ex) {
+  if (prior && ex.scene.dynamics)
+    r.Fail(*Reader::Find(m, key),
+           "rotation_prior_deg fits the frame in a static scene only (not with a dynamics: "
+           "block)");
+}
+
+// A held point's fitted offset (position_prior), likewise the static fit's only.
+void RequireStaticPoint(const Reader& r, const Entries& held, const Experiment& ex) {
+  if (const Field* p = Reader::Find(held, "position_prior"); p && ex.scene.dynamics)
+    r.Fail(*p, "fits the held point in a static scene only (not with a dynamics: block)");
+}
+
+// The clamp and the far end's hold: an end_clamp or an end_pin, not both.
+void ReadHeldEnds(const Reader& r, const Field& f, const Entries& m, const Experiment& ex,
+                  LoadCase* c) {
+  c->clamp = ReadClamp(r, r.Require(m, f, "clamp"));
+  RequireStaticFrame(r, m, "clamp", c->clamp.rotation_prior_deg.has_value(), ex);
+  const std::vector<std::string> frame_keys = {"position", "tangent", "normal",
+                                               "rotation_prior_deg", "position_prior"};
+  RequireStaticPoint(r, r.Map(r.Require(m, f, "clamp"), frame_keys), ex);
+  const Field* end_clamp = Reader::Find(m, "end_clamp");
+  const Field* end_pin = Reader::Find(m, "end_pin");
+  if (end_clamp && end_pin)
+    r.Fail(end_pin->key_line, end_pin->key, "s = L is already held by end_clamp: give one");
+  if (end_clamp) {
+    c->end_clamp = ReadEndClamp(r, *end_clamp);
+    RequireStaticFrame(r, m, "end_clamp", c->end_clamp->rotation_prior_deg.has_value(), ex);
+    RequireStaticPoint(r, r.Map(*end_clamp, frame_keys), ex);
+  }
+  if (end_pin) {
+    const Entries pm = r.Map(*end_pin, {"position", "position_prior"});
+    c->end_pin = r.Vector3(r.Require(pm, *end_pin, "position"));
+    c->end_pin_position_prior = ReadPositionPrior(r, pm);
+    RequireStaticPoint(r, pm, ex);
+  }
+}
+
+// The loads at s = L (refused where the end is held) and the point moments.
+void ReadTipLoads(const Reader& r, const Entries& m, const Experiment& ex, LoadCase* c) {
+  const Field* end_clamp = Reader::Find(m, "end_clamp");
+  const Field* end_pin = Reader::Find(m, "end_pin");
+  const char* held_end = end_clamp ? "end_clamp" : "end_pin";
+  if (const Field* tf = Reader::Find(m, "tip_force")) {
+    c->tip_force = r.Vector3(*tf);
+    if ((end_clamp || end_pin) && c->tip_force.squaredNorm() > 0)
+      r.Fail(*tf, std::string("acts on s = L, which the ") + held_end + " holds: remove it");
+  }
+  if (const Field* tm = Reader::Find(m, "tip_moment")) {
+    c->tip_moment = r.Vector3(*tm);
+    if (end_clamp && c->tip_moment.squaredNorm() > 0)
+      r.Fail(*tm, "acts on s = L, which the end_clamp holds: remove it");
+  }
+  if (const Field* tm = Reader::Find(m, "tip_moment_follower")) {
+    c->tip_moment_follower = r.Vector3(*tm);
+    if (end_clamp && c->tip_moment_follower.squaredNorm() > 0)
+      r.Fail(*tm, "acts on s = L, which the end_clamp holds: remove it");
+  }
+  if (const Field* pm = Reader::Find(m, "point_moments")) {
+    for (const Field& item : r.Sequence(*pm)) {
+      const Entries mm = r.Map(item, {"s", "moment"});
+      PointMoment p;
+      p.s = r.InRange(r.Require(mm, item, "s"), 0.0, ex.scene.rod.length);
+      p.moment = r.Vector3(r.Require(mm, item, "moment"));
+      c->point_moments.push_back(p);
+    }
+  }
+}
+
+// Pins: each inside (0, L) (the clamp holds s = 0, an end_pin s = L), one per arc length.
+void ReadPins(const Reader& r, const Entries& m, const Experiment& ex, LoadCase* c) {
+  const Field* pins = Reader::Find(m, "pins");
+  if (!pins) return;
+  const double L = ex.scene.rod.length;
+  std::vector<std::pair<double, int>> seen;
+  for (const Field& item : r.Sequence(*pins)) {
+    const Entries pm = r.Map(item, {"s", "position", "position_prior"});
+    Pin p;
+    p.position_prior = ReadPositionPrior(r, pm);
+    RequireStaticPoint(r, pm, ex);
+    const Field& s_field = r.Require(pm, item, "s");
+    p.s = r.Number(s_field);
+    if (!(p.s > 0.0 && p.s < L))
+      r.Fail(s_field, "must lie inside (0, " + Show(L) + ") (the clamp holds s = 0; use end_pin "
+                      "for s = L), got " + Show(p.s));
+    for (const auto& [other, line] : seen)
+      if (other == p.s) r.Fail(s_field, "another pin holds s = " + Show(p.s) + " (line " +
+                                            std::to_string(line) + ")");
+    seen.emplace_back(p.s, s_field.line);
+    p.position = r.Vector3(r.Require(pm, item, "position"));
+    c->pins.push_back(p);
+  }
+}
+
+// The start shape, and a moving scene's keys (refused in a static one): drives, driven points,
+// the tip load's time series, the initial state.
+void ReadStartAndMotion(const Reader& r, const Entries& m, const Experiment& ex, int index,
+                        LoadCase* c) {
+  if (const Field* start = Reader::Find(m, "start")) c->start = ReadStart(r, *start, ex, index);
+  for (const char* key : {"drive", "driven", "tip_load", "initial"}) {
+    if (const Field* d = Reader::Find(m, key); d && !ex.scene.dynamics)
+      r.Fail(*d, "only for a moving scene (a top-level dynamics: block)");
+  }
+  if (const Field* d = Reader::Find(m, "drive")) ReadDrives(r, *d, ex, c);
+  if (const Field* d = Reader::Find(m, "driven")) ReadDriven(r, *d, ex, c);
+  if (const Field* t = Reader::Find(m, "tip_load")) {
+    const Entries tm = r.Map(*t, {"file"});
+    c->tip_load = ReadTimeSeries(r, r.Require(tm, *t, "file"), ex, {"fx", "fy", "fz"},
+                                 {"mx", "my", "mz"}, {});
+  }
+  if (const Field* init = Reader::Find(m, "initial")) ReadInitial(r, *init, ex, index, c);
+}
+
+// Point forces, and cuts through the springs.
+void ReadPointForcesAndCuts(const Reader& r, const Entries& m, const Experiment& ex,
+                            LoadCase* c) {
+  if (const Field* pf = Reader::Find(m, "point_forces")) {
+    for (const Field& item : r.Sequence(*pf)) {
+      const Entries pm = r.Map(item, {"s", "force"});
+      PointForce p;
+      p.s = r.InRange(r.Require(pm, item, "s"), 0.0, ex.scene.rod.length);
+      p.force = r.Vector3(r.Require(pm, item, "force"));
+      c->point_forces.push_back(p);
+    }
+  }
+  if (const Field* cut = Reader::Find(m, "cut")) {
+    if (ex.scene.springs.empty()) r.Fail(*cut, "a cut needs springs to cut (top-level springs:)");
+    for (const Field& item : r.Sequence(*cut)) {
+      const Entries cm = r.Map(item, {"from", "to"});
+      c->cuts.push_back(ReadInterval(r, item, ex.scene.rod.length, cm));
+    }
+  }
+}
+
+// The grasp: a held point off both ends (more than half an edge from the clamp, and from s = L
+// where the end is held).
+void ReadGrasp(const Reader& r, const Entries& m, const Experiment& ex, LoadCase* c) {
+  const Field* grasp = Reader::Find(m, "grasp");
+  if (!grasp) return;
+  const double L = ex.scene.rod.length;
+  const Field* end_clamp = Reader::Find(m, "end_clamp");
+  const Field* end_pin = Reader::Find(m, "end_pin");
+  const char* held_end = end_clamp ? "end_clamp" : "end_pin";
+  const Entries gm = r.Map(*grasp, {"s", "position", "position_prior"});
+  Grasp g;
+  g.position_prior = ReadPositionPrior(r, gm);
+  RequireStaticPoint(r, gm, ex);
+  const Field& s_field = r.Require(gm, *grasp, "s");
+  g.s = r.InRange(s_field, 0.0, ex.scene.rod.length);
+  if (g.s < 0.5 * ex.scene.rod.length / ex.scene.rod.segments) {
+    r.Fail(s_field, "the grasp is at the clamp (within half an edge of s = 0)");
+  }
+  if ((end_clamp || end_pin) && g.s >= L - 0.5 * L / ex.scene.rod.segments)
+    r.Fail(s_field, std::string("the grasp is at s = L, which the ") + held_end + " holds");
+  g.position = r.Vector3(r.Require(gm, *grasp, "position"));
+  c->grasp = g;
+}
+
+// The poke (a force on the cross-section model) and the symmetry plane (checked against the
+// whole case, read by then).
+void ReadPokeAndSymmetry(const Reader& r, const Entries& m, const Experiment& ex, LoadCase* c) {
+  if (const Field* poke = Reader::Find(m, "poke")) {
+    if (!ex.scene.section) r.Fail(*poke, "a poke needs the cross-section model (top-level section:)");
+    const Entries pm = r.Map(*poke, {"s", "force"});
+    Poke p;
+    p.s = r.InRange(r.Require(pm, *poke, "s"), 0.0, ex.scene.rod.length);
+    p.force = r.Vector3(r.Require(pm, *poke, "force"));
+    c->poke = p;
+  }
+  if (const Field* sym = Reader::Find(m, "symmetry")) {
+    const Entries sm = r.Map(*sym, {"point", "normal"});
+    SymmetryPlane plane;
+    plane.point = r.Vector3(r.Require(sm, *sym, "point"));
+    plane.normal = Direction(r, r.Require(sm, *sym, "normal"));
+    c->symmetry = plane;
+    const std::string problem =
+        SymmetryProblem(ex.scene.rod, ex.scene.gravity, *c, !ex.scene.springs.empty());
+    if (!problem.empty()) r.Fail(*sym, problem);
+  }
+}
+
+// A case's keys are read in the order the format lists them (docs/formats.md), each group by
+// its reader above, each key with its own one-line check.
 void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
               std::map<std::string, int>* name_lines, const ObservationEntryKinds& kinds) {
   const Entries m =
@@ -996,180 +1223,14 @@ void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
                 "point_moments", "cut", "grasp", "poke", "end_clamp", "end_pin", "pins", "start",
                 "symmetry", "observations", "drive", "driven", "tip_load", "initial"});
   LoadCase c;
-  c.name = "case" + std::to_string(index);
-  if (const Field* name = Reader::Find(m, "name")) {
-    c.name = r.Text(*name);
-    // Names go unquoted into shapes.csv and error messages.
-    if (c.name.find_first_of(",\"\n\r") != std::string::npos) {
-      r.Fail(*name, "must not contain commas, quotes or line breaks");
-    }
-    // Names become file names (simulate's CASE.obj, the report's plots): never a path, never a
-    // hidden file, never '.' or '..'.
-    if (c.name.find_first_of(std::string("/\\\0", 3)) != std::string::npos) {
-      r.Fail(*name, "must not contain '/', '\\' or NUL (it is used as a file name), got '" +
-                        ClipForMessage(c.name) + "'");
-    }
-    // A file name has at most 255 bytes (with ".obj" and the report's suffixes), and a name is
-    // echoed in messages of at most a line.
-    if (c.name.size() > kMaxCaseNameLength) {
-      r.Fail(*name, "must have at most " + std::to_string(kMaxCaseNameLength) +
-                        " characters (it is used as a file name), got " +
-                        std::to_string(c.name.size()) + ": '" + ClipForMessage(c.name) + "'");
-    }
-    if (c.name[0] == '.') {
-      r.Fail(*name, "must not start with '.' (it is used as a file name), got '" +
-                        ClipForMessage(c.name) + "'");
-    }
-    const auto seen = name_lines->find(c.name);
-    if (seen != name_lines->end()) {
-      r.Fail(*name, "duplicate case name '" + ClipForMessage(c.name) + "' (first at line " +
-                        std::to_string(seen->second) + ")");
-    }
-    (*name_lines)[c.name] = name->line;
-  } else if (name_lines->count(c.name)) {
-    r.Fail(f, "duplicate case name '" + c.name + "' (give this case a name)");
-  } else {
-    (*name_lines)[c.name] = f.line;
-  }
-  c.clamp = ReadClamp(r, r.Require(m, f, "clamp"));
-  // Fitted frames are the static fit's (a moving fit drives its held points along paths).
-  auto static_only = [&](const char* key, bool prior) {
-    if (prior && ex->scene.dynamics)
-      r.Fail(*Reader::Find(m, key),
-             "rotation_prior_deg fits the frame in a static scene only (not with a dynamics: "
-             "block)");
-  };
-  static_only("clamp", c.clamp.rotation_prior_deg.has_value());
-  // A held point's fitted offset, likewise the static fit's only.
-  auto static_point = [&](const Entries& held) {
-    if (const Field* p = Reader::Find(held, "position_prior"); p && ex->scene.dynamics)
-      r.Fail(*p, "fits the held point in a static scene only (not with a dynamics: block)");
-  };
-  const std::vector<std::string> frame_keys = {"position", "tangent", "normal",
-                                               "rotation_prior_deg", "position_prior"};
-  static_point(r.Map(r.Require(m, f, "clamp"), frame_keys));  const double L = ex->scene.rod.length;
-  const Field* end_clamp = Reader::Find(m, "end_clamp");
-  const Field* end_pin = Reader::Find(m, "end_pin");
-  if (end_clamp && end_pin)
-    r.Fail(end_pin->key_line, end_pin->key, "s = L is already held by end_clamp: give one");
-  if (end_clamp) {
-    c.end_clamp = ReadEndClamp(r, *end_clamp);
-    static_only("end_clamp", c.end_clamp->rotation_prior_deg.has_value());
-    static_point(r.Map(*end_clamp, frame_keys));
-  }
-  if (end_pin) {
-    const Entries pm = r.Map(*end_pin, {"position", "position_prior"});
-    c.end_pin = r.Vector3(r.Require(pm, *end_pin, "position"));
-    c.end_pin_position_prior = ReadPositionPrior(r, pm);
-    static_point(pm);
-  }
-  const char* held_end = end_clamp ? "end_clamp" : "end_pin";
-  if (const Field* tf = Reader::Find(m, "tip_force")) {
-    c.tip_force = r.Vector3(*tf);
-    if ((end_clamp || end_pin) && c.tip_force.squaredNorm() > 0)
-      r.Fail(*tf, std::string("acts on s = L, which the ") + held_end + " holds: remove it");
-  }
-  if (const Field* tm = Reader::Find(m, "tip_moment")) {
-    c.tip_moment = r.Vector3(*tm);
-    if (end_clamp && c.tip_moment.squaredNorm() > 0)
-      r.Fail(*tm, "acts on s = L, which the end_clamp holds: remove it");
-  }
-  if (const Field* tm = Reader::Find(m, "tip_moment_follower")) {
-    c.tip_moment_follower = r.Vector3(*tm);
-    if (end_clamp && c.tip_moment_follower.squaredNorm() > 0)
-      r.Fail(*tm, "acts on s = L, which the end_clamp holds: remove it");
-  }
-  if (const Field* pm = Reader::Find(m, "point_moments")) {
-    for (const Field& item : r.Sequence(*pm)) {
-      const Entries mm = r.Map(item, {"s", "moment"});
-      PointMoment p;
-      p.s = r.InRange(r.Require(mm, item, "s"), 0.0, L);
-      p.moment = r.Vector3(r.Require(mm, item, "moment"));
-      c.point_moments.push_back(p);
-    }
-  }
-  if (const Field* pins = Reader::Find(m, "pins")) {
-    std::vector<std::pair<double, int>> seen;
-    for (const Field& item : r.Sequence(*pins)) {
-      const Entries pm = r.Map(item, {"s", "position", "position_prior"});
-      Pin p;
-      p.position_prior = ReadPositionPrior(r, pm);
-      static_point(pm);
-      const Field& s_field = r.Require(pm, item, "s");
-      p.s = r.Number(s_field);
-      if (!(p.s > 0.0 && p.s < L))
-        r.Fail(s_field, "must lie inside (0, " + Show(L) + ") (the clamp holds s = 0; use end_pin "
-                        "for s = L), got " + Show(p.s));
-      for (const auto& [other, line] : seen)
-        if (other == p.s) r.Fail(s_field, "another pin holds s = " + Show(p.s) + " (line " +
-                                              std::to_string(line) + ")");
-      seen.emplace_back(p.s, s_field.line);
-      p.position = r.Vector3(r.Require(pm, item, "position"));
-      c.pins.push_back(p);
-    }
-  }
-  if (const Field* start = Reader::Find(m, "start")) c.start = ReadStart(r, *start, *ex, index);
-  for (const char* key : {"drive", "driven", "tip_load", "initial"}) {
-    if (const Field* d = Reader::Find(m, key); d && !ex->scene.dynamics)
-      r.Fail(*d, "only for a moving scene (a top-level dynamics: block)");
-  }
-  if (const Field* d = Reader::Find(m, "drive")) ReadDrives(r, *d, *ex, &c);
-  if (const Field* d = Reader::Find(m, "driven")) ReadDriven(r, *d, *ex, &c);
-  if (const Field* t = Reader::Find(m, "tip_load")) {
-    const Entries tm = r.Map(*t, {"file"});
-    c.tip_load = ReadTimeSeries(r, r.Require(tm, *t, "file"), *ex, {"fx", "fy", "fz"},
-                                {"mx", "my", "mz"}, {});
-  }
-  if (const Field* init = Reader::Find(m, "initial")) ReadInitial(r, *init, *ex, index, &c);
-  if (const Field* pf = Reader::Find(m, "point_forces")) {
-    for (const Field& item : r.Sequence(*pf)) {
-      const Entries pm = r.Map(item, {"s", "force"});
-      PointForce p;
-      p.s = r.InRange(r.Require(pm, item, "s"), 0.0, ex->scene.rod.length);
-      p.force = r.Vector3(r.Require(pm, item, "force"));
-      c.point_forces.push_back(p);
-    }
-  }
-  if (const Field* cut = Reader::Find(m, "cut")) {
-    if (ex->scene.springs.empty()) r.Fail(*cut, "a cut needs springs to cut (top-level springs:)");
-    for (const Field& item : r.Sequence(*cut)) {
-      const Entries cm = r.Map(item, {"from", "to"});
-      c.cuts.push_back(ReadInterval(r, item, ex->scene.rod.length, cm));
-    }
-  }
-  if (const Field* grasp = Reader::Find(m, "grasp")) {
-    const Entries gm = r.Map(*grasp, {"s", "position", "position_prior"});
-    Grasp g;
-    g.position_prior = ReadPositionPrior(r, gm);
-    static_point(gm);
-    const Field& s_field = r.Require(gm, *grasp, "s");
-    g.s = r.InRange(s_field, 0.0, ex->scene.rod.length);
-    if (g.s < 0.5 * ex->scene.rod.length / ex->scene.rod.segments) {
-      r.Fail(s_field, "the grasp is at the clamp (within half an edge of s = 0)");
-    }
-    if ((end_clamp || end_pin) && g.s >= L - 0.5 * L / ex->scene.rod.segments)
-      r.Fail(s_field, std::string("the grasp is at s = L, which the ") + held_end + " holds");
-    g.position = r.Vector3(r.Require(gm, *grasp, "position"));
-    c.grasp = g;
-  }
-  if (const Field* poke = Reader::Find(m, "poke")) {
-    if (!ex->scene.section) r.Fail(*poke, "a poke needs the cross-section model (top-level section:)");
-    const Entries pm = r.Map(*poke, {"s", "force"});
-    Poke p;
-    p.s = r.InRange(r.Require(pm, *poke, "s"), 0.0, ex->scene.rod.length);
-    p.force = r.Vector3(r.Require(pm, *poke, "force"));
-    c.poke = p;
-  }
-  if (const Field* sym = Reader::Find(m, "symmetry")) {
-    const Entries sm = r.Map(*sym, {"point", "normal"});
-    SymmetryPlane plane;
-    plane.point = r.Vector3(r.Require(sm, *sym, "point"));
-    plane.normal = Direction(r, r.Require(sm, *sym, "normal"));
-    c.symmetry = plane;
-    const std::string problem =
-        SymmetryProblem(ex->scene.rod, ex->scene.gravity, c, !ex->scene.springs.empty());
-    if (!problem.empty()) r.Fail(*sym, problem);
-  }
+  c.name = ReadCaseName(r, f, m, index, name_lines);
+  ReadHeldEnds(r, f, m, *ex, &c);
+  ReadTipLoads(r, m, *ex, &c);
+  ReadPins(r, m, *ex, &c);
+  ReadStartAndMotion(r, m, *ex, index, &c);
+  ReadPointForcesAndCuts(r, m, *ex, &c);
+  ReadGrasp(r, m, *ex, &c);
+  ReadPokeAndSymmetry(r, m, *ex, &c);
   CaseSpec spec;
   spec.line = f.line;
   // The case's held points, as forces.csv and `reaction` observations name them.

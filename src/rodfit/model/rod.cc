@@ -116,9 +116,12 @@ void RodState::SyncVertices() {
   for (int j = 0; j < e.cols(); ++j) x.col(j + 1) = x.col(j) + e.col(j);
 }
 
-RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gravity,
-                   const LoadCase& load_case, const std::vector<SpringZone>& springs)
-    : rod_(rod), material_(material), case_(load_case), gravity_(gravity), zones_(springs) {
+namespace {
+
+// The checks on the rod, its material, gravity, the clamp and the tip loads that need nothing
+// built (the rest refuse what the discretisation cannot represent).
+void RequireValidSpecs(const RodSpec& rod, const Material& m, const Vec3& gravity,
+                       const LoadCase& load_case) {
   Require(rod.segments >= 2, "rod.segments must be at least 2");
   Require(std::isfinite(rod.length) && rod.length > 0, "rod.length must be positive");
   Require(rod.length >= 1e-9 && rod.length <= 1e6,
@@ -139,7 +142,6 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     Require(k == 0 || rod.rest_curvature_s[k] > rod.rest_curvature_s[k - 1],
             "the rest curvature profile's arc lengths must increase strictly");
   }
-  const Material& m = material;
   for (const MaterialParameterInfo& row : MaterialParameters()) {
     if (row.kind != ParameterKind::kRodStiffness) continue;
     const std::string name = row.name;
@@ -167,9 +169,54 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   Require(Finite(load_case.tip_force) && Finite(load_case.tip_moment) &&
               Finite(load_case.tip_moment_follower),
           "tip_force and tip moments must be finite");
+}
 
+}  // namespace
+
+RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gravity,
+                   const LoadCase& load_case, const std::vector<SpringZone>& springs)
+    : rod_(rod), material_(material), case_(load_case), gravity_(gravity), zones_(springs) {
+  RequireValidSpecs(rod, material, gravity, load_case);
   n_ = rod.segments;
   length_ = rod.length;
+  SetUpEnds();
+  if (load_case.symmetry) SetUpSymmetry();
+  BuildVertices();
+  PlaceHeldPoints();
+
+  // Positions must be resolvable at the scale of an edge (a coordinate of 1e300 m leaves no
+  // digits for the rod).
+  auto resolvable = [&](const Vec3& p, const std::string& what) {
+    Require(p.cwiseAbs().maxCoeff() * std::numeric_limits<double>::epsilon() <= 1e-7 * min_edge_,
+            what + " is too far from the origin (" + Num(p.norm()) +
+                " m) to resolve edges of " + Num(min_edge_) + " m in double precision");
+  };
+  resolvable(clamp_p_, "clamp.position");
+  for (const HeldVertex& h : held_) resolvable(h.target, h.Label() + " position");
+
+  const Loads loads = LumpLoads();
+  SetUpSpringZones();
+  // Springs pull towards the rest shape, rest curvature included.
+  anchor_ = RestState().x;
+  RequireCarryable(loads);
+
+  held_dofs_.assign(num_free_dofs(), 0);
+  for (const HeldVertex& hv : held_)
+    for (int r = 0; r < 3; ++r) held_dofs_[VertexDof(hv.vertex) + r] = 1;
+  if (has_end_ghost()) {
+    for (int r = 0; r < 3; ++r) held_dofs_[VertexDof(n_ + 1) + r] = 1;  // ghost's far vertex
+    if (end_twist_held_) held_dofs_[TwistDof(n_)] = 1;
+  }
+
+  hessian_digest_ = HessianDigest();
+  force_scale_ = ForceScale(loads);
+}
+
+// The clamp's frame and the far end's hold (end clamp or end pin), with the loads the held end
+// takes instead.
+void RodModel::SetUpEnds() {
+  const LoadCase& load_case = case_;
+  const Clamp& clamp = load_case.clamp;
   clamp_p_ = clamp.position;
   clamp_d3_ = clamp.tangent.normalized();
   const Vec3 normal_perp = clamp.normal - clamp.normal.dot(clamp_d3_) * clamp_d3_;
@@ -201,27 +248,20 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   Require(!(load_case.end_clamp && (load_case.tip_moment.squaredNorm() > 0 ||
                                     load_case.tip_moment_follower.squaredNorm() > 0)),
           "a tip moment acts on the clamped end s = L, which the end_clamp takes: remove it");
+}
 
-  if (load_case.symmetry) SetUpSymmetry();
-  BuildVertices();
-  PlaceHeldPoints();
-
-  // Positions must be resolvable at the scale of an edge (a coordinate of 1e300 m leaves no
-  // digits for the rod).
-  auto resolvable = [&](const Vec3& p, const std::string& what) {
-    Require(p.cwiseAbs().maxCoeff() * std::numeric_limits<double>::epsilon() <= 1e-7 * min_edge_,
-            what + " is too far from the origin (" + Num(p.norm()) +
-                " m) to resolve edges of " + Num(min_edge_) + " m in double precision");
-  };
-  resolvable(clamp_p_, "clamp.position");
-  for (const HeldVertex& h : held_) resolvable(h.target, h.Label() + " position");
-
+// The lumped loads: vertex masses and their weights, the tip and point forces on the vertices
+// around them, the moments on edges; their sizes for the load checks and the load scale.
+RodModel::Loads RodModel::LumpLoads() {
+  const LoadCase& load_case = case_;
+  const double density = rod_.linear_density;
+  Loads loads;
   vertex_mass_.assign(n_ + 1, 0.0);
   for (int j = 0; j < n_; ++j) {
-    vertex_mass_[j] += 0.5 * rod.linear_density * rest_edge_[j];
-    vertex_mass_[j + 1] += 0.5 * rod.linear_density * rest_edge_[j];
+    vertex_mass_[j] += 0.5 * density * rest_edge_[j];
+    vertex_mass_[j + 1] += 0.5 * density * rest_edge_[j];
   }
-  if (symmetric_) vertex_mass_[n_] += 0.5 * rod.linear_density * crossing_length_;
+  if (symmetric_) vertex_mass_[n_] += 0.5 * density * crossing_length_;
   vertex_forces_.setZero(3, n_ + 1);
   for (int i = 0; i <= n_; ++i) vertex_forces_.col(i) = vertex_mass_[i] * gravity_;
   vertex_forces_.col(n_) += load_case.tip_force;
@@ -231,7 +271,6 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     *k = std::clamp(*k, 0, n_ - 1);
     *a = std::clamp((s - arc_[*k]) / rest_edge_[*k], 0.0, 1.0);
   };
-  double point_force_sum = 0.0;
   auto add_point_force = [&](double s, const Vec3& force, const char* what) {
     Require(std::isfinite(s) && s >= 0 && s <= length_ * (1 + 1e-12) && Finite(force),
             std::string(what) + " s must lie in [0, length] and its force be finite");
@@ -240,13 +279,12 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
     locate(s, &k, &a);
     vertex_forces_.col(k) += (1.0 - a) * force;
     vertex_forces_.col(k + 1) += a * force;
-    point_force_sum += force.stableNorm();
+    loads.point_force_sum += force.stableNorm();
   };
   for (const PointForce& pf : load_case.point_forces) add_point_force(pf.s, pf.force, "point force");
   if (load_case.poke) add_point_force(load_case.poke->s, load_case.poke->force, "poke");
 
   // Moments on edges. A point moment between two edge midpoints is shared linearly.
-  double moment_sum = 0.0;
   auto add_moment = [&](int edge, const Vec3& M, bool follower) {
     if (M.squaredNorm() == 0.0) return;
     edge_moments_.push_back({edge, M, follower});
@@ -258,6 +296,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   // moment on the edge has the components exp((l/2) [u_tip]x) m_b: second order in l, where the
   // edge's own frame would be first order.
   if (load_case.tip_moment_follower.squaredNorm() > 0) {
+    const Material& m = material_;
     const Vec3& mb = load_case.tip_moment_follower;
     const Vec3 u_tip = Vec3(mb[0] / m.B1(), mb[1] / m.B2(), mb[2] / m.twist_stiffness) +
                        rest_curvature_[n_ - 1];
@@ -267,7 +306,8 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
         angle > 0 ? Vec3(Eigen::AngleAxisd(angle, w / angle) * mb) : mb;
     add_moment(n_ - 1, mb_tip, true);
   }
-  moment_sum += load_case.tip_moment.stableNorm() + load_case.tip_moment_follower.stableNorm();
+  loads.moment_sum +=
+      load_case.tip_moment.stableNorm() + load_case.tip_moment_follower.stableNorm();
   for (const PointMoment& pm : load_case.point_moments) {
     Require(std::isfinite(pm.s) && pm.s >= 0 && pm.s <= length_ * (1 + 1e-12) && Finite(pm.moment),
             "point moment s must lie in [0, length] and its moment be finite");
@@ -284,12 +324,17 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
       add_moment(j, (1.0 - a) * pm.moment, false);
       add_moment(j + 1, a * pm.moment, false);
     }
-    moment_sum += pm.moment.stableNorm();
+    loads.moment_sum += pm.moment.stableNorm();
   }
+  loads.weight = density * length_ * gravity_.stableNorm();
+  return loads;
+}
 
-  // Springs: per zone and vertex, the length of the vertex's cell [s_i - l_{i-1}/2, s_i + l_i/2]
-  // within [0, L] that the zone covers and no cut removes (the exact integral of a piecewise
-  // constant K(s) over the cell).
+// Springs: per zone and vertex, the length of the vertex's cell [s_i - l_{i-1}/2, s_i + l_i/2]
+// within [0, L] that the zone covers and no cut removes (the exact integral of a piecewise
+// constant K(s) over the cell).
+void RodModel::SetUpSpringZones() {
+  const LoadCase& load_case = case_;
   auto inside = [&](const Interval& iv, const char* what) {
     Require(std::isfinite(iv.from) && std::isfinite(iv.to) && iv.from >= 0 &&
                 iv.to <= length_ * (1 + 1e-12) && iv.from < iv.to,
@@ -301,7 +346,7 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
       Require(zones_[z].to <= zones_[w].from || zones_[w].to <= zones_[z].from,
               "spring zones must not overlap");
     Require(zones_[z].parameter.empty() ||
-                material.spring_parameters.count(zones_[z].parameter) > 0,
+                material_.spring_parameters.count(zones_[z].parameter) > 0,
             "spring zone parameter " + zones_[z].parameter + " has no value");
   }
   for (const Interval& cut : load_case.cuts) inside(cut, "cut");
@@ -335,35 +380,30 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
       zone_length_[z][i] = std::max(0.0, covered);
     }
   }
-  // Springs pull towards the rest shape, rest curvature included.
-  anchor_ = RestState().x;
+}
 
-  // Loads a small-strain rod can carry: refuse what would stretch it past its length or wind
-  // it into thousands of turns (such inputs are unit mistakes, and the answer would be noise).
-  const double weight = rod.linear_density * length_ * gravity_.stableNorm();
-  const double applied = weight + load_case.tip_force.stableNorm() + point_force_sum;
+// Loads a small-strain rod can carry: refuse what would stretch it past its length or wind it
+// into thousands of turns (such inputs are unit mistakes, and the answer would be noise).
+void RodModel::RequireCarryable(const Loads& loads) const {
+  const Material& m = material_;
+  const double B = std::min(m.B1(), m.B2());
+  const double applied = loads.weight + case_.tip_force.stableNorm() + loads.point_force_sum;
   Require(std::isfinite(applied) && applied <= kMaxLoadStrain * m.stretch_stiffness,
           "the loads (" + Num(applied) + " N) would stretch the rod by more than " +
               Num(100 * kMaxLoadStrain) + " % (stretch_stiffness " + Num(m.stretch_stiffness) +
               " N): outside a rod model, check the units");
-  Require(std::isfinite(moment_sum) &&
-              moment_sum * length_ / (2 * M_PI * B) <= kMaxMomentTurns,
-          "the moments (" + Num(moment_sum) + " N m) would wind the rod into more than 1e4 "
+  Require(std::isfinite(loads.moment_sum) &&
+              loads.moment_sum * length_ / (2 * M_PI * B) <= kMaxMomentTurns,
+          "the moments (" + Num(loads.moment_sum) + " N m) would wind the rod into more than 1e4 "
           "turns: check the units");
   for (int z = 0; z < num_spring_zones(); ++z)
     Require(zone_stiffness(z) * length_ * length_ <= 1e3 * m.stretch_stiffness,
             "spring stiffness K L^2 is more than 1e3 x stretch_stiffness: the springs would "
             "crush the rod; check the units");
+}
 
-  held_dofs_.assign(num_free_dofs(), 0);
-  for (const HeldVertex& hv : held_)
-    for (int r = 0; r < 3; ++r) held_dofs_[VertexDof(hv.vertex) + r] = 1;
-  if (has_end_ghost()) {
-    for (int r = 0; r < 3; ++r) held_dofs_[VertexDof(n_ + 1) + r] = 1;  // ghost's far vertex
-    if (end_twist_held_) held_dofs_[TwistDof(n_)] = 1;
-  }
-
-  // Hessian digest over the bytes of every number the Hessian reads (see rod.h).
+// Hessian digest over the bytes of every number the Hessian reads (see rod.h).
+uint64_t RodModel::HessianDigest() const {
   uint64_t h = 1469598103934665603ULL;
   auto mix = [&h](double v) {
     unsigned char bytes[sizeof v];
@@ -384,9 +424,12 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   for (int z = 0; z < num_spring_zones(); ++z)
     for (int i = 0; i <= n_; ++i) mix(zone_stiffness(z) * zone_length_[z][i]);
   for (const HeldVertex& hv : held_) mix(hv.vertex), mix(static_cast<int>(hv.kind));
-  hessian_digest_ = h;
+  return h;
+}
 
-  // The load scale (rod.h): loads, and the elastic forces of imposed shapes.
+// The load scale (rod.h): loads, and the elastic forces of imposed shapes.
+double RodModel::ForceScale(const Loads& loads) const {
+  const double B = std::min(material_.B1(), material_.B2());
   double imposed = 0.0;
   for (const HeldVertex& hv : held_) {
     const Vec3 straight = clamp_p_ + hv.s * clamp_d3_;
@@ -397,10 +440,11 @@ RodModel::RodModel(const RodSpec& rod, const Material& material, const Vec3& gra
   double spring_max = 0.0;
   for (int z = 0; z < num_spring_zones(); ++z) spring_max = std::max(spring_max, zone_stiffness(z));
   const double imposed_force = imposed * (B / (length_ * length_) + spring_max * length_ * length_);
-  force_scale_ = std::max({weight, load_case.tip_force.norm(), point_force_sum,
-                           moment_sum / length_, imposed_force});
+  const double scale = std::max({loads.weight, case_.tip_force.norm(), loads.point_force_sum,
+                                 loads.moment_sum / length_, imposed_force});
   // Nothing loads the rod: the straight (or rest) rod is the answer; any scale serves.
-  if (!(force_scale_ > 0)) force_scale_ = B / (length_ * length_);
+  if (!(scale > 0)) return B / (length_ * length_);
+  return scale;
 }
 
 std::string SymmetryProblem(const RodSpec& rod, const Vec3& gravity, const LoadCase& c,
@@ -513,7 +557,6 @@ void RodModel::PlaceHeldPoints() {
             "finite (use end_pin for s = L)");
     requests.push_back({HeldVertex::Kind::kPin, p.s, p.position, static_cast<int>(k)});
   }
-  const double uniform = length_ / n_;
   std::vector<int> taken(n_ + 1, -1);
   auto name_of = [&](const Request& r) {
     HeldVertex h;
@@ -539,30 +582,7 @@ void RodModel::PlaceHeldPoints() {
     taken[k] = static_cast<int>(q);
     arc_[k] = r.s;
   }
-  rest_edge_.resize(n_);
-  for (int j = 0; j < n_; ++j) {
-    rest_edge_[j] = arc_[j + 1] - arc_[j];
-    Require(rest_edge_[j] > 0.1 * (rod_.vertex_s.empty() ? uniform : 0.0),
-            "held points at s = " + Num(arc_[j]) + " and " + Num(arc_[j + 1]) +
-                " are too close for the segment length: use more segments");
-    Require(rest_edge_[j] > 1e-12 * length_, "an edge of the rod has (nearly) zero length");
-  }
-  min_edge_ = *std::min_element(rest_edge_.begin(), rest_edge_.end());
-  voronoi_.assign(n_ + 1, 0.0);
-  voronoi_[0] = 0.5 * rest_edge_[0];  // half cell against the clamp (see the file comment)
-  for (int i = 1; i < n_; ++i) voronoi_[i] = 0.5 * (rest_edge_[i - 1] + rest_edge_[i]);
-  // With an end clamp: half a cell against its ghost. A symmetric half's last vertex has the
-  // full cell it has in the whole rod, up to the middle of the crossing edge.
-  voronoi_[n_] = 0.5 * (rest_edge_[n_ - 1] + (symmetric_ ? crossing_length_ : 0.0));
-  // The rest curvature of every bending vertex: the uniform part and the profile's value at the
-  // vertex's arc length (linear between its points, constant beyond).
-  rest_curvature_.assign(n_ + 1, rod_.rest_curvature);
-  if (!rod_.rest_curvature_s.empty()) {
-    const std::vector<double>& ps = rod_.rest_curvature_s;
-    const std::vector<Vec3>& pk = rod_.rest_curvature_profile;
-    for (int i = 0; i <= n_; ++i) rest_curvature_[i] += RestCurvatureProfileAt(ps, pk, arc_[i]);
-  }
-  for (const Vec3& k : rest_curvature_) curved_ = curved_ || k.squaredNorm() != 0.0;
+  SetUpRestGeometry();
 
   held_of_vertex_.assign(n_ + 1, -1);
   for (int k = 1; k <= n_; ++k) {
@@ -595,6 +615,36 @@ void RodModel::PlaceHeldPoints() {
             later + " is " + Num(gap) + " m from " + earlier + ", but only " + Num(rod_between) +
                 " m of rod lies between them");
   });
+}
+
+// The rest geometry from the vertices' arc lengths, held points moved onto their vertices:
+// edge lengths, Voronoi cells, the rest curvature of every bending vertex.
+void RodModel::SetUpRestGeometry() {
+  const double uniform = length_ / n_;
+  rest_edge_.resize(n_);
+  for (int j = 0; j < n_; ++j) {
+    rest_edge_[j] = arc_[j + 1] - arc_[j];
+    Require(rest_edge_[j] > 0.1 * (rod_.vertex_s.empty() ? uniform : 0.0),
+            "held points at s = " + Num(arc_[j]) + " and " + Num(arc_[j + 1]) +
+                " are too close for the segment length: use more segments");
+    Require(rest_edge_[j] > 1e-12 * length_, "an edge of the rod has (nearly) zero length");
+  }
+  min_edge_ = *std::min_element(rest_edge_.begin(), rest_edge_.end());
+  voronoi_.assign(n_ + 1, 0.0);
+  voronoi_[0] = 0.5 * rest_edge_[0];  // half cell against the clamp (see the file comment)
+  for (int i = 1; i < n_; ++i) voronoi_[i] = 0.5 * (rest_edge_[i - 1] + rest_edge_[i]);
+  // With an end clamp: half a cell against its ghost. A symmetric half's last vertex has the
+  // full cell it has in the whole rod, up to the middle of the crossing edge.
+  voronoi_[n_] = 0.5 * (rest_edge_[n_ - 1] + (symmetric_ ? crossing_length_ : 0.0));
+  // The rest curvature of every bending vertex: the uniform part and the profile's value at the
+  // vertex's arc length (linear between its points, constant beyond).
+  rest_curvature_.assign(n_ + 1, rod_.rest_curvature);
+  if (!rod_.rest_curvature_s.empty()) {
+    const std::vector<double>& ps = rod_.rest_curvature_s;
+    const std::vector<Vec3>& pk = rod_.rest_curvature_profile;
+    for (int i = 0; i <= n_; ++i) rest_curvature_[i] += RestCurvatureProfileAt(ps, pk, arc_[i]);
+  }
+  for (const Vec3& k : rest_curvature_) curved_ = curved_ || k.squaredNorm() != 0.0;
 }
 
 void RodModel::ForEachHeldSpan(const std::function<void(double, double, const std::string&,

@@ -127,73 +127,19 @@ std::vector<std::vector<int>> MeshNeighbours(const TubeMesh& mesh) {
   return nb;
 }
 
-LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& section,
-                                           const SectionSpec& spec, const RingResult& ring) {
-  PropagationWorkspace workspace;
-  LocalDeformation out;
-  PropagateLocalDeformation(mesh, section, spec, ring, &workspace, &out);
-  return out;
-}
+namespace {
 
-// One function, though long: eq. 12's selection and eq. 13's fronts share the reached set and
-// the displacement they build.
-void PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& section,
-                               const SectionSpec& spec, const RingResult& ring,
-                               PropagationWorkspace* workspace, LocalDeformation* result) {
-  if (!spec.Check(nullptr)) {  // the message is only built on failure: it allocates
-    std::string why;
-    spec.Check(&why);
-    throw std::invalid_argument(why);
-  }
-  const int N = spec.nodes;
-  if (ring.rest.cols() != N || ring.nodes.cols() != N) {
-    throw std::invalid_argument("ring result must have section.nodes nodes");
-  }
-  const int V = mesh.num_vertices();
-  const double R = spec.radius;
-  const double h = spec.influence_length();
-  const double threshold = spec.stop_threshold();
-  const Vec3d c = section.centre, d1 = section.d1, d2 = section.d2;
-  const Vec3d normal = section.normal();
-  const Eigen::Matrix2Xd& rest = ring.rest;
-  const Eigen::Matrix2Xd& nodes = ring.nodes;
-
+// Eq. 12: ws->selected, the vertices of the edges that the rest curve (radius R about the
+// section's centre) comes across, within h of it; ws->reached marks them.
+void SelectCrossedVertices(const TubeMesh& mesh, const SectionPlacement& section, double R,
+                           double h, const std::vector<std::vector<int>>& neighbours,
+                           PropagationWorkspace* workspace) {
   PropagationWorkspace& ws = *workspace;
-  if (ws.rings != mesh.rings || ws.ring_vertices != mesh.ring_vertices ||
-      ws.neighbours.size() != static_cast<size_t>(V)) {
-    ws.neighbours = MeshNeighbours(mesh);
-    ws.rings = mesh.rings;
-    ws.ring_vertices = mesh.ring_vertices;
-    for (std::vector<int>* list : {&ws.selected, &ws.active, &ws.next, &ws.candidates})
-      list->reserve(V);  // a list holds each vertex at most once
-  }
-  LocalDeformation& out = *result;
-  out.mesh = mesh;  // the storage of an earlier mesh of this shape is reused
-  out.displacement.setZero(3, V);
-  out.front.assign(V, -1);
-  out.fronts = 0;
-  const auto& neighbours = ws.neighbours;
-
-  // The curve's displacement at the material angle of p, and p's distance to the rest circle.
-  auto curve_move = [&](const Vec3d& p, double* d) {
-    const Vec3d q = p - c;
-    const double x = q.dot(d1), y = q.dot(d2);
-    // On the axis every point of the circle is equally close; take angle 0.
-    double theta = (x * x + y * y > 1e-24 * R * R) ? std::atan2(y, x) : 0.0;
-    if (theta < 0.0) theta += kTwoPi;
-    const Vec3d closest = c + R * (std::cos(theta) * d1 + std::sin(theta) * d2);
-    *d = (p - closest).norm();
-    const double pos = theta / kTwoPi * N;
-    const int k0 = std::min(static_cast<int>(pos), N - 1);
-    const double t = pos - k0;
-    const int k1 = (k0 + 1) % N;
-    const Eigen::Vector2d u = (1.0 - t) * (nodes.col(k0) - rest.col(k0)) +
-                              t * (nodes.col(k1) - rest.col(k1));
-    return Vec3d(u.x() * d1 + u.y() * d2);
-  };
-
-  // Eq. 12: vertices of the edges that the rest curve comes across. A vertex within a hair of the
-  // plane counts as on it, so a section through a ring selects both neighbouring rings alike.
+  const int V = mesh.num_vertices();
+  const Vec3d c = section.centre;
+  const Vec3d normal = section.normal();
+  // A vertex within a hair of the plane counts as on it, so a section through a ring selects
+  // both neighbouring rings alike.
   const double on_plane = 1e-9 * R;
   std::vector<double>& side = ws.side;
   side.resize(V);
@@ -223,19 +169,19 @@ void PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& sec
       }
     }
   }
-  // The "selected" vertices: moved by at least the threshold.
-  std::vector<int>& active = ws.active;
-  active.clear();
-  for (int v : selected) {
-    double d = 0.0;
-    const Vec3d move = curve_move(mesh.vertices.col(v), &d);
-    out.displacement.col(v) = Falloff(d, h) * move;
-    out.front[v] = 0;
-    if (out.displacement.col(v).norm() >= threshold) active.push_back(v);
-  }
+}
 
-  // Eq. 13, front by front. Each front is at least one vertex larger than the reached set, so
-  // V fronts bound the loop.
+// Eq. 13, front by front from the active vertices (ws->active: the selected ones moved by at
+// least the threshold): each front's vertices move by the falloff-weighted mean of their active
+// neighbours' moves, while that is above the threshold.
+void PropagateFronts(const TubeMesh& mesh, double h, double threshold,
+                     const std::vector<std::vector<int>>& neighbours,
+                     PropagationWorkspace* workspace, LocalDeformation* result) {
+  PropagationWorkspace& ws = *workspace;
+  LocalDeformation& out = *result;
+  const int V = mesh.num_vertices();
+  std::vector<char>& reached = ws.reached;
+  std::vector<int>& active = ws.active;
   std::vector<char>& in_active = ws.in_active;
   in_active.assign(V, 0);
   std::vector<int>& candidates = ws.candidates;
@@ -277,6 +223,88 @@ void PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& sec
     if (!next.empty()) out.fronts = k;
     active.swap(next);
   }
+}
+
+}  // namespace
+
+LocalDeformation PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& section,
+                                           const SectionSpec& spec, const RingResult& ring) {
+  PropagationWorkspace workspace;
+  LocalDeformation out;
+  PropagateLocalDeformation(mesh, section, spec, ring, &workspace, &out);
+  return out;
+}
+
+// Eq. 12's selection and eq. 13's fronts (the functions above) share the reached set in the
+// workspace and the displacement they build.
+void PropagateLocalDeformation(const TubeMesh& mesh, const SectionPlacement& section,
+                               const SectionSpec& spec, const RingResult& ring,
+                               PropagationWorkspace* workspace, LocalDeformation* result) {
+  if (!spec.Check(nullptr)) {  // the message is only built on failure: it allocates
+    std::string why;
+    spec.Check(&why);
+    throw std::invalid_argument(why);
+  }
+  const int N = spec.nodes;
+  if (ring.rest.cols() != N || ring.nodes.cols() != N) {
+    throw std::invalid_argument("ring result must have section.nodes nodes");
+  }
+  const int V = mesh.num_vertices();
+  const double R = spec.radius;
+  const double h = spec.influence_length();
+  const double threshold = spec.stop_threshold();
+  const Vec3d c = section.centre, d1 = section.d1, d2 = section.d2;
+  const Eigen::Matrix2Xd& rest = ring.rest;
+  const Eigen::Matrix2Xd& nodes = ring.nodes;
+
+  PropagationWorkspace& ws = *workspace;
+  if (ws.rings != mesh.rings || ws.ring_vertices != mesh.ring_vertices ||
+      ws.neighbours.size() != static_cast<size_t>(V)) {
+    ws.neighbours = MeshNeighbours(mesh);
+    ws.rings = mesh.rings;
+    ws.ring_vertices = mesh.ring_vertices;
+    for (std::vector<int>* list : {&ws.selected, &ws.active, &ws.next, &ws.candidates})
+      list->reserve(V);  // a list holds each vertex at most once
+  }
+  LocalDeformation& out = *result;
+  out.mesh = mesh;  // the storage of an earlier mesh of this shape is reused
+  out.displacement.setZero(3, V);
+  out.front.assign(V, -1);
+  out.fronts = 0;
+  const auto& neighbours = ws.neighbours;
+
+  // The curve's displacement at the material angle of p, and p's distance to the rest circle.
+  auto curve_move = [&](const Vec3d& p, double* d) {
+    const Vec3d q = p - c;
+    const double x = q.dot(d1), y = q.dot(d2);
+    // On the axis every point of the circle is equally close; take angle 0.
+    double theta = (x * x + y * y > 1e-24 * R * R) ? std::atan2(y, x) : 0.0;
+    if (theta < 0.0) theta += kTwoPi;
+    const Vec3d closest = c + R * (std::cos(theta) * d1 + std::sin(theta) * d2);
+    *d = (p - closest).norm();
+    const double pos = theta / kTwoPi * N;
+    const int k0 = std::min(static_cast<int>(pos), N - 1);
+    const double t = pos - k0;
+    const int k1 = (k0 + 1) % N;
+    const Eigen::Vector2d u = (1.0 - t) * (nodes.col(k0) - rest.col(k0)) +
+                              t * (nodes.col(k1) - rest.col(k1));
+    return Vec3d(u.x() * d1 + u.y() * d2);
+  };
+
+  SelectCrossedVertices(mesh, section, R, h, neighbours, &ws);
+  const std::vector<int>& selected = ws.selected;
+  // The "selected" vertices: moved by at least the threshold.
+  std::vector<int>& active = ws.active;
+  active.clear();
+  for (int v : selected) {
+    double d = 0.0;
+    const Vec3d move = curve_move(mesh.vertices.col(v), &d);
+    out.displacement.col(v) = Falloff(d, h) * move;
+    out.front[v] = 0;
+    if (out.displacement.col(v).norm() >= threshold) active.push_back(v);
+  }
+
+  PropagateFronts(mesh, h, threshold, neighbours, &ws, &out);
   out.mesh.vertices += out.displacement;
 }
 

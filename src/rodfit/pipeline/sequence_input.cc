@@ -67,13 +67,72 @@ bool ReadCoordinate(const CsvTable& table, int row, const std::string& column,
   return true;
 }
 
+// A recorded sample's value within reach of a residual: a pixel (with its camera) on the sensor
+// and within kMaxSigmas of the image, a point (camera null) within 100 rod lengths of the clamp and
+// kMaxSigmas of the rod.
+void CheckReach(const KindContext& context, const CsvTable& table, int r, const Camera* camera,
+                const Vec3& value) {
+  const Experiment& ex = context.experiment();
+  const ObservationSpec& spec = context.spec();
+  const std::string& file = spec.file;
+  const double length = ex.scene.rod.length;
+  const Vec3& clamp = ex.scene.cases[context.case_index()].clamp.position;
+  if (camera) {
+    CheckOnSensor(table, r, value.head<2>(), *camera, spec.camera);
+    const double reach = value.head<2>().norm() + camera->K.width + camera->K.height;
+    if (!(reach / spec.sigma <= kMaxSigmas))
+      throw InputError(file, table.line(r), "u",
+                       "the pixel and the image lie more than " + Short(kMaxSigmas) +
+                           " sigma apart (sigma " + Short(spec.sigma) + " px, " +
+                           EntryAt(ex, spec) + "): too many for a residual (is sigma right?)");
+  } else if (!((value - clamp).norm() <= 100.0 * length)) {
+    throw InputError(file, table.line(r), "x",
+                     "the point lies more than 100 rod lengths from the clamp: not on the rod "
+                     "(wrong units or frame?)");
+  } else if (!(((value - clamp).norm() + length) / spec.sigma <= kMaxSigmas)) {
+    // Within reach of the rod, but sigma is so small that no residual can be formed.
+    throw InputError(file, table.line(r), "x",
+                     "the point and the rod lie more than " + Short(kMaxSigmas) +
+                         " sigma apart (sigma " + Short(spec.sigma) + " m, " +
+                         EntryAt(ex, spec) + "): too many for a residual (is sigma right?)");
+  }
+}
+
+// The sequence's frames: per recorded time, its seen samples (by_t: their indices in samples) as
+// one measurement.
+ObservationSequence Frames(const KindContext& context, bool with_s,
+                           const std::map<double, std::vector<int>>& by_t,
+                           const std::vector<SequenceSample>& samples,
+                           FrameMeasurement frame_measurement) {
+  const ObservationSpec& spec = context.spec();
+  const std::string& file = spec.file;
+  const int case_index = context.case_index();
+  ObservationSequence seq;
+  seq.case_index = case_index;
+  for (const auto& [t, indices] : by_t) {
+    if (indices.empty()) continue;
+    std::vector<const SequenceSample*> seen;
+    for (const int k : indices) seen.push_back(&samples[k]);
+    ObservationSequence::Frame frame;
+    frame.t = t;
+    frame.sample = indices;
+    try {
+      frame.measurement = frame_measurement(context, with_s, seen);
+    } catch (const std::invalid_argument& e) {
+      // The observation models' own checks (a camera failing its check).
+      throw InputError(file, 0, spec.type, e.what());
+    }
+    seq.frames.push_back(std::move(frame));
+  }
+  return seq;
+}
+
 }  // namespace
 
 ObservationSequence ReadShapeSequence(const KindContext& context, bool pixels, SColumn s_column,
                                       FrameMeasurement frame_measurement) {
   const Experiment& ex = context.experiment();
   const ObservationSpec& spec = context.spec();
-  const int case_index = context.case_index();
   const Camera* camera = pixels ? &context.camera() : nullptr;
   const double length = ex.scene.rod.length;
   const double duration = ex.scene.dynamics->duration;
@@ -97,7 +156,6 @@ ObservationSequence ReadShapeSequence(const KindContext& context, bool pixels, S
   const std::vector<double> s = with_s ? table.Column("s") : std::vector<double>();
   std::vector<std::vector<std::string>> text;
   for (const std::string& column : columns) text.push_back(table.TextColumn(column));
-  const Vec3& clamp = ex.scene.cases[case_index].clamp.position;
   std::map<double, std::vector<int>> by_t;  // time -> its recorded samples, in file order
   std::map<std::pair<double, double>, int> marker_line;  // (t, s) -> line (markers only)
   std::vector<SequenceSample> samples;
@@ -137,47 +195,12 @@ ObservationSequence ReadShapeSequence(const KindContext& context, bool pixels, S
       throw InputError(file, table.line(r), columns[0],
                        pixels ? "u and v must be both given or both missing (a sample not seen)"
                               : "x, y and z must be all given or all missing (a sample not seen)");
-    if (pixels) {
-      CheckOnSensor(table, r, q.value.head<2>(), *camera, spec.camera);
-      const double reach = q.value.head<2>().norm() + camera->K.width + camera->K.height;
-      if (!(reach / spec.sigma <= kMaxSigmas))
-        throw InputError(file, table.line(r), "u",
-                         "the pixel and the image lie more than " + Short(kMaxSigmas) +
-                             " sigma apart (sigma " + Short(spec.sigma) + " px, " +
-                             EntryAt(ex, spec) + "): too many for a residual (is sigma right?)");
-    } else if (!((q.value - clamp).norm() <= 100.0 * length)) {
-      throw InputError(file, table.line(r), "x",
-                       "the point lies more than 100 rod lengths from the clamp: not on the rod "
-                       "(wrong units or frame?)");
-    } else if (!(((q.value - clamp).norm() + length) / spec.sigma <= kMaxSigmas)) {
-      // Within reach of the rod, but sigma is so small that no residual can be formed.
-      throw InputError(file, table.line(r), "x",
-                       "the point and the rod lie more than " + Short(kMaxSigmas) +
-                           " sigma apart (sigma " + Short(spec.sigma) + " m, " +
-                           EntryAt(ex, spec) + "): too many for a residual (is sigma right?)");
-    }
+    CheckReach(context, table, r, camera, q.value);
     by_t[q.t].push_back(static_cast<int>(samples.size()));
     samples.push_back(q);
   }
   if (samples.empty()) throw InputError(file, 0, "", "no recorded sample (every row is missing)");
-  ObservationSequence seq;
-  seq.case_index = case_index;
-  for (const auto& [t, indices] : by_t) {
-    if (indices.empty()) continue;
-    std::vector<const SequenceSample*> seen;
-    for (const int k : indices) seen.push_back(&samples[k]);
-    ObservationSequence::Frame frame;
-    frame.t = t;
-    frame.sample = indices;
-    try {
-      frame.measurement = frame_measurement(context, with_s, seen);
-    } catch (const std::invalid_argument& e) {
-      // The observation models' own checks (a camera failing its check).
-      throw InputError(file, 0, spec.type, e.what());
-    }
-    seq.frames.push_back(std::move(frame));
-  }
-  return seq;
+  return Frames(context, with_s, by_t, samples, frame_measurement);
 }
 
 ObservationSequence ReadReactionSequence(const KindContext& context) {

@@ -342,6 +342,38 @@ const char* AxisName(int i) { return i == 0 ? "x" : i == 1 ? "y" : "z"; }
 // ---------------------------------------------------------------------------------------------
 // The builder.
 
+// A camera view's zoom [px]: every observed and fitted pixel on the sensor (then a margin).
+struct PixelBox {
+  double u0 = INFINITY, u1 = -INFINITY, v0 = INFINITY, v1 = -INFINITY;
+  void Grow(const Camera& cam, const Eigen::Vector2d& p) {
+    if (!p.allFinite() || !cam.InImage(p, -50.0)) return;
+    u0 = std::min(u0, p.x());
+    u1 = std::max(u1, p.x());
+    v0 = std::min(v0, p.y());
+    v1 = std::max(v1, p.y());
+  }
+  bool empty() const { return !(u1 >= u0); }
+};
+
+// A centre-line entry of a case and its measurement.
+using CameraEntry = std::pair<const ObservationSpec*, const Measurement*>;
+
+// What a camera's entries draw: their series, the fitted markers, the image file (the last
+// image entry's) and the pixels extracted from images.
+struct CameraPixels {
+  std::vector<svg::Series> observed;
+  svg::Series fitted_markers;
+  std::string image_file;
+  std::vector<Eigen::Vector2d> curve_pixels;  // observed without s
+};
+
+// A force reading of a fit case with its residual.
+struct ForceReading {
+  double x;  // time [s] or reading number
+  Vec3 measured, error;
+  double sigma;
+};
+
 class Builder {
  public:
   Builder(const Experiment& e, const FitInput& in, const FitResult& r,
@@ -691,185 +723,197 @@ class Builder {
     return out;
   }
 
-  // One figure per camera of the case: the image (or a blank frame) zoomed to the thread, the
-  // observed pixels of every entry of that camera, the fitted centre-line projected, and the
-  // fitted position of each marker with s.
-  void CameraViews(size_t c) {
+  // The centre-line entries of case c seen by a camera, grouped by camera in the order
+  // fit_input.cc loaded them.
+  std::vector<std::pair<std::string, std::vector<CameraEntry>>> EntriesByCamera(size_t c) const {
     const FitCase& fc = in_.cases[c];
-    // Entries in the order fit_input.cc loaded them: centre-line types only.
-    using Entry = std::pair<const ObservationSpec*, const Measurement*>;
-    std::map<std::string, std::vector<Entry>> by_camera;
-    std::vector<std::string> order;
+    std::vector<std::pair<std::string, std::vector<CameraEntry>>> out;
     size_t j = 0;
     for (const ObservationSpec& spec : e_.cases[c].observations) {
       if (!IsCentreLine(spec)) continue;
       const Measurement* obs = j < fc.measurements.size() ? fc.measurements[j].get() : nullptr;
       ++j;
       if (spec.camera.empty() || !obs) continue;
-      if (!by_camera.count(CameraKey(spec))) order.push_back(CameraKey(spec));
-      by_camera[CameraKey(spec)].push_back({&spec, obs});
+      const std::string key = CameraKey(spec);
+      auto it = std::find_if(out.begin(), out.end(), [&](const auto& e) { return e.first == key; });
+      if (it == out.end()) it = out.insert(out.end(), {key, {}});
+      it->second.push_back({&spec, obs});
     }
+    return out;
+  }
+
+  // One figure per camera of the case: the image (or a blank frame) zoomed to the thread, the
+  // observed pixels of every entry of that camera, the fitted centre-line projected, and the
+  // fitted position of each marker with s.
+  void CameraViews(size_t c) {
+    for (const auto& [camera_key, entries] : EntriesByCamera(c)) CameraView(c, camera_key, entries);
+  }
+
+  void CameraView(size_t c, const std::string& camera_key,
+                  const std::vector<CameraEntry>& entries) {
     const Mat3X& shape = r_.shapes[c];
-    for (const std::string& camera_key : order) {
-      const auto& entries = by_camera[camera_key];
-      // A camera of a stereo file is "FILE[i]": its name is the file's stem with the index.
-      const size_t bracket = camera_key.back() == ']' ? camera_key.rfind('[') : std::string::npos;
-      const std::string camera_path = camera_key.substr(0, bracket);
-      const std::string camera_index = bracket == std::string::npos ? "" : camera_key.substr(bracket);
-      const Camera* cam = nullptr;
-      for (const auto& [spec, obs] : entries) {
-        if (const auto* m = ModelOf<ImageMarkersObservation>(*obs)) cam = &m->camera();
-        if (const auto* m = ModelOf<ImageCurveObservation>(*obs)) cam = &m->camera();
-      }
-      if (!cam) continue;
-      svg::Figure f;
-      f.title = e_.scene.cases[c].name + ", camera " + Stem(camera_path) + camera_index;
-      f.width = 660;
-      f.height = 560;
-      f.x.label = "u [px]";
-      f.y.label = "v [px]";
-      f.y.reversed = true;  // image rows grow downwards
-      f.equal_aspect = true;
-      f.height_from_data = true;
-      // The zoom: every observed and fitted pixel on the sensor, with a margin.
-      double u0 = INFINITY, u1 = -INFINITY, v0 = INFINITY, v1 = -INFINITY;
-      auto grow = [&](const Eigen::Vector2d& p) {
-        if (!p.allFinite() || !cam->InImage(p, -50.0)) return;
-        u0 = std::min(u0, p.x());
-        u1 = std::max(u1, p.x());
-        v0 = std::min(v0, p.y());
-        v1 = std::max(v1, p.y());
-      };
-      svg::Series fitted;
-      fitted.label = "fitted centre-line";
-      fitted.colour = kFitted;
-      for (int i = 0; i < shape.cols(); ++i) {
-        Eigen::Vector2d uv;
-        if (Project(*cam, Eigen::Vector3d(shape.col(i)), &uv)) {
-          fitted.x.push_back(uv.x());
-          fitted.y.push_back(uv.y());
-          grow(uv);
-        } else {
-          fitted.x.push_back(NAN);  // the line breaks where the rod is behind the camera
-          fitted.y.push_back(NAN);
-        }
-      }
-      std::string image_file;
-      std::vector<Eigen::Vector2d> curve_pixels;  // observed without s
-      size_t colour = 0;
-      std::vector<svg::Series> observed;
-      svg::Series fitted_markers;
-      fitted_markers.label = "fitted marker positions";
-      fitted_markers.colour = kFitted;
-      fitted_markers.line = false;
-      fitted_markers.marker = svg::Marker::kCross;
-      for (const auto& [spec, obs] : entries) {
-        const bool image = KindOf(*spec).view == ReportView::kImage;
-        if (image) image_file = spec->file;
-        svg::Series s;
-        s.label = image ? "pixels extracted from " + FileName(spec->file)
-                        : "observed " + FileName(spec->file);
-        s.colour = colour++ == 0 ? kObserved : "#e377c2";
-        s.line = false;
-        s.marker = svg::Marker::kCircle;
-        s.hollow = true;
-        s.marker_size = 3.5;
-        if (const auto* m = ModelOf<ImageMarkersObservation>(*obs)) {
-          VecX r;
-          const bool ok = m->Evaluate(shape, &r);
-          for (size_t k = 0; k < m->markers().size(); ++k) {
-            const MarkerPixel& px = m->markers()[k];
-            s.x.push_back(px.uv.x());
-            s.y.push_back(px.uv.y());
-            s.point_labels.push_back(ArcLabel(px.s));
-            grow(px.uv);
-            if (ok) {
-              const Eigen::Vector2d model = px.uv + r.segment<2>(2 * k) * m->sigma();
-              fitted_markers.x.push_back(model.x());
-              fitted_markers.y.push_back(model.y());
-            }
-          }
-        } else if (const auto* m = ModelOf<ImageCurveObservation>(*obs)) {
-          // Thousands of pixels extracted from an image would hide the image and the fitted
-          // line: every k-th is drawn, as the legend says. Not in the zoom (an outlier far
-          // from the thread would zoom out to the whole frame); the figure says how many lie
-          // outside the view.
-          const size_t n = m->pixels().size();
-          const size_t every = (n + kMaxPixelsDrawn - 1) / kMaxPixelsDrawn;
-          s.marker_size = 2.5;
-          if (every > 1)
-            s.label += " (1 in " + std::to_string(every) + " of " + std::to_string(n) + " shown)";
-          for (size_t k = 0; k < n; k += every) {
-            s.x.push_back(m->pixels()[k].x());
-            s.y.push_back(m->pixels()[k].y());
-          }
-          curve_pixels.insert(curve_pixels.end(), m->pixels().begin(), m->pixels().end());
-        }
-        observed.push_back(std::move(s));
-      }
-      if (!(u1 >= u0))  // the fitted line is not on the sensor: zoom to what was observed
-        for (const Eigen::Vector2d& p : curve_pixels) grow(p);
-      const double W = cam->K.width, H = cam->K.height;
-      if (!(u1 >= u0)) {  // nothing on the sensor: the whole frame
-        u0 = 0;
-        u1 = W - 1;
-        v0 = 0;
-        v1 = H - 1;
-      }
-      const double pad = 0.08 * std::max(u1 - u0, v1 - v0) + 20.0;
-      u0 = std::max(-0.5, u0 - pad);
-      u1 = std::min(W - 0.5, u1 + pad);
-      v0 = std::max(-0.5, v0 - pad);
-      v1 = std::min(H - 0.5, v1 + pad);
-      f.x.min = u0;
-      f.x.max = u1;
-      f.y.min = v0;
-      f.y.max = v1;
-      std::string what = "blank frame (no image in the experiment)";
-      if (!image_file.empty()) {
-        const cv::Mat image = ReadImageFile(image_file);
-        const int cx0 = std::clamp(static_cast<int>(std::floor(u0 + 0.5)), 0, image.cols - 1);
-        const int cy0 = std::clamp(static_cast<int>(std::floor(v0 + 0.5)), 0, image.rows - 1);
-        const int cx1 = std::clamp(static_cast<int>(std::ceil(u1 + 0.5)), cx0 + 1, image.cols);
-        const int cy1 = std::clamp(static_cast<int>(std::ceil(v1 + 0.5)), cy0 + 1, image.rows);
-        f.background.href =
-            ImageDataUri(image_file, image, cv::Rect(cx0, cy0, cx1 - cx0, cy1 - cy0));
-        f.background.x0 = cx0 - 0.5;
-        f.background.x1 = cx1 - 0.5;
-        f.background.y0 = cy0 - 0.5;
-        f.background.y1 = cy1 - 0.5;
-        what = "image <code>" + Escape(FileName(image_file)) + "</code>";
-      } else {
-        // The sensor's edge, where the zoom reaches it.
-        svg::Series edge;
-        edge.label = "image border";
-        edge.colour = "#999999";
-        edge.dashed = true;
-        edge.line_width = 1.2;
-        edge.closed = true;
-        edge.x = {-0.5, W - 0.5, W - 0.5, -0.5};
-        edge.y = {-0.5, -0.5, H - 0.5, H - 0.5};
-        f.series.push_back(edge);
-      }
-      // Observations first, the model drawn over them.
-      for (svg::Series& s : observed) f.series.push_back(std::move(s));
-      f.series.push_back(fitted);
-      if (!fitted_markers.x.empty()) f.series.push_back(fitted_markers);
-      int outside = 0;
-      for (const Eigen::Vector2d& p : curve_pixels)
-        if (!(p.x() >= u0 && p.x() <= u1 && p.y() >= v0 && p.y() <= v1)) ++outside;
-      page_.Figure(f, "camera-view",
-                   "camera_" + e_.scene.cases[c].name + "_" + Stem(camera_path) +
-                       (camera_index.empty() ? "" : "_" + camera_index.substr(1, 1)),
-                   " data-case=\"" + Escape(e_.scene.cases[c].name) + "\" data-camera=\"" +
-                       Escape(Stem(camera_path) + camera_index) + "\"",
-                   "Camera <code>" + Escape(FileName(camera_path) + camera_index) + "</code> over the " + what +
-                       ", zoomed to the thread: observed pixels (circles, with the markers' arc "
-                       "length s) and the fitted centre-line projected (line)." +
-                       (outside > 0 ? " " + std::to_string(outside) +
-                                          " observed pixels lie outside this view."
-                                    : std::string()));
+    // A camera of a stereo file is "FILE[i]": its name is the file's stem with the index.
+    const size_t bracket = camera_key.back() == ']' ? camera_key.rfind('[') : std::string::npos;
+    const std::string camera_path = camera_key.substr(0, bracket);
+    const std::string camera_index = bracket == std::string::npos ? "" : camera_key.substr(bracket);
+    const Camera* cam = nullptr;
+    for (const auto& [spec, obs] : entries) {
+      if (const auto* m = ModelOf<ImageMarkersObservation>(*obs)) cam = &m->camera();
+      if (const auto* m = ModelOf<ImageCurveObservation>(*obs)) cam = &m->camera();
     }
+    if (!cam) return;
+    svg::Figure f;
+    f.title = e_.scene.cases[c].name + ", camera " + Stem(camera_path) + camera_index;
+    f.width = 660;
+    f.height = 560;
+    f.x.label = "u [px]";
+    f.y.label = "v [px]";
+    f.y.reversed = true;  // image rows grow downwards
+    f.equal_aspect = true;
+    f.height_from_data = true;
+    PixelBox box;
+    const svg::Series fitted = ProjectedCentreLine(*cam, shape, &box);
+    CameraPixels seen = ObservedPixels(*cam, shape, entries, &box);
+    if (box.empty())  // the fitted line is not on the sensor: zoom to what was observed
+      for (const Eigen::Vector2d& p : seen.curve_pixels) box.Grow(*cam, p);
+    const double W = cam->K.width, H = cam->K.height;
+    if (box.empty()) box = {0, W - 1, 0, H - 1};  // nothing on the sensor: the whole frame
+    const double pad = 0.08 * std::max(box.u1 - box.u0, box.v1 - box.v0) + 20.0;
+    box.u0 = std::max(-0.5, box.u0 - pad);
+    box.u1 = std::min(W - 0.5, box.u1 + pad);
+    box.v0 = std::max(-0.5, box.v0 - pad);
+    box.v1 = std::min(H - 0.5, box.v1 + pad);
+    f.x.min = box.u0;
+    f.x.max = box.u1;
+    f.y.min = box.v0;
+    f.y.max = box.v1;
+    const std::string what = CameraBackground(seen.image_file, box, W, H, &f);
+    // Observations first, the model drawn over them.
+    for (svg::Series& s : seen.observed) f.series.push_back(std::move(s));
+    f.series.push_back(fitted);
+    if (!seen.fitted_markers.x.empty()) f.series.push_back(seen.fitted_markers);
+    int outside = 0;
+    for (const Eigen::Vector2d& p : seen.curve_pixels)
+      if (!(p.x() >= box.u0 && p.x() <= box.u1 && p.y() >= box.v0 && p.y() <= box.v1)) ++outside;
+    page_.Figure(f, "camera-view",
+                 "camera_" + e_.scene.cases[c].name + "_" + Stem(camera_path) +
+                     (camera_index.empty() ? "" : "_" + camera_index.substr(1, 1)),
+                 " data-case=\"" + Escape(e_.scene.cases[c].name) + "\" data-camera=\"" +
+                     Escape(Stem(camera_path) + camera_index) + "\"",
+                 "Camera <code>" + Escape(FileName(camera_path) + camera_index) + "</code> over the " + what +
+                     ", zoomed to the thread: observed pixels (circles, with the markers' arc "
+                     "length s) and the fitted centre-line projected (line)." +
+                     (outside > 0 ? " " + std::to_string(outside) +
+                                        " observed pixels lie outside this view."
+                                  : std::string()));
+  }
+
+  // The fitted centre-line projected into the camera (broken where the rod is behind it), its
+  // pixels in the zoom.
+  static svg::Series ProjectedCentreLine(const Camera& cam, const Mat3X& shape, PixelBox* box) {
+    svg::Series fitted;
+    fitted.label = "fitted centre-line";
+    fitted.colour = kFitted;
+    for (int i = 0; i < shape.cols(); ++i) {
+      Eigen::Vector2d uv;
+      if (Project(cam, Eigen::Vector3d(shape.col(i)), &uv)) {
+        fitted.x.push_back(uv.x());
+        fitted.y.push_back(uv.y());
+        box->Grow(cam, uv);
+      } else {
+        fitted.x.push_back(NAN);  // the line breaks where the rod is behind the camera
+        fitted.y.push_back(NAN);
+      }
+    }
+    return fitted;
+  }
+
+  // The camera's entries as series: observed markers (in the zoom, with their fitted positions)
+  // and pixels extracted from an image (a sample of them drawn, not in the zoom).
+  static CameraPixels ObservedPixels(const Camera& cam, const Mat3X& shape,
+                                     const std::vector<CameraEntry>& entries, PixelBox* box) {
+    CameraPixels out;
+    size_t colour = 0;
+    svg::Series& fitted_markers = out.fitted_markers;
+    fitted_markers.label = "fitted marker positions";
+    fitted_markers.colour = kFitted;
+    fitted_markers.line = false;
+    fitted_markers.marker = svg::Marker::kCross;
+    for (const auto& [spec, obs] : entries) {
+      const bool image = KindOf(*spec).view == ReportView::kImage;
+      if (image) out.image_file = spec->file;
+      svg::Series s;
+      s.label = image ? "pixels extracted from " + FileName(spec->file)
+                      : "observed " + FileName(spec->file);
+      s.colour = colour++ == 0 ? kObserved : "#e377c2";
+      s.line = false;
+      s.marker = svg::Marker::kCircle;
+      s.hollow = true;
+      s.marker_size = 3.5;
+      if (const auto* m = ModelOf<ImageMarkersObservation>(*obs)) {
+        VecX r;
+        const bool ok = m->Evaluate(shape, &r);
+        for (size_t k = 0; k < m->markers().size(); ++k) {
+          const MarkerPixel& px = m->markers()[k];
+          s.x.push_back(px.uv.x());
+          s.y.push_back(px.uv.y());
+          s.point_labels.push_back(ArcLabel(px.s));
+          box->Grow(cam, px.uv);
+          if (ok) {
+            const Eigen::Vector2d model = px.uv + r.segment<2>(2 * k) * m->sigma();
+            fitted_markers.x.push_back(model.x());
+            fitted_markers.y.push_back(model.y());
+          }
+        }
+      } else if (const auto* m = ModelOf<ImageCurveObservation>(*obs)) {
+        // Thousands of pixels extracted from an image would hide the image and the fitted
+        // line: every k-th is drawn, as the legend says. Not in the zoom (an outlier far
+        // from the thread would zoom out to the whole frame); the figure says how many lie
+        // outside the view.
+        const size_t n = m->pixels().size();
+        const size_t every = (n + kMaxPixelsDrawn - 1) / kMaxPixelsDrawn;
+        s.marker_size = 2.5;
+        if (every > 1)
+          s.label += " (1 in " + std::to_string(every) + " of " + std::to_string(n) + " shown)";
+        for (size_t k = 0; k < n; k += every) {
+          s.x.push_back(m->pixels()[k].x());
+          s.y.push_back(m->pixels()[k].y());
+        }
+        out.curve_pixels.insert(out.curve_pixels.end(), m->pixels().begin(), m->pixels().end());
+      }
+      out.observed.push_back(std::move(s));
+    }
+    return out;
+  }
+
+  // The figure's background: the image cropped to the zoom, or a blank frame with the sensor's
+  // edge (W x H px). Returns what the caption calls it.
+  static std::string CameraBackground(const std::string& image_file, const PixelBox& box,
+                                      double W, double H, svg::Figure* f) {
+    if (image_file.empty()) {
+      // The sensor's edge, where the zoom reaches it.
+      svg::Series edge;
+      edge.label = "image border";
+      edge.colour = "#999999";
+      edge.dashed = true;
+      edge.line_width = 1.2;
+      edge.closed = true;
+      edge.x = {-0.5, W - 0.5, W - 0.5, -0.5};
+      edge.y = {-0.5, -0.5, H - 0.5, H - 0.5};
+      f->series.push_back(edge);
+      return "blank frame (no image in the experiment)";
+    }
+    const cv::Mat image = ReadImageFile(image_file);
+    const int cx0 = std::clamp(static_cast<int>(std::floor(box.u0 + 0.5)), 0, image.cols - 1);
+    const int cy0 = std::clamp(static_cast<int>(std::floor(box.v0 + 0.5)), 0, image.rows - 1);
+    const int cx1 = std::clamp(static_cast<int>(std::ceil(box.u1 + 0.5)), cx0 + 1, image.cols);
+    const int cy1 = std::clamp(static_cast<int>(std::ceil(box.v1 + 0.5)), cy0 + 1, image.rows);
+    f->background.href = ImageDataUri(image_file, image, cv::Rect(cx0, cy0, cx1 - cx0, cy1 - cy0));
+    f->background.x0 = cx0 - 0.5;
+    f->background.x1 = cx1 - 0.5;
+    f->background.y0 = cy0 - 0.5;
+    f->background.y1 = cy1 - 0.5;
+    return "image <code>" + Escape(FileName(image_file)) + "</code>";
   }
 
   // Two orthogonal projections of the fitted centre-line with the case's 3-D markers and points.
@@ -1098,98 +1142,115 @@ class Builder {
         continue;  // the file changed since the fit read it: nothing to draw from
       }
       if (samples.size() != errors.size()) continue;
-      const bool pixels = KindOf(spec).view == ReportView::kPixels;
-      const std::string unit = pixels ? "px" : "mm";
-      const double scale = pixels ? 1.0 : 1e3;
       const std::string attrs = " data-case=\"" + Escape(case_name) + "\" data-entry=\"" + Escape(label) + "\"";
-      if (std::isfinite(samples.front().s)) {
-        // The coordinate with the largest range over the sequence.
-        const int dims = pixels ? 2 : 3;
-        int axis = 0;
-        double widest = -1.0;
-        for (int a = 0; a < dims; ++a) {
-          double lo = INFINITY, hi = -INFINITY;
-          for (const SequenceSample& sm : samples) lo = std::min(lo, sm.value[a]), hi = std::max(hi, sm.value[a]);
-          if (hi - lo > widest) widest = hi - lo, axis = a;
-        }
-        std::map<double, std::vector<size_t>> by_marker;
-        for (size_t k = 0; k < samples.size(); ++k) by_marker[samples[k].s].push_back(k);
-        // At most 8 markers, spread along the rod, so that the lines stay apart.
-        std::vector<double> shown;
-        for (const auto& [arc, list] : by_marker) shown.push_back(arc);
-        if (shown.size() > 8) {
-          std::vector<double> spread;
-          for (int i = 0; i < 8; ++i) spread.push_back(shown[i * (shown.size() - 1) / 7]);
-          shown = spread;
-        }
-        svg::Figure f;
-        const char* const axis_name = pixels ? (axis == 0 ? "u" : "v") : AxisName(axis);
-        f.title = case_name + ": " + axis_name + " of the markers, " + FileName(spec.file);
-        f.width = 660;
-        f.height = 400;
-        f.x.label = "t [s]";
-        f.y.label = std::string(axis_name) + " [" + unit + "]";
-        for (size_t i = 0; i < shown.size(); ++i) {
-          svg::Series recorded, fitted;
-          recorded.label = ArcLabel(shown[i]);
-          recorded.colour = fitted.colour = Colour(i);
-          recorded.line = false;
-          recorded.marker = svg::Marker::kCircle;
-          recorded.hollow = true;
-          recorded.marker_size = 3;
-          fitted.line_width = 1.4;
-          for (size_t k : by_marker[shown[i]]) {
-            const MeasurementResidual* mr = errors[k];
-            recorded.x.push_back(samples[k].t);
-            recorded.y.push_back(scale * samples[k].value[axis]);
-            fitted.x.push_back(samples[k].t);
-            fitted.y.push_back(mr ? scale * (samples[k].value[axis] + mr->error[axis]) : NAN);
-          }
-          f.series.push_back(recorded);
-          f.series.push_back(fitted);
-        }
-        page_.Figure(f, "sequence-trajectories", "sequence_" + case_name + "_" + Stem(spec.file), attrs,
-                     "Entry <code>" + Escape(FileName(spec.file)) + "</code>: each marker's " +
-                         axis_name + " (the coordinate that moves most) as recorded (circles) and "
-                         "along the fitted trajectory (lines)" +
-                         (by_marker.size() > shown.size() ? ", 8 of the " + std::to_string(by_marker.size()) + " markers" : std::string()) +
-                         ".");
-      }
-      svg::Figure f;
-      f.title = case_name + ": misfit over time, " + FileName(spec.file);
-      f.width = 660;
-      f.height = 360;
-      f.x.label = "t [s]";
-      f.y.label = "|model − measured| [σ]";
-      svg::Series each, rms;
-      each.label = "each sample";
-      each.line = false;
-      each.marker = svg::Marker::kCircle;
-      each.marker_size = 2.5;
-      each.colour = "#7f7f7f";
-      rms.label = "RMS per time";
-      rms.colour = "#d62728";
-      std::map<double, std::pair<double, int>> per_time;  // sum of squares, count
-      for (size_t k = 0; k < samples.size(); ++k) {
-        if (!errors[k]) continue;
-        const double norm = errors[k]->error.norm() / errors[k]->sigma;
-        each.x.push_back(samples[k].t);
-        each.y.push_back(norm);
-        auto& acc = per_time[samples[k].t];
-        acc.first += norm * norm;
-        ++acc.second;
-      }
-      for (const auto& [t, acc] : per_time) {
-        rms.x.push_back(t);
-        rms.y.push_back(std::sqrt(acc.first / acc.second));
-      }
-      f.series = {each, rms};
-      page_.Figure(f, "sequence-misfit", "sequence_misfit_" + case_name + "_" + Stem(spec.file), attrs,
-                   "Entry <code>" + Escape(FileName(spec.file)) + "</code>: every recorded "
-                   "sample's misfit at the fitted values in units of its sigma, and their RMS at "
-                   "each time (about 1 when the model explains the motion to its noise; a rise "
-                   "over time is a prediction drifting away).");
+      if (std::isfinite(samples.front().s)) MarkerTrajectoryFigure(c, spec, samples, errors, attrs);
+      SequenceMisfitFigure(c, spec, samples, errors, attrs);
     }
+  }
+
+  // Each marker's coordinate that moves most, as recorded and along the fitted trajectory (at
+  // most 8 markers, spread along the rod). errors: the samples' residuals, by sample number.
+  void MarkerTrajectoryFigure(size_t c, const ObservationSpec& spec,
+                              const std::vector<SequenceSample>& samples,
+                              const std::vector<const MeasurementResidual*>& errors,
+                              const std::string& attrs) {
+    const std::string& case_name = e_.scene.cases[c].name;
+    const bool pixels = KindOf(spec).view == ReportView::kPixels;
+    const std::string unit = pixels ? "px" : "mm";
+    const double scale = pixels ? 1.0 : 1e3;
+    // The coordinate with the largest range over the sequence.
+    const int dims = pixels ? 2 : 3;
+    int axis = 0;
+    double widest = -1.0;
+    for (int a = 0; a < dims; ++a) {
+      double lo = INFINITY, hi = -INFINITY;
+      for (const SequenceSample& sm : samples) lo = std::min(lo, sm.value[a]), hi = std::max(hi, sm.value[a]);
+      if (hi - lo > widest) widest = hi - lo, axis = a;
+    }
+    std::map<double, std::vector<size_t>> by_marker;
+    for (size_t k = 0; k < samples.size(); ++k) by_marker[samples[k].s].push_back(k);
+    // At most 8 markers, spread along the rod, so that the lines stay apart.
+    std::vector<double> shown;
+    for (const auto& [arc, list] : by_marker) shown.push_back(arc);
+    if (shown.size() > 8) {
+      std::vector<double> spread;
+      for (int i = 0; i < 8; ++i) spread.push_back(shown[i * (shown.size() - 1) / 7]);
+      shown = spread;
+    }
+    svg::Figure f;
+    const char* const axis_name = pixels ? (axis == 0 ? "u" : "v") : AxisName(axis);
+    f.title = case_name + ": " + axis_name + " of the markers, " + FileName(spec.file);
+    f.width = 660;
+    f.height = 400;
+    f.x.label = "t [s]";
+    f.y.label = std::string(axis_name) + " [" + unit + "]";
+    for (size_t i = 0; i < shown.size(); ++i) {
+      svg::Series recorded, fitted;
+      recorded.label = ArcLabel(shown[i]);
+      recorded.colour = fitted.colour = Colour(i);
+      recorded.line = false;
+      recorded.marker = svg::Marker::kCircle;
+      recorded.hollow = true;
+      recorded.marker_size = 3;
+      fitted.line_width = 1.4;
+      for (size_t k : by_marker[shown[i]]) {
+        const MeasurementResidual* mr = errors[k];
+        recorded.x.push_back(samples[k].t);
+        recorded.y.push_back(scale * samples[k].value[axis]);
+        fitted.x.push_back(samples[k].t);
+        fitted.y.push_back(mr ? scale * (samples[k].value[axis] + mr->error[axis]) : NAN);
+      }
+      f.series.push_back(recorded);
+      f.series.push_back(fitted);
+    }
+    page_.Figure(f, "sequence-trajectories", "sequence_" + case_name + "_" + Stem(spec.file), attrs,
+                 "Entry <code>" + Escape(FileName(spec.file)) + "</code>: each marker's " +
+                     axis_name + " (the coordinate that moves most) as recorded (circles) and "
+                     "along the fitted trajectory (lines)" +
+                     (by_marker.size() > shown.size() ? ", 8 of the " + std::to_string(by_marker.size()) + " markers" : std::string()) +
+                     ".");
+  }
+
+  // Every sample's misfit in units of its sigma, and their RMS at each time.
+  void SequenceMisfitFigure(size_t c, const ObservationSpec& spec,
+                            const std::vector<SequenceSample>& samples,
+                            const std::vector<const MeasurementResidual*>& errors,
+                            const std::string& attrs) {
+    const std::string& case_name = e_.scene.cases[c].name;
+  svg::Figure f;
+  f.title = case_name + ": misfit over time, " + FileName(spec.file);
+  f.width = 660;
+  f.height = 360;
+  f.x.label = "t [s]";
+  f.y.label = "|model − measured| [σ]";
+  svg::Series each, rms;
+  each.label = "each sample";
+  each.line = false;
+  each.marker = svg::Marker::kCircle;
+  each.marker_size = 2.5;
+  each.colour = "#7f7f7f";
+  rms.label = "RMS per time";
+  rms.colour = "#d62728";
+  std::map<double, std::pair<double, int>> per_time;  // sum of squares, count
+  for (size_t k = 0; k < samples.size(); ++k) {
+    if (!errors[k]) continue;
+    const double norm = errors[k]->error.norm() / errors[k]->sigma;
+    each.x.push_back(samples[k].t);
+    each.y.push_back(norm);
+    auto& acc = per_time[samples[k].t];
+    acc.first += norm * norm;
+    ++acc.second;
+  }
+  for (const auto& [t, acc] : per_time) {
+    rms.x.push_back(t);
+    rms.y.push_back(std::sqrt(acc.first / acc.second));
+  }
+  f.series = {each, rms};
+  page_.Figure(f, "sequence-misfit", "sequence_misfit_" + case_name + "_" + Stem(spec.file), attrs,
+               "Entry <code>" + Escape(FileName(spec.file)) + "</code>: every recorded "
+               "sample's misfit at the fitted values in units of its sigma, and their RMS at "
+               "each time (about 1 when the model explains the motion to its noise; a rise "
+               "over time is a prediction drifting away).");
   }
 
   // A moving case's load cell log: the force components as recorded and along the fitted
@@ -1285,12 +1346,7 @@ class Builder {
   // Per force entry of the case: force versus time (haptic logs) and the force residuals.
   void ForcePlots(size_t c) {
     // Readings of each force entry of this case, with their residuals and fit cases.
-    struct Reading {
-      double x;  // time [s] or reading number
-      Vec3 measured, error;
-      double sigma;
-    };
-    std::map<std::string, std::vector<Reading>> readings;
+    std::map<std::string, std::vector<ForceReading>> readings;
     std::map<std::string, const ObservationSpec*> spec_of;
     std::vector<std::string> order;
     for (const ObservationSpec& spec : e_.cases[c].observations)
@@ -1327,91 +1383,101 @@ class Builder {
     for (const std::string& label : order) {
       auto& list = readings[label];
       std::sort(list.begin(), list.end(),
-                [](const Reading& a, const Reading& b) { return a.x < b.x; });
+                [](const ForceReading& a, const ForceReading& b) { return a.x < b.x; });
       const ObservationSpec& spec = *spec_of[label];
       const bool haptic = KindOf(spec).view == ReportView::kHapticLog;
       const std::string xlabel = haptic ? "t [s]" : "reading";
       const std::string attrs = " data-case=\"" + Escape(e_.scene.cases[c].name) +
                                 "\" data-entry=\"" + Escape(label) + "\"";
-      if (haptic) {
-        svg::Figure f;
-        f.title = e_.scene.cases[c].name + ": force of " + FileName(spec.file);
-        f.width = 660;
-        f.height = 400;
-        f.x.label = xlabel;
-        f.y.label = "force on the instrument [N]";
-        // The whole log as recorded, then the quasi-static samples the fit used, measured and
-        // fitted.
-        const CsvTable t = CsvTable::Read(spec.file);
-        const std::vector<double> time = t.Column("t");
-        const char* const cols[] = {"fx", "fy", "fz"};
-        for (int i = 0; i < 3; ++i) {
-          svg::Series s;
-          s.label = std::string(cols[i]) + " log";
-          s.colour = kComponent[i];
-          s.line_width = 1.0;
-          s.x = time;
-          s.y = t.Column(cols[i]);
-          f.series.push_back(s);
-        }
-        for (int i = 0; i < 3; ++i) {
-          svg::Series m, model;
-          m.label = std::string(cols[i]) + " used (measured)";
-          m.colour = kComponent[i];
-          m.line = false;
-          m.marker = svg::Marker::kCircle;
-          m.hollow = true;
-          m.marker_size = 5;
-          model.label = std::string(cols[i]) + " fitted";
-          model.colour = kComponent[i];
-          model.line = false;
-          model.marker = svg::Marker::kCross;
-          model.marker_size = 5;
-          for (const Reading& rd : list) {
-            m.x.push_back(rd.x);
-            m.y.push_back(rd.measured[i]);
-            model.x.push_back(rd.x);
-            model.y.push_back(rd.measured[i] + rd.error[i]);
-          }
-          f.series.push_back(m);
-          f.series.push_back(model);
-        }
-        page_.Figure(f, "force-time", "force_" + e_.scene.cases[c].name + "_" + Stem(spec.file),
-                     attrs,
-                     "Haptic log <code>" + Escape(FileName(spec.file)) +
-                         "</code>: the force components as recorded (lines), the quasi-static "
-                         "samples the fit used (circles) and the model's force there (crosses).");
-      }
-      svg::Figure f;
-      f.title = e_.scene.cases[c].name + ": force residuals, " + FileName(spec.file);
-      f.width = 660;
-      f.height = 360;
-      f.x.label = xlabel;
-      f.y.label = "force residual, model − measured [N]";
-      const double sigma = list.empty() ? spec.sigma : list.front().sigma;
-      f.bands.push_back({-3 * sigma, 3 * sigma, "#2ca02c", 0.08,
-                         "±3 σ (" + svg::FormatTick(3 * sigma, sigma) + " N)"});
-      f.bands.push_back({-sigma, sigma, "#2ca02c", 0.18, "±1 σ"});
-      const char* const names[] = {"x", "y", "z"};
-      for (int i = 0; i < 3; ++i) {
-        svg::Series s;
-        s.label = std::string("f") + names[i] + " residual";
-        s.colour = kComponent[i];
-        s.line = false;
-        s.marker = svg::Marker::kCircle;
-        s.marker_size = 4;
-        for (const Reading& rd : list) {
-          s.x.push_back(rd.x);
-          s.y.push_back(rd.error[i]);
-        }
-        f.series.push_back(s);
-      }
-      page_.Figure(f, "force-residuals",
-                   "force_residuals_" + e_.scene.cases[c].name + "_" + Stem(spec.file), attrs,
-                   "Force residuals of <code>" + Escape(FileName(spec.file)) +
-                       "</code> per reading, with the ±1 σ and ±3 σ bands of the entry's "
-                       "sigma.");
+      if (haptic) HapticLogFigure(c, spec, list, attrs);
+      ForceResidualFigure(c, spec, list, xlabel, attrs);
     }
+  }
+
+  // A haptic log's figure: the whole log as recorded, then the quasi-static samples the fit used
+  // (`list`), measured and fitted.
+  void HapticLogFigure(size_t c, const ObservationSpec& spec, const std::vector<ForceReading>& list,
+                       const std::string& attrs) {
+    svg::Figure f;
+    f.title = e_.scene.cases[c].name + ": force of " + FileName(spec.file);
+    f.width = 660;
+    f.height = 400;
+    f.x.label = "t [s]";
+    f.y.label = "force on the instrument [N]";
+    const CsvTable t = CsvTable::Read(spec.file);
+    const std::vector<double> time = t.Column("t");
+    const char* const cols[] = {"fx", "fy", "fz"};
+    for (int i = 0; i < 3; ++i) {
+      svg::Series s;
+      s.label = std::string(cols[i]) + " log";
+      s.colour = kComponent[i];
+      s.line_width = 1.0;
+      s.x = time;
+      s.y = t.Column(cols[i]);
+      f.series.push_back(s);
+    }
+    for (int i = 0; i < 3; ++i) {
+      svg::Series m, model;
+      m.label = std::string(cols[i]) + " used (measured)";
+      m.colour = kComponent[i];
+      m.line = false;
+      m.marker = svg::Marker::kCircle;
+      m.hollow = true;
+      m.marker_size = 5;
+      model.label = std::string(cols[i]) + " fitted";
+      model.colour = kComponent[i];
+      model.line = false;
+      model.marker = svg::Marker::kCross;
+      model.marker_size = 5;
+      for (const ForceReading& rd : list) {
+        m.x.push_back(rd.x);
+        m.y.push_back(rd.measured[i]);
+        model.x.push_back(rd.x);
+        model.y.push_back(rd.measured[i] + rd.error[i]);
+      }
+      f.series.push_back(m);
+      f.series.push_back(model);
+    }
+    page_.Figure(f, "force-time", "force_" + e_.scene.cases[c].name + "_" + Stem(spec.file),
+                 attrs,
+                 "Haptic log <code>" + Escape(FileName(spec.file)) +
+                     "</code>: the force components as recorded (lines), the quasi-static "
+                     "samples the fit used (circles) and the model's force there (crosses).");
+  }
+
+  // A force entry's residuals per reading, with the ±1 σ and ±3 σ bands.
+  void ForceResidualFigure(size_t c, const ObservationSpec& spec,
+                           const std::vector<ForceReading>& list, const std::string& xlabel,
+                           const std::string& attrs) {
+  svg::Figure f;
+  f.title = e_.scene.cases[c].name + ": force residuals, " + FileName(spec.file);
+  f.width = 660;
+  f.height = 360;
+  f.x.label = xlabel;
+  f.y.label = "force residual, model − measured [N]";
+  const double sigma = list.empty() ? spec.sigma : list.front().sigma;
+  f.bands.push_back({-3 * sigma, 3 * sigma, "#2ca02c", 0.08,
+                     "±3 σ (" + svg::FormatTick(3 * sigma, sigma) + " N)"});
+  f.bands.push_back({-sigma, sigma, "#2ca02c", 0.18, "±1 σ"});
+  const char* const names[] = {"x", "y", "z"};
+  for (int i = 0; i < 3; ++i) {
+    svg::Series s;
+    s.label = std::string("f") + names[i] + " residual";
+    s.colour = kComponent[i];
+    s.line = false;
+    s.marker = svg::Marker::kCircle;
+    s.marker_size = 4;
+    for (const ForceReading& rd : list) {
+      s.x.push_back(rd.x);
+      s.y.push_back(rd.error[i]);
+    }
+    f.series.push_back(s);
+  }
+  page_.Figure(f, "force-residuals",
+               "force_residuals_" + e_.scene.cases[c].name + "_" + Stem(spec.file), attrs,
+               "Force residuals of <code>" + Escape(FileName(spec.file)) +
+                   "</code> per reading, with the ±1 σ and ±3 σ bands of the entry's "
+                   "sigma.");
   }
 
   // The case's residuals in sigmas (all its entries, haptic samples included), per entry; for a

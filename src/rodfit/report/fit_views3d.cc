@@ -250,46 +250,15 @@ std::vector<json> MovingPart(const FitInput& in, const FitResult& r, size_t ci, 
   return traces;
 }
 
-}  // namespace
-
-double DentMagnification(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& deformed) {
-  if (rest.cols() < 3 || rest.cols() != deformed.cols()) return 1.0;
-  const Eigen::Vector3d centre = rest.rowwise().mean();
-  const double radius = (rest.colwise() - centre).colwise().norm().mean();
-  const double largest = (deformed - rest).colwise().norm().maxCoeff();
-  if (!(largest > 0) || !(radius > 0) || largest >= 0.1 * radius) return 1.0;
-  const double want = 0.2 * radius / largest;
-  double k = std::pow(10.0, std::floor(std::log10(want)));
-  for (double m : {5.0, 2.0})
-    if (m * std::pow(10.0, std::floor(std::log10(want))) <= want) {
-      k = m * std::pow(10.0, std::floor(std::log10(want)));
-      break;
-    }
-  return std::max(1.0, k);
-}
-
-view3d::View StaticCaseView(const Experiment& /*experiment: the static case is in.cases[c]*/,
-                            const FitInput& in, const FitResult& r, size_t c,
-                            const std::vector<size_t>& samples, const std::string& id) {
-  view3d::View view;
-  view.id = id;
-  const FitCase& fc = in.cases[c];
-  view.title = "Case " + Text(fc.load_case.name) + " in 3-D (drag to turn, scroll to zoom, hover for values)";
-  const Eigen::Matrix3Xd& shape = r.shapes[c];
-  const std::vector<double> arc = ArcLengths(in, fc.load_case, shape.cols());
-  const double L = in.rod.length;
-  // The scale of every force arrow of the view: the largest as long as a quarter of the rod.
-  double largest = LargestForce(fc, r, c);
-  for (size_t k : samples) largest = std::max(largest, LargestForce(in.cases[k], r, k));
-  const double metres_per_newton = largest > 0 ? 0.25 * L / largest : 0.0;
-
-  // The tube with the poke's dent, under everything else.
+// The tube with the poke's dent, and the poked section at rest, fitted and its dent
+// magnified: under everything else.
+void SectionTraces(const FitResult& r, size_t c, std::vector<json>* traces) {
   if (c < r.tube_vertices.size() && r.tube_vertices[c].cols() > 0) {
     Style tube;
     tube.colour = "#e6a37e";
     tube.opacity = 0.55;
-    view.traces.push_back(view3d::Mesh("tissue surface with the poke's dent (fitted)",
-                                       r.tube_vertices[c], r.tube_triangles[c], tube));
+    traces->push_back(view3d::Mesh("tissue surface with the poke's dent (fitted)",
+                                   r.tube_vertices[c], r.tube_triangles[c], tube));
   }
   if (c < r.sections.size() && r.sections[c].cols() > 2) {
     auto closed = [](const Eigen::Matrix3Xd& ring) {
@@ -301,24 +270,26 @@ view3d::View StaticCaseView(const Experiment& /*experiment: the static case is i
     rest.colour = "#888888";
     rest.width = 4;
     rest.dashed = true;
-    view.traces.push_back(view3d::Line("poked section at rest", closed(r.rest_sections[c]), {}, rest));
+    traces->push_back(view3d::Line("poked section at rest", closed(r.rest_sections[c]), {}, rest));
     Style ring;
     ring.colour = kFitted;
     ring.width = 6;
-    view.traces.push_back(view3d::Line("poked section, fitted", closed(r.sections[c]), {}, ring));
+    traces->push_back(view3d::Line("poked section, fitted", closed(r.sections[c]), {}, ring));
     const double k = DentMagnification(r.rest_sections[c], r.sections[c]);
     if (k > 1) {
       Style dent;
       dent.colour = "#9467bd";
       dent.width = 8;
-      view.traces.push_back(view3d::Line(
+      traces->push_back(view3d::Line(
           "the dent magnified × " + Num(k, "%g") + " (section displacement)",
           closed(r.rest_sections[c] + k * (r.sections[c] - r.rest_sections[c])), {}, dent));
     }
   }
-  HeldPoints(fc.load_case, L, &view.traces);
+}
 
-  // Markers and points with their residual vectors.
+// Markers and points with their residual vectors.
+void MeasurementTraces(const FitCase& fc, const Eigen::Matrix3Xd& shape,
+                       std::vector<json>* traces) {
   for (const auto& meas : fc.measurements) {
     if (!meas->reads_vertices_only()) continue;
     const Measurement& obs = *meas;
@@ -353,21 +324,25 @@ view3d::View StaticCaseView(const Experiment& /*experiment: the static case is i
     observed.colour = kObserved;
     observed.symbol = "circle-open";
     observed.width = 6;
-    view.traces.push_back(view3d::Points("observed: " + label, Columns(seen), hover, observed));
+    traces->push_back(view3d::Points("observed: " + label, Columns(seen), hover, observed));
     Style fitted;
     fitted.colour = kFitted;
     fitted.symbol = "diamond";
     fitted.width = 4;
     fitted.group = "residual vectors";
-    view.traces.push_back(view3d::Points("model at the fit", Columns(model), hover, fitted));
+    traces->push_back(view3d::Points("model at the fit", Columns(model), hover, fitted));
     Style arrow;
     arrow.colour = kResidual;
     arrow.width = 4;
     arrow.group = "residual vectors";
-    view.traces.push_back(view3d::Segments("residual vectors (measured → model)", Columns(seen),
-                                           Columns(model), hover, arrow));
+    traces->push_back(view3d::Segments("residual vectors (measured → model)", Columns(seen),
+                                       Columns(model), hover, arrow));
   }
-  // Surface points of a poke, with their residuals to the fitted section.
+}
+
+// Surface points of a poke, with their residuals to the fitted section.
+void SurfacePointTraces(const FitCase& fc, const FitResult& r, size_t c,
+                        std::vector<json>* traces) {
   for (const auto& meas : fc.measurements) {
     const auto* set = dynamic_cast<const SurfacePointSet*>(meas.get());
     if (!set) continue;
@@ -389,17 +364,20 @@ view3d::View StaticCaseView(const Experiment& /*experiment: the static case is i
     observed.colour = kObserved;
     observed.symbol = "circle";
     observed.width = 2;
-    view.traces.push_back(
+    traces->push_back(
         view3d::Points("measured: " + Text(set->label()), Columns(seen), hover, observed));
     Style arrow;
     arrow.colour = kResidual;
     arrow.width = 4;
     arrow.group = "residual vectors";
-    view.traces.push_back(view3d::Segments("surface residuals (measured → section)", Columns(seen),
-                                           Columns(model), hover, arrow));
+    traces->push_back(view3d::Segments("surface residuals (measured → section)", Columns(seen),
+                                       Columns(model), hover, arrow));
   }
+}
 
-  // Loads applied by the case: tip, point and poke forces.
+// Loads applied by the case: tip, point and poke forces, at the view's force scale.
+void LoadTraces(const FitCase& fc, const Eigen::Matrix3Xd& shape, const std::vector<double>& arc,
+                double L, double metres_per_newton, std::vector<json>* traces) {
   ArrowSet loads;
   if (shape.cols() > 0) loads.Add(shape.col(shape.cols() - 1), fc.load_case.tip_force, "tip force at s = L");
   for (const PointForce& p : fc.load_case.point_forces)
@@ -414,7 +392,47 @@ view3d::View StaticCaseView(const Experiment& /*experiment: the static case is i
   Style load;
   load.colour = kLoad;
   load.width = 6;
-  DrawArrows("applied loads", loads, metres_per_newton, 0.02 * L, load, &view.traces);
+  DrawArrows("applied loads", loads, metres_per_newton, 0.02 * L, load, traces);
+}
+
+}  // namespace
+
+double DentMagnification(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& deformed) {
+  if (rest.cols() < 3 || rest.cols() != deformed.cols()) return 1.0;
+  const Eigen::Vector3d centre = rest.rowwise().mean();
+  const double radius = (rest.colwise() - centre).colwise().norm().mean();
+  const double largest = (deformed - rest).colwise().norm().maxCoeff();
+  if (!(largest > 0) || !(radius > 0) || largest >= 0.1 * radius) return 1.0;
+  const double want = 0.2 * radius / largest;
+  double k = std::pow(10.0, std::floor(std::log10(want)));
+  for (double m : {5.0, 2.0})
+    if (m * std::pow(10.0, std::floor(std::log10(want))) <= want) {
+      k = m * std::pow(10.0, std::floor(std::log10(want)));
+      break;
+    }
+  return std::max(1.0, k);
+}
+
+view3d::View StaticCaseView(const Experiment& /*experiment: the static case is in.cases[c]*/,
+                            const FitInput& in, const FitResult& r, size_t c,
+                            const std::vector<size_t>& samples, const std::string& id) {
+  view3d::View view;
+  view.id = id;
+  const FitCase& fc = in.cases[c];
+  view.title = "Case " + Text(fc.load_case.name) + " in 3-D (drag to turn, scroll to zoom, hover for values)";
+  const Eigen::Matrix3Xd& shape = r.shapes[c];
+  const std::vector<double> arc = ArcLengths(in, fc.load_case, shape.cols());
+  const double L = in.rod.length;
+  // The scale of every force arrow of the view: the largest as long as a quarter of the rod.
+  double largest = LargestForce(fc, r, c);
+  for (size_t k : samples) largest = std::max(largest, LargestForce(in.cases[k], r, k));
+  const double metres_per_newton = largest > 0 ? 0.25 * L / largest : 0.0;
+
+  SectionTraces(r, c, &view.traces);
+  HeldPoints(fc.load_case, L, &view.traces);
+  MeasurementTraces(fc, shape, &view.traces);
+  SurfacePointTraces(fc, r, c, &view.traces);
+  LoadTraces(fc, shape, arc, L, metres_per_newton, &view.traces);
 
   // The centre-line, grasp and forces: moving with the slider when the case has samples.
   std::vector<json> moving = MovingPart(in, r, c, L, metres_per_newton, !samples.empty());

@@ -18,6 +18,7 @@ constexpr double kCharWidth = 7.0;
 constexpr int kTickFont = 12, kLabelFont = 13, kTitleFont = 15, kLegendFont = 12;
 constexpr int kLegendRow = 20;     // [px]
 constexpr int kMinPlotHeight = 120;
+constexpr int kAxisBottom = 50;    // [px] below the plot: the tick labels and the x label
 
 std::string Num(double v) {  // an SVG coordinate: 2 decimals are 0.01 px
   char b[32];
@@ -521,23 +522,18 @@ void DrawLegend(std::ostringstream& o, const std::vector<LegendEntry>& legend,
   o << "</g>\n";
 }
 
-}  // namespace
+// Where a figure's plot lies in the SVG [px], and its axes' mappings.
+struct Layout {
+  Scale sx, sy;
+  double left = 0.0, top = 0.0;        // the plot's top left corner
+  double plot_w = 0.0, plot_h = 0.0;   // the plot's size
+  double plot_bottom = 0.0;            // top + plot_h
+  double total_h = 0.0;                // the figure's height, legend included
+};
 
-// The figure in painting order (frame, grid, bands, series, axes, legend), sharing one
-// coordinate mapping; the series and the legend are drawn by the functions above.
-std::string RenderSvg(const Figure& f, const std::string& raw_id) {
-  const std::string id = SafeId(raw_id);
-  const bool has_data = HasData(f);
-
-  // Legend entries and their rows (laid out left to right, wrapped at the figure's width).
-  std::vector<LegendEntry> legend;
-  for (const Series& s : f.series)
-    if (!s.label.empty()) legend.push_back({&s, nullptr, s.label});
-  for (const Band& b : f.bands)
-    if (!b.label.empty()) legend.push_back({nullptr, &b, b.label});
-  const std::vector<LegendPlace> placed = LayoutLegend(legend, f.width);
-  const int legend_rows = legend.empty() ? 0 : placed.back().row + 1;
-
+// The layout: the data's ranges (points, bars' extents, bands, the background image), the
+// margins (the y tick labels decide the left one), and an equal aspect's widened range.
+Layout PlaceFigure(const Figure& f, bool has_data, int legend_rows) {
   // Ranges in transformed units.
   std::vector<double> xs, ys;
   for (const Series& s : f.series) {
@@ -566,7 +562,9 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
     ys.push_back(f.background.y1);
   }
   const double margin = has_image ? 0.0 : 0.06;
-  Scale sx, sy;
+  Layout l;
+  Scale& sx = l.sx;
+  Scale& sy = l.sy;
   sx.log = f.x.log;
   sx.reversed = f.x.reversed;
   sy.log = f.y.log;
@@ -580,10 +578,10 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
     for (const Tick& t : Ticks(f.y, sy.lo, sy.hi, 6))
       max_tick_chars = std::max<int>(max_tick_chars, static_cast<int>(t.label.size()));
   const double left = 30 + kCharWidth * std::min(max_tick_chars, 12) + 8;
-  const double right = 18, top = f.title.empty() ? 14 : 34, axis_bottom = 50;
+  const double right = 18, top = f.title.empty() ? 14 : 34;
   const double legend_h = legend_rows * kLegendRow + (legend_rows ? 6 : 0);
   const double plot_w = std::max(60.0, f.width - left - right);
-  double plot_h = std::max<double>(kMinPlotHeight, f.height - top - axis_bottom);
+  double plot_h = std::max<double>(kMinPlotHeight, f.height - top - kAxisBottom);
 
   if (f.equal_aspect && has_data && !f.x.log && !f.y.log) {
     const double xr = sx.hi - sx.lo, yr = sy.hi - sy.lo;
@@ -601,8 +599,88 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
   sx.to = left + plot_w;
   sy.from = top;
   sy.to = top + plot_h;
-  const double total_h = top + plot_h + axis_bottom + legend_h;
-  const double plot_bottom = top + plot_h;
+  l.left = left;
+  l.top = top;
+  l.plot_w = plot_w;
+  l.plot_h = plot_h;
+  l.total_h = top + plot_h + kAxisBottom + legend_h;
+  l.plot_bottom = top + plot_h;
+  return l;
+}
+
+// A tick's pixel (tick values are in transformed units).
+double TickPx(const Scale& s, double t) { return s.Px(s.log ? std::pow(10.0, t) : t); }
+
+// Under the series: the background image, or the grid; the bands.
+void DrawBackground(std::ostringstream& o, const Figure& f, const Layout& l,
+                    const std::string& clip, const std::vector<Tick>& xt,
+                    const std::vector<Tick>& yt) {
+  if (!f.background.href.empty()) {
+    const double x0 = l.sx.Px(f.background.x0), x1 = l.sx.Px(f.background.x1);
+    const double y0 = l.sy.Px(f.background.y0), y1 = l.sy.Px(f.background.y1);
+    o << "<image" << clip << " x=\"" << Num(std::min(x0, x1)) << "\" y=\"" << Num(std::min(y0, y1))
+      << "\" width=\"" << Num(std::abs(x1 - x0)) << "\" height=\"" << Num(std::abs(y1 - y0))
+      << "\" preserveAspectRatio=\"none\" href=\"" << Escape(f.background.href) << "\"/>\n";
+  } else {
+    o << "<g stroke=\"#e3e3e3\" stroke-width=\"1\">";
+    for (const Tick& t : xt)
+      o << "<path d=\"M" << Num(TickPx(l.sx, t.value)) << " " << Num(l.top) << "V"
+        << Num(l.plot_bottom) << "\"/>";
+    for (const Tick& t : yt)
+      o << "<path d=\"M" << Num(l.left) << " " << Num(TickPx(l.sy, t.value)) << "H"
+        << Num(l.left + l.plot_w) << "\"/>";
+    o << "</g>\n";
+  }
+  for (const Band& b : f.bands) {
+    const double y0 = l.sy.Px(b.low), y1 = l.sy.Px(b.high);
+    if (!std::isfinite(y0) || !std::isfinite(y1)) continue;
+    o << "<rect class=\"band\"" << clip << " x=\"" << Num(l.left) << "\" y=\""
+      << Num(std::min(y0, y1)) << "\" width=\"" << Num(l.plot_w) << "\" height=\""
+      << Num(std::abs(y1 - y0)) << "\" fill=\"" << Escape(b.colour) << "\" fill-opacity=\""
+      << Num(b.opacity) << "\"/>\n";
+  }
+}
+
+// Over the series: the frame, ticks and tick labels.
+void DrawFrame(std::ostringstream& o, const Layout& l, const std::vector<Tick>& xt,
+               const std::vector<Tick>& yt) {
+  o << "<rect x=\"" << Num(l.left) << "\" y=\"" << Num(l.top) << "\" width=\"" << Num(l.plot_w)
+    << "\" height=\"" << Num(l.plot_h) << "\" fill=\"none\" stroke=\"#444444\"/>\n";
+  o << "<g class=\"ticks\" font-size=\"" << kTickFont << "\" fill=\"#222222\">";
+  for (const Tick& t : xt) {
+    const double x = TickPx(l.sx, t.value);
+    o << "<path d=\"M" << Num(x) << " " << Num(l.plot_bottom) << "v5\" stroke=\"#444444\"/>"
+      << "<text x=\"" << Num(x) << "\" y=\"" << Num(l.plot_bottom + 19)
+      << "\" text-anchor=\"middle\">" << Escape(t.label) << "</text>";
+  }
+  for (const Tick& t : yt) {
+    const double y = TickPx(l.sy, t.value);
+    o << "<path d=\"M" << Num(l.left) << " " << Num(y) << "h-5\" stroke=\"#444444\"/>"
+      << "<text x=\"" << Num(l.left - 8) << "\" y=\"" << Num(y + 4) << "\" text-anchor=\"end\">"
+      << Escape(t.label) << "</text>";
+  }
+  o << "</g>\n";
+}
+
+}  // namespace
+
+// The figure in painting order (frame, grid, bands, series, axes, legend), sharing one
+// coordinate mapping (PlaceFigure's); the parts are drawn by the functions above.
+std::string RenderSvg(const Figure& f, const std::string& raw_id) {
+  const std::string id = SafeId(raw_id);
+  const bool has_data = HasData(f);
+
+  // Legend entries and their rows (laid out left to right, wrapped at the figure's width).
+  std::vector<LegendEntry> legend;
+  for (const Series& s : f.series)
+    if (!s.label.empty()) legend.push_back({&s, nullptr, s.label});
+  for (const Band& b : f.bands)
+    if (!b.label.empty()) legend.push_back({nullptr, &b, b.label});
+  const std::vector<LegendPlace> placed = LayoutLegend(legend, f.width);
+  const int legend_rows = legend.empty() ? 0 : placed.back().row + 1;
+  const Layout l = PlaceFigure(f, has_data, legend_rows);
+  const double left = l.left, top = l.top, plot_w = l.plot_w, plot_h = l.plot_h;
+  const double plot_bottom = l.plot_bottom, total_h = l.total_h;
 
   std::ostringstream o;
   o << "<svg xmlns=\"http://www.w3.org/2000/svg\" class=\"plot\" width=\"" << f.width
@@ -634,62 +712,18 @@ std::string RenderSvg(const Figure& f, const std::string& raw_id) {
     return o.str();
   }
 
-  // Background image, grid, bands.
   const std::string clip = " clip-path=\"url(#" + id + "-clip)\"";
-  if (has_image) {
-    const double x0 = sx.Px(f.background.x0), x1 = sx.Px(f.background.x1);
-    const double y0 = sy.Px(f.background.y0), y1 = sy.Px(f.background.y1);
-    o << "<image" << clip << " x=\"" << Num(std::min(x0, x1)) << "\" y=\"" << Num(std::min(y0, y1))
-      << "\" width=\"" << Num(std::abs(x1 - x0)) << "\" height=\"" << Num(std::abs(y1 - y0))
-      << "\" preserveAspectRatio=\"none\" href=\"" << Escape(f.background.href) << "\"/>\n";
-  }
-  const std::vector<Tick> xt = Ticks(f.x, sx.lo, sx.hi, std::max(3, static_cast<int>(plot_w / 90)));
-  const std::vector<Tick> yt = Ticks(f.y, sy.lo, sy.hi, std::max(3, static_cast<int>(plot_h / 50)));
-  auto tx = [&](double t) { return sx.Px(sx.log ? std::pow(10.0, t) : t); };
-  auto ty = [&](double t) { return sy.Px(sy.log ? std::pow(10.0, t) : t); };
-  if (!has_image) {
-    o << "<g stroke=\"#e3e3e3\" stroke-width=\"1\">";
-    for (const Tick& t : xt)
-      o << "<path d=\"M" << Num(tx(t.value)) << " " << Num(top) << "V" << Num(plot_bottom)
-        << "\"/>";
-    for (const Tick& t : yt)
-      o << "<path d=\"M" << Num(left) << " " << Num(ty(t.value)) << "H" << Num(left + plot_w)
-        << "\"/>";
-    o << "</g>\n";
-  }
-  for (const Band& b : f.bands) {
-    const double y0 = sy.Px(b.low), y1 = sy.Px(b.high);
-    if (!std::isfinite(y0) || !std::isfinite(y1)) continue;
-    o << "<rect class=\"band\"" << clip << " x=\"" << Num(left) << "\" y=\""
-      << Num(std::min(y0, y1)) << "\" width=\"" << Num(plot_w) << "\" height=\""
-      << Num(std::abs(y1 - y0)) << "\" fill=\"" << Escape(b.colour) << "\" fill-opacity=\""
-      << Num(b.opacity) << "\"/>\n";
-  }
-
+  const std::vector<Tick> xt =
+      Ticks(f.x, l.sx.lo, l.sx.hi, std::max(3, static_cast<int>(plot_w / 90)));
+  const std::vector<Tick> yt =
+      Ticks(f.y, l.sy.lo, l.sy.hi, std::max(3, static_cast<int>(plot_h / 50)));
+  DrawBackground(o, f, l, clip, xt, yt);
   // Series: bars, lines, markers, point labels.
-  PointLabels point_labels(f, sx, sy, Box{left, top, plot_w, plot_bottom - top});
-  for (const Series& s : f.series) DrawSeries(o, f, s, sx, sy, clip, plot_bottom, &point_labels);
-
-  // Frame, ticks and tick labels.
-  o << "<rect x=\"" << Num(left) << "\" y=\"" << Num(top) << "\" width=\"" << Num(plot_w)
-    << "\" height=\"" << Num(plot_h) << "\" fill=\"none\" stroke=\"#444444\"/>\n";
-  o << "<g class=\"ticks\" font-size=\"" << kTickFont << "\" fill=\"#222222\">";
-  for (const Tick& t : xt) {
-    const double x = tx(t.value);
-    o << "<path d=\"M" << Num(x) << " " << Num(plot_bottom) << "v5\" stroke=\"#444444\"/>"
-      << "<text x=\"" << Num(x) << "\" y=\"" << Num(plot_bottom + 19)
-      << "\" text-anchor=\"middle\">" << Escape(t.label) << "</text>";
-  }
-  for (const Tick& t : yt) {
-    const double y = ty(t.value);
-    o << "<path d=\"M" << Num(left) << " " << Num(y) << "h-5\" stroke=\"#444444\"/>"
-      << "<text x=\"" << Num(left - 8) << "\" y=\"" << Num(y + 4) << "\" text-anchor=\"end\">"
-      << Escape(t.label) << "</text>";
-  }
-  o << "</g>\n";
-
-  // Legend.
-  if (!legend.empty()) DrawLegend(o, legend, placed, plot_bottom + axis_bottom + 4);
+  PointLabels point_labels(f, l.sx, l.sy, Box{left, top, plot_w, plot_bottom - top});
+  for (const Series& s : f.series)
+    DrawSeries(o, f, s, l.sx, l.sy, clip, plot_bottom, &point_labels);
+  DrawFrame(o, l, xt, yt);
+  if (!legend.empty()) DrawLegend(o, legend, placed, plot_bottom + kAxisBottom + 4);
   o << "</svg>\n";
   return o.str();
 }

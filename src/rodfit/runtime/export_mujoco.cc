@@ -50,15 +50,10 @@ std::string BodyName(int b, int num_bodies) {
   return "B_" + std::to_string(b);
 }
 
-std::string WriteMujoco(const ExportInput& input) {
-  const Profile& p = input.profile;
-  const ExportNumbers num(p, "mujoco");
-  const RodModel model = ExportModel(p);
-  const CaseSolution held = ExportHeldShape(p);
-  const RodSpec& rod = p.scene.rod;
-  const Material& m = p.scene.material;
-  if (!(rod.radius > 0.0))
-    throw ProfileError(p.path, "rod.radius", "is 0: the cable's capsules need the rod's radius");
+// What has no MJCF cable form is refused, naming the profile key: unequal segments (one geom,
+// one mass per body), a curved rest shape held beyond the clamp, a rest twist.
+void RequireCableForm(const Profile& p, const RodModel& model,
+                      const std::vector<ExportHolder>& holders) {
   const int n = model.num_edges();
   const double l = model.rest_edge_length(0);
   for (int j = 1; j < n; ++j)
@@ -66,12 +61,10 @@ std::string WriteMujoco(const ExportInput& input) {
       throw ProfileError(p.path, "rod.vertex_s",
                          "segments of different lengths: the composite cable gives every body "
                          "one geom (one mass); export a profile with equal segments");
-  const std::vector<ExportHolder> holders = ExportHolders(model);
   // A rest shape (rod.rest_shape's knots) or a uniform rest curvature: the key that gives it.
-  const bool curved_rest = model.curved_at_rest();
   const char* rest_key =
       p.scene.rod.rest_curvature_s.empty() ? "rod.rest_curvature" : "rod.rest_shape";
-  if (curved_rest && holders.size() > 1)
+  if (model.curved_at_rest() && holders.size() > 1)
     throw ProfileError(p.path, rest_key,
                        "a curved rest shape with held points besides the clamp has no MJCF "
                        "cable: the plugin takes a curved rest shape from the start shape, and the "
@@ -85,34 +78,26 @@ std::string WriteMujoco(const ExportInput& input) {
                                                               : "rod.rest_shape.tau_per_m",
                          "a rest twist has no MJCF cable: the composite frames its bodies along "
                          "the start shape's vertices, untwisted");
-  bool end_clamp = false;
-  for (const ExportHolder& h : holders) end_clamp = end_clamp || (h.frame && h.vertex == n);
+}
 
-  const RoundSectionConstants c = DeriveRoundSection(m, rod.radius);
-  const double area_moment = M_PI * std::pow(rod.radius, 4) / 4.0;  // I of the capsule
-  const double E = 0.5 * (m.B1() + m.B2()) / area_moment;
-  const double G = m.twist_stiffness / (2.0 * area_moment);
-  const double body_mass = rod.linear_density * l;
-  // The stiffest joint (the clamp's, B / (l / 2)) against a segment's inertia about its end
-  // (mu l^3 / 3): MuJoCo integrates the plugin's forces explicitly, so a step beyond ~2 / omega
-  // blows up; the default takes a quarter of that.
-  const double omega = std::sqrt(6.0 * 0.5 * (m.B1() + m.B2()) / rod.linear_density) / (l * l);
-  const double stable_dt = rod.linear_density > 0.0 ? 2.0 / omega : kDefaultExportTimeStep;
-  const double dt = input.options.time_step > 0.0
-                        ? input.options.time_step
-                        : std::min(kDefaultExportTimeStep, 0.25 * stable_dt);
+// The cable's numbers, from the mapping in the file comment.
+struct Cable {
+  double l = 0.0;          // [m] segment length
+  double E = 0.0, G = 0.0; // [Pa] the plugin's bend and twist
+  double body_mass = 0.0;  // [kg] per segment body
+  double stable_dt = 0.0;  // [s] the explicit plugin forces' stable step
+  double dt = 0.0;         // [s] the time step written
+  bool end_clamp = false;  // the last body is welded (an end clamp)
+  bool curved_rest = false;
+};
 
-  // The start shape: rodfit's held equilibrium (flat rest), or with a curved rest shape and only
-  // the clamp, the rest shape itself (the plugin's rest). A half-segment body inside the clamp
-  // comes first, and one inside an end clamp last.
-  const RodState start = curved_rest ? model.RestState() : held.state;
-  const Vec3 t0 = model.clamp_tangent();
-  std::vector<Vec3> vertex = {start.x.col(0) - 0.5 * l * t0};
-  for (int i = 0; i <= n; ++i) vertex.push_back(start.x.col(i));
-  if (end_clamp) vertex.push_back(start.x.col(n) + 0.5 * l * model.end_tangent());
-  const int num_bodies = static_cast<int>(vertex.size()) - 1;
-
-  std::ostringstream out;
+// The file's leading comment: the mapping with this rod's numbers, and what the cable drops.
+void WriteMujocoComment(const Profile& p, const ExportNumbers& num, const Cable& cable,
+                        std::ostringstream* o) {
+  const Material& m = p.scene.material;
+  const RoundSectionConstants c = DeriveRoundSection(m, p.scene.rod.radius);
+  const double l = cable.l;
+  std::ostringstream& out = *o;
   out << "<!-- rodfit export (format mujoco) of " << XmlCommentText(p.path)
       << " (profile version " << p.version << ", fitted by rodfit "
       << XmlCommentText(p.rodfit_version) << "). SI units: m, kg, s, N, Pa.\n"
@@ -124,9 +109,9 @@ std::string WriteMujoco(const ExportInput& input) {
          "build): joint stiffness = " << num(0.5 * (m.B1() + m.B2()) / l, "joint stiffness")
       << " N m/rad (bending; twice that for the first joint, against the clamp's half segment; "
          "twist would be GJ / l = " << num(m.twist_stiffness / l, "GJ / l") << ").\n"
-      << "     Mass per segment body mu l = " << num(body_mass, "mass")
+      << "     Mass per segment body mu l = " << num(cable.body_mass, "mass")
       << " kg; joint damping bend_damping / l. The first body (half a segment) is the clamp"
-      << (end_clamp ? ", the last one the end clamp (welded)" : "") << ".\n"
+      << (cable.end_clamp ? ", the last one the end clamp (welded)" : "") << ".\n"
       << "     The cable starts in rodfit's held equilibrium; the plugin's flat=true makes the "
          "rest shape straight.\n"
       << "     Not in the cable: stretch (inextensible; EA " << num(m.stretch_stiffness, "EA")
@@ -139,39 +124,22 @@ std::string WriteMujoco(const ExportInput& input) {
   if (!c.consistent)
     out << "     Note: the stiffnesses are not those of one solid round material ("
         << XmlCommentText(c.inconsistency) << "); E and G reproduce B and GJ exactly.\n";
-  if (end_clamp)
+  if (cable.end_clamp)
     out << "     The end clamp's bending at s = L: the plugin's B / l, rodfit's B / (l / 2); a "
            "weld holds the end's roll too.\n";
-  out << "     Time step " << num(dt, "timestep") << " s; the plugin's forces are explicit: steps "
-         "beyond about " << num(stable_dt, "stable step") << " s are unstable.\n"
+  out << "     Time step " << num(cable.dt, "timestep") << " s; the plugin's forces are explicit: "
+         "steps beyond about " << num(cable.stable_dt, "stable step") << " s are unstable.\n"
       << "     MuJoCo's open report #2208 (cable area moment, 2024) questions the plugin's I for "
          "capsules: check a sag against rodfit's. -->\n";
-  out << "<mujoco model=\"rodfit_rod\">\n"
-      << "  <extension>\n    <plugin plugin=\"mujoco.elasticity.cable\"/>\n  </extension>\n"
-      << "  <compiler autolimits=\"true\"/>\n"
-      << "  <option timestep=\"" << num(dt, "timestep") << "\" gravity=\""
-      << num(p.scene.gravity.x(), "gravity") << " " << num(p.scene.gravity.y(), "gravity") << " "
-      << num(p.scene.gravity.z(), "gravity") << "\" integrator=\"implicitfast\"/>\n"
-      << "  <worldbody>\n"
-      << "    <composite type=\"cable\" initial=\"none\" vertex=\"";
-  for (size_t i = 0; i < vertex.size(); ++i)
-    out << (i ? "  " : "") << num(vertex[i].x(), "vertex") << " " << num(vertex[i].y(), "vertex")
-        << " " << num(vertex[i].z(), "vertex");
-  out << "\">\n"
-      << "      <plugin plugin=\"mujoco.elasticity.cable\">\n"
-      << "        <config key=\"bend\" value=\"" << num(E, "bend") << "\"/>\n"
-      << "        <config key=\"twist\" value=\"" << num(G, "twist") << "\"/>\n"
-      << "        <config key=\"flat\" value=\"" << (curved_rest ? "false" : "true") << "\"/>\n"
-      << "      </plugin>\n"
-      << "      <joint kind=\"main\" damping=\"" << num(m.bend_damping / l, "damping") << "\"/>\n"
-      << "      <geom type=\"capsule\" size=\"" << num(rod.radius, "size") << "\" mass=\""
-      << num(body_mass, "mass") << "\"/>\n"
-      << "    </composite>\n"
-      << "  </worldbody>\n";
-  // Held points beyond the clamp, each where the start shape has it. The body of edge j is
-  // j + 1 (body 0 is the clamp's); its origin is vertex j.
+}
+
+// Held points beyond the clamp, each where the start shape has it: an end clamp welded, pins and
+// an end pin connected. The body of edge j is j + 1 (body 0 is the clamp's); its origin is
+// vertex j.
+std::string MujocoEquality(const ExportNumbers& num, const std::vector<ExportHolder>& holders,
+                           int n, int num_bodies, const Cable& cable) {
   std::ostringstream equality;
-  const std::string solref = num(2.0 * dt, "solref") + " 1";  // as stiff as the step allows
+  const std::string solref = num(2.0 * cable.dt, "solref") + " 1";  // as stiff as the step allows
   for (const ExportHolder& h : holders) {
     if (h.point == "clamp") continue;
     std::string name = h.point;  // pins[2] -> pins_2: a plain MJCF name
@@ -183,14 +151,84 @@ std::string WriteMujoco(const ExportInput& input) {
                << "\"/>\n";
     } else if (h.vertex == n) {
       equality << "    <connect name=\"" << name << "\" body1=\"" << BodyName(n, num_bodies)
-               << "\" anchor=\"" << num(l, "anchor") << " 0 0\" solref=\"" << solref << "\"/>\n";
+               << "\" anchor=\"" << num(cable.l, "anchor") << " 0 0\" solref=\"" << solref
+               << "\"/>\n";
     } else {
       equality << "    <connect name=\"" << name << "\" body1=\""
                << BodyName(h.vertex + 1, num_bodies) << "\" anchor=\"0 0 0\" solref=\"" << solref
                << "\"/>\n";
     }
   }
-  if (!equality.str().empty()) out << "  <equality>\n" << equality.str() << "  </equality>\n";
+  return equality.str();
+}
+
+std::string WriteMujoco(const ExportInput& input) {
+  const Profile& p = input.profile;
+  const ExportNumbers num(p, "mujoco");
+  const RodModel model = ExportModel(p);
+  const CaseSolution held = ExportHeldShape(p);
+  const RodSpec& rod = p.scene.rod;
+  const Material& m = p.scene.material;
+  if (!(rod.radius > 0.0))
+    throw ProfileError(p.path, "rod.radius", "is 0: the cable's capsules need the rod's radius");
+  const int n = model.num_edges();
+  const std::vector<ExportHolder> holders = ExportHolders(model);
+  RequireCableForm(p, model, holders);
+  Cable cable;
+  const double l = cable.l = model.rest_edge_length(0);
+  cable.curved_rest = model.curved_at_rest();
+  for (const ExportHolder& h : holders)
+    cable.end_clamp = cable.end_clamp || (h.frame && h.vertex == n);
+  const double area_moment = M_PI * std::pow(rod.radius, 4) / 4.0;  // I of the capsule
+  cable.E = 0.5 * (m.B1() + m.B2()) / area_moment;
+  cable.G = m.twist_stiffness / (2.0 * area_moment);
+  cable.body_mass = rod.linear_density * l;
+  // The stiffest joint (the clamp's, B / (l / 2)) against a segment's inertia about its end
+  // (mu l^3 / 3): MuJoCo integrates the plugin's forces explicitly, so a step beyond ~2 / omega
+  // blows up; the default takes a quarter of that.
+  const double omega = std::sqrt(6.0 * 0.5 * (m.B1() + m.B2()) / rod.linear_density) / (l * l);
+  cable.stable_dt = rod.linear_density > 0.0 ? 2.0 / omega : kDefaultExportTimeStep;
+  cable.dt = input.options.time_step > 0.0
+                 ? input.options.time_step
+                 : std::min(kDefaultExportTimeStep, 0.25 * cable.stable_dt);
+
+  // The start shape: rodfit's held equilibrium (flat rest), or with a curved rest shape and only
+  // the clamp, the rest shape itself (the plugin's rest). A half-segment body inside the clamp
+  // comes first, and one inside an end clamp last.
+  const RodState start = cable.curved_rest ? model.RestState() : held.state;
+  const Vec3 t0 = model.clamp_tangent();
+  std::vector<Vec3> vertex = {start.x.col(0) - 0.5 * l * t0};
+  for (int i = 0; i <= n; ++i) vertex.push_back(start.x.col(i));
+  if (cable.end_clamp) vertex.push_back(start.x.col(n) + 0.5 * l * model.end_tangent());
+  const int num_bodies = static_cast<int>(vertex.size()) - 1;
+
+  std::ostringstream out;
+  WriteMujocoComment(p, num, cable, &out);
+  out << "<mujoco model=\"rodfit_rod\">\n"
+      << "  <extension>\n    <plugin plugin=\"mujoco.elasticity.cable\"/>\n  </extension>\n"
+      << "  <compiler autolimits=\"true\"/>\n"
+      << "  <option timestep=\"" << num(cable.dt, "timestep") << "\" gravity=\""
+      << num(p.scene.gravity.x(), "gravity") << " " << num(p.scene.gravity.y(), "gravity") << " "
+      << num(p.scene.gravity.z(), "gravity") << "\" integrator=\"implicitfast\"/>\n"
+      << "  <worldbody>\n"
+      << "    <composite type=\"cable\" initial=\"none\" vertex=\"";
+  for (size_t i = 0; i < vertex.size(); ++i)
+    out << (i ? "  " : "") << num(vertex[i].x(), "vertex") << " " << num(vertex[i].y(), "vertex")
+        << " " << num(vertex[i].z(), "vertex");
+  out << "\">\n"
+      << "      <plugin plugin=\"mujoco.elasticity.cable\">\n"
+      << "        <config key=\"bend\" value=\"" << num(cable.E, "bend") << "\"/>\n"
+      << "        <config key=\"twist\" value=\"" << num(cable.G, "twist") << "\"/>\n"
+      << "        <config key=\"flat\" value=\"" << (cable.curved_rest ? "false" : "true")
+      << "\"/>\n"
+      << "      </plugin>\n"
+      << "      <joint kind=\"main\" damping=\"" << num(m.bend_damping / l, "damping") << "\"/>\n"
+      << "      <geom type=\"capsule\" size=\"" << num(rod.radius, "size") << "\" mass=\""
+      << num(cable.body_mass, "mass") << "\"/>\n"
+      << "    </composite>\n"
+      << "  </worldbody>\n";
+  const std::string equality = MujocoEquality(num, holders, n, num_bodies, cable);
+  if (!equality.empty()) out << "  <equality>\n" << equality << "  </equality>\n";
   out << "</mujoco>\n";
   return out.str();
 }

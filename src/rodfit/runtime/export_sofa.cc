@@ -25,20 +25,29 @@
 namespace rodfit {
 namespace {
 
-std::string WriteSofa(const ExportInput& input) {
-  const Profile& p = input.profile;
-  const ExportNumbers num(p, "sofa");
-  const RodModel model = ExportModel(p);
-  const RodState rest = model.RestState();
-  const CaseSolution held = ExportHeldShape(p);
+// Rigid3d: position and orientation (qx qy qz qw) per vertex; a SOFA beam runs along its local
+// x, so the frame's columns are (d3, d1, d2) of the edge leaving the vertex (the last vertex: the
+// edge arriving).
+std::string SofaFrames(const ExportNumbers& num, const RodModel& on, const RodState& state,
+                       const char* field) {
+  std::ostringstream f;
+  for (int i = 0; i < on.num_vertices(); ++i) {
+    const EdgeFrame e = on.MaterialFrame(state, std::min(i, on.num_edges() - 1));
+    Eigen::Matrix3d r;
+    r << e.d3, e.d1, e.d2;
+    const Eigen::Quaterniond q(r);
+    f << (i ? "  " : "") << num(state.x(0, i), field) << " " << num(state.x(1, i), field) << " "
+      << num(state.x(2, i), field) << " " << num(q.x(), field) << " " << num(q.y(), field)
+      << " " << num(q.z(), field) << " " << num(q.w(), field);
+  }
+  return f.str();
+}
+
+// The file's leading comment: the section constants, the damping mapping, the mass density.
+void WriteSofaComment(const Profile& p, const ExportNumbers& num, const RoundSectionConstants& c,
+                      std::ostringstream* o) {
   const RodSpec& rod = p.scene.rod;
-  const Material& m = p.scene.material;
-  if (!(rod.radius > 0.0))
-    throw ProfileError(p.path, "rod.radius", "is 0: SOFA's beams need the rod's radius");
-  const double dt = input.options.time_step > 0.0 ? input.options.time_step : kDefaultExportTimeStep;
-  const RoundSectionConstants c = DeriveRoundSection(m, rod.radius);
-  const Vec3& g = p.scene.gravity;
-  std::ostringstream out;
+  std::ostringstream& out = *o;
   out << "<?xml version=\"1.0\"?>\n"
       << "<!-- rodfit export (format sofa) of " << XmlCommentText(p.path) << " (profile version " << p.version
       << ", fitted by rodfit " << XmlCommentText(p.rodfit_version) << "). SI units: m, kg, s, N, Pa.\n"
@@ -55,6 +64,23 @@ std::string WriteSofa(const ExportInput& input) {
       << "     As a material density for components that take one: massDensity=\""
       << num(rod.linear_density / (M_PI * rod.radius * rod.radius), "massDensity")
       << "\" [kg/m^3] = linear_density / (pi r^2). -->\n";
+}
+
+std::string WriteSofa(const ExportInput& input) {
+  const Profile& p = input.profile;
+  const ExportNumbers num(p, "sofa");
+  const RodModel model = ExportModel(p);
+  const RodState rest = model.RestState();
+  const CaseSolution held = ExportHeldShape(p);
+  const RodSpec& rod = p.scene.rod;
+  const Material& m = p.scene.material;
+  if (!(rod.radius > 0.0))
+    throw ProfileError(p.path, "rod.radius", "is 0: SOFA's beams need the rod's radius");
+  const double dt = input.options.time_step > 0.0 ? input.options.time_step : kDefaultExportTimeStep;
+  const RoundSectionConstants c = DeriveRoundSection(m, rod.radius);
+  const Vec3& g = p.scene.gravity;
+  std::ostringstream out;
+  WriteSofaComment(p, num, c, &out);
   out << "<Node name=\"root\" gravity=\"" << num(g.x(), "gravity") << " " << num(g.y(), "gravity")
       << " " << num(g.z(), "gravity") << "\" dt=\"" << num(dt, "dt") << "\">\n";
   // One line per module, each naming the components it provides here.
@@ -78,25 +104,10 @@ std::string WriteSofa(const ExportInput& input) {
   out << "    <EdgeSetTopologyContainer name=\"topology\" edges=\"";
   for (int j = 0; j < model.num_edges(); ++j) out << (j ? " " : "") << j << " " << j + 1;
   out << "\"/>\n";
-  // Rigid3d: position and orientation (qx qy qz qw) per vertex; a SOFA beam runs along its
-  // local x, so the frame's columns are (d3, d1, d2) of the edge leaving the vertex (the last
-  // vertex: the edge arriving).
-  auto frames = [&](const RodModel& on, const RodState& state, const char* field) {
-    std::ostringstream f;
-    for (int i = 0; i < on.num_vertices(); ++i) {
-      const EdgeFrame e = on.MaterialFrame(state, std::min(i, on.num_edges() - 1));
-      Eigen::Matrix3d r;
-      r << e.d3, e.d1, e.d2;
-      const Eigen::Quaterniond q(r);
-      f << (i ? "  " : "") << num(state.x(0, i), field) << " " << num(state.x(1, i), field) << " "
-        << num(state.x(2, i), field) << " " << num(q.x(), field) << " " << num(q.y(), field)
-        << " " << num(q.z(), field) << " " << num(q.w(), field);
-    }
-    return f.str();
-  };
   out << "    <MechanicalObject template=\"Rigid3d\" name=\"frames\" position=\""
-      << frames(*held.model, held.state, "position") << "\"\n                      rest_position=\""
-      << frames(model, rest, "rest_position") << "\"/>\n";
+      << SofaFrames(num, *held.model, held.state, "position")
+      << "\"\n                      rest_position=\""
+      << SofaFrames(num, model, rest, "rest_position") << "\"/>\n";
   out << "    <UniformMass totalMass=\"" << num(rod.linear_density * rod.length, "totalMass")
       << "\"/>\n";
   out << "    <BeamFEMForceField name=\"beam\" youngModulus=\""

@@ -25,10 +25,77 @@
 namespace rodfit {
 namespace {
 
+using nlohmann::json;
+
+// Per bending vertex: its compliances (bend and twist, and over dt2 = time_step^2) and its rest
+// rotation and curvature.
+json XpbdJoints(const RodModel& model, const Material& m, const RodState& rest, double dt2) {
+  json joints = json::array();
+  // The rest state's material frames as rotations (columns d1, d2, d3), the clamp's first.
+  auto rotation = [](const Vec3& d1, const Vec3& d2, const Vec3& d3) {
+    Eigen::Matrix3d r;
+    r << d1, d2, d3;
+    return Eigen::Quaterniond(r).normalized();
+  };
+  Eigen::Quaterniond before = rotation(model.clamp_d1(), model.clamp_tangent().cross(model.clamp_d1()),
+                                       model.clamp_tangent());
+  for (int i = 0; i < model.num_edges(); ++i) {
+    // Vertex 0 bends against the clamp (half a cell); vertex i > 0 between edges i - 1 and i.
+    const double lv = model.voronoi_length(i);
+    json joint = {{"vertex", i}, {"voronoi_length", lv}};
+    const double a1 = lv / m.B1(), a2 = lv / m.B2(), at = lv / m.twist_stiffness;
+    joint["bend_1_compliance"] = a1;
+    joint["bend_2_compliance"] = a2;
+    joint["twist_compliance"] = at;
+    joint["bend_1_compliance_dt"] = a1 / dt2;
+    joint["bend_2_compliance_dt"] = a2 / dt2;
+    joint["twist_compliance_dt"] = at / dt2;
+    const EdgeFrame f = model.MaterialFrame(rest, i);
+    const Eigen::Quaterniond after = rotation(f.d1, f.d2, f.d3);
+    Eigen::Quaterniond darboux = before.conjugate() * after;
+    if (darboux.w() < 0.0) darboux.coeffs() *= -1.0;  // the short way round
+    joint["rest_rotation"] = {darboux.w(), darboux.x(), darboux.y(), darboux.z()};
+    const Vec3 k = model.rest_curvature(i);
+    joint["rest_curvature"] = {k.x(), k.y(), k.z()};
+    before = after;
+    joints.push_back(joint);
+  }
+  return joints;
+}
+
+// Per vertex: rest and start positions and mass; a held vertex fixed where its holder holds it.
+json XpbdVertices(const RodModel& model, const RodState& rest, const CaseSolution& held) {
+  json vertices = json::array();
+  for (int i = 0; i < model.num_vertices(); ++i) {
+    const Vec3 x = held.state.x.col(i);
+    vertices.push_back({{"index", i},
+                        {"rest_position", {rest.x(0, i), rest.x(1, i), rest.x(2, i)}},
+                        {"start_position", {x.x(), x.y(), x.z()}},
+                        {"mass", model.vertex_mass(i)},
+                        {"fixed", false}});
+  }
+  // A held vertex is fixed where its holder holds it (start_position), not at rest_position; a
+  // clamp holds the frame of the edge next to it too.
+  for (const ExportHolder& holder : ExportHolders(model)) {
+    const int vertex = holder.vertex;
+    json& v = vertices[vertex];
+    v["fixed"] = true;
+    v["held_by"] = holder.point;
+    if (holder.frame) {  // the holder's own frame: the clamp's, or the end clamp's target
+      const Vec3 t = vertex == 0 ? model.clamp_tangent() : model.end_tangent();
+      v["held_frame"] = {{"tangent", {t.x(), t.y(), t.z()}}};
+      if (vertex == 0 || model.end_twist_held()) {
+        const Vec3 d1 = vertex == 0 ? model.clamp_d1() : model.end_d1();
+        v["held_frame"]["d1"] = {d1.x(), d1.y(), d1.z()};
+      }
+    }
+  }
+  return vertices;
+}
+
 std::string WriteXpbd(const ExportInput& input) {
   const Profile& p = input.profile;
   const double time_step = input.options.time_step;  // required: Export() checked it
-  using nlohmann::json;
   const RodModel model = ExportModel(p);
   const RodState rest = model.RestState();
   const CaseSolution held = ExportHeldShape(p);
@@ -63,63 +130,8 @@ std::string WriteXpbd(const ExportInput& input) {
                         {"stretch_compliance_dt", alpha / dt2}});
   }
   doc["segments"] = segments;
-  json joints = json::array();
-  // The rest state's material frames as rotations (columns d1, d2, d3), the clamp's first.
-  auto rotation = [](const Vec3& d1, const Vec3& d2, const Vec3& d3) {
-    Eigen::Matrix3d r;
-    r << d1, d2, d3;
-    return Eigen::Quaterniond(r).normalized();
-  };
-  Eigen::Quaterniond before = rotation(model.clamp_d1(), model.clamp_tangent().cross(model.clamp_d1()),
-                                       model.clamp_tangent());
-  for (int i = 0; i < model.num_edges(); ++i) {
-    // Vertex 0 bends against the clamp (half a cell); vertex i > 0 between edges i - 1 and i.
-    const double lv = model.voronoi_length(i);
-    json joint = {{"vertex", i}, {"voronoi_length", lv}};
-    const double a1 = lv / m.B1(), a2 = lv / m.B2(), at = lv / m.twist_stiffness;
-    joint["bend_1_compliance"] = a1;
-    joint["bend_2_compliance"] = a2;
-    joint["twist_compliance"] = at;
-    joint["bend_1_compliance_dt"] = a1 / dt2;
-    joint["bend_2_compliance_dt"] = a2 / dt2;
-    joint["twist_compliance_dt"] = at / dt2;
-    const EdgeFrame f = model.MaterialFrame(rest, i);
-    const Eigen::Quaterniond after = rotation(f.d1, f.d2, f.d3);
-    Eigen::Quaterniond darboux = before.conjugate() * after;
-    if (darboux.w() < 0.0) darboux.coeffs() *= -1.0;  // the short way round
-    joint["rest_rotation"] = {darboux.w(), darboux.x(), darboux.y(), darboux.z()};
-    const Vec3 k = model.rest_curvature(i);
-    joint["rest_curvature"] = {k.x(), k.y(), k.z()};
-    before = after;
-    joints.push_back(joint);
-  }
-  doc["joints"] = joints;
-  json vertices = json::array();
-  for (int i = 0; i < model.num_vertices(); ++i) {
-    const Vec3 x = held.state.x.col(i);
-    vertices.push_back({{"index", i},
-                        {"rest_position", {rest.x(0, i), rest.x(1, i), rest.x(2, i)}},
-                        {"start_position", {x.x(), x.y(), x.z()}},
-                        {"mass", model.vertex_mass(i)},
-                        {"fixed", false}});
-  }
-  // A held vertex is fixed where its holder holds it (start_position), not at rest_position; a
-  // clamp holds the frame of the edge next to it too.
-  for (const ExportHolder& holder : ExportHolders(model)) {
-    const int vertex = holder.vertex;
-    json& v = vertices[vertex];
-    v["fixed"] = true;
-    v["held_by"] = holder.point;
-    if (holder.frame) {  // the holder's own frame: the clamp's, or the end clamp's target
-      const Vec3 t = vertex == 0 ? model.clamp_tangent() : model.end_tangent();
-      v["held_frame"] = {{"tangent", {t.x(), t.y(), t.z()}}};
-      if (vertex == 0 || model.end_twist_held()) {
-        const Vec3 d1 = vertex == 0 ? model.clamp_d1() : model.end_d1();
-        v["held_frame"]["d1"] = {d1.x(), d1.y(), d1.z()};
-      }
-    }
-  }
-  doc["vertices"] = vertices;
+  doc["joints"] = XpbdJoints(model, m, rest, dt2);
+  doc["vertices"] = XpbdVertices(model, rest, held);
   json anchors = json::array();
   for (int z = 0; z < model.num_spring_zones(); ++z)
     for (int i = 0; i < model.num_vertices(); ++i) {

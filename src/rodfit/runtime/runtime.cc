@@ -391,6 +391,17 @@ struct Runtime::Impl {
   StepReport StepDynamic();
   // Dynamic mode: the rod at rest where it is (rates zero, BDF2's history dropped).
   void CatchAtRest();
+  // StepQuasiStatic's steps: a stopped-short solve resumed; a grasp's move predicted.
+  StepReport ResumeTick(Clock::time_point start, StepReport report);
+  bool PredictGraspMove(const Vec3& d, const Eigen::AngleAxisd& turn);
+  // The constructor's steps once the model and its first equilibrium are set: the tool's
+  // vertices and targets, the grasp's reach, the kept factor and the minimizer, the dynamic
+  // stepper (sized by a throwaway step), the poke mesh's scratch (sized by a throwaway dent).
+  void SetUpTool();
+  void SetUpReach();
+  void SetUpNewton();
+  void SetUpDynamics();
+  void SizeMeshScratch();
 };
 
 // A quasi-static tick as a Newton problem (solve/newton_minimizer.h): Pi of the rod with its held
@@ -439,6 +450,175 @@ class Runtime::Impl::TickProblem : public RodNewtonProblem {
   EnergyTerms free_terms_;
 };
 
+namespace {
+
+// A grasp's start: the tool takes hold of the rod where it lies. The equilibrium without the
+// tool, on the vertices of the grasped model (which moves its nearest vertex onto tool_s), is
+// also the grasped rod's equilibrium with the tool there, and the loop starts from rest. (Holding
+// it where the unloaded rest shape has it would start a sagging thread pulled taut.) Sets the
+// grasp (and with hold_orientation the pin of the held edge's far vertex, and its rod) in *held.
+RodState GraspStart(const Scene& scene, const RuntimeOptions& options,
+                    const StaticsOptions& statics, LoadCase* held, RodSpec* held_rod) {
+  held->grasp = Grasp{options.tool_s, scene.cases.front().clamp.position};
+  const RodModel probe(scene.rod, scene.material, scene.gravity, *held, scene.springs);
+  RodSpec rod = scene.rod;
+  rod.vertex_s = probe.arc_lengths();
+  LoadCase free_case = scene.cases.front();
+  const RodModel free_model(rod, scene.material, scene.gravity, free_case, scene.springs);
+  RodState start = free_model.RestState();
+  const StaticsSummary free_solve = SolveStatics(free_model, statics, &start);
+  if (!free_solve.converged)
+    throw std::runtime_error("the rod's equilibrium without the tool was not found: " +
+                             free_solve.reason);
+  held->grasp->position = start.x.col(probe.grasp_vertex());
+  if (options.hold_orientation) {
+    // The held edge's far vertex is pinned where the free equilibrium has it, on the same
+    // vertices (its arc length is a vertex's already).
+    const int w = probe.grasp_vertex() - 1;
+    if (w < 1)
+      throw std::invalid_argument("hold_orientation: tool_s must lie beyond the second vertex");
+    held->pins.push_back(Pin{probe.arc_length(w), start.x.col(w)});
+    *held_rod = rod;
+  }
+  return start;
+}
+
+}  // namespace
+
+// The tool's vertex and targets (a grasp's, with hold_orientation its held edge), the rows the
+// ticks hold, the poke's bracket.
+void Runtime::Impl::SetUpTool() {
+  const RodModel& model = *this->model;
+  if (options.tool == ToolKind::kGrasp) {
+    tool_vertex = model.grasp_vertex();
+    tool = model.grasp_position();
+    target = tool;
+    goal = tool;
+    if (options.hold_orientation) {
+      oriented = true;
+      edge_vertex = tool_vertex - 1;
+      held_twist = RodModel::TwistDof(edge_vertex);
+      if (model.held_at_vertex(edge_vertex) < 0)
+        throw std::invalid_argument("hold_orientation: the held edge's vertex is not held");
+    }
+  }
+  held_rows = model.held_dofs();
+  if (oriented) held_rows[held_twist] = 1;
+  if (options.tool == ToolKind::kPoke) {
+    Bracket(model, options.tool_s, &tool_vertex, &poke_weight);
+  }
+}
+
+// The grasp's reach: a ball about the clamp and about every other held point (an oriented
+// grasp's own edge aside), of (1 + max_strain) times the rod between.
+void Runtime::Impl::SetUpReach() {
+  const RodModel& model = *this->model;
+  const double s_grasp = model.arc_length(tool_vertex);
+  const double stretch = 1.0 + kReachStrain * options.max_strain;
+  reach.push_back({state.x.col(0), stretch * s_grasp, 0.0});
+  for (const HeldVertex& h : model.held()) {
+    if (h.kind == HeldVertex::Kind::kGrasp || (oriented && h.vertex == edge_vertex))
+      continue;
+    reach.push_back(
+        {h.target, stretch * std::abs(s_grasp - h.s), h.s});
+  }
+}
+
+// The kept factor at the first equilibrium and the minimizer's options; every buffer sized.
+void Runtime::Impl::SetUpNewton() {
+  const RodModel& model = *this->model;
+  EnergyTerms free_terms;
+  free_terms.hold = false;
+  AssembleHessian(model, state, free_terms, &g, &hessian_full);
+  hessian = hessian_full;
+  ApplyHeldRows(held_rows, &g, &hessian);
+  factor_near_state = factor.Factor(hessian, 0.0);
+  factor_on_branch = factor_near_state;
+  tick = std::make_unique<Impl::TickProblem>(this);
+  tick->Presize();
+  solver = std::make_unique<BandedCholeskySolver>(&hessian, &factor);
+  solver->ReserveScratch();  // the saddle escape's: sized now, a tick allocates nothing
+  NewtonOptions& newton = minimizer.options();
+  newton.chords = ChordPolicy::kWhileContracting;
+  newton.chord_refresh = kChordRefresh;
+  newton.converge_after_small_step = true;
+  // A thread pulled taut far off its clamp's axis, or a bowel pulled back through its clamp,
+  // sits at an unstable equilibrium that the shifted steps only creep along: it is left along
+  // its negative curvature (allocation-free once the solver's scratch is sized).
+  newton.saddles = Saddles::kEscape;
+  // A grasp's converged tick factors a Hessian assembled at its solution: the next tick's
+  // predictor reads that Hessian's columns and solves with its factor, which must be of one
+  // matrix. (A poke predicts nothing: its chord steps do as well on the older factor.)
+  newton.factor_at_solution =
+      options.tool == ToolKind::kGrasp ? FactorAtSolution::kWhenAssembled : FactorAtSolution::kNever;
+  minimizer.Reserve(model.num_free_dofs());
+  step = g;
+  g_free = g;
+  correction = VecX::Zero(g.size());
+  last_correction = correction;
+  older_correction = correction;
+}
+
+// Dynamic mode: the tool's drive and the stepper, every buffer sized by a throwaway step.
+void Runtime::Impl::SetUpDynamics() {
+  const RodModel& model = *this->model;
+  int held_index = -1;
+  for (size_t k = 0; k < model.held().size(); ++k)
+    if (model.held()[k].kind == HeldVertex::Kind::kGrasp) held_index = static_cast<int>(k);
+  drive = options.tool == ToolKind::kPoke
+              ? std::make_unique<ToolDrive>(tool_vertex, poke_weight, &applied_force)
+              : std::make_unique<ToolDrive>(held_index, &target);
+  DynamicsOptions dyn;
+  dyn.time_step = options.time_step;
+  dyn.integrator = Integrator::kBdf2;
+  dyn.max_halvings = 0;  // a tick's step is not halved (halving copies states: it allocates)
+  dyn.failure_reasons = false;  // a failed tick says so by its status, without the heap
+  // A tick ends on its last step's contraction (one gradient fewer), and Newton starts from
+  // a steady drag's extrapolated corrections (0.3 solves fewer): together 10 % of a dynamic
+  // drag tick's instructions.
+  dyn.converge_on_rate = true;
+  dyn.extrapolate_corrections = true;
+  // The throwaway first step below may take the stepper's default iterations; the ticks then
+  // keep options' limits.
+  stepper = std::make_unique<DynamicsStepper>(model, dyn);
+  dynamic = stepper->AtRest(state);
+  // A throwaway step with the tool nudged (a grasp moved by 1e-6 L, a poke pushing with 1e-6
+  // of the load scale) sizes every buffer of the stepper (a step at rest converges before it
+  // factors anything); the rod is then put back at rest.
+  dynamic_good = dynamic;
+  const Vec3 home = target;
+  if (options.tool == ToolKind::kPoke)
+    applied_force = Vec3::Constant(1e-6 * model.force_scale());
+  else
+    target += Vec3::Constant(1e-6 * model.length());
+  const DynamicsStepSummary warm = stepper->Step(*drive, &dynamic);
+  target = home;
+  applied_force.setZero();
+  if (!warm.ok) throw std::runtime_error("the first dynamic step failed (reduce time_step)");
+  // Back at rest, the history's buffers kept at their size (BDF2 starts with a backward
+  // Euler step without history).
+  dynamic.q = dynamic_good.q;
+  dynamic.t = dynamic_good.t;
+  CatchAtRest();
+  dynamic_good = dynamic;
+  // The ticks' limits (not the throwaway step's: it must not fail on a slow start).
+  stepper->SetNewtonLimits(options.dynamic_newton_iterations, options.time_budget);
+}
+
+// A throwaway dent, a gentle push of 1e-3 kb / R^2 along the section's d1, sizes the mesh's
+// scratch (the ring's solver and result, the propagation's lists), so that Mesh(TubeMesh*)
+// allocates nothing later.
+void Runtime::Impl::SizeMeshScratch() {
+  const Scene& scene = profile.scene;
+  const double R = scene.section->radius;
+  const Vec3 d1 = SectionAt(*model, state, options.tool_s).d1;
+  applied_force = 1e-3 * scene.material.ring_bend_stiffness / (R * R) * d1;
+  TubeMesh throwaway;
+  BuildMesh(&mesh_scratch, &throwaway);
+  applied_force.setZero();
+  mesh_scratch.ring_warm = false;
+}
+
 Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
@@ -455,55 +635,13 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   StaticsOptions statics;
   statics.gradient_tolerance = options.gradient_tolerance;
   RodState start;
-  if (options.tool == ToolKind::kGrasp) {
-    // The tool takes hold of the rod where it lies: the equilibrium without the tool, on the
-    // vertices of the grasped model (which moves its nearest vertex onto tool_s), is also the
-    // grasped rod's equilibrium with the tool there, and the loop starts from rest. (Holding it
-    // where the unloaded rest shape has it would start a sagging thread pulled taut.)
-    held.grasp = Grasp{options.tool_s, scene.cases.front().clamp.position};
-    const RodModel probe(scene.rod, scene.material, scene.gravity, held, scene.springs);
-    RodSpec rod = scene.rod;
-    rod.vertex_s = probe.arc_lengths();
-    LoadCase free_case = scene.cases.front();
-    const RodModel free_model(rod, scene.material, scene.gravity, free_case, scene.springs);
-    start = free_model.RestState();
-    const StaticsSummary free_solve = SolveStatics(free_model, statics, &start);
-    if (!free_solve.converged)
-      throw std::runtime_error("the rod's equilibrium without the tool was not found: " +
-                               free_solve.reason);
-    held.grasp->position = start.x.col(probe.grasp_vertex());
-    if (options.hold_orientation) {
-      // The held edge's far vertex is pinned where the free equilibrium has it, on the same
-      // vertices (its arc length is a vertex's already).
-      const int w = probe.grasp_vertex() - 1;
-      if (w < 1)
-        throw std::invalid_argument("hold_orientation: tool_s must lie beyond the second vertex");
-      held.pins.push_back(Pin{probe.arc_length(w), start.x.col(w)});
-      held_rod = rod;
-    }
-  }
+  if (options.tool == ToolKind::kGrasp)
+    start = GraspStart(scene, options, statics, &held, &held_rod);
   m.model = std::make_unique<RodModel>(held_rod, scene.material, scene.gravity, held,
                                        scene.springs);
   const RodModel& model = *m.model;
   if (options.tool == ToolKind::kPoke) start = model.RestState();
-  if (options.tool == ToolKind::kGrasp) {
-    m.tool_vertex = model.grasp_vertex();
-    m.tool = model.grasp_position();
-    m.target = m.tool;
-    m.goal = m.tool;
-    if (options.hold_orientation) {
-      m.oriented = true;
-      m.edge_vertex = m.tool_vertex - 1;
-      m.held_twist = RodModel::TwistDof(m.edge_vertex);
-      if (model.held_at_vertex(m.edge_vertex) < 0)
-        throw std::invalid_argument("hold_orientation: the held edge's vertex is not held");
-    }
-  }
-  m.held_rows = model.held_dofs();
-  if (m.oriented) m.held_rows[m.held_twist] = 1;
-  if (options.tool == ToolKind::kPoke) {
-    Bracket(model, options.tool_s, &m.tool_vertex, &m.poke_weight);
-  }
+  m.SetUpTool();
   m.force_tolerance = options.gradient_tolerance * model.force_scale();
   // The stretch forces' round-off, ~eps EA per edge, in the residual's measure.
   m.floor_tolerance = ResidualFloor(model, GradientNormWeights(model));
@@ -523,107 +661,14 @@ Runtime::Runtime(const Profile& profile, const RuntimeOptions& options)
   m.moved = m.state;
   m.pending = m.state;
   m.strain_now = m.MaxStrain(m.state, &m.strain_edge);
-  if (options.tool == ToolKind::kGrasp) {
-    // The grasp's reach: a ball about the clamp and about every other held point (an oriented
-    // grasp's own edge aside), of (1 + max_strain) times the rod between.
-    const double s_grasp = model.arc_length(m.tool_vertex);
-    const double stretch = 1.0 + kReachStrain * options.max_strain;
-    m.reach.push_back({m.state.x.col(0), stretch * s_grasp, 0.0});
-    for (const HeldVertex& h : model.held()) {
-      if (h.kind == HeldVertex::Kind::kGrasp || (m.oriented && h.vertex == m.edge_vertex))
-        continue;
-      m.reach.push_back(
-          {h.target, stretch * std::abs(s_grasp - h.s), h.s});
-    }
-  }
+  if (options.tool == ToolKind::kGrasp) m.SetUpReach();
   m.max_poke_force = options.max_strain * model.material().stretch_stiffness;
-  EnergyTerms free_terms;
-  free_terms.hold = false;
-  AssembleHessian(model, m.state, free_terms, &m.g, &m.hessian_full);
-  m.hessian = m.hessian_full;
-  ApplyHeldRows(m.held_rows, &m.g, &m.hessian);
-  m.factor_near_state = m.factor.Factor(m.hessian, 0.0);
-  m.factor_on_branch = m.factor_near_state;
-  m.tick = std::make_unique<Impl::TickProblem>(&m);
-  m.tick->Presize();
-  m.solver = std::make_unique<BandedCholeskySolver>(&m.hessian, &m.factor);
-  m.solver->ReserveScratch();  // the saddle escape's: sized now, a tick allocates nothing
-  NewtonOptions& newton = m.minimizer.options();
-  newton.chords = ChordPolicy::kWhileContracting;
-  newton.chord_refresh = kChordRefresh;
-  newton.converge_after_small_step = true;
-  // A thread pulled taut far off its clamp's axis, or a bowel pulled back through its clamp,
-  // sits at an unstable equilibrium that the shifted steps only creep along: it is left along
-  // its negative curvature (allocation-free once the solver's scratch is sized).
-  newton.saddles = Saddles::kEscape;
-  // A grasp's converged tick factors a Hessian assembled at its solution: the next tick's
-  // predictor reads that Hessian's columns and solves with its factor, which must be of one
-  // matrix. (A poke predicts nothing: its chord steps do as well on the older factor.)
-  newton.factor_at_solution =
-      options.tool == ToolKind::kGrasp ? FactorAtSolution::kWhenAssembled : FactorAtSolution::kNever;
-  m.minimizer.Reserve(model.num_free_dofs());
-  m.step = m.g;
-  m.g_free = m.g;
-  m.correction = VecX::Zero(m.g.size());
-  m.last_correction = m.correction;
-  m.older_correction = m.correction;
-  if (options.mode == RuntimeMode::kDynamic) {
-    int held_index = -1;
-    for (size_t k = 0; k < model.held().size(); ++k)
-      if (model.held()[k].kind == HeldVertex::Kind::kGrasp) held_index = static_cast<int>(k);
-    m.drive = options.tool == ToolKind::kPoke
-                  ? std::make_unique<ToolDrive>(m.tool_vertex, m.poke_weight, &m.applied_force)
-                  : std::make_unique<ToolDrive>(held_index, &m.target);
-    DynamicsOptions dyn;
-    dyn.time_step = options.time_step;
-    dyn.integrator = Integrator::kBdf2;
-    dyn.max_halvings = 0;  // a tick's step is not halved (halving copies states: it allocates)
-    dyn.failure_reasons = false;  // a failed tick says so by its status, without the heap
-    // A tick ends on its last step's contraction (one gradient fewer), and Newton starts from
-    // a steady drag's extrapolated corrections (0.3 solves fewer): together 10 % of a dynamic
-    // drag tick's instructions.
-    dyn.converge_on_rate = true;
-    dyn.extrapolate_corrections = true;
-    // The throwaway first step below may take the stepper's default iterations; the ticks then
-    // keep options' limits.
-    m.stepper = std::make_unique<DynamicsStepper>(model, dyn);
-    m.dynamic = m.stepper->AtRest(m.state);
-    // A throwaway step with the tool nudged (a grasp moved by 1e-6 L, a poke pushing with 1e-6
-    // of the load scale) sizes every buffer of the stepper (a step at rest converges before it
-    // factors anything); the rod is then put back at rest.
-    m.dynamic_good = m.dynamic;
-    const Vec3 home = m.target;
-    if (options.tool == ToolKind::kPoke)
-      m.applied_force = Vec3::Constant(1e-6 * model.force_scale());
-    else
-      m.target += Vec3::Constant(1e-6 * model.length());
-    const DynamicsStepSummary warm = m.stepper->Step(*m.drive, &m.dynamic);
-    m.target = home;
-    m.applied_force.setZero();
-    if (!warm.ok) throw std::runtime_error("the first dynamic step failed (reduce time_step)");
-    // Back at rest, the history's buffers kept at their size (BDF2 starts with a backward
-    // Euler step without history).
-    m.dynamic.q = m.dynamic_good.q;
-    m.dynamic.t = m.dynamic_good.t;
-    m.CatchAtRest();
-    m.dynamic_good = m.dynamic;
-    // The ticks' limits (not the throwaway step's: it must not fail on a slow start).
-    m.stepper->SetNewtonLimits(options.dynamic_newton_iterations, options.time_budget);
-  }
+  m.SetUpNewton();
+  if (options.mode == RuntimeMode::kDynamic) m.SetUpDynamics();
   if (options.tool == ToolKind::kPoke && scene.section &&
       RingStiffness{scene.material.ring_bend_stiffness, scene.material.ring_stretch_stiffness}
-          .Check(nullptr)) {
-    // A throwaway dent, a gentle push of 1e-3 kb / R^2 along the section's d1, sizes the
-    // mesh's scratch (the ring's solver and result, the propagation's lists), so that
-    // Mesh(TubeMesh*) allocates nothing later.
-    const double R = scene.section->radius;
-    const Vec3 d1 = SectionAt(model, m.state, options.tool_s).d1;
-    m.applied_force = 1e-3 * scene.material.ring_bend_stiffness / (R * R) * d1;
-    TubeMesh throwaway;
-    m.BuildMesh(&m.mesh_scratch, &throwaway);
-    m.applied_force.setZero();
-    m.mesh_scratch.ring_warm = false;
-  }
+          .Check(nullptr))
+    m.SizeMeshScratch();
   m.UpdateReaction();
 }
 
@@ -964,9 +1009,102 @@ StepReport Runtime::Impl::GiveUp(StepStatus status, StepReport report) {
   return report;
 }
 
+// Resumes the solve the last tick stopped short (its iteration cap or the budget): on from where
+// it stopped, towards its target, instead of throwing its iterations away. Its merit only fell
+// on the way, so the solve goes on as if it had not been cut.
+StepReport Runtime::Impl::ResumeTick(Clock::time_point start, StepReport report) {
+  std::swap(state, pending);
+  target = pending_target;
+  rotation = pending_rotation;
+  applied_force = pending_force;
+  const StepStatus status = Newton(start, options.max_iterations, false, &report);
+  if (status != StepStatus::kConverged) return GiveUp(status, report);
+  resumed_ticks = 0;
+  corrections = 0;
+  move_scale = std::min(1.0, 2.0 * move_scale);
+  report.status = StepStatus::kConverged;
+  return report;
+}
+
+// The rod's answer to the grasp's move d (and an oriented grasp's turn) predicted from the
+// factor kept at the last equilibrium: x_free += -K_ff^-1 K_fh d, the linear response with the
+// held dofs as a Dirichlet boundary, plus the last ticks' second-order correction; taken into
+// state through one retraction (true) when it keeps every turn small and the held edge exact.
+bool Runtime::Impl::PredictGraspMove(const Vec3& d, const Eigen::AngleAxisd& turn) {
+  const RodModel& m = *model;
+  const int v = tool_vertex;
+  const double d_norm = d.norm();
+  // K_fh d from the kept Hessian's columns of the grasped vertex (held rows left in), the
+  // Hessian the kept factor was made from: the band couples them to 2 blocks either side.
+  // Held moves: the grasped vertex's d; an oriented grasp's far vertex and its twist (to
+  // first order, the turn about the edge).
+  step.setZero();
+  const int p = hessian_full.bandwidth();
+  const int rows = static_cast<int>(step.size());
+  auto add_column = [&](int c, double move) {
+    for (int i = std::max(0, c - p); i <= std::min(rows - 1, c + p); ++i)
+      step[i] -= hessian_full.Get(i, c) * move;
+  };
+  Vec3 d_w = Vec3::Zero();
+  double d_twist = 0.0;
+  if (oriented) {
+    d_w = target - rotation * edge0 - state.x.col(edge_vertex);
+    d_twist = turn.angle() * turn.axis().dot(state.e.col(edge_vertex).normalized());
+    for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(edge_vertex) + c, d_w[c]);
+    add_column(held_twist, d_twist);
+  }
+  for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(v) + c, d[c]);
+  ApplyHeldRows(held_rows, &step, nullptr);
+  factor.SolveInPlace(step);
+  if (corrections >= 1 && turn.angle() == 0.0) {
+    // The linear response misses the move's second-order part, which along a steady drag
+    // changes little from one tick to the next: the last ticks measured it (the sum of
+    // their steps after the prediction), scaled here as a quadratic in the move along the
+    // last one, and extrapolated from the two last ticks when the moves are steady. This
+    // tick's correction counts from the linear prediction, like theirs.
+    const double s = d.dot(last_move) / last_move.squaredNorm();
+    correction = (s * s) * last_correction;
+    if (corrections >= 2 && (d - last_move).norm() <= kSteadyMove * d_norm &&
+        (last_move - older_move).norm() <= kSteadyMove * d_norm)
+      correction += (s * s) * (last_correction - older_correction);
+    step += correction;
+  }
+  // The whole predicted motion, the grasp's own move included, goes through one edge-wise
+  // retraction from the last equilibrium, which changes every edge's length by its linear
+  // part only. (Moving the free vertices first and then the grasped vertex would pin it at
+  // its old place during the retraction, whose closure pulls the rod before it back by d,
+  // and then stretch its edge by the whole move: against a stiff EA a force of EA d / l that
+  // Newton must first undo.) ApplyStep keeps held vertices where its input state has them
+  // and reads no other vertex position but x_0, so its input is the last equilibrium with
+  // the grasped vertex already at the target.
+  step.segment<3>(RodModel::VertexDof(v)) = d;
+  moved = state;  // same sizes: no allocation
+  moved.x.col(v) = target;
+  if (oriented) {
+    step.segment<3>(RodModel::VertexDof(edge_vertex)) = d_w;
+    step[held_twist] = d_twist;
+    moved.x.col(edge_vertex) += d_w;
+  }
+  if (MaxTurnAndStrainChange(m, state, step).turn <= kMaxTurnPerStep &&
+      ApplyStep(m, moved, step, 1.0, &trial) && trial.x.allFinite()) {
+    bool held_exactly = true;
+    if (oriented) {
+      // The held edge exactly as the tool holds it (the retraction gave its length to first
+      // order), its twist from the tool's d1.
+      trial.e.col(edge_vertex) = trial.x.col(v) - trial.x.col(edge_vertex);
+      held_exactly = UpdateReferenceFrames(m, state, &trial);
+      HoldTwist(&trial);
+    }
+    if (held_exactly) {
+      std::swap(state, trial);
+      return true;
+    }
+  }
+  return false;
+}
+
 StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
   StepReport report;
-  const RodModel& m = *model;
   last_good = state;
   rotation_good = rotation;
   last_good_force = applied_force;
@@ -982,22 +1120,7 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
             : (tool_force - pending_force).norm() < (tool_force - applied_force).norm();
     if (!towards) resumed_ticks = 0;
   }
-  if (resumed_ticks > 0) {
-    // The last tick's solve stopped short (its iteration cap or the budget): on from where it
-    // stopped, towards its target, instead of throwing its iterations away. Its merit only fell
-    // on the way, so the solve goes on as if it had not been cut.
-    std::swap(state, pending);
-    target = pending_target;
-    rotation = pending_rotation;
-    applied_force = pending_force;
-    const StepStatus status = Newton(start, options.max_iterations, false, &report);
-    if (status != StepStatus::kConverged) return GiveUp(status, report);
-    resumed_ticks = 0;
-    corrections = 0;
-    move_scale = std::min(1.0, 2.0 * move_scale);
-    report.status = StepStatus::kConverged;
-    return report;
-  }
+  if (resumed_ticks > 0) return ResumeTick(start, report);
   ApplyForce();
   bool predicted_start = false;
   Vec3 move = Vec3::Zero();  // the grasp's move this tick [m]
@@ -1027,76 +1150,9 @@ StepReport Runtime::Impl::StepQuasiStatic(Clock::time_point start) {
     const double d_norm = d.norm();
     move = d;
     turned = turn.angle() > 0.0;
-    bool predicted = false;
-    if (factor_on_branch && factor.valid() && (d_norm > 0.0 || turn.angle() > 0.0)) {
-      // K_fh d from the kept Hessian's columns of the grasped vertex (held rows left in), the
-      // Hessian the kept factor was made from: the band couples them to 2 blocks either side.
-      // Held moves: the grasped vertex's d; an oriented grasp's far vertex and its twist (to
-      // first order, the turn about the edge).
-      step.setZero();
-      const int p = hessian_full.bandwidth();
-      const int rows = static_cast<int>(step.size());
-      auto add_column = [&](int c, double move) {
-        for (int i = std::max(0, c - p); i <= std::min(rows - 1, c + p); ++i)
-          step[i] -= hessian_full.Get(i, c) * move;
-      };
-      Vec3 d_w = Vec3::Zero();
-      double d_twist = 0.0;
-      if (oriented) {
-        d_w = target - rotation * edge0 - state.x.col(edge_vertex);
-        d_twist = turn.angle() * turn.axis().dot(state.e.col(edge_vertex).normalized());
-        for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(edge_vertex) + c, d_w[c]);
-        add_column(held_twist, d_twist);
-      }
-      for (int c = 0; c < 3; ++c) add_column(RodModel::VertexDof(v) + c, d[c]);
-      ApplyHeldRows(held_rows, &step, nullptr);
-      factor.SolveInPlace(step);
-      if (corrections >= 1 && turn.angle() == 0.0) {
-        // The linear response misses the move's second-order part, which along a steady drag
-        // changes little from one tick to the next: the last ticks measured it (the sum of
-        // their steps after the prediction), scaled here as a quadratic in the move along the
-        // last one, and extrapolated from the two last ticks when the moves are steady. This
-        // tick's correction counts from the linear prediction, like theirs.
-        const double s = d.dot(last_move) / last_move.squaredNorm();
-        correction = (s * s) * last_correction;
-        if (corrections >= 2 && (d - last_move).norm() <= kSteadyMove * d_norm &&
-            (last_move - older_move).norm() <= kSteadyMove * d_norm)
-          correction += (s * s) * (last_correction - older_correction);
-        step += correction;
-      }
-      // The whole predicted motion, the grasp's own move included, goes through one edge-wise
-      // retraction from the last equilibrium, which changes every edge's length by its linear
-      // part only. (Moving the free vertices first and then the grasped vertex would pin it at
-      // its old place during the retraction, whose closure pulls the rod before it back by d,
-      // and then stretch its edge by the whole move: against a stiff EA a force of EA d / l that
-      // Newton must first undo.) ApplyStep keeps held vertices where its input state has them
-      // and reads no other vertex position but x_0, so its input is the last equilibrium with
-      // the grasped vertex already at the target.
-      step.segment<3>(RodModel::VertexDof(v)) = d;
-      moved = state;  // same sizes: no allocation
-      moved.x.col(v) = target;
-      if (oriented) {
-        step.segment<3>(RodModel::VertexDof(edge_vertex)) = d_w;
-        step[held_twist] = d_twist;
-        moved.x.col(edge_vertex) += d_w;
-      }
-      if (MaxTurnAndStrainChange(m, state, step).turn <= kMaxTurnPerStep &&
-          ApplyStep(m, moved, step, 1.0, &trial) && trial.x.allFinite()) {
-        bool held_exactly = true;
-        if (oriented) {
-          // The held edge exactly as the tool holds it (the retraction gave its length to first
-          // order), its twist from the tool's d1.
-          trial.e.col(edge_vertex) = trial.x.col(v) - trial.x.col(edge_vertex);
-          held_exactly = UpdateReferenceFrames(m, state, &trial);
-          HoldTwist(&trial);
-        }
-        if (held_exactly) {
-          std::swap(state, trial);
-          predicted = true;
-          predicted_start = true;
-        }
-      }
-    }
+    const bool predicted = factor_on_branch && factor.valid() &&
+                           (d_norm > 0.0 || turn.angle() > 0.0) && PredictGraspMove(d, turn);
+    predicted_start = predicted;
     if (!predicted) {
       // No usable factor: the grasped vertex alone moves, Newton brings the rest along.
       if (!MoveGrasp(last_good, target, &trial)) {

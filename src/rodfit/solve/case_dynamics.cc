@@ -391,36 +391,97 @@ CaseTrajectory SimulateCaseDynamics(const Scene& scene, int index, const Statics
   return out;
 }
 
-CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
-                               const std::vector<double>& s, const std::vector<double>& t,
-                               const std::vector<ParameterDirection>& directions,
-                               bool with_reactions) {
-  if (scene.cases[index].symmetry) {
-    // As the static fit does, a symmetric case is sampled on the whole rod: its markers lie on
-    // both halves, and the sensitivities are those of the whole rod's steps.
-    Scene whole = scene;
-    whole.cases[index].symmetry.reset();
-    return SampleCaseDynamics(whole, index, statics, s, t, directions, with_reactions);
-  }
-  const DynamicsSpec& spec = *scene.dynamics;
-  for (size_t k = 0; k < t.size(); ++k)
-    if (!(t[k] >= 0.0 && t[k] <= spec.duration * (1.0 + 1e-12)) || (k > 0 && !(t[k] >= t[k - 1])))
-      throw std::invalid_argument("sample times must ascend within [0, dynamics.duration]");
-  const RodModel model(scene.rod, scene.material, scene.gravity, CaseAtStart(scene.cases[index]),
-                       scene.springs);
-  // Each point between vertices i and i + 1 with weight w on i + 1.
+namespace {
+
+// The sample points at arc lengths s: each between vertices vertex[m] and vertex[m] + 1, with
+// weight[m] on the latter.
+void LocateSamplePoints(const RodModel& model, const std::vector<double>& s,
+                        std::vector<int>* vertex, std::vector<double>* weight) {
   const std::vector<double>& arc = model.arc_lengths();
   const int n = model.num_edges();
-  std::vector<int> vertex(s.size());
-  std::vector<double> weight(s.size());
+  vertex->resize(s.size());
+  weight->resize(s.size());
   for (size_t m = 0; m < s.size(); ++m) {
     if (!(s[m] >= 0.0 && s[m] <= arc[n] * (1.0 + 1e-12)))
       throw std::invalid_argument("arc lengths must lie in [0, rod.length]");
     const int i = std::min<int>(
         n - 1, static_cast<int>(std::upper_bound(arc.begin(), arc.end(), s[m]) - arc.begin()) - 1);
-    vertex[m] = std::max(i, 0);
-    weight[m] = std::clamp((s[m] - arc[vertex[m]]) / (arc[vertex[m] + 1] - arc[vertex[m]]), 0.0, 1.0);
+    const int v = (*vertex)[m] = std::max(i, 0);
+    (*weight)[m] = std::clamp((s[m] - arc[v]) / (arc[v + 1] - arc[v]), 0.0, 1.0);
   }
+}
+
+// The sample points at state q (LocateSamplePoints' vertex and weight), and with np directions
+// their derivatives from dq (three rows per point). Vertex 0 is the clamp: no dofs.
+void SamplePointsAt(const RodState& q, const Eigen::MatrixXd& dq, int np,
+                    const std::vector<int>& vertex, const std::vector<double>& weight,
+                    Eigen::Matrix3Xd* x, Eigen::MatrixXd* d) {
+  d->setZero();
+  for (size_t m = 0; m < vertex.size(); ++m) {
+    const int i = vertex[m];
+    const double w = weight[m];
+    x->col(m) = (1.0 - w) * q.x.col(i) + w * q.x.col(i + 1);
+    if (np == 0) continue;
+    if (i >= 1) d->middleRows<3>(3 * m) += (1.0 - w) * dq.middleRows<3>(RodModel::VertexDof(i));
+    d->middleRows<3>(3 * m) += w * dq.middleRows<3>(RodModel::VertexDof(i + 1));
+  }
+}
+
+// The held points' reactions at weight w between the ends of a step (w = 1: at its end).
+std::vector<HeldReaction> LerpReactions(const std::vector<HeldReaction>& before,
+                                        const std::vector<HeldReaction>& after, double w) {
+  std::vector<HeldReaction> r = after;
+  for (size_t k = 0; k < r.size(); ++k) {
+    r[k].position = (1.0 - w) * before[k].position + w * after[k].position;
+    r[k].force = (1.0 - w) * before[k].force + w * after[k].force;
+    r[k].moment = (1.0 - w) * before[k].moment + w * after[k].moment;
+  }
+  return r;
+}
+
+// ... and their derivatives (force and moment per direction).
+using Reaction6 = Eigen::Matrix<double, 6, Eigen::Dynamic>;
+std::vector<Reaction6> LerpReactionDerivatives(const std::vector<Reaction6>& before,
+                                               const std::vector<Reaction6>& after, double w) {
+  std::vector<Reaction6> d(after.size());
+  for (size_t k = 0; k < d.size(); ++k) d[k] = (1.0 - w) * before[k] + w * after[k];
+  return d;
+}
+
+// Sample times ascend within [0, duration].
+void RequireSampleTimes(const std::vector<double>& t, double duration) {
+  for (size_t k = 0; k < t.size(); ++k)
+    if (!(t[k] >= 0.0 && t[k] <= duration * (1.0 + 1e-12)) || (k > 0 && !(t[k] >= t[k - 1])))
+      throw std::invalid_argument("sample times must ascend within [0, dynamics.duration]");
+}
+
+// The start state's sensitivities to the directions: an equilibrium's (false, with why, when
+// they cannot be had), zero for a given start shape (the parameters' own) and for the velocity.
+bool StartSensitivity(const RodModel& model, const LoadCase& c, const DynamicState& state,
+                      const std::vector<ParameterDirection>& directions, DynamicSensitivity* ds,
+                      std::string* why) {
+  const int np = static_cast<int>(directions.size());
+  if (c.initial.equilibrium) {
+    if (!EquilibriumSensitivity(model, state.q, directions, &ds->dq, why)) return false;
+  } else {
+    ds->dq.setZero(model.num_free_dofs(), np);
+  }
+  ds->dv.setZero(model.num_free_dofs(), np);
+  return true;
+}
+
+// SampleCaseDynamics on a case without a symmetry plane.
+CaseSamples SampleWholeRod(const Scene& scene, int index, const StaticsOptions& statics,
+                           const std::vector<double>& s, const std::vector<double>& t,
+                           const std::vector<ParameterDirection>& directions,
+                           bool with_reactions) {
+  const DynamicsSpec& spec = *scene.dynamics;
+  RequireSampleTimes(t, spec.duration);
+  const RodModel model(scene.rod, scene.material, scene.gravity, CaseAtStart(scene.cases[index]),
+                       scene.springs);
+  std::vector<int> vertex;
+  std::vector<double> weight;
+  LocateSamplePoints(model, s, &vertex, &weight);
   DynamicsStepper stepper(model, DynamicsOptionsFrom(spec));
   const CaseDrive drive(model, scene.cases[index]);
   CaseSamples out;
@@ -428,32 +489,15 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
   const int np = static_cast<int>(directions.size());
   const int M = static_cast<int>(s.size());
   DynamicSensitivity ds;
-  if (np > 0) {
-    if (scene.cases[index].initial.equilibrium) {
-      if (!EquilibriumSensitivity(model, state.q, directions, &ds.dq, &out.reason)) return out;
-    } else {
-      ds.dq.setZero(model.num_free_dofs(), np);  // a given start shape is the parameters' own
-    }
-    ds.dv.setZero(model.num_free_dofs(), np);
-  }
-  // The points (and their derivatives) at the current state. Vertex 0 is the clamp: no dofs.
+  if (np > 0 && !StartSensitivity(model, scene.cases[index], state, directions, &ds, &out.reason))
+    return out;
+  // The points (and their derivatives) at the current state.
   Eigen::Matrix3Xd x_now(3, M), x_before(3, M);
   Eigen::MatrixXd d_now = Eigen::MatrixXd::Zero(3 * M, np), d_before = d_now;
-  auto points = [&]() {
-    d_now.setZero();
-    for (int m = 0; m < M; ++m) {
-      const int i = vertex[m];
-      const double w = weight[m];
-      x_now.col(m) = (1.0 - w) * state.q.x.col(i) + w * state.q.x.col(i + 1);
-      if (np == 0) continue;
-      if (i >= 1) d_now.middleRows<3>(3 * m) += (1.0 - w) * ds.dq.middleRows<3>(RodModel::VertexDof(i));
-      d_now.middleRows<3>(3 * m) += w * ds.dq.middleRows<3>(RodModel::VertexDof(i + 1));
-    }
-  };
+  auto points = [&]() { SamplePointsAt(state.q, ds.dq, np, vertex, weight, &x_now, &d_now); };
   points();
   // The held points' reactions at the state (and their derivatives), computed at the end of a
   // step only when a sample time lies within the step after it or the one before.
-  using Reaction6 = Eigen::Matrix<double, 6, Eigen::Dynamic>;
   std::vector<HeldReaction> r_now, r_before;
   std::vector<Reaction6> dr_now, dr_before;
   VecX v_step_start = state.v;
@@ -469,17 +513,8 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
                                          ds.dv, dv_step_start, directions);
   };
   auto lerp_reactions = [&](double w) {
-    std::vector<HeldReaction> r = r_now;
-    for (size_t k = 0; k < r.size(); ++k) {
-      r[k].position = (1.0 - w) * r_before[k].position + w * r_now[k].position;
-      r[k].force = (1.0 - w) * r_before[k].force + w * r_now[k].force;
-      r[k].moment = (1.0 - w) * r_before[k].moment + w * r_now[k].moment;
-    }
-    out.reactions.push_back(std::move(r));
-    if (np == 0) return;
-    std::vector<Reaction6> d(dr_now.size());
-    for (size_t k = 0; k < d.size(); ++k) d[k] = (1.0 - w) * dr_before[k] + w * dr_now[k];
-    out.d_reactions.push_back(std::move(d));
+    out.reactions.push_back(LerpReactions(r_before, r_now, w));
+    if (np > 0) out.d_reactions.push_back(LerpReactionDerivatives(dr_before, dr_now, w));
   };
   const double dt = spec.time_step;
   auto reactions_needed = [&](size_t next) {
@@ -528,6 +563,21 @@ CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptio
   out.reason = stats.reason;
   out.ok = stats.ok;
   return out;
+}
+
+}  // namespace
+
+CaseSamples SampleCaseDynamics(const Scene& scene, int index, const StaticsOptions& statics,
+                               const std::vector<double>& s, const std::vector<double>& t,
+                               const std::vector<ParameterDirection>& directions,
+                               bool with_reactions) {
+  if (!scene.cases[index].symmetry)
+    return SampleWholeRod(scene, index, statics, s, t, directions, with_reactions);
+  // As the static fit does, a symmetric case is sampled on the whole rod: its markers lie on
+  // both halves, and the sensitivities are those of the whole rod's steps.
+  Scene whole = scene;
+  whole.cases[index].symmetry.reset();
+  return SampleWholeRod(whole, index, statics, s, t, directions, with_reactions);
 }
 
 }  // namespace rodfit

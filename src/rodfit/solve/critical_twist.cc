@@ -719,59 +719,66 @@ void Finish(const Search& s, const PathPoint& p, CriticalTwistResult* res) {
   res->mode = p.modes.vectors.col(0);
 }
 
-}  // namespace
+// The continuation's state between its phases: the last accepted point, the step and what it
+// predicts of the crossing, the steps spent.
+struct Walk {
+  PathPoint a;                 // the last accepted point
+  BandedSymmetric H;           // the Hessian at the last analysed point
+  double step = 0.0;           // the next natural step [rad]
+  // The roll [rad] to the crossing predicted at a (infinite: none predicted).
+  double predicted = std::numeric_limits<double>::infinity();
+  bool by_failure = false;     // the natural steps ended shrinking, not by a prediction
+  int steps = 0;               // steps tried, natural and arclength (options.max_steps)
+};
 
-// One function, though long: the phases (start, natural steps, arclength steps, location) share
-// the last accepted point and the step length, and read top to bottom in the order they run.
-CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwisted,
-                                  const CriticalTwistOptions& options) {
-  const auto t_start = std::chrono::steady_clock::now();
-  CriticalTwistResult res;
-  auto done = [&]() {
-    res.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-    return res;
-  };
-  auto fail = [&](const std::string& why) {
-    res.ok = false;
-    res.message = why;
-    return done();
-  };
+// The crossing bracketed on the arclength from base (lambda > 0) by ds to b (lambda <= 0).
+struct Bracket {
+  PathPoint base, b;
+  double ds = 0.0;
+};
+
+// The phases below return whether the search goes on to the next phase; when not, res holds its
+// end (ok with its finding, or a failure and why).
+bool Failed(CriticalTwistResult* res, const std::string& why) {
+  res->ok = false;
+  res->message = why;
+  return false;
+}
+
+// Why the critical twist cannot be sought on this model from this state ("" when it can).
+std::string Unsupported(const RodModel& model, const RodState& untwisted,
+                        const CriticalTwistOptions& options) {
   std::string why;
-  if (!options.Check(&why)) return fail("invalid options: " + why);
+  if (!options.Check(&why)) return "invalid options: " + why;
   if (!model.has_end_clamp() || !model.end_twist_held())
-    return fail("the critical twist needs an end clamp that holds the frame (end_clamp with a "
-                "normal): without it the roll twists nothing");
-  if (model.nonconservative()) return fail("the critical twist needs a case without moments");
-  if (model.symmetric()) return fail("the critical twist needs the whole rod (no symmetry plane)");
+    return "the critical twist needs an end clamp that holds the frame (end_clamp with a "
+           "normal): without it the roll twists nothing";
+  if (model.nonconservative()) return "the critical twist needs a case without moments";
+  if (model.symmetric()) return "the critical twist needs the whole rod (no symmetry plane)";
   if (untwisted.num_edges() != model.num_edges() || untwisted.x.cols() != model.num_vertices())
-    return fail("the untwisted state does not match the model's segment count");
+    return "the untwisted state does not match the model's segment count";
   const Vec3 t0 = model.clamp_tangent(), d1_0 = model.clamp_d1();
   if ((untwisted.clamp_t - t0).norm() > 1e-9 || (untwisted.clamp_d1 - d1_0).norm() > 1e-9)
-    return fail("the untwisted state's clamp frame is not the model's");
+    return "the untwisted state's clamp frame is not the model's";
+  return "";
+}
 
-  Search s{model, t0, d1_0, LengthMetric(model), VecX(), HeldDofs(model), LambdaUnit(model),
-           options.max_roll_rad > 0 ? 1.0 : -1.0, &res};
-  s.cmetric = ContinuationMetric(s.metric, model.length());
-  res.lambda_unit = s.lambda_unit;
-  const double range = std::abs(options.max_roll_rad);
-  const double L = model.length();
-  StaticsOptions statics = options.statics;
-  statics.escape_saddles = false;
-  statics.max_load_steps = 1;
-  std::shared_ptr<StaticsWorkspace> workspace = NewStaticsWorkspace();
-
-  // The untwisted equilibrium, re-solved on the model (a warm start: an iteration or two).
-  PathPoint a;
+// The path's first point: the untwisted equilibrium, re-solved on the model (a warm start: an
+// iteration or two), strictly stable, with its tangent.
+bool StartPath(const Search& s, const RodState& untwisted, const StaticsOptions& statics,
+               StaticsWorkspace* workspace, Walk* w) {
+  CriticalTwistResult& res = *s.result;
+  PathPoint& a = w->a;
   a.q = untwisted;
-  if (!SetClampFrame(model, t0, d1_0, &a.q)) return fail("the untwisted state has folded edges");
-  const StaticsSummary first = SolveStatics(model, statics, &a.q, workspace.get());
+  if (!SetClampFrame(s.model, s.t0, s.d1_0, &a.q))
+    return Failed(&res, "the untwisted state has folded edges");
+  const StaticsSummary first = SolveStatics(s.model, statics, &a.q, workspace);
   res.newton_iterations += first.iterations;
-  if (!first.converged) return fail("the untwisted equilibrium did not solve: " + first.reason);
-  BandedSymmetric H;
+  if (!first.converged)
+    return Failed(&res, "the untwisted equilibrium did not solve: " + first.reason);
   bool positive = false;
-  if (!Analyse(s, &a, 0.0, &H, &positive))
-    return fail("the eigenvalues of the untwisted equilibrium did not converge");
+  if (!Analyse(s, &a, 0.0, &w->H, &positive))
+    return Failed(&res, "the eigenvalues of the untwisted equilibrium did not converge");
   if (!positive || !(a.lambda > kStrictlyStable * s.lambda_unit)) {
     char buf[200];
     std::snprintf(buf, sizeof(buf),
@@ -779,19 +786,27 @@ CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwist
                   "lambda_unit): no branch to follow",
                   a.lambda, a.lambda / s.lambda_unit);
     Finish(s, a, &res);
-    return fail(buf);
+    return Failed(&res, buf);
   }
-  if (!NaturalTangent(s, a, H, &a.tangent)) return fail("no tangent at the untwisted equilibrium");
+  if (!NaturalTangent(s, a, w->H, &a.tangent))
+    return Failed(&res, "no tangent at the untwisted equilibrium");
   Record(s, a, false);
+  return true;
+}
 
-  // 1. Natural steps in the roll.
-  double step = options.initial_step_rad;
+// 1. Natural steps in the roll: each point solved on the rolled model from the tangent's
+// predictor, until the crossing is predicted near (or the steps shrink below the smallest).
+bool NaturalSteps(const Search& s, const CriticalTwistOptions& options,
+                  const StaticsOptions& statics, StaticsWorkspace* workspace, Walk* w) {
+  CriticalTwistResult& res = *s.result;
+  const RodModel& model = s.model;
+  const double range = std::abs(options.max_roll_rad);
+  const double L = model.length();
+  PathPoint& a = w->a;
+  w->step = options.initial_step_rad;
   double predicted_linear = std::numeric_limits<double>::infinity();
-  double predicted = std::numeric_limits<double>::infinity();
-  bool by_failure = false;  // the natural steps ended shrinking, not by a prediction
   double before_roll = 0.0, before_lambda = 0.0;  // the accepted point before a
   bool have_before = false;
-  int steps = 0;
   const int n = model.num_free_dofs();
   for (;;) {
     if (s.direction * a.roll >= range * (1.0 - 1e-15)) {
@@ -802,11 +817,11 @@ CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwist
       std::snprintf(buf, sizeof(buf), "stable up to roll %.6g rad (lambda_min %.3e)", a.roll,
                     a.lambda);
       res.message = buf;
-      return done();
+      return false;
     }
-    if (++steps > options.max_steps)
-      return fail("step cap reached at roll " + std::to_string(a.roll) + " rad");
-    const double h = std::min(step, range - s.direction * a.roll);
+    if (++w->steps > options.max_steps)
+      return Failed(&res, "step cap reached at roll " + std::to_string(a.roll) + " rad");
+    const double h = std::min(w->step, range - s.direction * a.roll);
     const double roll = a.roll + s.direction * h;
     bool ok = true;
     PathPoint c;
@@ -815,15 +830,15 @@ CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwist
     ok = ApplyStep(model, a.q, VecX(a.tangent.head(n)), h / std::abs(a.tangent[n]), &predictor);
     std::unique_ptr<RodModel> rolled_model;
     try {
-      rolled_model = std::make_unique<RodModel>(RolledModel(model, RolledD1(t0, d1_0, roll)));
+      rolled_model = std::make_unique<RodModel>(RolledModel(model, RolledD1(s.t0, s.d1_0, roll)));
     } catch (const std::exception& e) {  // the same rod as `model`'s: not expected
-      return fail(std::string("the rolled case is not a valid rod: ") + e.what());
+      return Failed(&res, std::string("the rolled case is not a valid rod: ") + e.what());
     }
     const RodModel& rolled = *rolled_model;
     ok = ok && SetClampFrame(model, rolled.clamp_tangent(), rolled.clamp_d1(), &predictor);
     if (ok) {
       c.q = predictor;
-      const StaticsSummary r = SolveStatics(rolled, statics, &c.q, workspace.get());
+      const StaticsSummary r = SolveStatics(rolled, statics, &c.q, workspace);
       res.newton_iterations += r.iterations;
       ok = r.converged && r.stable;
     }
@@ -839,14 +854,16 @@ CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwist
     if (ok) {
       c.roll = roll;
       c.modes = a.modes;
-      ok = Analyse(s, &c, 0.0, &H, &positive) && positive && NaturalTangent(s, c, H, &c.tangent);
+      bool positive = false;
+      ok = Analyse(s, &c, 0.0, &w->H, &positive) && positive &&
+           NaturalTangent(s, c, w->H, &c.tangent);
     }
     if (!ok) {
       ++res.failed_steps;
-      step = 0.5 * h;
-      if (step < options.min_step_rad) {  // the crossing is within reach: arclength
-        by_failure = true;
-        break;
+      w->step = 0.5 * h;
+      if (w->step < options.min_step_rad) {  // the crossing is within reach: arclength
+        w->by_failure = true;
+        return true;
       }
       continue;
     }
@@ -857,6 +874,7 @@ CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwist
     // lambda^2 (a fold's distance; a bifurcation's underestimated). The model that predicted
     // lambda here better from the two points before bounds the next step (the lambda^2 model,
     // which is safe, until there are three points); the linear one says when to hand over.
+    double& predicted = w->predicted;
     predicted = std::numeric_limits<double>::infinity();
     predicted_linear = std::numeric_limits<double>::infinity();
     if (c.lambda < a.lambda) {
@@ -873,73 +891,95 @@ CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwist
     }
     before_roll = a.roll, before_lambda = a.lambda, have_before = true;
     a = std::move(c);
-    step = std::min({options.max_step_rad, 1.5 * h, kCrossingFraction * predicted});
-    if (predicted_linear < kArclengthTakeover || step < options.min_step_rad) break;
+    w->step = std::min({options.max_step_rad, 1.5 * h, kCrossingFraction * predicted});
+    if (predicted_linear < kArclengthTakeover || w->step < options.min_step_rad) return true;
   }
+}
 
-  // 2. Pseudo-arclength steps through the crossing. The first step: half again the predicted
-  // distance, or twice the last step tried, along the arclength (|droll| = |t_r| ds).
-  const double roll_share = std::max(std::abs(a.tangent[n]), 1e-3);
-  double ds = !by_failure && std::isfinite(predicted) ? 1.5 * predicted : 2.0 * step;
+// 2. Pseudo-arclength steps through the crossing, until lambda is at or below zero. The first
+// step: half again the predicted distance, or twice the last step tried, along the arclength
+// (|droll| = |t_r| ds).
+bool ArclengthSteps(const Search& s, const CriticalTwistOptions& options, Walk* w,
+                    Bracket* bracket) {
+  CriticalTwistResult& res = *s.result;
+  const double range = std::abs(options.max_roll_rad);
+  const int n = s.model.num_free_dofs();
+  const double roll_share = std::max(std::abs(w->a.tangent[n]), 1e-3);
+  double& ds = bracket->ds;
+  ds = !w->by_failure && std::isfinite(w->predicted) ? 1.5 * w->predicted : 2.0 * w->step;
   ds = std::min(options.max_step_rad, ds / roll_share);
-  PathPoint base = a, b;
+  PathPoint& base = bracket->base;
+  base = w->a;
   for (;;) {
-    if (++steps > options.max_steps)
-      return fail("step cap reached at roll " + std::to_string(base.roll) + " rad");
+    if (++w->steps > options.max_steps)
+      return Failed(&res, "step cap reached at roll " + std::to_string(base.roll) + " rad");
     PathPoint c;
     bool ok = Correct(s, base, ds, &c);
     if (ok) {
       const double guess = std::min(0.0, base.lambda) - ShiftMargin(base.modes);
-      ok = Analyse(s, &c, guess, &H, nullptr) && CurveTangent(s, c, H, base.tangent, &c.tangent);
+      ok = Analyse(s, &c, guess, &w->H, nullptr) &&
+           CurveTangent(s, c, w->H, base.tangent, &c.tangent);
     }
     if (!ok) {
       ds *= 0.5;
       if (ds < kMinArclengthStep)
-        return fail("the arclength continuation stalled at roll " + std::to_string(base.roll) +
-                    " rad");
+        return Failed(&res, "the arclength continuation stalled at roll " +
+                                std::to_string(base.roll) + " rad");
       continue;
     }
     ++res.arclength_steps;
     Record(s, c, true);
     if (c.lambda <= 0.0) {
-      b = std::move(c);
-      break;
+      bracket->b = std::move(c);
+      return true;
     }
     if (s.direction * c.roll > range) {
       res.ok = true;
       res.kind = TwistInstability::kNoneInRange;
       Finish(s, c, &res);
       res.message = "stable up to roll " + std::to_string(c.roll) + " rad";
-      return done();
+      return false;
     }
     const double slope = (c.lambda - base.lambda) / ds;
     const double ahead = slope < 0.0 ? 1.5 * c.lambda / -slope : 2.0 * ds;
     ds = std::min({options.max_step_rad, 2.0 * ds, ahead});
     base = std::move(c);
   }
+}
 
-  // 3. Locate the crossing on the arclength from the base (lambda > 0) to b (lambda <= 0):
-  // secant steps through the last two evaluations (lambda is smooth in the arclength, crossing
-  // zero linearly at a fold and at a bifurcation alike), kept inside the bracket (bisection when
-  // one leaves it), until a step is below the tolerance.
+// 3. Locate the crossing on the arclength from the base (lambda > 0) to b (lambda <= 0):
+// secant steps through the last two evaluations (lambda is smooth in the arclength, crossing
+// zero linearly at a fold and at a bifurcation alike), kept inside the bracket (bisection when
+// one leaves it), until a step is below the tolerance. Ends the search.
+void Locate(const Search& s, const CriticalTwistOptions& options, const Bracket& bracket,
+            BandedSymmetric* H) {
+  CriticalTwistResult& res = *s.result;
+  const double range = std::abs(options.max_roll_rad);
+  const int n = s.model.num_free_dofs();
+  const PathPoint& base = bracket.base;
+  const PathPoint& b = bracket.b;
   const bool fold = base.tangent[n] * b.tangent[n] < 0.0;
-  double s_lo = 0.0, f_lo = base.lambda, s_hi = ds, f_hi = b.lambda;
+  double s_lo = 0.0, f_lo = base.lambda, s_hi = bracket.ds, f_hi = b.lambda;
   double s_a = s_lo, f_a = f_lo, s_b = s_hi, f_b = f_hi, roll_b = b.roll;
   double last_step = s_hi - s_lo, last_roll_step = std::abs(b.roll - base.roll);
   PathPoint best = b;
   while (last_step > options.locate_tolerance_rad && f_b != 0.0) {
-    if (res.locate_iterations >= options.max_locate_iterations)
-      return fail("the crossing was not located within " +
-                  std::to_string(options.max_locate_iterations) + " iterations (last step " +
-                  std::to_string(last_step) + " rad of arclength)");
+    if (res.locate_iterations >= options.max_locate_iterations) {
+      Failed(&res, "the crossing was not located within " +
+                       std::to_string(options.max_locate_iterations) + " iterations (last step " +
+                       std::to_string(last_step) + " rad of arclength)");
+      return;
+    }
     ++res.locate_iterations;
     double sm = (s_a * f_b - s_b * f_a) / (f_b - f_a);
     if (!(sm > s_lo && sm < s_hi)) sm = 0.5 * (s_lo + s_hi);
     PathPoint c;
     const double guess = std::min(0.0, std::min(f_lo, f_hi)) - ShiftMargin(base.modes);
-    if (!Correct(s, base, sm, &c) || !Analyse(s, &c, guess, &H, nullptr))
-      return fail("the corrector failed while locating the crossing near roll " +
-                  std::to_string(base.roll) + " rad");
+    if (!Correct(s, base, sm, &c) || !Analyse(s, &c, guess, H, nullptr)) {
+      Failed(&res, "the corrector failed while locating the crossing near roll " +
+                       std::to_string(base.roll) + " rad");
+      return;
+    }
     const double fc = c.lambda;
     (fc > 0.0 ? s_lo : s_hi) = sm;
     (fc > 0.0 ? f_lo : f_hi) = fc;
@@ -963,6 +1003,41 @@ CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwist
                   TwistInstabilityName(res.kind), best.roll, best.roll * 180.0 / M_PI);
   }
   res.message = buf;
+}
+
+}  // namespace
+
+// The phases (start, natural steps, arclength steps, location) run in this order, each from the
+// last accepted point and step the one before left in the walk.
+CriticalTwistResult CriticalTwist(const RodModel& model, const RodState& untwisted,
+                                  const CriticalTwistOptions& options) {
+  const auto t_start = std::chrono::steady_clock::now();
+  CriticalTwistResult res;
+  auto done = [&]() {
+    res.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    return res;
+  };
+  if (const std::string why = Unsupported(model, untwisted, options); !why.empty()) {
+    Failed(&res, why);
+    return done();
+  }
+  const Vec3 t0 = model.clamp_tangent(), d1_0 = model.clamp_d1();
+  Search s{model, t0, d1_0, LengthMetric(model), VecX(), HeldDofs(model), LambdaUnit(model),
+           options.max_roll_rad > 0 ? 1.0 : -1.0, &res};
+  s.cmetric = ContinuationMetric(s.metric, model.length());
+  res.lambda_unit = s.lambda_unit;
+  StaticsOptions statics = options.statics;
+  statics.escape_saddles = false;
+  statics.max_load_steps = 1;
+  std::shared_ptr<StaticsWorkspace> workspace = NewStaticsWorkspace();
+
+  Walk w;
+  Bracket bracket;
+  if (StartPath(s, untwisted, statics, workspace.get(), &w) &&
+      NaturalSteps(s, options, statics, workspace.get(), &w) &&
+      ArclengthSteps(s, options, &w, &bracket))
+    Locate(s, options, bracket, &w.H);
   return done();
 }
 

@@ -7,8 +7,8 @@
 namespace rodfit {
 
 /// Now plus `seconds` on the steady clock. A budget of kNeverSeconds or more (1e308 and infinity
-/// included: NewtonOptions and DynamicsOptions take any budget >= 0, though the runtime's settings
-/// stop at an hour) gives time_point::max(), a deadline never reached: converting it to the clock's 64-bit nanoseconds would overflow, which
+/// included: the runtime, its C API, NewtonOptions and DynamicsOptions take any budget >= 0)
+/// gives time_point::max(), a deadline never reached: converting it to the clock's 64-bit nanoseconds would overflow, which
 /// is undefined behaviour (in practice a deadline in the past, so every step "ran out of time",
 /// or a wrapped difference later; the sanitized C API corpus found it).
 inline std::chrono::steady_clock::time_point DeadlineAfter(double seconds) {

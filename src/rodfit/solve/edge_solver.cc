@@ -16,8 +16,8 @@ constexpr int kEdgeBandwidth = 7;  // two consecutive blocks [e_j, theta_j]
 
 }  // namespace
 
-// One function, though long: the edge-coordinate Hessian's blocks are assembled and factored
-// in one pass over the edges, which keeps the band in cache.
+// The tangent in edge coordinates: its symmetric part (bending, twist, stretch) assembled, then
+// factored with the moments' non-symmetric part, then the held points' constraints.
 bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodFrames& frames,
                         const EnergyTerms& terms, double moment_scale, double shift) {
   valid_ = false;
@@ -30,9 +30,17 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
   held_dofs_ = HeldDofs(model);
   held_vertices_.clear();
   for (const HeldVertex& h : model.held()) held_vertices_.push_back(h.vertex);
+  VecX theta_gradient;
+  AssembleSymmetric(model, state, frames, terms, shift, &theta_gradient);
+  if (!FactorTangent(model, frames, terms, moment_scale, theta_gradient)) return false;
+  return FactorConstraints();
+}
 
-  // The symmetric part in a symmetric band (lower storage, kept between calls: a fine rod's band
-  // is tens of megabytes); the moments' non-symmetric part is added to a general copy.
+// The symmetric part in a symmetric band (lower storage, kept between calls: a fine rod's band
+// is tens of megabytes), shifted by `shift`; *theta_gradient: dPi/dtheta, for the holonomy.
+void EdgeSolver::AssembleSymmetric(const RodModel& model, const RodState& state,
+                                   const RodFrames& frames, const EnergyTerms& terms, double shift,
+                                   VecX* theta_gradient) {
   Ks_.Resize(size_, kEdgeBandwidth, 1);
   Ks_.SetZero();
   auto add = [&](int a, int b, double v) {
@@ -45,7 +53,7 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
   c.GJ = terms.twist * m.twist_stiffness;
   const int nb = NumBendingVertices(model);
   const std::vector<RodFrames::Edge>& fr = frames.edges;
-  VecX theta_gradient = VecX::Zero(size_);  // dPi/dtheta, for the holonomy
+  theta_gradient->setZero(size_);
   for (int i = 0; i < nb; ++i) {
     c.voronoi_length = model.voronoi_length(i);
     c.rest_curvature = model.rest_curvature(i);
@@ -68,7 +76,7 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
     dof[7] = RodModel::TwistDof(i);
     for (int a = 0; a < 8; ++a) {
       if (dof[a] < 0) continue;
-      if (a >= 6) theta_gradient[dof[a]] += g8[a];
+      if (a >= 6) (*theta_gradient)[dof[a]] += g8[a];
       for (int b = 0; b < 8; ++b)
         if (dof[b] >= 0) add(dof[a], dof[b], H8[8 * a + b]);
     }
@@ -85,6 +93,14 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
   }
   if (shift != 0.0)
     for (int k = 0; k < 4 * n_ + (ghost_ ? 4 : 0); ++k) Ks_.At(k, k) += shift;
+}
+
+// Factors the symmetric part (a conservative case's tangent), and with moments the tangent itself
+// (a general copy with the moments' non-symmetric part added).
+bool EdgeSolver::FactorTangent(const RodModel& model, const RodFrames& frames,
+                               const EnergyTerms& terms, double moment_scale,
+                               const VecX& theta_gradient) {
+  const std::vector<RodFrames::Edge>& fr = frames.edges;
   // The end ghost's unused vertex dofs and a held ghost twist: identity rows.
   auto identity_row = [](BandedSymmetric* A, int r) {
     const int p = A->bandwidth();
@@ -122,14 +138,17 @@ bool EdgeSolver::Factor(const RodModel& model, const RodState& state, const RodF
   }
   if (symmetric_) {
     for (int r : identity_rows) identity_row(&Ks_, r);
-    if (!ldlt_.Factor(Ks_)) return false;
-  } else {
-    for (int r : identity_rows) K.SetIdentityRow(r);
-    BandedSymmetric sym = K.SymmetricPart(1);
-    if (!ldlt_.Factor(sym)) return false;
-    if (!lu_.Factor(K)) return false;
+    return ldlt_.Factor(Ks_);
   }
-  // Constraints: C de = sum_{j<k} de_j = 0 for each held vertex k.
+  for (int r : identity_rows) K.SetIdentityRow(r);
+  BandedSymmetric sym = K.SymmetricPart(1);
+  if (!ldlt_.Factor(sym)) return false;
+  return lu_.Factor(K);
+}
+
+// Constraints: C de = sum_{j<k} de_j = 0 for each held vertex k. Their Schur complement (with
+// the symmetric part's, for the inertia), and whether the factors are usable.
+bool EdgeSolver::FactorConstraints() {
   const int m3 = 3 * static_cast<int>(held_vertices_.size());
   Eigen::MatrixXd Ct = Eigen::MatrixXd::Zero(size_, m3);
   for (size_t h = 0; h < held_vertices_.size(); ++h)

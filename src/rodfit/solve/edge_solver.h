@@ -50,6 +50,13 @@ class EdgeSolver {
   void ToVertex(const double* e, double* x) const; // prefix sums (A^-1)
 
   void Solve(double* e) const;  // K^-1 in edge coordinates
+  // Factor's steps: the symmetric part assembled into Ks_ (with dPi/dtheta for the holonomy),
+  // the factors, and the held points' constraints' Schur complement.
+  void AssembleSymmetric(const RodModel& model, const RodState& state, const RodFrames& frames,
+                         const EnergyTerms& terms, double shift, VecX* theta_gradient);
+  bool FactorTangent(const RodModel& model, const RodFrames& frames, const EnergyTerms& terms,
+                     double moment_scale, const VecX& theta_gradient);
+  bool FactorConstraints();
 
   bool valid_ = false, positive_definite_ = false, symmetric_ = true;
   int n_ = 0, size_ = 0;

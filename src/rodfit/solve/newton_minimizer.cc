@@ -259,9 +259,15 @@ bool NewtonMinimizer::BestAlongNegativeCurvature(double* best_amplitude, double*
   return best < e0 - 10.0 * p_->EnergyNoise(e0);
 }
 
-// One function, though long: the iteration's phases (evaluate, verify, test, factor, solve, take
-// the step, book-keep) share the chord, verification and rate state, which each phase reads as
-// the previous one left it; split, that state would pass through every call.
+NewtonSummary NewtonMinimizer::Finish(Termination t) {
+  summary_.termination = t;
+  if (options_.merit == Merit::kEnergy && energy_known_) summary_.energy = energy_;
+  return summary_;
+}
+
+// The iteration's phases (choose, evaluate and verify, test, factor, solve, take the step,
+// book-keep) share the chord, verification and rate state in loop_, which each phase reads as the
+// previous one left it, and the iteration's own decisions in k.
 NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStart& start) {
   p_ = problem;
   summary_ = NewtonSummary();
@@ -269,327 +275,358 @@ NewtonSummary NewtonMinimizer::Minimize(NewtonProblem* problem, const NewtonStar
   energy_known_ = false;
   if (options_.time_budget > 0.0)
     deadline_ = DeadlineAfter(options_.time_budget);
-  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  auto finish = [&](Termination t) {
-    summary_.termination = t;
-    if (options_.merit == Merit::kEnergy && energy_known_) summary_.energy = energy_;
-    return summary_;
-  };
-  const bool finishing = options_.chords == ChordPolicy::kWhenFinishing;
-  const bool contracting = options_.chords == ChordPolicy::kWhileContracting;
-  // kWhenFinishing: a kept factor usable for chord steps (from the start, or the last unshifted
-  // factor), and the residuals of the last two steps (their ratio is the rate).
-  bool chord_basis = finishing && (start.factor_current || start.factor_nearby);
-  double g_last = kNaN, g_before_last = kNaN;
-  bool last_step_full = false, last_step_chord = false;
-  // kWhileContracting: the next iteration is a chord iteration; the residual before it.
-  bool chord_next = contracting && start.factor_nearby;
-  double previous_gnorm = kInf;
-  // A whole step taken without the merit's test, to be verified by the next residual.
-  bool verify_pending = false, verify_chord = false;
-  double verify_from = 0.0;
-  bool line_search = options_.merit != Merit::kEnergy || !options_.verify_steps_by_residual;
-  RelativeStep last_full{-1.0, -1.0};  // converge_on_rate: the last whole step's size
-  int stagnant = 0;
-  double previous_energy = kNaN;
-  bool tolerances_known = false;
+  loop_ = Loop();
+  loop_.chord_basis = options_.chords == ChordPolicy::kWhenFinishing &&
+                      (start.factor_current || start.factor_nearby);
+  loop_.chord_next = options_.chords == ChordPolicy::kWhileContracting && start.factor_nearby;
+  loop_.line_search = options_.merit != Merit::kEnergy || !options_.verify_steps_by_residual;
   // Iterations repeated at the same iterate (a chord replaced by Newton, a step undone) do not
   // count; this bounds them all the same.
   int evaluations_left = 4 * options_.max_iterations + 8;
   for (int it = 0;; ++it) {
-    if (--evaluations_left < 0) return finish(Termination::kIterationCap);
-    const bool reuse = it == 0 && start.factor_current;
-    bool chord = false;
-    if (finishing && !reuse && chord_basis) {
-      if (it == 0) {
-        chord = start.factor_nearby;
-      } else if (last_step_full) {
-        const double rate = g_last / g_before_last;
-        const double predicted = g_last * rate * (last_step_chord ? 1.0 : rate);
-        const double margin = last_step_chord ? 1.0 : 10.0;
-        const double floor_tol = std::max(tol_.residual, tol_.floor);
-        // After the first step the rate is unknown: a warm start's first step is Newton's (or
-        // a chord's) from close by, worth a residual to find out.
-        chord = std::isnan(rate) || (predicted > margin * floor_tol &&
-                                     rate <= kChordPredictedRate && rate * predicted <= floor_tol);
-      }
-    } else if (contracting) {
-      chord = chord_next;
-    }
-    const bool matrix = !chord && !reuse;
-    const bool finite = Evaluate(matrix);
-    if (!tolerances_known) {
-      tol_ = p_->Tolerances();
-      tolerances_known = true;
-    }
+    if (--evaluations_left < 0) return Finish(Termination::kIterationCap);
+    Iteration k;
+    k.it = it;
+    k.reuse = it == 0 && start.factor_current;
+    k.chord = ChooseChord(k, start);
+    Flow flow = EvaluateAndVerify(k);
+    if (flow == Flow::kGoOn && k.chord && options_.chords == ChordPolicy::kWhenFinishing)
+      flow = FinishingChord(k);
+    if (flow == Flow::kGoOn) flow = BeforeFactor(k);
+    if (flow == Flow::kGoOn) flow = FactorAndTest(k);
+    if (flow == Flow::kGoOn) flow = SolveAndTestStep(k);
+    if (flow == Flow::kGoOn) flow = ClassifyStationaryPoint(k);
+    if (flow == Flow::kGoOn) flow = TakeStep(k, start);
+    if (flow == Flow::kGoOn) flow = AfterStep(k);
+    if (flow == Flow::kStop) return Finish(loop_.stop);
+    if (flow == Flow::kRepeat) --it;
+  }
+}
+
+// Whether this iteration is a chord iteration: kWhenFinishing where the last steps' rate
+// predicts a chord step reaches the tolerance, kWhileContracting while the kept factor contracts.
+bool NewtonMinimizer::ChooseChord(const Iteration& k, const NewtonStart& start) const {
+  if (options_.chords == ChordPolicy::kWhenFinishing && !k.reuse && loop_.chord_basis) {
+    if (k.it == 0) return start.factor_nearby;
+    if (!loop_.last_step_full) return false;
+    const double rate = loop_.g_last / loop_.g_before_last;
+    const double predicted = loop_.g_last * rate * (loop_.last_step_chord ? 1.0 : rate);
+    const double margin = loop_.last_step_chord ? 1.0 : 10.0;
     const double floor_tol = std::max(tol_.residual, tol_.floor);
-    summary_.residual_at_solution = true;
-    if (verify_pending) {
-      verify_pending = false;
-      // The whole step did not lower the residual (above its round-off floor, where a rise is
-      // noise): back to the iterate before it, and this iteration again there.
-      if (!finite || (!(gnorm_ < verify_from) && gnorm_ > tol_.floor && !ResidualConverged())) {
-        p_->RestorePrevious();
-        line_search = line_search || !verify_chord;
-        chord_next = false;
-        previous_gnorm = kInf;
-        last_full = {-1.0, -1.0};
-        energy_known_ = false;
-        --it;
-        continue;
-      }
-    }
-    if (!finite) return finish(Termination::kNonFinite);
-    if (finishing && chord) {
-      // A chord step where it is predicted to finish, checked by the energy; otherwise Newton
-      // from here (the matrix assembled at this iterate).
-      const bool progress = std::isnan(g_last) || (gnorm_ / g_last <= kChordPredictedRate &&
-                                                   (gnorm_ / g_last) * gnorm_ <= floor_tol);
-      bool taken = false;
-      if (gnorm_ > floor_tol && progress && p_->ChordStep(g_, &step_)) {
-        const double slope = g_.dot(step_);
-        const double e0 = Merit();
-        if (slope < 0.0 && p_->Caps(step_).alpha >= 1.0 && p_->Retract(step_, 1.0)) {
-          const double e1 = p_->TrialEnergy();
-          if (std::isfinite(e1) && e1 <= e0 + kArmijo * slope + p_->EnergyNoise(e0)) {
-            p_->AcceptTrial();
-            energy_ = e1;
-            energy_known_ = true;
-            taken = true;
-          }
-        }
-      }
-      if (taken) {
-        ++summary_.iterations;
-        ++summary_.chord_steps;
-        g_before_last = g_last;
-        g_last = gnorm_;
-        last_step_full = last_step_chord = true;
-        continue;
-      }
-      chord_basis = false;
-      --it;
-      continue;
-    }
-    const bool factor_here = matrix && options_.factor_at_solution != FactorAtSolution::kNever;
-    if (!factor_here && ResidualConverged()) {
-      if (reuse) summary_.factor_at_solution = true;
-      if (chord && options_.factor_at_solution == FactorAtSolution::kAlways) {
-        chord_next = false;  // the matrix at the solution, for the factor kept there
-        --it;
-        continue;
-      }
-      return finish(Termination::kConverged);
-    }
-    if (!factor_here) {
-      if (it >= options_.max_iterations) return finish(Termination::kIterationCap);
-      if (options_.time_budget > 0.0 && it > 0 && Clock::now() > deadline_)
-        return finish(Termination::kTimeBudget);
-    }
-    if (contracting && chord && gnorm_ > kChordContraction * previous_gnorm) {
-      // The kept factor no longer contracts fast: this iteration again with the matrix.
-      chord_next = false;
-      previous_gnorm = kInf;
-      --it;
-      continue;
-    }
-    const bool refresh = contracting && chord && options_.chord_refresh > 0.0 &&
-                         gnorm_ > options_.chord_refresh * previous_gnorm;
-    previous_gnorm = gnorm_;
-    double shift = 0.0, shift_failed = -1.0;
-    if (matrix) {
-      if (!FactorWithShift(&shift, &shift_failed)) {
-        const bool nan = !std::isfinite(p_->Solver().MaxDiagonal());
-        return finish(nan ? Termination::kNonFinite : Termination::kNotPositiveDefinite);
-      }
-      p_->OnFactor(shift > 0.0);
-      chord_basis = finishing && shift == 0.0;
-    }
-    const bool shifted = shift > 0.0;
-    summary_.shifted = shifted;
-    if (shifted) ++summary_.shifted_factors;
-    const bool classify = options_.saddles != Saddles::kIgnore;
-    if (factor_here && ResidualConverged() && !(shifted && classify)) {
-      summary_.factor_at_solution = !shifted;
-      return finish(Termination::kConverged);
-    }
-    if (factor_here) {
-      if (it >= options_.max_iterations) return finish(Termination::kIterationCap);
-      if (options_.time_budget > 0.0 && it > 0 && Clock::now() > deadline_)
-        return finish(Termination::kTimeBudget);
-    }
-    if (options_.stagnation && !shifted && !chord && gnorm_ <= floor_tol && last_step_full &&
-        p_->LastMove() <= p_->StagnationMove()) {
-      // At the residual's floor after a whole step that moved no point by more than the
-      // stagnation bound: the state is that close to the solution (no back-substitution needed).
-      summary_.factor_at_solution = matrix || reuse;
-      return finish(Termination::kSmallStep);
-    }
-    if (chord) {
-      if (!p_->ChordStep(g_, &step_)) {
-        chord_next = false;
-        --it;
-        continue;
-      }
-    } else {
-      step_ = -g_;  // solved in place: no temporary per step
-      p_->Solver().Solve(&step_);
-    }
-    // The step's size against its tolerance, measured once for every test below.
-    const RelativeStep measured = p_->Measure(step_);
-    // A small unshifted step: converged. With converge_after_small_step the step is taken first
-    // (Newton's error after it is of the order of its square); otherwise the iterate is within
-    // the step of the solution and is kept (its factor, made here, is then the matrix's own).
-    const bool after = options_.converge_after_small_step;
-    if (!shifted && (!chord || after) &&
-        (StepConverged(measured, after) ||
-         (options_.converge_on_decrement && options_.merit == Merit::kEnergy &&
-          -g_.dot(step_) <= kDecrementOfNoise * p_->EnergyNoise(Merit())))) {
-      if (!after) {
-        summary_.factor_at_solution = matrix || reuse;
-        return finish(ResidualConverged() ? Termination::kConverged : Termination::kSmallStep);
-      }
-      if (p_->Retract(step_, 1.0)) {
-        p_->AcceptTrial();
-        energy_known_ = false;
-        ++summary_.iterations;
-        if (chord) ++summary_.chord_steps;
-        summary_.residual_at_solution = false;
-        return finish(Termination::kSmallStep);
-      }
-    }
-    if (!chord && shifted && classify &&
-        (ResidualConverged() || StepConverged(measured))) {
-      // A stationary point with negative curvature is a saddle (a column past its buckling load,
-      // kept straight by symmetry): step along the most negative curvature. No step that lowers
-      // the merit beyond round-off means the curvature is round-off around a neutral direction
-      // (an isotropic buckled column turning about its load axis): stable, though the factor is
-      // then not the matrix's own. A strategy that cannot look (NaN) reports it unstable.
-      const double rq = p_->Solver().NegativeCurvature(shift, shift_failed, kSaddleBisections,
-                                                       g_, &d_);
-      if (std::isnan(rq)) {
-        summary_.stable = false;
-        return finish(Termination::kSmallStep);
-      }
-      const double dmax = std::max(d_.cwiseAbs().maxCoeff(), 1e-300);
-      const double amplitude = 0.01 * p_->Length() / dmax;
-      const bool clearly_negative =
-          rq < 0.0 && 0.5 * -rq * d_.squaredNorm() * amplitude * amplitude >
-                          100.0 * p_->EnergyNoise(Merit());
-      if (options_.saddles == Saddles::kEscape && summary_.saddle_escapes < kMaxSaddleEscapes &&
-          EscapeSaddle()) {
-        ++summary_.saddle_escapes;
-        ++summary_.iterations;
-        last_step_full = false;
-        chord_basis = false;
-        chord_next = false;
-        continue;
-      }
-      summary_.stable = !clearly_negative;
-      return finish(Termination::kSmallStep);
-    }
-    ++summary_.iterations;
-    if (chord) ++summary_.chord_steps;
-    const StepCaps caps = p_->Caps(step_);
-    double alpha = caps.alpha;
-    const double slope = g_.dot(step_);
-    bool accepted = false, unchecked = false;
-    const bool whole = !shifted && alpha >= 1.0;
-    if (options_.merit == Merit::kEnergy && whole &&
-        (chord || !line_search || (it == 0 && start.verify_first_step))) {
-      // Taken as it is and verified by the residual at the next iteration.
-      if (p_->Retract(step_, 1.0)) {
-        p_->AcceptTrial();
-        accepted = unchecked = true;
-        alpha = 1.0;
-        energy_known_ = false;
-        verify_pending = true;
-        verify_chord = chord;
-        verify_from = gnorm_;
-      } else if (chord) {
-        chord_next = false;
-        --summary_.iterations;
-        --summary_.chord_steps;
-        --it;
-        continue;
-      }
-    }
-    if (!accepted && options_.merit == Merit::kNone) {
-      for (int ls = 0; ls < options_.max_line_search_steps && !accepted; ++ls, alpha *= 0.5)
-        accepted = p_->Retract(step_, alpha);
-      if (accepted) {
-        alpha *= 2.0;
-        p_->AcceptTrial();
-        energy_known_ = false;
-      }
-    } else if (!accepted) {
-      // While shifted, the lowest point along the negative curvature is found first (its scan
-      // uses the trial iterate), and preferred to the line search's when lower.
-      double nc_amplitude = 0.0, nc_energy = kInf;
-      bool nc = false;
-      if (shifted && classify) {
-        const double rq = p_->Solver().NegativeCurvature(shift, shift_failed,
-                                                         kShiftedBisections, g_, &d_);
-        if (rq < 0.0) nc = BestAlongNegativeCurvature(&nc_amplitude, &nc_energy);
-      }
-      accepted = LineSearch(slope, caps.turn, shifted, &alpha);
-      const double newton_energy = accepted ? energy_ : kInf;
-      if (nc && nc_energy < newton_energy && p_->Retract(d_, nc_amplitude)) {
-        energy_ = p_->TrialEnergy();
-        energy_known_ = true;
-        accepted = true;
-        alpha = 0.0;  // not a whole Newton step
-      }
-      if (accepted) p_->AcceptTrial();
-    }
-    if (!accepted) {
-      // An iterate at the residual's round-off floor whose unshifted Newton step is within
-      // kFloorRelaxation of the step tolerance and cannot lower the merit further is at
-      // round-off. (A small step with a large residual is not: the factor lost the soft modes.)
-      if (!shifted && !chord && gnorm_ <= kFloorRelaxation * floor_tol &&
-          measured.Within(kFloorRelaxation)) {
-        summary_.factor_at_solution = matrix || reuse;
-        return finish(Termination::kRoundOff);
-      }
-      if (merit_not_finite_) return finish(Termination::kNonFinite);
-      return finish(options_.merit == Merit::kNone ? Termination::kRetractionFailed
-                                                   : Termination::kLineSearchFailed);
-    }
-    summary_.residual_at_solution = false;
-    last_step_full = alpha == 1.0;
-    last_step_chord = chord;
-    g_before_last = g_last;
-    g_last = gnorm_;
-    if (contracting) chord_next = alpha == 1.0 && !shifted && !refresh;
-    if (options_.stagnation) {
-      // Stagnation at round-off: whole unshifted steps that move no point by more than the
-      // stagnation bound and change the merit by its round-off only, three times running.
-      const double e = unchecked ? kNaN : energy_;
-      const double change = std::abs(e - previous_energy);
-      stagnant = (!shifted && alpha == 1.0 && p_->LastMove() <= p_->StagnationMove() &&
-                  change <= 10.0 * p_->EnergyNoise(e))
-                     ? stagnant + 1
-                     : 0;
-      previous_energy = e;
-      if (stagnant >= 3) return finish(Termination::kRoundOff);
-    }
-    if (alpha == 1.0 && !shifted) {
-      const RelativeStep& s = measured;
-      if (options_.converge_on_rate && last_full.x >= 0.0) {
-        // Newton and chord iterates converge linearly at least: the error left after this
-        // step is about its size times the contraction of the step sizes.
-        const double tiny = std::numeric_limits<double>::min();
-        const double rate =
-            std::max(s.x / std::max(last_full.x, tiny), s.theta / std::max(last_full.theta, tiny));
-        if (rate < 1.0 && StepConverged({s.x * rate, s.theta * rate}, /*taken=*/true))
-          return finish(Termination::kContraction);
-      }
-      last_full = s;
-    } else {
-      last_full = {-1.0, -1.0};  // a damped or shifted step measures no contraction
+    // After the first step the rate is unknown: a warm start's first step is Newton's (or
+    // a chord's) from close by, worth a residual to find out.
+    return std::isnan(rate) || (predicted > margin * floor_tol &&
+                                rate <= kChordPredictedRate && rate * predicted <= floor_tol);
+  }
+  if (options_.chords == ChordPolicy::kWhileContracting) return loop_.chord_next;
+  return false;
+}
+
+// Evaluates the residual (and the matrix unless a chord or a kept factor serves), and verifies
+// the whole step the last iteration took without the merit's test.
+NewtonMinimizer::Flow NewtonMinimizer::EvaluateAndVerify(Iteration& k) {
+  k.matrix = !k.chord && !k.reuse;
+  const bool finite = Evaluate(k.matrix);
+  if (!loop_.tolerances_known) {
+    tol_ = p_->Tolerances();
+    loop_.tolerances_known = true;
+  }
+  k.floor_tol = std::max(tol_.residual, tol_.floor);
+  summary_.residual_at_solution = true;
+  if (loop_.verify_pending) {
+    loop_.verify_pending = false;
+    // The whole step did not lower the residual (above its round-off floor, where a rise is
+    // noise): back to the iterate before it, and this iteration again there.
+    if (!finite || (!(gnorm_ < loop_.verify_from) && gnorm_ > tol_.floor && !ResidualConverged())) {
+      p_->RestorePrevious();
+      loop_.line_search = loop_.line_search || !loop_.verify_chord;
+      loop_.chord_next = false;
+      loop_.previous_gnorm = std::numeric_limits<double>::infinity();
+      loop_.last_full = {-1.0, -1.0};
+      energy_known_ = false;
+      return Flow::kRepeat;
     }
   }
+  if (!finite) return Stop(Termination::kNonFinite);
+  return Flow::kGoOn;
+}
+
+// kWhenFinishing: a chord step where it is predicted to finish, checked by the energy; otherwise
+// Newton from here (the matrix assembled at this iterate).
+NewtonMinimizer::Flow NewtonMinimizer::FinishingChord(const Iteration& k) {
+  const double g_last = loop_.g_last;
+  const bool progress = std::isnan(g_last) || (gnorm_ / g_last <= kChordPredictedRate &&
+                                               (gnorm_ / g_last) * gnorm_ <= k.floor_tol);
+  bool taken = false;
+  if (gnorm_ > k.floor_tol && progress && p_->ChordStep(g_, &step_)) {
+    const double slope = g_.dot(step_);
+    const double e0 = Merit();
+    if (slope < 0.0 && p_->Caps(step_).alpha >= 1.0 && p_->Retract(step_, 1.0)) {
+      const double e1 = p_->TrialEnergy();
+      if (std::isfinite(e1) && e1 <= e0 + kArmijo * slope + p_->EnergyNoise(e0)) {
+        p_->AcceptTrial();
+        energy_ = e1;
+        energy_known_ = true;
+        taken = true;
+      }
+    }
+  }
+  if (taken) {
+    ++summary_.iterations;
+    ++summary_.chord_steps;
+    loop_.g_before_last = loop_.g_last;
+    loop_.g_last = gnorm_;
+    loop_.last_step_full = loop_.last_step_chord = true;
+    return Flow::kNext;
+  }
+  loop_.chord_basis = false;
+  return Flow::kRepeat;
+}
+
+// The iteration and time caps, tested where no factor is owed at the solution.
+NewtonMinimizer::Flow NewtonMinimizer::Capped(int it) {
+  if (it >= options_.max_iterations) return Stop(Termination::kIterationCap);
+  if (options_.time_budget > 0.0 && it > 0 && Clock::now() > deadline_)
+    return Stop(Termination::kTimeBudget);
+  return Flow::kGoOn;
+}
+
+// Before the factor: converged by the residual when no factor is wanted at the solution; the
+// caps; kWhileContracting's test of the kept factor.
+NewtonMinimizer::Flow NewtonMinimizer::BeforeFactor(Iteration& k) {
+  k.factor_here = k.matrix && options_.factor_at_solution != FactorAtSolution::kNever;
+  if (!k.factor_here && ResidualConverged()) {
+    if (k.reuse) summary_.factor_at_solution = true;
+    if (k.chord && options_.factor_at_solution == FactorAtSolution::kAlways) {
+      loop_.chord_next = false;  // the matrix at the solution, for the factor kept there
+      return Flow::kRepeat;
+    }
+    return Stop(Termination::kConverged);
+  }
+  if (!k.factor_here && Capped(k.it) == Flow::kStop) return Flow::kStop;
+  const bool contracting = options_.chords == ChordPolicy::kWhileContracting;
+  if (contracting && k.chord && gnorm_ > kChordContraction * loop_.previous_gnorm) {
+    // The kept factor no longer contracts fast: this iteration again with the matrix.
+    loop_.chord_next = false;
+    loop_.previous_gnorm = std::numeric_limits<double>::infinity();
+    return Flow::kRepeat;
+  }
+  k.refresh = contracting && k.chord && options_.chord_refresh > 0.0 &&
+              gnorm_ > options_.chord_refresh * loop_.previous_gnorm;
+  loop_.previous_gnorm = gnorm_;
+  return Flow::kGoOn;
+}
+
+// Factors the matrix (shifted until it factors), then the tests that need the factor: converged
+// with the factor kept at the solution, the caps, stagnation at the residual's floor.
+NewtonMinimizer::Flow NewtonMinimizer::FactorAndTest(Iteration& k) {
+  if (k.matrix) {
+    if (!FactorWithShift(&k.shift, &k.shift_failed)) {
+      const bool nan = !std::isfinite(p_->Solver().MaxDiagonal());
+      return Stop(nan ? Termination::kNonFinite : Termination::kNotPositiveDefinite);
+    }
+    p_->OnFactor(k.shift > 0.0);
+    loop_.chord_basis = options_.chords == ChordPolicy::kWhenFinishing && k.shift == 0.0;
+  }
+  k.shifted = k.shift > 0.0;
+  summary_.shifted = k.shifted;
+  if (k.shifted) ++summary_.shifted_factors;
+  k.classify = options_.saddles != Saddles::kIgnore;
+  if (k.factor_here && ResidualConverged() && !(k.shifted && k.classify)) {
+    summary_.factor_at_solution = !k.shifted;
+    return Stop(Termination::kConverged);
+  }
+  if (k.factor_here && Capped(k.it) == Flow::kStop) return Flow::kStop;
+  if (options_.stagnation && !k.shifted && !k.chord && gnorm_ <= k.floor_tol &&
+      loop_.last_step_full && p_->LastMove() <= p_->StagnationMove()) {
+    // At the residual's floor after a whole step that moved no point by more than the
+    // stagnation bound: the state is that close to the solution (no back-substitution needed).
+    summary_.factor_at_solution = k.matrix || k.reuse;
+    return Stop(Termination::kSmallStep);
+  }
+  return Flow::kGoOn;
+}
+
+// The step (the kept factor's chord step or Newton's), measured once for every test after it;
+// converged when it is small and unshifted.
+NewtonMinimizer::Flow NewtonMinimizer::SolveAndTestStep(Iteration& k) {
+  if (k.chord) {
+    if (!p_->ChordStep(g_, &step_)) {
+      loop_.chord_next = false;
+      return Flow::kRepeat;
+    }
+  } else {
+    step_ = -g_;  // solved in place: no temporary per step
+    p_->Solver().Solve(&step_);
+  }
+  k.measured = p_->Measure(step_);
+  // A small unshifted step: converged. With converge_after_small_step the step is taken first
+  // (Newton's error after it is of the order of its square); otherwise the iterate is within
+  // the step of the solution and is kept (its factor, made here, is then the matrix's own).
+  const bool after = options_.converge_after_small_step;
+  if (!k.shifted && (!k.chord || after) &&
+      (StepConverged(k.measured, after) ||
+       (options_.converge_on_decrement && options_.merit == Merit::kEnergy &&
+        -g_.dot(step_) <= kDecrementOfNoise * p_->EnergyNoise(Merit())))) {
+    if (!after) {
+      summary_.factor_at_solution = k.matrix || k.reuse;
+      return Stop(ResidualConverged() ? Termination::kConverged : Termination::kSmallStep);
+    }
+    if (p_->Retract(step_, 1.0)) {
+      p_->AcceptTrial();
+      energy_known_ = false;
+      ++summary_.iterations;
+      if (k.chord) ++summary_.chord_steps;
+      summary_.residual_at_solution = false;
+      return Stop(Termination::kSmallStep);
+    }
+  }
+  return Flow::kGoOn;
+}
+
+// A stationary point with negative curvature is a saddle (a column past its buckling load, kept
+// straight by symmetry): step along the most negative curvature. No step that lowers the merit
+// beyond round-off means the curvature is round-off around a neutral direction (an isotropic
+// buckled column turning about its load axis): stable, though the factor is then not the
+// matrix's own. A strategy that cannot look (NaN) reports it unstable.
+NewtonMinimizer::Flow NewtonMinimizer::ClassifyStationaryPoint(const Iteration& k) {
+  if (!(!k.chord && k.shifted && k.classify &&
+        (ResidualConverged() || StepConverged(k.measured))))
+    return Flow::kGoOn;
+  const double rq = p_->Solver().NegativeCurvature(k.shift, k.shift_failed, kSaddleBisections,
+                                                   g_, &d_);
+  if (std::isnan(rq)) {
+    summary_.stable = false;
+    return Stop(Termination::kSmallStep);
+  }
+  const double dmax = std::max(d_.cwiseAbs().maxCoeff(), 1e-300);
+  const double amplitude = 0.01 * p_->Length() / dmax;
+  const bool clearly_negative =
+      rq < 0.0 && 0.5 * -rq * d_.squaredNorm() * amplitude * amplitude >
+                      100.0 * p_->EnergyNoise(Merit());
+  if (options_.saddles == Saddles::kEscape && summary_.saddle_escapes < kMaxSaddleEscapes &&
+      EscapeSaddle()) {
+    ++summary_.saddle_escapes;
+    ++summary_.iterations;
+    loop_.last_step_full = false;
+    loop_.chord_basis = false;
+    loop_.chord_next = false;
+    return Flow::kNext;
+  }
+  summary_.stable = !clearly_negative;
+  return Stop(Termination::kSmallStep);
+}
+
+// Takes the step: whole and verified by the next residual, retracted as far as it goes (no
+// merit), or by the line search, compared while shifted with the best point along the negative
+// curvature.
+NewtonMinimizer::Flow NewtonMinimizer::TakeStep(Iteration& k, const NewtonStart& start) {
+  ++summary_.iterations;
+  if (k.chord) ++summary_.chord_steps;
+  const StepCaps caps = p_->Caps(step_);
+  double& alpha = k.alpha;
+  alpha = caps.alpha;
+  const double slope = g_.dot(step_);
+  bool accepted = false;
+  const bool whole = !k.shifted && alpha >= 1.0;
+  if (options_.merit == Merit::kEnergy && whole &&
+      (k.chord || !loop_.line_search || (k.it == 0 && start.verify_first_step))) {
+    // Taken as it is and verified by the residual at the next iteration.
+    if (p_->Retract(step_, 1.0)) {
+      p_->AcceptTrial();
+      accepted = k.unchecked = true;
+      alpha = 1.0;
+      energy_known_ = false;
+      loop_.verify_pending = true;
+      loop_.verify_chord = k.chord;
+      loop_.verify_from = gnorm_;
+    } else if (k.chord) {
+      loop_.chord_next = false;
+      --summary_.iterations;
+      --summary_.chord_steps;
+      return Flow::kRepeat;
+    }
+  }
+  if (!accepted && options_.merit == Merit::kNone) {
+    for (int ls = 0; ls < options_.max_line_search_steps && !accepted; ++ls, alpha *= 0.5)
+      accepted = p_->Retract(step_, alpha);
+    if (accepted) {
+      alpha *= 2.0;
+      p_->AcceptTrial();
+      energy_known_ = false;
+    }
+  } else if (!accepted) {
+    // While shifted, the lowest point along the negative curvature is found first (its scan
+    // uses the trial iterate), and preferred to the line search's when lower.
+    double nc_amplitude = 0.0, nc_energy = std::numeric_limits<double>::infinity();
+    bool nc = false;
+    if (k.shifted && k.classify) {
+      const double rq = p_->Solver().NegativeCurvature(k.shift, k.shift_failed,
+                                                       kShiftedBisections, g_, &d_);
+      if (rq < 0.0) nc = BestAlongNegativeCurvature(&nc_amplitude, &nc_energy);
+    }
+    accepted = LineSearch(slope, caps.turn, k.shifted, &alpha);
+    const double newton_energy = accepted ? energy_ : std::numeric_limits<double>::infinity();
+    if (nc && nc_energy < newton_energy && p_->Retract(d_, nc_amplitude)) {
+      energy_ = p_->TrialEnergy();
+      energy_known_ = true;
+      accepted = true;
+      alpha = 0.0;  // not a whole Newton step
+    }
+    if (accepted) p_->AcceptTrial();
+  }
+  if (accepted) return Flow::kGoOn;
+  // An iterate at the residual's round-off floor whose unshifted Newton step is within
+  // kFloorRelaxation of the step tolerance and cannot lower the merit further is at round-off.
+  // (A small step with a large residual is not: the factor lost the soft modes.)
+  if (!k.shifted && !k.chord && gnorm_ <= kFloorRelaxation * k.floor_tol &&
+      k.measured.Within(kFloorRelaxation)) {
+    summary_.factor_at_solution = k.matrix || k.reuse;
+    return Stop(Termination::kRoundOff);
+  }
+  if (merit_not_finite_) return Stop(Termination::kNonFinite);
+  return Stop(options_.merit == Merit::kNone ? Termination::kRetractionFailed
+                                             : Termination::kLineSearchFailed);
+}
+
+// After a step taken: the rates and chords' book-keeping, stagnation at round-off, and
+// convergence by the contraction of whole steps.
+NewtonMinimizer::Flow NewtonMinimizer::AfterStep(const Iteration& k) {
+  summary_.residual_at_solution = false;
+  loop_.last_step_full = k.alpha == 1.0;
+  loop_.last_step_chord = k.chord;
+  loop_.g_before_last = loop_.g_last;
+  loop_.g_last = gnorm_;
+  if (options_.chords == ChordPolicy::kWhileContracting)
+    loop_.chord_next = k.alpha == 1.0 && !k.shifted && !k.refresh;
+  if (options_.stagnation) {
+    // Stagnation at round-off: whole unshifted steps that move no point by more than the
+    // stagnation bound and change the merit by its round-off only, three times running.
+    const double e = k.unchecked ? std::numeric_limits<double>::quiet_NaN() : energy_;
+    const double change = std::abs(e - loop_.previous_energy);
+    loop_.stagnant = (!k.shifted && k.alpha == 1.0 && p_->LastMove() <= p_->StagnationMove() &&
+                      change <= 10.0 * p_->EnergyNoise(e))
+                         ? loop_.stagnant + 1
+                         : 0;
+    loop_.previous_energy = e;
+    if (loop_.stagnant >= 3) return Stop(Termination::kRoundOff);
+  }
+  if (k.alpha == 1.0 && !k.shifted) {
+    const RelativeStep& s = k.measured;
+    if (options_.converge_on_rate && loop_.last_full.x >= 0.0) {
+      // Newton and chord iterates converge linearly at least: the error left after this
+      // step is about its size times the contraction of the step sizes.
+      const double tiny = std::numeric_limits<double>::min();
+      const double rate = std::max(s.x / std::max(loop_.last_full.x, tiny),
+                                   s.theta / std::max(loop_.last_full.theta, tiny));
+      if (rate < 1.0 && StepConverged({s.x * rate, s.theta * rate}, /*taken=*/true))
+        return Stop(Termination::kContraction);
+    }
+    loop_.last_full = s;
+  } else {
+    loop_.last_full = {-1.0, -1.0};  // a damped or shifted step measures no contraction
+  }
+  return Flow::kNext;
 }
 
 }  // namespace rodfit

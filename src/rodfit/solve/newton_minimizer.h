@@ -290,6 +290,63 @@ class NewtonMinimizer {
   double Merit();
   double TrialMerit();
 
+  // Minimize's iteration, phase by phase. Each phase returns what the loop does next: the next
+  // phase (kGoOn), the next iteration (kNext), this iteration again at the same iterate, not
+  // counted (kRepeat), or stop with loop_.stop (kStop).
+  enum class Flow { kGoOn, kNext, kRepeat, kStop };
+  // What one iteration decided, read by its later phases.
+  struct Iteration {
+    int it = 0;
+    bool reuse = false;        // the first iteration solves with the start's factor
+    bool chord = false;        // a chord iteration (the kept factor, no matrix)
+    bool matrix = false;       // the matrix is assembled (and factored) here
+    double floor_tol = 0.0;    // max(residual tolerance, its round-off floor)
+    bool factor_here = false;  // the matrix is factored even at the solution
+    bool refresh = false;      // kWhileContracting: the chord contracts too slowly to keep
+    double shift = 0.0, shift_failed = -1.0;  // FactorWithShift's
+    bool shifted = false;
+    bool classify = false;     // saddles are looked for
+    RelativeStep measured;     // the step's size against its tolerance
+    double alpha = 0.0;        // the step length taken
+    bool unchecked = false;    // taken whole, to be verified by the next residual
+  };
+  // The state one iteration leaves to the next (chords, verification, rates, stagnation).
+  struct Loop {
+    // kWhenFinishing: a kept factor usable for chord steps (from the start, or the last
+    // unshifted factor), and the residuals of the last two steps (their ratio is the rate).
+    bool chord_basis = false;
+    double g_last = std::numeric_limits<double>::quiet_NaN();
+    double g_before_last = std::numeric_limits<double>::quiet_NaN();
+    bool last_step_full = false, last_step_chord = false;
+    // kWhileContracting: the next iteration is a chord iteration; the residual before it.
+    bool chord_next = false;
+    double previous_gnorm = std::numeric_limits<double>::infinity();
+    // A whole step taken without the merit's test, to be verified by the next residual.
+    bool verify_pending = false, verify_chord = false;
+    double verify_from = 0.0;
+    bool line_search = true;
+    RelativeStep last_full{-1.0, -1.0};  // converge_on_rate: the last whole step's size
+    int stagnant = 0;
+    double previous_energy = std::numeric_limits<double>::quiet_NaN();
+    bool tolerances_known = false;
+    Termination stop = Termination::kConverged;  // the termination of a kStop
+  };
+  Flow Stop(Termination t) {
+    loop_.stop = t;
+    return Flow::kStop;
+  }
+  NewtonSummary Finish(Termination t);
+  bool ChooseChord(const Iteration& k, const NewtonStart& start) const;
+  Flow EvaluateAndVerify(Iteration& k);
+  Flow FinishingChord(const Iteration& k);
+  Flow Capped(int it);
+  Flow BeforeFactor(Iteration& k);
+  Flow FactorAndTest(Iteration& k);
+  Flow SolveAndTestStep(Iteration& k);
+  Flow ClassifyStationaryPoint(const Iteration& k);
+  Flow TakeStep(Iteration& k, const NewtonStart& start);
+  Flow AfterStep(const Iteration& k);
+
   NewtonOptions options_;
   NewtonProblem* p_ = nullptr;
   NewtonSummary summary_;
@@ -300,6 +357,7 @@ class NewtonMinimizer {
   bool energy_known_ = false;
   bool merit_not_finite_ = false;  // the last line search met only non-finite merits
   int shift_rung_ = 0;  // the ladder's rung the last shifted factor needed (FactorWithShift)
+  Loop loop_;  // Minimize's state between iterations
   Clock::time_point deadline_;
 };
 

@@ -369,123 +369,68 @@ namespace {
 // (AssemblePositionHessian); the gradient keeps the free-dof layout with its twist rows zeroed.
 // Rows of vertices first_vertex..last_vertex (AssembleGradientRows): only the terms that reach
 // them are summed, in the same order as for the whole rod. The whole rod by default.
-template <bool kHessian, bool kPositions = false>
-void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& terms,
-              VecX* gradient, BandedSymmetric* H, const RodFrames* frames, int first_vertex = 0,
-              int last_vertex = std::numeric_limits<int>::max()) {
-  const int n = model.num_edges(), nb = NumBendingVertices(model);
-  // Stencils first - 1..last + 1 and edges first - 1..last reach those vertices.
-  const int first_stencil = std::max(first_vertex - 1, 0);
-  const int end_stencil = last_vertex >= nb ? nb : std::min(nb, last_vertex + 2);
-  const int first_edge = first_stencil, end_edge = last_vertex >= n ? n : last_vertex + 1;
-  gradient->setZero(model.num_free_dofs());
-  // Row of free dof k in the Hessian being assembled.
-  auto row = [](int k) { return kPositions ? PositionDof(k) : k; };
-  if (kHessian) {
-    if (kPositions) {
-      H->Resize(NumPositionDofs(model), kRodPositionBandwidth, 3);  // blocks [x_i]
-    } else {
-      H->Resize(model.num_free_dofs(), kRodBandwidth, 4);  // blocks [x_i, theta_{i-1}]
-    }
-    H->SetZero();
-  }
-  double q[11];
-  std::array<int, 11> dof;
-  VertexStencilConstants c;
-  const double EA = terms.stretch * model.material().stretch_stiffness;
-  RodFrames local;
-  if (!frames) ComputeRodFrames(model, state, &local);
-  const RodFrames& rf = frames ? *frames : local;
+// Vertex i's stencil into the gradient and the Hessian: bending and twist (from the frames when
+// fresh, else from its gathered dofs q), and edge i's stretch (stiffness EA) when `stretch`
+// (every edge is the f of exactly one vertex). kPositions: the Hessian over the positions, the
+// twist eliminated.
+template <bool kPositions>
+void AddVertexHessian(const RodModel& model, const RodState& state, int i,
+                      const VertexStencilConstants& c, const double* q, const RodFrames& rf,
+                      bool bend_twist, bool stretch, double EA, double dtheta, VecX* gradient,
+                      BandedSymmetric* H) {
+  const int n = model.num_edges();
   const bool fresh = rf.fresh;
   const std::vector<RodFrames::Edge>& fr = rf.edges;
-  const VertexStencilConstants stiffness = StencilStiffness(model, terms);
-  const bool bend_twist = terms.AnyBendTwist();
-  for (int i = first_stencil; i < end_stencil; ++i) {
-    if (fresh) {
-      c = stiffness;
-      c.voronoi_length = model.voronoi_length(i);
-      c.rest_curvature = terms.RestCurvature(model, i);
-    } else {
-      GatherVertexStencil(model, state, i, q, &c, &dof);
-      c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
-      c.rest_curvature = terms.RestCurvature(model, i);
-    }
-    const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
-    const double theta_f = (i == n) ? state.end_theta : state.theta[i];
-    const double dtheta = theta_f - theta_e + state.ref_twist[i];
-    // The stretch of edge i is added to vertex i's stencil (every edge is the f of exactly one
-    // vertex); vertex n's f is the end ghost, which does not stretch.
-    const bool stretch = EA != 0.0 && i < n;
-    if (kHessian) {
-      if (!bend_twist && !stretch) continue;
-      double g8[8], H8[64];
-      if (bend_twist && fresh) {
-        const RodFrames::Edge &e = fr[i], &f = fr[i + 1];
-        StencilFrames sf;
-        sf.te = e.t, sf.d1e = e.d1, sf.d2e = e.d2, sf.len_e = e.len;
-        sf.tf = f.t, sf.d1f = f.d1, sf.d2f = f.d2, sf.len_f = f.len;
-        VertexHessianFromFrames(c, sf, dtheta, g8, H8);
-      } else if (bend_twist) {
-        VertexHessianEdges(c, q, g8, H8);
-      } else {
-        std::fill(g8, g8 + 8, 0.0);
-        std::fill(H8, H8 + 64, 0.0);
-      }
-      if (stretch) {
-        Vec3 gs;
-        Eigen::Matrix3d Hs;
-        StretchGradientHessian(EA, model.rest_edge_length(i), state.e.col(i), &gs, &Hs);
-        for (int r = 0; r < 3; ++r) {
-          g8[3 + r] += gs[r];
-          for (int k = 0; k < 3; ++k) H8[8 * (3 + r) + 3 + k] += Hs(r, k);
-        }
-      }
-      if (i == n && model.symmetric()) DropGhostEdge(g8, H8);
-      if (kPositions) {
-        // kb and the edge lengths of the stencil, from its frames or its edges.
-        Vec3 te, tf;
-        double len_e, len_f;
-        if (fresh) {
-          te = fr[i].t, tf = fr[i + 1].t, len_e = fr[i].len, len_f = fr[i + 1].len;
-        } else {
-          const Vec3 e(q[3] - q[0], q[4] - q[1], q[5] - q[2]), f(q[6] - q[3], q[7] - q[4], q[8] - q[5]);
-          len_e = e.norm(), len_f = f.norm();
-          te = e / len_e, tf = f / len_f;
-        }
-        const Vec3 kb = 2.0 * te.cross(tf) / (1.0 + te.dot(tf));
-        AddStencilGradient(i, g8, gradient);
-        AddPositionStencilHessian(i, H8, kb, len_e, len_f, i == 0, i == n, H);
-      } else {
-        AddStencilHessian(i, g8, H8, gradient, H);
-      }
-      continue;
-    }
-    if (!bend_twist) continue;
-    if (fresh) {
-      double g8[8];
-      StencilGradient<double>(c, FreshStencilGeometry(fr[i], fr[i + 1]), dtheta, g8);
-      if (i == n && model.symmetric()) DropGhostEdge(g8, nullptr);
-      AddStencilGradient(i, g8, gradient);
-    } else {
-      double g[11];
-      VertexGradient<double>(c, q, g);
-      if (i == n && model.symmetric()) {
-        // The crossing edge (dofs 6..8 here) neither moves nor stretches with x_n: undo the -g_f the
-        // stencil's x_mid row carries for it.
-        for (int k = 0; k < 3; ++k) g[3 + k] += g[6 + k], g[6 + k] = 0.0;
-      }
-      for (int a = 0; a < 11; ++a)
-        if (dof[a] >= 0) (*gradient)[dof[a]] += g[a];
+  double g8[8], H8[64];
+  if (bend_twist && fresh) {
+    const RodFrames::Edge &e = fr[i], &f = fr[i + 1];
+    StencilFrames sf;
+    sf.te = e.t, sf.d1e = e.d1, sf.d2e = e.d2, sf.len_e = e.len;
+    sf.tf = f.t, sf.d1f = f.d1, sf.d2f = f.d2, sf.len_f = f.len;
+    VertexHessianFromFrames(c, sf, dtheta, g8, H8);
+  } else if (bend_twist) {
+    VertexHessianEdges(c, q, g8, H8);
+  } else {
+    std::fill(g8, g8 + 8, 0.0);
+    std::fill(H8, H8 + 64, 0.0);
+  }
+  if (stretch) {
+    Vec3 gs;
+    Eigen::Matrix3d Hs;
+    StretchGradientHessian(EA, model.rest_edge_length(i), state.e.col(i), &gs, &Hs);
+    for (int r = 0; r < 3; ++r) {
+      g8[3 + r] += gs[r];
+      for (int k = 0; k < 3; ++k) H8[8 * (3 + r) + 3 + k] += Hs(r, k);
     }
   }
-  if (!kHessian && EA != 0.0) {
-    Vec3 g;
-    for (int j = first_edge; j < end_edge; ++j) {
-      StretchGradientHessian(EA, model.rest_edge_length(j), state.e.col(j), &g, nullptr);
-      if (j >= 1) gradient->segment<3>(RodModel::VertexDof(j)) -= g;
-      gradient->segment<3>(RodModel::VertexDof(j + 1)) += g;
+  if (i == n && model.symmetric()) DropGhostEdge(g8, H8);
+  if (kPositions) {
+    // kb and the edge lengths of the stencil, from its frames or its edges.
+    Vec3 te, tf;
+    double len_e, len_f;
+    if (fresh) {
+      te = fr[i].t, tf = fr[i + 1].t, len_e = fr[i].len, len_f = fr[i + 1].len;
+    } else {
+      const Vec3 e(q[3] - q[0], q[4] - q[1], q[5] - q[2]), f(q[6] - q[3], q[7] - q[4], q[8] - q[5]);
+      len_e = e.norm(), len_f = f.norm();
+      te = e / len_e, tf = f / len_f;
     }
+    const Vec3 kb = 2.0 * te.cross(tf) / (1.0 + te.dot(tf));
+    AddStencilGradient(i, g8, gradient);
+    AddPositionStencilHessian(i, H8, kb, len_e, len_f, i == 0, i == n, H);
+  } else {
+    AddStencilHessian(i, g8, H8, gradient, H);
   }
+}
+
+// The terms after the stencils: the springs, a symmetric half's crossing stretch, the dead
+// loads and the held rows (rows of vertices first_vertex..last_vertex, as Assemble).
+template <bool kHessian, bool kPositions>
+void AddPointTerms(const RodModel& model, const RodState& state, const EnergyTerms& terms,
+                   int first_vertex, int last_vertex, VecX* gradient, BandedSymmetric* H) {
+  const int n = model.num_edges();
+  // Row of free dof k in the Hessian being assembled.
+  auto row = [](int k) { return kPositions ? PositionDof(k) : k; };
   if (terms.springs != 0.0) {
     for (int z = 0; z < model.num_spring_zones(); ++z) {
       if (terms.spring_parameter && model.spring_zone(z).parameter != *terms.spring_parameter)
@@ -524,6 +469,87 @@ void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& t
   }
   if (kPositions)
     for (int j = 0; j < model.num_free_dofs() / 4; ++j) (*gradient)[4 * j + 3] = 0.0;
+}
+
+template <bool kHessian, bool kPositions = false>
+void Assemble(const RodModel& model, const RodState& state, const EnergyTerms& terms,
+              VecX* gradient, BandedSymmetric* H, const RodFrames* frames, int first_vertex = 0,
+              int last_vertex = std::numeric_limits<int>::max()) {
+  const int n = model.num_edges(), nb = NumBendingVertices(model);
+  // Stencils first - 1..last + 1 and edges first - 1..last reach those vertices.
+  const int first_stencil = std::max(first_vertex - 1, 0);
+  const int end_stencil = last_vertex >= nb ? nb : std::min(nb, last_vertex + 2);
+  const int first_edge = first_stencil, end_edge = last_vertex >= n ? n : last_vertex + 1;
+  gradient->setZero(model.num_free_dofs());
+  if (kHessian) {
+    if (kPositions) {
+      H->Resize(NumPositionDofs(model), kRodPositionBandwidth, 3);  // blocks [x_i]
+    } else {
+      H->Resize(model.num_free_dofs(), kRodBandwidth, 4);  // blocks [x_i, theta_{i-1}]
+    }
+    H->SetZero();
+  }
+  double q[11];
+  std::array<int, 11> dof;
+  VertexStencilConstants c;
+  const double EA = terms.stretch * model.material().stretch_stiffness;
+  RodFrames local;
+  if (!frames) ComputeRodFrames(model, state, &local);
+  const RodFrames& rf = frames ? *frames : local;
+  const bool fresh = rf.fresh;
+  const std::vector<RodFrames::Edge>& fr = rf.edges;
+  const VertexStencilConstants stiffness = StencilStiffness(model, terms);
+  const bool bend_twist = terms.AnyBendTwist();
+  for (int i = first_stencil; i < end_stencil; ++i) {
+    if (fresh) {
+      c = stiffness;
+      c.voronoi_length = model.voronoi_length(i);
+      c.rest_curvature = terms.RestCurvature(model, i);
+    } else {
+      GatherVertexStencil(model, state, i, q, &c, &dof);
+      c.B1 *= terms.bend1, c.B2 *= terms.bend2, c.GJ *= terms.twist;
+      c.rest_curvature = terms.RestCurvature(model, i);
+    }
+    const double theta_e = (i == 0) ? 0.0 : state.theta[i - 1];
+    const double theta_f = (i == n) ? state.end_theta : state.theta[i];
+    const double dtheta = theta_f - theta_e + state.ref_twist[i];
+    // The stretch of edge i is added to vertex i's stencil (every edge is the f of exactly one
+    // vertex); vertex n's f is the end ghost, which does not stretch.
+    const bool stretch = EA != 0.0 && i < n;
+    if (kHessian) {
+      if (!bend_twist && !stretch) continue;
+      AddVertexHessian<kPositions>(model, state, i, c, q, rf, bend_twist, stretch, EA, dtheta,
+                                   gradient, H);
+      continue;
+    }
+    if (!bend_twist) continue;
+    if (fresh) {
+      double g8[8];
+      StencilGradient<double>(c, FreshStencilGeometry(fr[i], fr[i + 1]), dtheta, g8);
+      if (i == n && model.symmetric()) DropGhostEdge(g8, nullptr);
+      AddStencilGradient(i, g8, gradient);
+    } else {
+      double g[11];
+      VertexGradient<double>(c, q, g);
+      if (i == n && model.symmetric()) {
+        // The crossing edge (dofs 6..8 here) neither moves nor stretches with x_n: undo the -g_f the
+        // stencil's x_mid row carries for it.
+        for (int k = 0; k < 3; ++k) g[3 + k] += g[6 + k], g[6 + k] = 0.0;
+      }
+      for (int a = 0; a < 11; ++a)
+        if (dof[a] >= 0) (*gradient)[dof[a]] += g[a];
+    }
+  }
+  if (!kHessian && EA != 0.0) {
+    Vec3 g;
+    for (int j = first_edge; j < end_edge; ++j) {
+      StretchGradientHessian(EA, model.rest_edge_length(j), state.e.col(j), &g, nullptr);
+      if (j >= 1) gradient->segment<3>(RodModel::VertexDof(j)) -= g;
+      gradient->segment<3>(RodModel::VertexDof(j + 1)) += g;
+    }
+  }
+  AddPointTerms<kHessian, kPositions>(model, state, terms, first_vertex, last_vertex, gradient,
+                                      H);
 }
 
 }  // namespace

@@ -745,6 +745,115 @@ void PrepareState(const RodModel& model, RodState* s) {
   }
 }
 
+// Why the statics cannot start from this state with these options ("" when they can).
+std::string InvalidStart(const RodModel& model, const StaticsOptions& options,
+                         const RodState& state) {
+  std::string why;
+  if (!options.Check(&why)) return "invalid options: " + why;
+  if (state.num_edges() != model.num_edges() || state.x.cols() != model.num_vertices())
+    return "state does not match the model's segment count";
+  if (!state.x.allFinite() || !state.theta.allFinite())
+    return "the start state has non-finite values";
+  return "";
+}
+
+// Whether a step solved at next (of the continuation from *state, whose boundary is now)
+// jumped to another equilibrium: vertices moving much more than the boundary, or the twist
+// changing by more than a quarter turn beyond the ends' own turn.
+bool Jumped(const RodModel& model, const Boundary& now, const RodState& state,
+            const RodState& next) {
+  double step_move = 0.0, step_turn = 0.0;
+  BoundaryDistance(now, StateBoundary(model, next), &step_move, &step_turn);
+  // A rod whose held points close in bows out by ~ sqrt(shortening x length) (the
+  // length it must put somewhere): that is the rod's own response, not a jump.
+  const double allowed_move = 4.0 * (step_move + step_turn * model.length()) +
+                              2.0 * std::sqrt(step_move * model.length()) +
+                              0.01 * model.length();
+  const double twist_change = std::abs(TotalTwist(model, next) - TotalTwist(model, state));
+  return LargestMove(state, next) > allowed_move || twist_change > 0.5 * M_PI + 2.0 * step_turn;
+}
+
+// Continuation of the held boundary from the state's to target (move [m] and turn [rad] apart):
+// "" when the held points reached it, else why not. The summary counts the steps and iterations.
+std::string MoveHeldPoints(const NewtonContext& ctx, const Boundary& target, double move,
+                           double turn, RodState* state, StaticsWorkspace* ws,
+                           StaticsSummary* summary_out) {
+  const RodModel& model = ctx.model;
+  const StaticsOptions& options = ctx.opt;
+  StaticsSummary& summary = *summary_out;
+  std::string why;
+  int budget_used = 0;
+  // The loading path starts from the equilibrium at the start's own held points (a straight
+  // rod sags under its loads before its end is moved): moving the held points then deforms a
+  // loaded rod gradually, and a compressed rod bends the way its loads already bend it instead
+  // of buckling from a perfectly straight state in an arbitrary direction.
+  // While held points move, the states are far from equilibrium and often indefinite, where
+  // the vertex factor's lost soft modes cost many shifted steps and saddle searches long
+  // before 20,000 segments (a wire between two clamps at 10,000 segments: 12 s against 2 s in
+  // edge coordinates); from kEdgeContinuationSegments the continuation runs in edge
+  // coordinates.
+  StaticsOptions moving_options = options;
+  moving_options.edge_solver_segments =
+      std::min(options.edge_solver_segments, kEdgeContinuationSegments);
+  const NewtonContext moving{model, moving_options, ctx.tol, ctx.eliminate_twist};
+  {
+    RodState at_start = *state;
+    StaticsSummary attempt = summary;
+    if (SolveAtBoundary(moving, &at_start, ws, &attempt, &why, StartFactor::kNone, &budget_used) ==
+        StepResult::kConverged) {
+      *state = at_start;
+      summary.iterations = attempt.iterations;
+    }
+  }
+  double done = 0.0;
+  const int planned = static_cast<int>(std::ceil(std::max(
+      move / (options.continuation_move * model.length()), turn / options.continuation_turn)));
+  // Steps grow back to the planned size, never beyond it: a large step lets Newton land on
+  // another equilibrium (a loop flipped, a whole extra turn of twist), and which one could
+  // then hinge on round-off. A step whose solution jumps is retried at half the size, until the
+  // step is so small that the jump is the rod's own (a snap at a limit point).
+  const double planned_step = 1.0 / std::max(1, planned);
+  const double smallest_jump_step = planned_step / 64.0;
+  double step = planned_step;
+  while (done < 1.0) {
+    if (summary.continuation_steps >= options.max_continuation_steps)
+      return "the held points did not reach their targets within " +
+             std::to_string(options.max_continuation_steps) + " continuation steps";
+    const double next = std::min(1.0, done + step);
+    RodState trial = *state;
+    // Interpolate from the start boundary: the boundary at `done` is the state's own.
+    const Boundary now = StateBoundary(model, *state);
+    const double t_rel = (next - done) / (1.0 - done);
+    bool ok = MoveBoundary(model, now, target, t_rel, options.escape_saddles, &trial);
+    StepResult r = StepResult::kFailed;
+    StaticsSummary attempt = summary;
+    if (ok) r = SolveAtBoundary(moving, &trial, ws, &attempt, &why, StartFactor::kNone, &budget_used);
+    ++summary.continuation_steps;
+    if (r == StepResult::kConverged && step > smallest_jump_step &&
+        Jumped(model, now, *state, trial)) {
+      r = StepResult::kFailed;
+      why = "the equilibrium jumped";
+    }
+    if (r == StepResult::kConverged) {
+      attempt.continuation_steps = summary.continuation_steps;
+      summary = attempt;
+      *state = trial;
+      done = next;
+      step = std::min(2.0 * step, planned_step);
+    } else {
+      summary.iterations = attempt.iterations;
+      step *= 0.5;
+      if (step < 1e-5)
+        return "the held points could not be moved to their targets (continuation "
+               "stalled at " + std::to_string(static_cast<int>(100 * done)) +
+               " %: " + why + ")";
+    }
+    if (summary.iterations >= options.max_iterations * 20)
+      return "iteration cap reached while moving the held points to their targets";
+  }
+  return "";
+}
+
 }  // namespace
 
 void BalanceResidual(const RodModel& model, const RodState& state, VecX* residual) {
@@ -753,23 +862,14 @@ void BalanceResidual(const RodModel& model, const RodState& state, VecX* residua
   AssembleBalance(model, state, frames, 1.0, residual, nullptr, nullptr);
 }
 
-// One function, though long: the choice of path (positions or edge coordinates, warm or
-// continuation), the retries and the summary are read top to bottom as the order they run in.
+// The choice of path (the held points moved by continuation, or solved where they are from the
+// kept factor when it is this state's), then the summary and the workspace's kept factor.
 StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options, RodState* state,
                             StaticsWorkspace* workspace) {
   StaticsSummary summary;
   summary.nonconservative = model.nonconservative();
-  std::string why;
-  if (!options.Check(&why)) {
-    summary.reason = "invalid options: " + why;
-    return summary;
-  }
-  if (state->num_edges() != model.num_edges() || state->x.cols() != model.num_vertices()) {
-    summary.reason = "state does not match the model's segment count";
-    return summary;
-  }
-  if (!state->x.allFinite() || !state->theta.allFinite()) {
-    summary.reason = "the start state has non-finite values";
+  if (std::string invalid = InvalidStart(model, options, *state); !invalid.empty()) {
+    summary.reason = std::move(invalid);
     return summary;
   }
   PrepareState(model, state);
@@ -808,95 +908,17 @@ StaticsSummary SolveStatics(const RodModel& model, const StaticsOptions& options
     return summary;
   };
 
-  // Continuation of the held boundary from the state's to the model's.
   const Boundary start = StateBoundary(model, *state), target = TargetBoundary(model, *state);
   double move = 0.0, turn = 0.0;
   BoundaryDistance(start, target, &move, &turn);
-  int budget_used = 0;
   if (move > 1e-12 * model.length() || turn > 1e-12) {
-    start_factor = StartFactor::kNone;
-    // The loading path starts from the equilibrium at the start's own held points (a straight
-    // rod sags under its loads before its end is moved): moving the held points then deforms a
-    // loaded rod gradually, and a compressed rod bends the way its loads already bend it instead
-    // of buckling from a perfectly straight state in an arbitrary direction.
-    // While held points move, the states are far from equilibrium and often indefinite, where
-    // the vertex factor's lost soft modes cost many shifted steps and saddle searches long
-    // before 20,000 segments (a wire between two clamps at 10,000 segments: 12 s against 2 s in
-    // edge coordinates); from kEdgeContinuationSegments the continuation runs in edge
-    // coordinates.
-    StaticsOptions moving_options = options;
-    moving_options.edge_solver_segments =
-        std::min(options.edge_solver_segments, kEdgeContinuationSegments);
-    const NewtonContext moving{model, moving_options, tol, eliminate};
-    {
-      RodState at_start = *state;
-      StaticsSummary attempt = summary;
-      if (SolveAtBoundary(moving, &at_start, ws, &attempt, &why, StartFactor::kNone, &budget_used) ==
-          StepResult::kConverged) {
-        *state = at_start;
-        summary.iterations = attempt.iterations;
-      }
-    }
-    double done = 0.0;
-    const int planned = static_cast<int>(std::ceil(std::max(
-        move / (options.continuation_move * model.length()), turn / options.continuation_turn)));
-    // Steps grow back to the planned size, never beyond it: a large step lets Newton land on
-    // another equilibrium (a loop flipped, a whole extra turn of twist), and which one could
-    // then hinge on round-off. A step whose solution jumps (vertices moving much more than the
-    // boundary, the twist changing by more than a quarter turn beyond the ends' own turn) is
-    // retried at half the size, until the step is so small that the jump is the rod's own (a
-    // snap at a limit point).
-    const double planned_step = 1.0 / std::max(1, planned);
-    const double smallest_jump_step = planned_step / 64.0;
-    double step = planned_step;
-    while (done < 1.0) {
-      if (summary.continuation_steps >= options.max_continuation_steps)
-        return failed("the held points did not reach their targets within " +
-                      std::to_string(options.max_continuation_steps) + " continuation steps");
-      const double next = std::min(1.0, done + step);
-      RodState trial = *state;
-      // Interpolate from the start boundary: the boundary at `done` is the state's own.
-      const Boundary now = StateBoundary(model, *state);
-      const double t_rel = (next - done) / (1.0 - done);
-      bool ok = MoveBoundary(model, now, target, t_rel, options.escape_saddles, &trial);
-      StepResult r = StepResult::kFailed;
-      StaticsSummary attempt = summary;
-      if (ok) r = SolveAtBoundary(moving, &trial, ws, &attempt, &why, StartFactor::kNone, &budget_used);
-      ++summary.continuation_steps;
-      if (r == StepResult::kConverged && step > smallest_jump_step) {
-        double step_move = 0.0, step_turn = 0.0;
-        BoundaryDistance(now, StateBoundary(model, trial), &step_move, &step_turn);
-        // A rod whose held points close in bows out by ~ sqrt(shortening x length) (the
-        // length it must put somewhere): that is the rod's own response, not a jump.
-        const double allowed_move = 4.0 * (step_move + step_turn * model.length()) +
-                                    2.0 * std::sqrt(step_move * model.length()) +
-                                    0.01 * model.length();
-        const double twist_change = std::abs(TotalTwist(model, trial) - TotalTwist(model, *state));
-        if (LargestMove(*state, trial) > allowed_move || twist_change > 0.5 * M_PI + 2.0 * step_turn) {
-          r = StepResult::kFailed;
-          why = "the equilibrium jumped";
-        }
-      }
-      if (r == StepResult::kConverged) {
-        attempt.continuation_steps = summary.continuation_steps;
-        summary = attempt;
-        *state = trial;
-        done = next;
-        step = std::min(2.0 * step, planned_step);
-      } else {
-        summary.iterations = attempt.iterations;
-        step *= 0.5;
-        if (step < 1e-5)
-          return failed("the held points could not be moved to their targets (continuation "
-                        "stalled at " + std::to_string(static_cast<int>(100 * done)) +
-                        " %: " + why + ")");
-      }
-      if (summary.iterations >= options.max_iterations * 20)
-        return failed("iteration cap reached while moving the held points to their targets");
-    }
+    const std::string why = MoveHeldPoints(ctx, target, move, turn, state, ws, &summary);
+    if (!why.empty()) return failed(why);
     return converged("converged after continuation of the held points");
   }
 
+  std::string why;
+  int budget_used = 0;
   const StepResult r = SolveAtBoundary(ctx, state, ws, &summary, &why, start_factor, &budget_used);
   if (r == StepResult::kConverged)
     return converged(summary.load_steps > 1 ? "converged (load continuation)" : "converged");
