@@ -46,6 +46,17 @@ struct RolloutOptions {
     kGrippers,
     /// Both ends oriented as by kGrippers, the end free to turn about its tangent.
     kFreeRoll,
+    /// Grippers as clamps at markers 0 and n-1 as kGrippers, each gripper's tangent estimated at
+    /// every time from that time's markers: the tangent at the end marker of the quadratic in
+    /// arc length through it and its two neighbours (QuadraticEndTangent), on their smoothed
+    /// paths; the roll by the minimal-twist frame. It reads markers 2 and n-3 at every frame, so
+    /// they must be held too (then driven, not predicted): `--held 0,1,2,-3,-2,-1`.
+    kGrippersPerFrame,
+    /// The grippers' jaws span markers 0..1 and n-2..n-1, the cable straight and rigid in them
+    /// (the discrete-elastic-rod convention of prescribing an end's first two vertices): the rod
+    /// between markers 1 and n-2 clamped at marker 1 along the chord 0 -> 1 and at marker n-2
+    /// along n-2 -> n-1, the rolls by the minimal-twist frame. Markers 0, 1, n-2, n-1 held.
+    kJaws,
   };
   HeldEnds held_ends = HeldEnds::kPinnedPairs;
   /// With grippers (kGrippers, kFreeRoll), per gripper ([0] the clamp at marker 0, [1] the end
@@ -94,6 +105,12 @@ struct RolloutResult {
 /// material->twist_damping and returns true when it was 0 and bend_damping and bend_stiffness
 /// are positive; leaves it otherwise.
 bool DefaultTwistDamping(Material* material);
+
+/// The unit tangent at x0 of a curve through x0, x1, x2 at arc lengths 0 < s1 < s2 from x0:
+/// the derivative at 0 of the quadratic through them in arc length, normalised (pointing from x0
+/// towards x1). Second order: sampled every h along a curve, its direction misses the curve's by
+/// O(h^2) (an endpoint derivative amplifies noise sigma to ~2.5 sigma / h per axis).
+Vec3 QuadraticEndTangent(const Vec3& x0, const Vec3& x1, const Vec3& x2, double s1, double s2);
 
 /// Per marker of a recording with `markers` markers: whether the rollout drives it
 /// (options.held_markers, negative counting from the last). Throws std::invalid_argument for a

@@ -68,20 +68,15 @@ void Smooth(TimeSeries* path, double frame_interval, int half_window) {
 // frames are read, as the start is.
 Vec3 EndTangent(const std::vector<Eigen::Matrix3Xd>& frames, const std::vector<double>& marker_s,
                 int end) {
-  const int M = static_cast<int>(marker_s.size());
   const int step = end == 0 ? 1 : -1;
   const int i0 = end, i1 = end + step, i2 = end + 2 * step;
   const double s1 = std::abs(marker_s[i1] - marker_s[i0]);
   const double s2 = std::abs(marker_s[i2] - marker_s[i0]);
-  // Derivatives at s = 0 of the Lagrange basis on (0, s1, s2).
-  const double l0 = -(s1 + s2) / (s1 * s2), l1 = s2 / (s1 * (s2 - s1)),
-               l2 = -s1 / (s2 * (s2 - s1));
   Vec3 sum = Vec3::Zero();
   for (int k = 0; k < 2; ++k) {
     const Eigen::Matrix3Xd& f = frames[k];
-    sum += (l0 * f.col(i0) + l1 * f.col(i1) + l2 * f.col(i2)).normalized();
+    sum += QuadraticEndTangent(f.col(i0), f.col(i1), f.col(i2), s1, s2);
   }
-  (void)M;
   return (end == 0 ? 1.0 : -1.0) * sum.normalized();
 }
 
@@ -116,7 +111,11 @@ Eigen::Matrix3d GripperFrame(const RolloutOptions& options, int g, double t,
 // Rollout and RolloutWithSensitivities, so both integrate the same problem.
 struct RolloutProblem {
   Scene scene;
-  std::vector<int> marker_vertex;
+  std::vector<int> marker_vertex;  ///< -1: a marker off the rod (in a gripper's jaws, kJaws)
+  /// [m] the arc length of the rod's s = 0 along the recorded cable (kJaws: marker 1's)
+  double s_offset = 0.0;
+  std::vector<TimeSeries> off_rod;  ///< per marker off the rod: its (smoothed) held path
+  double frame_interval = 0.0;
 };
 
 RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
@@ -146,44 +145,72 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
       throw std::invalid_argument("markers " + std::to_string(m - 1) + " and " + std::to_string(m) +
                                   " coincide in frame 0");
 
-  // Vertices at every marker, the gaps between them subdivided in proportion to their length.
+  using Ends = RolloutOptions::HeldEnds;
+  const Ends ends = options.held_ends;
+  const bool pinned_pairs = ends == Ends::kPinnedPairs;
+  const bool jaws = ends == Ends::kJaws;
+  const bool per_frame = ends == Ends::kGrippersPerFrame;
+  if (jaws)
+    RODFIT_CHECK_ARG(M >= 5 && out.held[1] && out.held[M - 2] && out.held[M - 1],
+                     "held_ends jaws needs markers 0, 1, n-2 and n-1 held (the jaws span 0..1 "
+                     "and n-2..n-1) and at least 5 markers");
+  if (per_frame)
+    RODFIT_CHECK_ARG(M >= 7 && out.held[1] && out.held[2] && out.held[M - 3] && out.held[M - 2] &&
+                         out.held[M - 1],
+                     "held_ends grippers-per-frame reads markers 0, 1, 2 and n-3, n-2, n-1 at "
+                     "every frame: hold them (--held 0,1,2,-3,-2,-1) and give at least 7 markers");
+
+  // Vertices at every marker on the rod (with jaws, markers 1 .. n-2: the jaws hold the rest
+  // rigidly), the gaps between them subdivided in proportion to their length.
   Scene sc = scene;
-  std::vector<int> marker_vertex(M, 0);
+  const int m_lo = jaws ? 1 : 0, m_hi = jaws ? M - 2 : M - 1;
+  const double s_lo = out.marker_s[m_lo];
+  std::vector<int> marker_vertex(M, -1);
+  marker_vertex[m_lo] = 0;
+  sc.rod.length = out.marker_s[m_hi] - s_lo;
   sc.rod.vertex_s = {0.0};
-  for (int m = 1; m < M; ++m) {
+  for (int m = m_lo + 1; m <= m_hi; ++m) {
     const double gap = out.marker_s[m] - out.marker_s[m - 1];
     const int pieces = std::max(1, static_cast<int>(std::lround(scene.rod.segments * gap / L)));
-    for (int p = 1; p <= pieces; ++p) sc.rod.vertex_s.push_back(out.marker_s[m - 1] + gap * p / pieces);
-    sc.rod.vertex_s.back() = out.marker_s[m];
+    for (int p = 1; p <= pieces; ++p)
+      sc.rod.vertex_s.push_back(out.marker_s[m - 1] - s_lo + gap * p / pieces);
+    sc.rod.vertex_s.back() = out.marker_s[m] - s_lo;
     marker_vertex[m] = static_cast<int>(sc.rod.vertex_s.size()) - 1;
   }
-  sc.rod.vertex_s.back() = L;
+  sc.rod.vertex_s.back() = sc.rod.length;
   sc.rod.segments = static_cast<int>(sc.rod.vertex_s.size()) - 1;
+  for (double& s : sc.rod.rest_curvature_s) s -= s_lo;  // the rest shape stays on the cable
 
-  // The case: the clamp at marker 0 along marker 1, pins at the other held markers (the last one
-  // an end pin), each driven along its recorded path.
+  auto smoothed_path = [&](int m) {
+    TimeSeries p = MarkerPath(frames, m, frame_interval);
+    Smooth(&p, frame_interval, options.smooth_frames);
+    return p;
+  };
+  std::vector<TimeSeries> off_rod(M);
+  if (jaws) off_rod[0] = smoothed_path(0), off_rod[M - 1] = smoothed_path(M - 1);
+
+  // The case: the clamp at marker 0 along marker 1 (with jaws: at marker 1 along 0 -> 1), pins
+  // at the other held markers (the last one an end pin), each driven along its recorded path.
   LoadCase c;
   c.name = "rollout";
   const Vec3 t0 = (frames[0].col(1) - frames[0].col(0)).normalized();
   Vec3 n0 = std::abs(t0.z()) < 0.9 ? Vec3::UnitZ() : Vec3::UnitX();
   n0 = (n0 - n0.dot(t0) * t0).normalized();
-  c.clamp.position = frames[0].col(0);
+  c.clamp.position = frames[0].col(m_lo);
   c.clamp.tangent = t0;
   c.clamp.normal = n0;
   DrivenPoint clamp_drive;
   clamp_drive.point = "clamp";
-  clamp_drive.path = MarkerPath(frames, 0, frame_interval);
-  Smooth(&clamp_drive.path, frame_interval, options.smooth_frames);
+  clamp_drive.path = jaws ? smoothed_path(1) : smoothed_path(0);
   // Marker 1 held: it orients the clamp (its tangent points at marker 1) rather than pinning a
   // second point 1 marker gap away, which noise in the two would stretch against EA.
-  const bool pinned_pairs = options.held_ends == RolloutOptions::HeldEnds::kPinnedPairs;
   const bool clamp_oriented = out.held[1] && !pinned_pairs;
-  // A gripper's frame at t = 0 relative to its marker pair's chord frame (the chord to the
-  // next marker, its normal carried by parallel transport): the rod's tangent there from the first
-  // frames (EndTangent), held rigidly in the chord frame as it moves.
-  const bool grippers = options.held_ends != RolloutOptions::HeldEnds::kPinnedPairs;
+  // kGrippers: a gripper's frame at t = 0 relative to its marker pair's chord frame (the chord to
+  // the next marker, its normal carried by parallel transport): the rod's tangent there from the
+  // first frames (EndTangent), held rigidly in the chord frame as it moves.
+  const bool offset_at_start = ends == Ends::kGrippers || ends == Ends::kFreeRoll;
   Eigen::Matrix3d clamp_offset = Eigen::Matrix3d::Identity();
-  if (grippers && out.held[1] && M >= 3) {
+  if (offset_at_start && out.held[1]) {
     const Vec3 t_fit = EndTangent(frames, out.marker_s, 0);
     clamp_offset = FrameOf(t0, n0).transpose() * FrameOf(t_fit, n0);
     const Eigen::Matrix3d F = GripperFrame(options, 0, 0.0, FrameOf(t_fit, n0));
@@ -192,106 +219,141 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   }
   {
     // The clamp's frame over time: its tangent towards marker 1 (interpolated over frames where
-    // either is missing), its normal carried by parallel transport, the gripper's offset on top.
-    TimeSeries p1 = MarkerPath(frames, 1, frame_interval);
-    Smooth(&p1, frame_interval, options.smooth_frames);
+    // either is missing; per frame: the quadratic's through markers 0, 1, 2), its normal carried
+    // by parallel transport, the gripper's offset on top.
+    const TimeSeries p0 = jaws ? smoothed_path(0) : TimeSeries();
+    const TimeSeries p1 = out.held[1] && !jaws ? smoothed_path(1) : TimeSeries();
+    const TimeSeries p2 = per_frame ? smoothed_path(2) : TimeSeries();
+    const double s1 = out.marker_s[1] - out.marker_s[0], s2 = out.marker_s[2] - out.marker_s[0];
     Vec3 normal = n0, tangent = t0;
     TimeSeries& cp = clamp_drive.path;
     for (size_t k = 0; k < cp.t.size(); ++k) {
-      const Vec3 m1 = out.held[1] ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
-      const Vec3 tn = (m1 - cp.a[k]).normalized();
+      const Vec3 x0 = jaws ? At(p0, cp.t[k]) : cp.a[k];
+      const Vec3 x1 = jaws ? cp.a[k] : out.held[1] ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
+      const Vec3 tn = per_frame ? QuadraticEndTangent(x0, x1, At(p2, cp.t[k]), s1, s2)
+                                : Vec3((x1 - x0).normalized());
       normal = ParallelTransport<double, double>(tangent, tn, normal);
       normal = (normal - normal.dot(tn) * tn).normalized();
       tangent = tn;
       Eigen::Matrix3d F = FrameOf(tangent, normal) * clamp_offset;
-      if (grippers && out.held[1]) F = GripperFrame(options, 0, cp.t[k], F);
+      if (clamp_oriented) F = GripperFrame(options, 0, cp.t[k], F);
       cp.b.push_back(F.col(2));
       cp.c.push_back(F.col(0));
     }
+    if (per_frame || jaws) {  // the start held as the drive's first sample
+      c.clamp.tangent = cp.b.front();
+      c.clamp.normal = cp.c.front();
+    }
   }
   c.drives.push_back(clamp_drive);
-  // Markers n-2 and n-1 both held: an end clamp at n-1 along n-2 -> n-1, free to turn about its
-  // tangent (the same reason as at the clamp).
+  // Markers n-2 and n-1 both held: an end clamp at n-1 along n-2 -> n-1 (with jaws: at n-2),
+  // free to turn about its tangent with kFreeRoll (the same reason as at the clamp).
   const bool end_oriented = out.held[M - 1] && out.held[M - 2] && M - 2 > 1 && !pinned_pairs;
-  const bool end_roll_held = end_oriented && options.held_ends == RolloutOptions::HeldEnds::kGrippers;
-  for (int m = clamp_oriented ? 2 : 1; m < M; ++m) {
-    if (!out.held[m] || (end_oriented && m == M - 2)) continue;
+  const bool end_roll_held = end_oriented && ends != Ends::kFreeRoll;
+  if (end_oriented) {
     DrivenPoint d;
-    d.path = MarkerPath(frames, m, frame_interval);
-    Smooth(&d.path, frame_interval, options.smooth_frames);
-    if (m == M - 1 && end_oriented) {
-      TimeSeries before = MarkerPath(frames, M - 2, frame_interval);
-      Smooth(&before, frame_interval, options.smooth_frames);
-      // The chords n-2 -> n-1 over time, and the end gripper's normal at t = 0: the clamp's
-      // carried along the first frame's marker polyline (the rod untwisted at rest).
-      std::vector<Vec3> chords;
-      for (size_t k = 0; k < d.path.t.size(); ++k)
-        chords.push_back((d.path.a[k] - At(before, d.path.t[k])).normalized());
-      Vec3 normal = n0, tangent = t0;
-      for (int k = 1; k < M; ++k) {
-        const Vec3 chord = (frames[0].col(k) - frames[0].col(k - 1)).normalized();
-        normal = ParallelTransport<double, double>(tangent, chord, normal);
-        tangent = chord;
-      }
-      normal = ParallelTransport<double, double>(tangent, chords.front(), normal);
-      tangent = chords.front();
-      Eigen::Matrix3d end_offset = Eigen::Matrix3d::Identity();
-      if (M >= 3) {
-        const Vec3 t_fit = EndTangent(frames, out.marker_s, M - 1);
-        end_offset = FrameOf(tangent, normal).transpose() * FrameOf(t_fit, normal);
-      }
-      // Over time the chord frame's normal is carried by parallel transport, the gripper's offset
-      // on top; without the roll held (kFreeRoll) only the tangent is.
-      for (size_t k = 0; k < chords.size(); ++k) {
-        const Vec3 tn = chords[k];
-        normal = ParallelTransport<double, double>(tangent, tn, normal);
-        normal = (normal - normal.dot(tn) * tn).normalized();
-        tangent = tn;
-        const Eigen::Matrix3d F =
-            GripperFrame(options, 1, d.path.t[k], FrameOf(tangent, normal) * end_offset);
-        d.path.b.push_back(F.col(2));
-        if (end_roll_held) d.path.c.push_back(F.col(0));
-      }
-      EndClamp end;
-      end.position = d.path.a.front();
-      end.tangent = d.path.b.front();
-      if (end_roll_held) end.normal = d.path.c.front();
-      c.end_clamp = end;
-      d.point = "end_clamp";
-    } else if (m == M - 1) {
+    d.point = "end_clamp";
+    d.path = smoothed_path(jaws ? M - 2 : M - 1);
+    const TimeSeries other = smoothed_path(jaws ? M - 1 : M - 2);
+    const TimeSeries third = per_frame ? smoothed_path(M - 3) : TimeSeries();
+    const double s1 = out.marker_s[M - 1] - out.marker_s[M - 2],
+                 s2 = out.marker_s[M - 1] - out.marker_s[M - 3];
+    // The end's tangents over time (out of the rod), and the end gripper's normal at t = 0: the
+    // clamp's carried along the first frame's marker polyline (the rod untwisted at rest).
+    std::vector<Vec3> tangents;
+    for (size_t k = 0; k < d.path.t.size(); ++k) {
+      const double t = d.path.t[k];
+      const Vec3 last = jaws ? At(other, t) : d.path.a[k];
+      const Vec3 before = jaws ? d.path.a[k] : At(other, t);
+      tangents.push_back(per_frame ? Vec3(-QuadraticEndTangent(last, before, At(third, t), s1, s2))
+                                   : Vec3((last - before).normalized()));
+    }
+    Vec3 normal = n0, tangent = t0;
+    for (int k = 1; k < M; ++k) {
+      const Vec3 chord = (frames[0].col(k) - frames[0].col(k - 1)).normalized();
+      normal = ParallelTransport<double, double>(tangent, chord, normal);
+      tangent = chord;
+    }
+    normal = ParallelTransport<double, double>(tangent, tangents.front(), normal);
+    tangent = tangents.front();
+    Eigen::Matrix3d end_offset = Eigen::Matrix3d::Identity();
+    if (offset_at_start) {
+      const Vec3 t_fit = EndTangent(frames, out.marker_s, M - 1);
+      end_offset = FrameOf(tangent, normal).transpose() * FrameOf(t_fit, normal);
+    }
+    // Over time the frame's normal is carried by parallel transport, the gripper's offset on
+    // top; without the roll held (kFreeRoll) only the tangent is.
+    for (size_t k = 0; k < tangents.size(); ++k) {
+      const Vec3 tn = tangents[k];
+      normal = ParallelTransport<double, double>(tangent, tn, normal);
+      normal = (normal - normal.dot(tn) * tn).normalized();
+      tangent = tn;
+      const Eigen::Matrix3d F =
+          GripperFrame(options, 1, d.path.t[k], FrameOf(tangent, normal) * end_offset);
+      d.path.b.push_back(F.col(2));
+      if (end_roll_held) d.path.c.push_back(F.col(0));
+    }
+    EndClamp end;
+    end.position = d.path.a.front();
+    end.tangent = d.path.b.front();
+    if (end_roll_held) end.normal = d.path.c.front();
+    c.end_clamp = end;
+    c.drives.push_back(d);
+  }
+  for (int m = clamp_oriented ? 2 : 1; m < M; ++m) {
+    if (!out.held[m] || (end_oriented && m >= M - 2)) continue;
+    if (per_frame && (m == 2 || m == M - 3)) continue;  // read by the grippers' tangents only
+    DrivenPoint d;
+    d.path = smoothed_path(m);
+    if (m == M - 1) {
       c.end_pin = frames[0].col(m);
       d.point = "end_pin";
     } else {
       Pin pin;
-      pin.s = out.marker_s[m];
+      pin.s = out.marker_s[m] - s_lo;
       pin.position = frames[0].col(m);
       c.pins.push_back(pin);
       d.point = "pins[" + std::to_string(c.pins.size() - 1) + "]";
     }
     c.drives.push_back(d);
   }
-  // The start: the equilibrium (or the frame-0 polyline) with the velocities of frames 0 -> 1.
+  // The start: the equilibrium (or the frame-0 polyline) with the velocities of frames 0 -> 1,
+  // of the markers on the rod.
+  std::vector<double> on_rod_s;
+  Eigen::Matrix3Xd start_points(3, m_hi - m_lo + 1);
+  for (int m = m_lo; m <= m_hi; ++m) {
+    on_rod_s.push_back(out.marker_s[m] - s_lo);
+    start_points.col(m - m_lo) = frames[0].col(m);
+  }
   c.initial.equilibrium = options.initial_equilibrium;
   if (!options.initial_equilibrium) {
     c.start.kind = StartShape::Kind::kPoints;
-    c.start.s = out.marker_s;
-    c.start.points = frames[0];
+    c.start.s = on_rod_s;
+    c.start.points = start_points;
   }
-  c.initial.velocity_s = out.marker_s;
-  c.initial.velocity = (frames[1] - frames[0]) / frame_interval;
+  c.initial.velocity_s = on_rod_s;
+  c.initial.velocity =
+      (frames[1].middleCols(m_lo, m_hi - m_lo + 1) - start_points) / frame_interval;
   sc.cases = {c};
   sc.springs.clear();
   const double dt = sc.dynamics->time_step;
-  const int per_frame = static_cast<int>(std::lround(frame_interval / dt));
-  if (per_frame < 1 || std::abs(per_frame * dt - frame_interval) > 1e-9 * frame_interval)
+  const int steps_per_frame = static_cast<int>(std::lround(frame_interval / dt));
+  if (steps_per_frame < 1 || std::abs(steps_per_frame * dt - frame_interval) > 1e-9 * frame_interval)
     throw std::invalid_argument("dynamics.time_step must divide the frame interval (" +
                                 std::to_string(frame_interval) + " s)");
-  sc.dynamics->output_every = per_frame;
+  sc.dynamics->output_every = steps_per_frame;
   if (sc.dynamics->error_tolerance == 0.0) sc.dynamics->error_tolerance = options.error_tolerance;
 
   sc.dynamics->duration = (frames.size() - 1) * frame_interval;
 
-  return {sc, marker_vertex};
+  return {sc, marker_vertex, s_lo, off_rod, frame_interval};
+}
+
+// Marker m at frame k as the rollout predicts it from the rod's state x (3 x vertices): its
+// vertex, or for a marker off the rod (in a gripper's jaws) its held path.
+Vec3 MarkerAt(const RolloutProblem& problem, const Eigen::Matrix3Xd& x, int m, size_t k) {
+  const int i = problem.marker_vertex[m];
+  return i >= 0 ? Vec3(x.col(i)) : At(problem.off_rod[m], k * problem.frame_interval);
 }
 
 // The scores of out->predicted against the recording.
@@ -320,6 +382,13 @@ void Score(const std::vector<Eigen::Matrix3Xd>& frames, RolloutResult* result) {
 }
 
 }  // namespace
+
+Vec3 QuadraticEndTangent(const Vec3& x0, const Vec3& x1, const Vec3& x2, double s1, double s2) {
+  // Derivatives at s = 0 of the Lagrange basis on (0, s1, s2).
+  const double l0 = -(s1 + s2) / (s1 * s2), l1 = s2 / (s1 * (s2 - s1)),
+               l2 = -s1 / (s2 * (s2 - s1));
+  return (l0 * x0 + l1 * x1 + l2 * x2).normalized();
+}
 
 bool DefaultTwistDamping(Material* material) {
   if (material->twist_damping != 0.0 || !(material->bend_damping > 0.0) ||
@@ -359,7 +428,7 @@ RolloutResult Rollout(const Scene& scene, double frame_interval,
   out.reason = traj.reason;
   for (size_t k = 0; k < traj.frames.size() && k < frames.size(); ++k) {
     Eigen::Matrix3Xd p(3, M);
-    for (int m = 0; m < M; ++m) p.col(m) = traj.frames[k].x.col(problem.marker_vertex[m]);
+    for (int m = 0; m < M; ++m) p.col(m) = MarkerAt(problem, traj.frames[k].x, m, k);
     out.predicted.push_back(p);
   }
   Score(frames, &out);
@@ -377,6 +446,10 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
   const Scene& sc = problem.scene;
   const int M = static_cast<int>(frames[0].cols());
   const int np = static_cast<int>(directions.size());
+  // The rest shape's directions on the rod's own arc length (with jaws it starts at marker 1).
+  std::vector<ParameterDirection> on_rod = directions;
+  for (ParameterDirection& d : on_rod)
+    for (double& s_knot : d.rest_curvature_s) s_knot -= problem.s_offset;
   d_predicted->clear();
   // The integration of SimulateCaseDynamics (case_dynamics.cc) with each step's sensitivities
   // propagated after it; only the markers are recorded.
@@ -389,7 +462,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
   DynamicSensitivity ds;
   const int N = model.num_free_dofs();
   if (sc.cases[0].initial.equilibrium) {
-    if (!EquilibriumSensitivity(model, s.q, directions, &ds.dq, &out.reason)) return out;
+    if (!EquilibriumSensitivity(model, s.q, on_rod, &ds.dq, &out.reason)) return out;
   } else {
     ds.dq.setZero(N, np);  // the frame-0 polyline does not depend on the parameters
   }
@@ -399,7 +472,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
     Eigen::MatrixXd dp = Eigen::MatrixXd::Zero(3 * M, np);
     for (int m = 0; m < M; ++m) {
       const int i = problem.marker_vertex[m];
-      p.col(m) = s.q.x.col(i);
+      p.col(m) = MarkerAt(problem, s.q.x, m, out.predicted.size());
       if (i >= 1) dp.middleRows<3>(3 * m) = ds.dq.middleRows<3>(RodModel::VertexDof(i));
     }
     out.predicted.push_back(p);
@@ -408,7 +481,7 @@ RolloutResult RolloutWithSensitivities(const Scene& scene, double frame_interval
   record();
   const int steps = static_cast<int>(std::ceil(spec.duration / spec.time_step - 1e-9));
   int taken = 0;
-  const SensitivityCarry carry{&directions, &ds};
+  const SensitivityCarry carry{&on_rod, &ds};
   const IntegrationStats stats = Integrate(
       stepper, drive, steps, &s,
       [&](const DynamicState&, const DynamicState&, const DynamicsStepSummary&) {

@@ -20,12 +20,17 @@ void Serialize(SettingsArchive* a, RolloutOptions* o) {
 
   // The words in the order the help lists them; the default's description says so.
   using Ends = RolloutOptions::HeldEnds;
-  const std::vector<Ends> ends = {Ends::kGrippers, Ends::kFreeRoll, Ends::kPinnedPairs};
-  const std::vector<std::string> end_words = {"grippers", "free-roll", "pins"};
+  const std::vector<Ends> ends = {Ends::kGrippers, Ends::kGrippersPerFrame, Ends::kFreeRoll,
+                                  Ends::kJaws, Ends::kPinnedPairs};
+  const std::vector<std::string> end_words = {"grippers", "grippers-per-frame", "free-roll", "jaws",
+                                              "pins"};
   const std::vector<std::string> end_meaning = {
       "clamps at markers 0 and n-1, their tangents from the first frames, roll by the "
       "minimal-twist frame",
+      "as grippers, their tangents from every frame's three end markers (hold 0,1,2,-3,-2,-1)",
       "as grippers, the end free to turn about its tangent",
+      "the jaws hold markers 0..1 and n-2..n-1 straight: clamps at markers 1 and n-2 along the "
+      "chords",
       "a clamp at marker 0 towards marker 1, markers 1 and n-2 pinned"};
   int end = 0;
   for (size_t k = 0; k < ends.size(); ++k)
@@ -41,7 +46,7 @@ void Serialize(SettingsArchive* a, RolloutOptions* o) {
   for (size_t j = 0; j < others.size(); ++j)
     ends_help += (j + 1 == others.size() ? " or " : ", ") + end_help(others[j]);
   a->Describe("held_ends", "--held-ends", ends_help);
-  a->Choice("held_ends", &end, end_words, "must be grippers, free-roll or pins");
+  a->Choice("held_ends", &end, end_words, "must be grippers, grippers-per-frame, free-roll, jaws or pins");
   o->held_ends = ends[end];
 
   const std::vector<std::string> starts = {"equilibrium", "markers"};
