@@ -64,11 +64,17 @@ struct Recordings {
 };
 
 // `seconds` of a motion, with 1 mm noise and 2 % drops, and the same without either.
+// With `jaws`, the second truth: the grippers' jaws spanning markers 0..1 and n-2..n-1
+// (testing::JawsRecording, the same grippers' paths).
 void Add(const std::string& name, bool gentle, testing::HardMotion motion, double seconds,
-         unsigned seed, Recordings* out) {
+         unsigned seed, Recordings* out, bool jaws = false) {
   const Material m = TruthMaterial();
   const RodSpec rod = CurvedRod();
   auto make = [&](double noise, double drop) {
+    if (jaws)
+      return testing::JawsRecording(gentle ? testing::GentleGrippers(seconds)
+                                           : testing::HardGrippers(motion, seconds),
+                                    seconds, noise, drop, seed, &m, &rod);
     return gentle ? testing::Recording(seconds, noise, drop, seed, &m, &rod)
                   : testing::HardRecording(motion, seconds, noise, drop, seed, &m, &rod);
   };
@@ -156,7 +162,7 @@ Recordings SelfConsistent(const Recordings& made, const Scene& truth, const Roll
   return out;
 }
 
-// range(0): the held-end model (0 pins, 1 grippers); range(1): 1 for recordings made by the
+// range(0): the held-end model (0 pins, 1 grippers, 2 jaws: the default); range(1): 1 for recordings made by the
 // rollout's own model (pins) instead of the true grippers, to tell the fit's own accuracy from
 // the held-end model's error; range(2): 1 for a staged fit (stiffness and drag with the rod
 // straight, then with the rest shape from there) instead of the one a user's command runs.
@@ -164,7 +170,7 @@ Recordings SelfConsistent(const Recordings& made, const Scene& truth, const Roll
 // range(4): 1 for the rest start from the first frames (MotionFitOptions::
 // rest_start_from_first_frames; not the default) in the fit a user's command runs.
 void BM_RestShapeSyntheticBenchmark(benchmark::State& st) {
-  const bool grippers = st.range(0) == 1, self_consistent = st.range(1) == 1,
+  const bool grippers = st.range(0) == 1, jaws = st.range(0) == 2, self_consistent = st.range(1) == 1,
              staged = st.range(2) == 1;
   const double train_seconds = st.range(3) > 0 ? 0.01 * st.range(3) : 0.0;
   const bool rest_start = st.range(4) == 1;
@@ -173,15 +179,18 @@ void BM_RestShapeSyntheticBenchmark(benchmark::State& st) {
   // range(6): 1 to start the fit at the truth (its parameters and rest shape) instead of 3x off
   // and straight: whether the truth's basin holds the fit's minimum.
   const bool start_at_truth = st.range(6) == 1;
+  // range(7): 1 for the second truth, the grippers' jaws spanning markers 0..1 and n-2..n-1.
+  const bool jaws_truth = st.range(7) == 1;
   Recordings train, held_out;
-  Add("gentle", true, testing::HardMotion::kPull, 4.0, 1, &train);
-  Add("whip", false, testing::HardMotion::kWhip, 3.0, 7, &train);
-  Add("pull", false, testing::HardMotion::kPull, 3.0, 8, &held_out);
-  Add("loop", false, testing::HardMotion::kLoop, 3.0, 9, &held_out);
+  Add("gentle", true, testing::HardMotion::kPull, 4.0, 1, &train, jaws_truth);
+  Add("whip", false, testing::HardMotion::kWhip, 3.0, 7, &train, jaws_truth);
+  Add("pull", false, testing::HardMotion::kPull, 3.0, 8, &held_out, jaws_truth);
+  Add("loop", false, testing::HardMotion::kLoop, 3.0, 9, &held_out, jaws_truth);
 
   RolloutOptions options;  // the defaults, but for the held-end model compared
-  options.held_ends = grippers ? RolloutOptions::HeldEnds::kGrippers
-                               : RolloutOptions::HeldEnds::kPinnedPairs;
+  options.held_ends = jaws       ? RolloutOptions::HeldEnds::kJaws
+                      : grippers ? RolloutOptions::HeldEnds::kGrippers
+                                 : RolloutOptions::HeldEnds::kPinnedPairs;
   Scene truth = UserScene();
   truth.material = TruthMaterial();
   truth.rod = CurvedRod();
@@ -224,7 +233,8 @@ void BM_RestShapeSyntheticBenchmark(benchmark::State& st) {
     }
     benchmark::DoNotOptimize(r.values.data());
   }
-  std::printf("\n== held ends: %s%s%s%s ==\n", grippers ? "grippers" : "pins",
+  std::printf("\n== held ends: %s%s%s%s%s ==\n", jaws ? "jaws" : grippers ? "grippers" : "pins",
+              jaws_truth ? ", the jaws truth" : "",
               self_consistent ? ", recordings made by the rollout's own model" : "",
               staged ? ", staged fit" : "", start_at_truth ? ", started at the truth" : "");
   if (tilt_prior_deg > 0) std::printf("held frames' tilts fitted, prior %.0f deg\n", tilt_prior_deg);
@@ -477,64 +487,13 @@ void BM_GripperFrameDiagnosis(benchmark::State& st) {
   for (int v = 0; v < V; ++v) st.counters["held_out_mm_" + std::to_string(v)] = 1e3 * held_out_mae[v];
 }
 
-// The second truth (issue 35, "do not tune to our own truth only"): the grippers' jaws span
-// markers 0..1 and n-2..n-1, the cable straight and rigid in them, leaving each jaw at marker 1
-// (n-2) along the jaw's tangent. Made by the engine as the cable between markers 1 and n-2 (the
-// curved rest shape of CurvedRod on that stretch), clamped at the jaws' inner edges, each a
-// marker gap h inside its gripper's point along the gripper's tangent; markers 0 and n-1 on the
-// jaws' straight stretches. The grippers' paths are those of the first truth.
+// The second truth (issue 35, "do not tune to our own truth only"): testing::JawsRecording, the
+// grippers' jaws spanning markers 0..1 and n-2..n-1, on the curved cable.
 std::vector<Eigen::Matrix3Xd> JawsRecording(const std::vector<DrivenPoint>& grippers, double seconds,
                                             double noise, double drop, unsigned seed) {
-  Scene s = testing::Cable();
-  s.material = TruthMaterial();
-  const double L = s.rod.length, h = L / (testing::kMarkers - 1);  // markers every 4th of 44 edges
-  RodSpec rod = CurvedRod();
-  rod.length = L - 2 * h;
-  rod.segments = 4 * (testing::kMarkers - 3);
-  for (double& k : rod.rest_curvature_s) k -= h;  // the same rest shape along the cable
-  s.rod = rod;
-  s.dynamics->time_step = testing::kFrameInterval;
-  s.dynamics->error_tolerance = 1e-6;
-  s.dynamics->min_time_step = 1e-8;
-  s.dynamics->duration = seconds;
-  s.dynamics->output_every = 1;
-  std::vector<DrivenPoint> jaws = grippers;
-  for (int g = 0; g < 2; ++g)
-    for (size_t k = 0; k < jaws[g].path.t.size(); ++k)
-      jaws[g].path.a[k] += (g == 0 ? h : -h) * jaws[g].path.b[k].normalized();
-  LoadCase c;
-  c.name = "jaws";
-  c.clamp.position = jaws[0].path.a.front();
-  c.clamp.tangent = jaws[0].path.b.front();
-  c.clamp.normal = jaws[0].path.c.front();
-  EndClamp end;
-  end.position = jaws[1].path.a.front();
-  end.tangent = jaws[1].path.b.front();
-  end.normal = jaws[1].path.c.front();
-  c.end_clamp = end;
-  c.drives = jaws;
-  s.cases = {c};
-  const CaseTrajectory truth = SimulateCaseDynamics(s, 0, StaticsOptions());
-  if (!truth.ok) throw std::runtime_error("the jaws truth did not integrate: " + truth.reason);
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  std::uniform_real_distribution<double> uniform(0.0, 1.0);
-  std::vector<Eigen::Matrix3Xd> frames;
-  const int M = testing::kMarkers;
-  for (size_t f = 0; f < truth.frames.size(); ++f) {
-    const Eigen::Matrix3Xd& x = truth.frames[f].x;
-    const double t = f * testing::kFrameInterval;
-    Eigen::Matrix3Xd m(3, M);
-    m.col(0) = x.col(0) - h * TrueFrame(jaws[0], t).col(2);
-    for (int k = 1; k < M - 1; ++k) m.col(k) = x.col(4 * (k - 1));
-    m.col(M - 1) = x.col(x.cols() - 1) + h * TrueFrame(jaws[1], t).col(2);
-    for (int k = 0; k < M; ++k) {
-      if (noise > 0.0) m.col(k) += noise * Vec3(gauss(rng), gauss(rng), gauss(rng));
-      if (frames.size() >= 2 && uniform(rng) < drop) m.col(k).setConstant(std::nan(""));
-    }
-    frames.push_back(m);
-  }
-  return frames;
+  const Material m = TruthMaterial();
+  const RodSpec rod = CurvedRod();
+  return testing::JawsRecording(grippers, seconds, noise, drop, seed, &m, &rod);
 }
 
 // Every held-end model's floor on both truths (issue 35, deliverables 3 and 6): the true
@@ -655,17 +614,20 @@ BENCHMARK(BM_HeldEndFloors)
 BENCHMARK(BM_GripperFrameDiagnosis)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
 BENCHMARK(BM_RestShapeSyntheticBenchmark)
-    ->ArgNames({"grippers", "self_consistent", "staged", "train_cs", "rest_start", "tilt_prior_deg",
-                "start_at_truth"})
-    ->Args({0, 0, 0, 0, 0, 0, 0})
-    ->Args({1, 0, 0, 0, 0, 0, 0})
-    ->Args({1, 0, 0, 0, 0, 20, 0})
-    ->Args({1, 0, 0, 0, 0, 5, 0})
-    ->Args({1, 0, 0, 0, 0, 20, 1})
-    ->Args({0, 1, 0, 0, 0, 0, 0})
-    ->Args({0, 1, 1, 0, 0, 0, 0})
-    ->Args({0, 1, 0, 0, 1, 0, 0})
-    ->Args({0, 1, 0, 100, 1, 0, 0})  // on the first 1 s of each training recording
+    ->ArgNames({"held_ends", "self_consistent", "staged", "train_cs", "rest_start",
+                "tilt_prior_deg", "start_at_truth", "jaws_truth"})
+    ->Args({2, 0, 0, 0, 0, 0, 0, 0})  // the defaults (jaws) on the grippers truth
+    ->Args({2, 0, 0, 0, 0, 0, 0, 1})  // the defaults on the jaws truth
+    ->Args({2, 0, 0, 100, 0, 0, 0, 0})  // shortened: the first 1 s of each training recording
+    ->Args({0, 0, 0, 0, 0, 0, 0, 0})
+    ->Args({1, 0, 0, 0, 0, 0, 0, 0})
+    ->Args({1, 0, 0, 0, 0, 20, 0, 0})
+    ->Args({1, 0, 0, 0, 0, 5, 0, 0})
+    ->Args({1, 0, 0, 0, 0, 20, 1, 0})
+    ->Args({0, 1, 0, 0, 0, 0, 0, 0})
+    ->Args({0, 1, 1, 0, 0, 0, 0, 0})
+    ->Args({0, 1, 0, 0, 1, 0, 0, 0})
+    ->Args({0, 1, 0, 100, 1, 0, 0, 0})  // on the first 1 s of each training recording
     ->Unit(benchmark::kSecond)
     ->UseRealTime()
     ->Iterations(1);

@@ -82,6 +82,14 @@ std::vector<Eigen::Matrix3Xd> SelfConsistentRecording(const Scene& truth, double
   return frames;
 }
 
+// The held ends the tests below were measured with (the default until the jaws): the pinned
+// pairs. Their recordings are made by that model (SelfConsistentRecording) from frame 2 on.
+RolloutOptions Pins() {
+  RolloutOptions o;
+  o.held_ends = RolloutOptions::HeldEnds::kPinnedPairs;
+  return o;
+}
+
 TEST(MotionFit, LeastSquaresRecoversStiffnessAndDragWithinThreeStdInFewRollouts) {
   Scene truth = testing::Cable();
   truth.material.bend_damping = 0.0;
@@ -90,7 +98,7 @@ TEST(MotionFit, LeastSquaresRecoversStiffnessAndDragWithinThreeStdInFewRollouts)
   const double noise = 5e-4;
   MotionRecordingData rec;
   rec.frame_interval = testing::kFrameInterval;
-  rec.frames = SelfConsistentRecording(truth, 0.6, noise, 11);
+  rec.frames = SelfConsistentRecording(truth, 0.6, noise, 11, Pins());
   Scene start = truth;
   start.material.bend_stiffness = 2.5 * truth.material.bend_stiffness;
   start.material.damping = truth.material.damping / 3.0;
@@ -98,11 +106,11 @@ TEST(MotionFit, LeastSquaresRecoversStiffnessAndDragWithinThreeStdInFewRollouts)
   const std::vector<double> want = {truth.material.bend_stiffness, truth.material.damping};
   MotionFitOptions lm;
   lm.marker_sigma = noise;
-  const MotionFitResult r = FitMotion(start, {rec}, names, RolloutOptions(), StaticsOptions(), lm);
+  const MotionFitResult r = FitMotion(start, {rec}, names, Pins(), StaticsOptions(), lm);
   ASSERT_TRUE(r.converged) << r.message;
   MotionFitOptions bobyqa = lm;
   bobyqa.method = MotionFitMethod::kBobyqa;
-  const MotionFitResult b = FitMotion(start, {rec}, names, RolloutOptions(), StaticsOptions(), bobyqa);
+  const MotionFitResult b = FitMotion(start, {rec}, names, Pins(), StaticsOptions(), bobyqa);
   for (int k = 0; k < 2; ++k) {
     std::printf("%-15s truth %.5g  LM %.5g +- %.3g (%.2f std off)  BOBYQA %.5g\n", names[k].c_str(),
                 want[k], r.values[k], r.std[k], (r.values[k] - want[k]) / r.std[k], b.values[k]);
@@ -133,7 +141,7 @@ TEST(MotionFit, FitsTheLinearDensityAndReportsTheTwistStiffnessNotIdentifiable) 
   const double noise = 5e-4;
   MotionRecordingData rec;
   rec.frame_interval = testing::kFrameInterval;
-  rec.frames = SelfConsistentRecording(truth, 0.6, noise, 11);
+  rec.frames = SelfConsistentRecording(truth, 0.6, noise, 11, Pins());
   Scene start = truth;
   start.material.bend_stiffness *= 2.0;
   start.material.twist_stiffness *= 2.0;
@@ -144,7 +152,7 @@ TEST(MotionFit, FitsTheLinearDensityAndReportsTheTwistStiffnessNotIdentifiable) 
                                           "twist_stiffness"};
   const std::vector<double> want = {truth.material.bend_stiffness, truth.material.damping,
                                     truth.rod.linear_density};
-  const MotionFitResult r = FitMotion(start, {rec}, names, RolloutOptions(), StaticsOptions(), lm);
+  const MotionFitResult r = FitMotion(start, {rec}, names, Pins(), StaticsOptions(), lm);
   ASSERT_TRUE(r.converged) << r.message;
   // Measured: B 0.01947 +- 0.00076, drag 0.1938 +- 0.0076, density 0.03881 +- 0.0016 (0.7 to
   // 0.8 std from the truth) in 46 rollouts; the twist stiffness ran to its bound along its flat
@@ -176,7 +184,7 @@ TEST(MotionFit, FitsTheRestCurvatureWithTheBendingStiffness) {
   const double noise = 5e-4;
   MotionRecordingData rec;
   rec.frame_interval = testing::kFrameInterval;
-  rec.frames = SelfConsistentRecording(truth, 1.0, noise, 11);
+  rec.frames = SelfConsistentRecording(truth, 1.0, noise, 11, Pins());
   Scene start = truth;
   start.rod.rest_curvature_s.clear();
   start.rod.rest_curvature_profile.clear();
@@ -184,7 +192,7 @@ TEST(MotionFit, FitsTheRestCurvatureWithTheBendingStiffness) {
   const std::vector<std::string> names = {"bend_stiffness", "rest_curvature"};
   MotionFitOptions options;
   options.rest_curvature_knots = 4;
-  const MotionFitResult r = FitMotion(start, {rec}, names, RolloutOptions(), StaticsOptions(), options);
+  const MotionFitResult r = FitMotion(start, {rec}, names, Pins(), StaticsOptions(), options);
   std::printf("%d rollouts, %d iterations, %.2f s: %s\n", r.evaluations, r.iterations, r.seconds,
               r.message.c_str());
   ASSERT_TRUE(r.converged) << r.message;
@@ -216,7 +224,7 @@ TEST(MotionFit, FitsTheRestCurvatureWithTheBendingStiffness) {
   at_truth.max_evaluations = 1;
   at_truth.rest_start_from_first_frames = false;  // the truth's own rest shape, not a start
   const MotionFitResult z =
-      FitMotion(truth, {rec}, names, RolloutOptions(), StaticsOptions(), at_truth);
+      FitMotion(truth, {rec}, names, Pins(), StaticsOptions(), at_truth);
   std::printf("cost at the truth %.6g, at the fit %.6g (start %.6g)\n", z.initial_cost,
               r.final_cost, r.initial_cost);
   EXPECT_LE(r.final_cost, z.initial_cost);
@@ -411,7 +419,7 @@ TEST(MotionFit, FitsTheGrippersTiltsAsNuisancesWithThePrior) {
     }
   EXPECT_NEAR(r.residual_variance, 1.0, 0.3);
   // Pins carry no gripper frames: refused.
-  EXPECT_THROW(FitMotion(start, {rec}, {"bend_stiffness"}, RolloutOptions(), StaticsOptions(), fit),
+  EXPECT_THROW(FitMotion(start, {rec}, {"bend_stiffness"}, Pins(), StaticsOptions(), fit),
                std::invalid_argument);
 }
 

@@ -228,4 +228,86 @@ inline std::vector<Eigen::Matrix3Xd> HardRecording(HardMotion motion, double sec
   return frames;
 }
 
+// A gripper's frame [d1 d2 d3] at time t from its drive (the samples linear in time, as the
+// engine interpolates them; d3 the tangent, d1 the normal made perpendicular).
+inline Eigen::Matrix3d GripperFrameAt(const DrivenPoint& d, double t) {
+  const TimeSeries& p = d.path;
+  size_t j = 0;
+  while (j + 1 < p.t.size() && p.t[j + 1] <= t) ++j;
+  Vec3 b = p.b[j], c = p.c[j];
+  if (j + 1 < p.t.size() && t > p.t[j]) {
+    const double w = (t - p.t[j]) / (p.t[j + 1] - p.t[j]);
+    b = (1 - w) * p.b[j] + w * p.b[j + 1];
+    c = (1 - w) * p.c[j] + w * p.c[j + 1];
+  }
+  const Vec3 d3 = b.normalized(), d1 = (c - c.dot(d3) * d3).normalized();
+  Eigen::Matrix3d F;
+  F << d1, d3.cross(d1), d3;
+  return F;
+}
+
+// The second truth of the grippers (issue 35): their jaws span markers 0..1 and n-2..n-1, the
+// cable straight and rigid in them (the discrete-elastic-rod convention of prescribing an end's
+// first two vertices), leaving each jaw at marker 1 (n-2) along the gripper's tangent. Made by
+// the engine as the cable between markers 1 and n-2 (the rod's rest shape on that stretch),
+// clamped at the jaws' inner edges, a marker gap h = L / 11 inside each gripper's point (the
+// drives `grippers`, e.g. HardGrippers) along its tangent; markers 0 and n-1 on the jaws'
+// straight stretches, markers 1..n-2 every 4th vertex. Adaptive steps to 1e-6 m as
+// HardRecording; noise and drops as Recording's.
+inline std::vector<Eigen::Matrix3Xd> JawsRecording(const std::vector<DrivenPoint>& grippers,
+                                                   double seconds, double noise, double drop,
+                                                   unsigned seed, const Material* material = nullptr,
+                                                   const RodSpec* rod = nullptr) {
+  Scene s = Cable();
+  if (material) s.material = *material;
+  if (rod) s.rod = *rod;
+  DefaultTwistDamping(&s.material);
+  const double L = s.rod.length, h = L / (kMarkers - 1);
+  s.rod.length = L - 2 * h;
+  s.rod.segments = 4 * (kMarkers - 3);
+  s.rod.vertex_s.clear();
+  for (double& k : s.rod.rest_curvature_s) k -= h;  // the same rest shape along the cable
+  s.dynamics->time_step = kFrameInterval;
+  s.dynamics->error_tolerance = 1e-6;
+  s.dynamics->min_time_step = 1e-8;
+  s.dynamics->duration = seconds;
+  s.dynamics->output_every = 1;
+  std::vector<DrivenPoint> jaws = grippers;
+  for (int g = 0; g < 2; ++g)
+    for (size_t k = 0; k < jaws[g].path.t.size(); ++k)
+      jaws[g].path.a[k] += (g == 0 ? h : -h) * jaws[g].path.b[k].normalized();
+  LoadCase c;
+  c.name = "jaws";
+  c.clamp.position = jaws[0].path.a.front();
+  c.clamp.tangent = jaws[0].path.b.front();
+  c.clamp.normal = jaws[0].path.c.front();
+  EndClamp end;
+  end.position = jaws[1].path.a.front();
+  end.tangent = jaws[1].path.b.front();
+  end.normal = jaws[1].path.c.front();
+  c.end_clamp = end;
+  c.drives = jaws;
+  s.cases = {c};
+  const CaseTrajectory truth = SimulateCaseDynamics(s, 0, StaticsOptions());
+  if (!truth.ok) throw std::runtime_error("the jaws recording did not integrate: " + truth.reason);
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);  // scaled by `noise` below
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<Eigen::Matrix3Xd> frames;
+  for (size_t f = 0; f < truth.frames.size(); ++f) {
+    const Eigen::Matrix3Xd& x = truth.frames[f].x;
+    const double t = f * kFrameInterval;
+    Eigen::Matrix3Xd m(3, kMarkers);
+    m.col(0) = x.col(0) - h * GripperFrameAt(jaws[0], t).col(2);
+    for (int k = 1; k < kMarkers - 1; ++k) m.col(k) = x.col(4 * (k - 1));
+    m.col(kMarkers - 1) = x.col(x.cols() - 1) + h * GripperFrameAt(jaws[1], t).col(2);
+    for (int k = 0; k < kMarkers; ++k) {
+      if (noise > 0.0) m.col(k) += noise * Vec3(gauss(rng), gauss(rng), gauss(rng));
+      if (frames.size() >= 2 && uniform(rng) < drop) m.col(k).setConstant(std::nan(""));
+    }
+    frames.push_back(m);
+  }
+  return frames;
+}
+
 }  // namespace rodfit::testing
