@@ -59,8 +59,8 @@ struct RolloutOptions {
     /// The grippers' jaws span markers 0..1 and n-2..n-1, the cable straight and rigid in them
     /// (the discrete-elastic-rod convention of prescribing an end's first two vertices): the rod
     /// between markers 1 and n-2 clamped at marker 1 along the chord 0 -> 1 and at marker n-2
-    /// along n-2 -> n-1, the rolls by the minimal-twist frame. Markers 0, 1, n-2, n-1 held.
-    /// The default: the best of these models on both of bench_rest_shape's truths
+    /// along n-2 -> n-1, the rolls by the minimal-twist frame (markers 0, 1, n-2, n-1 held; an
+    /// end whose two markers are not both held is held as by kPinnedPairs). The default: the best of these models on both of bench_rest_shape's truths
     /// (BM_HeldEndFloors; true parameters, held-out pull and loop, markers 3..n-4, noise-free /
     /// 1 mm noise): true jaws 0.90 / 1.60 mm (pins 14.3 / 16.5, grippers 29.8 / 29.8); true
     /// grippers at the end markers 6.95 / 7.30 mm (pins 8.6 / 13.0, grippers 14.3 / 14.9,

@@ -150,20 +150,19 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   const bool pinned_pairs = ends == Ends::kPinnedPairs;
   const bool jaws = ends == Ends::kJaws;
   const bool per_frame = ends == Ends::kGrippersPerFrame;
-  if (jaws)
-    RODFIT_CHECK_ARG(M >= 5 && out.held[1] && out.held[M - 2] && out.held[M - 1],
-                     "held_ends jaws needs markers 0, 1, n-2 and n-1 held (the jaws span 0..1 "
-                     "and n-2..n-1) and at least 5 markers");
+  // The jaws at an end whose two markers are held (else that end is held as by the pins).
+  const bool clamp_jaw = jaws && out.held[1];
+  const bool end_jaw = jaws && out.held[M - 1] && out.held[M - 2] && M - 2 > 1;
   if (per_frame)
     RODFIT_CHECK_ARG(M >= 7 && out.held[1] && out.held[2] && out.held[M - 3] && out.held[M - 2] &&
                          out.held[M - 1],
                      "held_ends grippers-per-frame reads markers 0, 1, 2 and n-3, n-2, n-1 at "
                      "every frame: hold them (--held 0,1,2,-3,-2,-1) and give at least 7 markers");
 
-  // Vertices at every marker on the rod (with jaws, markers 1 .. n-2: the jaws hold the rest
-  // rigidly), the gaps between them subdivided in proportion to their length.
+  // Vertices at every marker on the rod (with both jaws, markers 1 .. n-2: the jaws hold the
+  // rest rigidly), the gaps between them subdivided in proportion to their length.
   Scene sc = scene;
-  const int m_lo = jaws ? 1 : 0, m_hi = jaws ? M - 2 : M - 1;
+  const int m_lo = clamp_jaw ? 1 : 0, m_hi = end_jaw ? M - 2 : M - 1;
   const double s_lo = out.marker_s[m_lo];
   std::vector<int> marker_vertex(M, -1);
   marker_vertex[m_lo] = 0;
@@ -187,7 +186,8 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     return p;
   };
   std::vector<TimeSeries> off_rod(M);
-  if (jaws) off_rod[0] = smoothed_path(0), off_rod[M - 1] = smoothed_path(M - 1);
+  if (clamp_jaw) off_rod[0] = smoothed_path(0);
+  if (end_jaw) off_rod[M - 1] = smoothed_path(M - 1);
 
   // The case: the clamp at marker 0 along marker 1 (with jaws: at marker 1 along 0 -> 1), pins
   // at the other held markers (the last one an end pin), each driven along its recorded path.
@@ -201,7 +201,7 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   c.clamp.normal = n0;
   DrivenPoint clamp_drive;
   clamp_drive.point = "clamp";
-  clamp_drive.path = jaws ? smoothed_path(1) : smoothed_path(0);
+  clamp_drive.path = clamp_jaw ? smoothed_path(1) : smoothed_path(0);
   // Marker 1 held: it orients the clamp (its tangent points at marker 1) rather than pinning a
   // second point 1 marker gap away, which noise in the two would stretch against EA.
   const bool clamp_oriented = out.held[1] && !pinned_pairs;
@@ -221,15 +221,15 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     // The clamp's frame over time: its tangent towards marker 1 (interpolated over frames where
     // either is missing; per frame: the quadratic's through markers 0, 1, 2), its normal carried
     // by parallel transport, the gripper's offset on top.
-    const TimeSeries p0 = jaws ? smoothed_path(0) : TimeSeries();
-    const TimeSeries p1 = out.held[1] && !jaws ? smoothed_path(1) : TimeSeries();
+    const TimeSeries p0 = clamp_jaw ? smoothed_path(0) : TimeSeries();
+    const TimeSeries p1 = out.held[1] && !clamp_jaw ? smoothed_path(1) : TimeSeries();
     const TimeSeries p2 = per_frame ? smoothed_path(2) : TimeSeries();
     const double s1 = out.marker_s[1] - out.marker_s[0], s2 = out.marker_s[2] - out.marker_s[0];
     Vec3 normal = n0, tangent = t0;
     TimeSeries& cp = clamp_drive.path;
     for (size_t k = 0; k < cp.t.size(); ++k) {
-      const Vec3 x0 = jaws ? At(p0, cp.t[k]) : cp.a[k];
-      const Vec3 x1 = jaws ? cp.a[k] : out.held[1] ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
+      const Vec3 x0 = clamp_jaw ? At(p0, cp.t[k]) : cp.a[k];
+      const Vec3 x1 = clamp_jaw ? cp.a[k] : out.held[1] ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
       const Vec3 tn = per_frame ? QuadraticEndTangent(x0, x1, At(p2, cp.t[k]), s1, s2)
                                 : Vec3((x1 - x0).normalized());
       normal = ParallelTransport<double, double>(tangent, tn, normal);
@@ -253,8 +253,8 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   if (end_oriented) {
     DrivenPoint d;
     d.point = "end_clamp";
-    d.path = smoothed_path(jaws ? M - 2 : M - 1);
-    const TimeSeries other = smoothed_path(jaws ? M - 1 : M - 2);
+    d.path = smoothed_path(end_jaw ? M - 2 : M - 1);
+    const TimeSeries other = smoothed_path(end_jaw ? M - 1 : M - 2);
     const TimeSeries third = per_frame ? smoothed_path(M - 3) : TimeSeries();
     const double s1 = out.marker_s[M - 1] - out.marker_s[M - 2],
                  s2 = out.marker_s[M - 1] - out.marker_s[M - 3];
@@ -263,8 +263,8 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     std::vector<Vec3> tangents;
     for (size_t k = 0; k < d.path.t.size(); ++k) {
       const double t = d.path.t[k];
-      const Vec3 last = jaws ? At(other, t) : d.path.a[k];
-      const Vec3 before = jaws ? d.path.a[k] : At(other, t);
+      const Vec3 last = end_jaw ? At(other, t) : d.path.a[k];
+      const Vec3 before = end_jaw ? d.path.a[k] : At(other, t);
       tangents.push_back(per_frame ? Vec3(-QuadraticEndTangent(last, before, At(third, t), s1, s2))
                                    : Vec3((last - before).normalized()));
     }
