@@ -326,7 +326,7 @@ def rollout(source: Union[PathLike, Mapping[str, Any], Experiment],
             recordings: Iterable[Any], fit: Sequence[str] = (), *,
             frame_rate: Optional[float] = None, unit: str = "m",
             held_markers: Sequence[int] = (0, 1, -2, -1), initial: str = "equilibrium",
-            smooth_frames: int = 5, held_ends: str = "pins", method: str = "lm",
+            smooth_frames: int = 5, held_ends: str = "jaws", method: str = "lm",
             max_evaluations: int = 150, marker_sigma: float = 0.0,
             output: Optional[PathLike] = None, report: Optional[PathLike] = None,
             base_dir: Optional[PathLike] = None) -> Dict[str, Any]:

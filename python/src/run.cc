@@ -195,13 +195,17 @@ py::dict RunRollout(const rodfit::Experiment& scene, const std::vector<std::stri
   rollout.held_markers = held_markers;
   rollout.initial_equilibrium = initial_equilibrium;
   rollout.smooth_frames = smooth_frames;
-  if (held_ends == "pins") rollout.held_ends = rodfit::RolloutOptions::HeldEnds::kPinnedPairs;
-  else if (held_ends == "grippers") rollout.held_ends = rodfit::RolloutOptions::HeldEnds::kGrippers;
+  using Ends = rodfit::RolloutOptions::HeldEnds;
+  if (held_ends == "jaws") rollout.held_ends = Ends::kJaws;
+  else if (held_ends == "pins") rollout.held_ends = Ends::kPinnedPairs;
+  else if (held_ends == "grippers") rollout.held_ends = Ends::kGrippers;
+  else if (held_ends == "grippers_per_frame" || held_ends == "grippers-per-frame")
+    rollout.held_ends = Ends::kGrippersPerFrame;
   else if (held_ends == "free_roll" || held_ends == "free-roll")
-    rollout.held_ends = rodfit::RolloutOptions::HeldEnds::kFreeRoll;
+    rollout.held_ends = Ends::kFreeRoll;
   else
-    throw std::invalid_argument("held_ends: must be 'pins', 'grippers' or 'free_roll', got '" +
-                                held_ends + "'");
+    throw std::invalid_argument("held_ends: must be 'jaws', 'pins', 'grippers', "
+                                "'grippers_per_frame' or 'free_roll', got '" + held_ends + "'");
   options.fit = fit;
   if (method == "lm") options.fit_options.method = rodfit::MotionFitMethod::kLevenbergMarquardt;
   else if (method == "bobyqa") options.fit_options.method = rodfit::MotionFitMethod::kBobyqa;
@@ -289,7 +293,7 @@ void BindRun(py::module_& m) {
         py::arg("held_markers") = rodfit::RolloutOptions().held_markers,
         py::arg("initial_equilibrium") = true,
         py::arg("smooth_frames") = rodfit::RolloutOptions().smooth_frames,
-        py::arg("held_ends") = "pins", py::arg("method") = "lm",
+        py::arg("held_ends") = "jaws", py::arg("method") = "lm",
         py::arg("max_evaluations") = 150, py::arg("marker_sigma") = 0.0, py::arg("output") = "",
         py::arg("report") = "", "rodfit::Rollout of recordings (CSV paths). Use rodfit.rollout.");
 }
