@@ -619,6 +619,7 @@ BENCHMARK(BM_RestShapeSyntheticBenchmark)
     ->Args({2, 0, 0, 0, 0, 0, 0, 0})  // the defaults (jaws) on the grippers truth
     ->Args({2, 0, 0, 0, 0, 0, 0, 1})  // the defaults on the jaws truth
     ->Args({2, 0, 0, 100, 0, 0, 0, 0})  // shortened: the first 1 s of each training recording
+    ->Args({0, 0, 0, 0, 0, 0, 0, 1})  // pins on the jaws truth
     ->Args({0, 0, 0, 0, 0, 0, 0, 0})
     ->Args({1, 0, 0, 0, 0, 0, 0, 0})
     ->Args({1, 0, 0, 0, 0, 20, 0, 0})
