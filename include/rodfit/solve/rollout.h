@@ -68,8 +68,8 @@ struct RolloutOptions {
     kJaws,
   };
   HeldEnds held_ends = HeldEnds::kJaws;
-  /// With grippers (kGrippers, kFreeRoll), per gripper ([0] the clamp at marker 0, [1] the end
-  /// at marker n-1): a constant rotation [rad], a rotation vector in the gripper's own frame
+  /// With grippers or jaws (every model but kPinnedPairs), per gripper ([0] the clamp at marker
+  /// 0, with jaws at marker 1; [1] the end at marker n-1, with jaws at n-2): a constant rotation [rad], a rotation vector in the gripper's own frame
   /// (d1, d2, d3 = the tangent: about d1 and d2 it tilts the tangent, about d3 it turns the
   /// roll), applied on top of the frame the markers give at every time, the start's included
   /// (the equilibrium start is held by the rotated frames). The motion fit's held-frame
