@@ -328,7 +328,12 @@ RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool de
 // One entry of `parameters:`. A damping's `fit: true` needs motion (a dynamics: block), as does
 // linear_density at all (elsewhere it is rod.linear_density, a weight, not a parameter).
 Parameter ReadParameter(const Reader& r, const Field& f, const std::string& name, bool moving) {
-  if (!f.node.IsMap()) r.Fail(f, "expected a mapping {value: ..., fit: ..., min: ..., max: ...}");
+  if (!f.node.IsMap()) {
+    std::string shape;  // "{value: ..., fit: ..., min: ..., max: ...}"
+    for (const std::string& key : blocks::kParameterEntry.keys)
+      shape += (shape.empty() ? "{" : ", ") + key + ": ...";
+    r.Fail(f, "expected a mapping " + shape + "}");
+  }
   const MaterialParameterInfo* row = FindMaterialParameter(name);
   if (row && row->kind == ParameterKind::kMass && !moving)
     r.Fail(f.key_line, f.key,
