@@ -33,10 +33,10 @@ py::object JsonToPython(const std::string& text);
 
 /// The settings a Python caller gave by keyword (`given`: key -> value; a key left out keeps the
 /// configuration's default), read through the configurations' Serialize: each value checked
-/// against its declared range or words (a word may be spelled with underscores for the command
-/// line's hyphens, free_roll). A bad value throws std::invalid_argument ("key: must be ...";
-/// Python's ValueError). After every configuration is read, CheckAllRead refuses a key none
-/// declares.
+/// against its declared range or words (a word's hyphens and underscores alike: free_roll is
+/// free-roll). A bad value throws std::invalid_argument ("key: must be ..."; Python's
+/// ValueError). After every configuration is read, CheckAllRead refuses a key none declares
+/// (TypeError, as Python does an unexpected keyword).
 class DictSettings final : public rodfit::SettingsArchive {
  public:
   explicit DictSettings(const py::dict& given);

@@ -43,7 +43,7 @@ DictSettings::DictSettings(const py::dict& given) {
 
 void DictSettings::CheckAllRead() const {
   for (const auto& [key, value] : given_)
-    if (!read_.count(key)) throw std::invalid_argument(key + ": not a setting of this call");
+    if (!read_.count(key)) throw py::type_error("unexpected keyword argument '" + key + "'");
 }
 
 const py::object* DictSettings::Take(const char* key) {
@@ -137,7 +137,7 @@ void DictSettings::Choice(const char* key, int* index, const std::vector<std::st
   if (!py::isinstance<py::str>(*v)) Fail(key, wrong);
   const std::string word = py::cast<std::string>(*v);
   for (size_t k = 0; k < words.size(); ++k)
-    if (word == words[k] || word == python_words[k]) {
+    if (PythonWord(word) == python_words[k]) {
       *index = static_cast<int>(k);
       return;
     }
