@@ -273,10 +273,12 @@ rodfit_status rodfit_get_rest_knots(rodfit_runtime* h, int* num_knots, double* s
   return Guard(h, [&] {
     const rodfit::RodSpec& rod = h->runtime->profile().scene.rod;
     const size_t n = rod.rest_curvature_s.size();
-    // The profile reader keeps one value per knot in each list (ParseProfile refuses others).
+    // The profile reader keeps one value per knot in each list (ParseProfile refuses others),
+    // and a file's knots are far fewer than an int counts.
     if (rod.rest_curvature_profile.size() != n ||
         n > static_cast<size_t>(std::numeric_limits<int>::max()))
-      return Fail(h, RODFIT_INTERNAL_ERROR, "the rest shape's knots and values differ in count");
+      return Fail(h, RODFIT_INTERNAL_ERROR,
+                  "the rest shape's knots and values differ in count, or exceed an int");
     if (num_knots) *num_knots = static_cast<int>(n);
     if (!s_m && !k1_per_m && !k2_per_m && !tau_per_m) return RODFIT_OK;  // the count only
     if (!s_m || !k1_per_m || !k2_per_m || !tau_per_m || capacity < n)
