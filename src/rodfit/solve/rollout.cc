@@ -106,21 +106,54 @@ Eigen::Matrix3d GripperFrame(const RolloutOptions& options, int g, double t,
   return F * RotationOf(options.gripper_rotation[g]);
 }
 
-// The rollout's scene (its one case: the clamp, pins and end driven along the held markers'
-// paths, the start) and the vertex of each marker; fills out->held and out->marker_s. Shared by
-// Rollout and RolloutWithSensitivities, so both integrate the same problem.
-struct RolloutProblem {
-  Scene scene;
-  std::vector<int> marker_vertex;  ///< -1: a marker off the rod (in a gripper's jaws, kJaws)
-  /// [m] the arc length of the rod's s = 0 along the recorded cable (kJaws: marker 1's)
-  double s_offset = 0.0;
-  std::vector<TimeSeries> off_rod;  ///< per marker off the rod: its (smoothed) held path
-  double frame_interval = 0.0;
+// Marker m's recorded path, smoothed (RolloutOptions::smooth_frames).
+TimeSeries SmoothedPath(const std::vector<Eigen::Matrix3Xd>& frames, int m, double frame_interval,
+                        const RolloutOptions& options) {
+  TimeSeries p = MarkerPath(frames, m, frame_interval);
+  Smooth(&p, frame_interval, options.smooth_frames);
+  return p;
+}
+
+// How the rollout holds the rod's ends (RolloutOptions::held_ends with the held markers).
+struct HeldEndsPlan {
+  bool pinned_pairs = false;     ///< kPinnedPairs
+  bool offset_at_start = false;  ///< kGrippers, kFreeRoll: the first frames' tangent offset
+  bool per_frame = false;        ///< kGrippersPerFrame: every frame's quadratic tangent
+  bool clamp_jaw = false;        ///< kJaws with marker 1 held: the rod starts at marker 1
+  bool end_jaw = false;          ///< kJaws with n-2, n-1 held: the rod ends at marker n-2
+  bool clamp_oriented = false;   ///< the clamp a gripper (marker 1 held, not pins)
+  bool end_oriented = false;     ///< an end clamp (markers n-2, n-1 held, not pins)
+  bool end_roll_held = false;    ///< the end clamp's roll held (not kFreeRoll)
 };
 
-RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
-                            const std::vector<Eigen::Matrix3Xd>& frames,
-                            const RolloutOptions& options, RolloutResult* result) {
+HeldEndsPlan PlanHeldEnds(const RolloutOptions& options, const std::vector<char>& held) {
+  using Ends = RolloutOptions::HeldEnds;
+  const int M = static_cast<int>(held.size());
+  HeldEndsPlan p;
+  p.pinned_pairs = options.held_ends == Ends::kPinnedPairs;
+  p.offset_at_start = options.held_ends == Ends::kGrippers || options.held_ends == Ends::kFreeRoll;
+  p.per_frame = options.held_ends == Ends::kGrippersPerFrame;
+  if (p.per_frame)
+    RODFIT_CHECK_ARG(M >= 7 && held[1] && held[2] && held[M - 3] && held[M - 2] && held[M - 1],
+                     "held_ends grippers-per-frame reads markers 0, 1, 2 and n-3, n-2, n-1 at "
+                     "every frame: hold them (--held 0,1,2,-3,-2,-1) and give at least 7 markers");
+  // Marker 1 held: it orients the clamp (its tangent points at marker 1) rather than pinning a
+  // second point 1 marker gap away, which noise in the two would stretch against EA.
+  p.clamp_oriented = held[1] && !p.pinned_pairs;
+  // Markers n-2 and n-1 both held: an end clamp at n-1 along n-2 -> n-1 (the same reason).
+  p.end_oriented = held[M - 1] && held[M - 2] && M - 2 > 1 && !p.pinned_pairs;
+  p.end_roll_held = p.end_oriented && options.held_ends != Ends::kFreeRoll;
+  // The jaws at an end whose two markers are held (else that end is held as by the pins).
+  p.clamp_jaw = options.held_ends == Ends::kJaws && held[1];
+  p.end_jaw = options.held_ends == Ends::kJaws && p.end_oriented;
+  return p;
+}
+
+// The recording's checks (a dynamics, at least 2 frames and 3 markers, every marker seen in
+// frames 0 and 1), the held markers and the markers' arc lengths (frame 0's polyline scaled to
+// the rod's length): result->held and result->marker_s.
+void MarkerArcLengths(const Scene& scene, const std::vector<Eigen::Matrix3Xd>& frames,
+                      const RolloutOptions& options, RolloutResult* result) {
   RolloutResult& out = *result;
   RODFIT_CHECK_ARG(scene.dynamics, "rollout needs a dynamics: block");
   RODFIT_CHECK_ARG(frames.size() >= 2, "a recording needs at least 2 frames");
@@ -144,50 +177,169 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     if (!(out.marker_s[m] > out.marker_s[m - 1]))
       throw std::invalid_argument("markers " + std::to_string(m - 1) + " and " + std::to_string(m) +
                                   " coincide in frame 0");
+}
 
-  using Ends = RolloutOptions::HeldEnds;
-  const Ends ends = options.held_ends;
-  const bool pinned_pairs = ends == Ends::kPinnedPairs;
-  const bool jaws = ends == Ends::kJaws;
-  const bool per_frame = ends == Ends::kGrippersPerFrame;
-  // The jaws at an end whose two markers are held (else that end is held as by the pins).
-  const bool clamp_jaw = jaws && out.held[1];
-  const bool end_jaw = jaws && out.held[M - 1] && out.held[M - 2] && M - 2 > 1;
-  if (per_frame)
-    RODFIT_CHECK_ARG(M >= 7 && out.held[1] && out.held[2] && out.held[M - 3] && out.held[M - 2] &&
-                         out.held[M - 1],
-                     "held_ends grippers-per-frame reads markers 0, 1, 2 and n-3, n-2, n-1 at "
-                     "every frame: hold them (--held 0,1,2,-3,-2,-1) and give at least 7 markers");
-
-  // Vertices at every marker on the rod (with both jaws, markers 1 .. n-2: the jaws hold the
-  // rest rigidly), the gaps between them subdivided in proportion to their length.
-  Scene sc = scene;
-  const int m_lo = clamp_jaw ? 1 : 0, m_hi = end_jaw ? M - 2 : M - 1;
-  const double s_lo = out.marker_s[m_lo];
+// The rod from marker m_lo to marker m_hi (with jaws 1 and n-2: the jaws hold the rest rigidly;
+// else 0 and n-1) with vertices at every marker on it, the gaps between them subdivided in
+// proportion to their length (as many as scene.rod.segments over the whole cable): sc->rod's
+// length, vertex_s and segments, its rest shape moved onto its own arc length. Returns each
+// marker's vertex (-1 off the rod).
+std::vector<int> MarkerVertices(const Scene& scene, const std::vector<double>& marker_s, int m_lo,
+                                int m_hi, Scene* sc) {
+  const double L = scene.rod.length;
+  const int M = static_cast<int>(marker_s.size());
+  const double s_lo = marker_s[m_lo];
   std::vector<int> marker_vertex(M, -1);
   marker_vertex[m_lo] = 0;
-  sc.rod.length = out.marker_s[m_hi] - s_lo;
-  sc.rod.vertex_s = {0.0};
+  sc->rod.length = marker_s[m_hi] - s_lo;
+  sc->rod.vertex_s = {0.0};
   for (int m = m_lo + 1; m <= m_hi; ++m) {
-    const double gap = out.marker_s[m] - out.marker_s[m - 1];
+    const double gap = marker_s[m] - marker_s[m - 1];
     const int pieces = std::max(1, static_cast<int>(std::lround(scene.rod.segments * gap / L)));
     for (int p = 1; p <= pieces; ++p)
-      sc.rod.vertex_s.push_back(out.marker_s[m - 1] - s_lo + gap * p / pieces);
-    sc.rod.vertex_s.back() = out.marker_s[m] - s_lo;
-    marker_vertex[m] = static_cast<int>(sc.rod.vertex_s.size()) - 1;
+      sc->rod.vertex_s.push_back(marker_s[m - 1] - s_lo + gap * p / pieces);
+    sc->rod.vertex_s.back() = marker_s[m] - s_lo;
+    marker_vertex[m] = static_cast<int>(sc->rod.vertex_s.size()) - 1;
   }
-  sc.rod.vertex_s.back() = sc.rod.length;
-  sc.rod.segments = static_cast<int>(sc.rod.vertex_s.size()) - 1;
-  for (double& s : sc.rod.rest_curvature_s) s -= s_lo;  // the rest shape stays on the cable
+  sc->rod.vertex_s.back() = sc->rod.length;
+  sc->rod.segments = static_cast<int>(sc->rod.vertex_s.size()) - 1;
+  for (double& s : sc->rod.rest_curvature_s) s -= s_lo;  // the rest shape stays on the cable
+  return marker_vertex;
+}
 
-  auto smoothed_path = [&](int m) {
-    TimeSeries p = MarkerPath(frames, m, frame_interval);
-    Smooth(&p, frame_interval, options.smooth_frames);
-    return p;
-  };
+// The clamp's frame over time along its path: its tangent towards marker 1 (`held1`: marker 1's
+// recorded path, interpolated over frames where either is missing; else the first tangent t0;
+// with the clamp's jaw the path is marker 1's and the tangent from marker 0's; per frame the
+// quadratic's through markers 0, 1, 2), its normal carried by parallel transport from n0, the
+// gripper's offset on top (`oriented`). Appends d3 to clamp_path->b and d1 to clamp_path->c.
+void DriveClampFrame(const std::vector<Eigen::Matrix3Xd>& frames, double frame_interval,
+                     const RolloutOptions& options, const std::vector<double>& marker_s,
+                     bool held1, const HeldEndsPlan& plan, const Vec3& t0, const Vec3& n0,
+                     const Eigen::Matrix3d& clamp_offset, TimeSeries* clamp_path) {
+  const TimeSeries p0 = plan.clamp_jaw ? SmoothedPath(frames, 0, frame_interval, options)
+                                       : TimeSeries();
+  const TimeSeries p1 = held1 && !plan.clamp_jaw ? SmoothedPath(frames, 1, frame_interval, options)
+                                                 : TimeSeries();
+  const TimeSeries p2 = plan.per_frame ? SmoothedPath(frames, 2, frame_interval, options)
+                                       : TimeSeries();
+  const double s1 = marker_s[1] - marker_s[0], s2 = marker_s[2] - marker_s[0];
+  Vec3 normal = n0, tangent = t0;
+  TimeSeries& cp = *clamp_path;
+  for (size_t k = 0; k < cp.t.size(); ++k) {
+    const Vec3 x0 = plan.clamp_jaw ? At(p0, cp.t[k]) : cp.a[k];
+    const Vec3 x1 = plan.clamp_jaw ? cp.a[k] : held1 ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
+    const Vec3 tn = plan.per_frame ? QuadraticEndTangent(x0, x1, At(p2, cp.t[k]), s1, s2)
+                                   : Vec3((x1 - x0).normalized());
+    normal = ParallelTransport<double, double>(tangent, tn, normal);
+    normal = (normal - normal.dot(tn) * tn).normalized();
+    tangent = tn;
+    Eigen::Matrix3d F = FrameOf(tangent, normal) * clamp_offset;
+    if (plan.clamp_oriented) F = GripperFrame(options, 0, cp.t[k], F);
+    cp.b.push_back(F.col(2));
+    cp.c.push_back(F.col(0));
+  }
+}
+
+// The end clamp at marker n-1 along n-2 -> n-1 (with the end's jaw at n-2; per frame along the
+// quadratic's tangent through n-1, n-2, n-3): its path, its tangent over time (with
+// end_roll_held its normal too), c->end_clamp at its start, d->point. t0, n0: the clamp's
+// tangent and normal at t = 0.
+void SetUpEndClamp(const std::vector<Eigen::Matrix3Xd>& frames, double frame_interval,
+                   const RolloutOptions& options, const std::vector<double>& marker_s,
+                   const HeldEndsPlan& plan, const Vec3& t0, const Vec3& n0, DrivenPoint* driven,
+                   LoadCase* c) {
+  DrivenPoint& d = *driven;
+  const int M = static_cast<int>(frames[0].cols());
+  d.path = SmoothedPath(frames, plan.end_jaw ? M - 2 : M - 1, frame_interval, options);
+  const TimeSeries other = SmoothedPath(frames, plan.end_jaw ? M - 1 : M - 2, frame_interval, options);
+  const TimeSeries third = plan.per_frame ? SmoothedPath(frames, M - 3, frame_interval, options)
+                                          : TimeSeries();
+  const double s1 = marker_s[M - 1] - marker_s[M - 2], s2 = marker_s[M - 1] - marker_s[M - 3];
+  // The end's tangents over time (out of the rod), and the end gripper's normal at t = 0: the
+  // clamp's carried along the first frame's marker polyline (the rod untwisted at rest).
+  std::vector<Vec3> tangents;
+  for (size_t k = 0; k < d.path.t.size(); ++k) {
+    const double t = d.path.t[k];
+    const Vec3 last = plan.end_jaw ? At(other, t) : d.path.a[k];
+    const Vec3 before = plan.end_jaw ? d.path.a[k] : At(other, t);
+    tangents.push_back(plan.per_frame ? Vec3(-QuadraticEndTangent(last, before, At(third, t), s1, s2))
+                                      : Vec3((last - before).normalized()));
+  }
+  Vec3 normal = n0, tangent = t0;
+  for (int k = 1; k < M; ++k) {
+    const Vec3 chord = (frames[0].col(k) - frames[0].col(k - 1)).normalized();
+    normal = ParallelTransport<double, double>(tangent, chord, normal);
+    tangent = chord;
+  }
+  normal = ParallelTransport<double, double>(tangent, tangents.front(), normal);
+  tangent = tangents.front();
+  Eigen::Matrix3d end_offset = Eigen::Matrix3d::Identity();
+  if (plan.offset_at_start) {
+    const Vec3 t_fit = EndTangent(frames, marker_s, M - 1);
+    end_offset = FrameOf(tangent, normal).transpose() * FrameOf(t_fit, normal);
+  }
+  // Over time the frame's normal is carried by parallel transport, the gripper's offset on top;
+  // without the roll held (kFreeRoll) only the tangent is.
+  for (size_t k = 0; k < tangents.size(); ++k) {
+    const Vec3 tn = tangents[k];
+    normal = ParallelTransport<double, double>(tangent, tn, normal);
+    normal = (normal - normal.dot(tn) * tn).normalized();
+    tangent = tn;
+    const Eigen::Matrix3d F =
+        GripperFrame(options, 1, d.path.t[k], FrameOf(tangent, normal) * end_offset);
+    d.path.b.push_back(F.col(2));
+    if (plan.end_roll_held) d.path.c.push_back(F.col(0));
+  }
+  EndClamp end;
+  end.position = d.path.a.front();
+  end.tangent = d.path.b.front();
+  if (plan.end_roll_held) end.normal = d.path.c.front();
+  c->end_clamp = end;
+  d.point = "end_clamp";
+}
+
+// The rollout's time stepping: a frame every per_frame steps (dynamics.time_step must divide
+// the frame interval), the options' error tolerance unless the scene sets one, and the
+// recording's duration.
+void SetUpFrameSteps(double frame_interval, size_t num_frames, const RolloutOptions& options,
+                     Scene* sc) {
+  const double dt = sc->dynamics->time_step;
+  const int per_frame = static_cast<int>(std::lround(frame_interval / dt));
+  if (per_frame < 1 || std::abs(per_frame * dt - frame_interval) > 1e-9 * frame_interval)
+    throw std::invalid_argument("dynamics.time_step must divide the frame interval (" +
+                                std::to_string(frame_interval) + " s)");
+  sc->dynamics->output_every = per_frame;
+  if (sc->dynamics->error_tolerance == 0.0) sc->dynamics->error_tolerance = options.error_tolerance;
+
+  sc->dynamics->duration = (num_frames - 1) * frame_interval;
+}
+
+// The rollout's scene (its one case: the clamp, pins and end driven along the held markers'
+// paths, the start) and the vertex of each marker; fills out->held and out->marker_s. Shared by
+// Rollout and RolloutWithSensitivities, so both integrate the same problem.
+struct RolloutProblem {
+  Scene scene;
+  std::vector<int> marker_vertex;  ///< -1: a marker off the rod (in a gripper's jaws, kJaws)
+  /// [m] the arc length of the rod's s = 0 along the recorded cable (kJaws: marker 1's)
+  double s_offset = 0.0;
+  std::vector<TimeSeries> off_rod;  ///< per marker off the rod: its (smoothed) held path
+  double frame_interval = 0.0;
+};
+
+RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
+                            const std::vector<Eigen::Matrix3Xd>& frames,
+                            const RolloutOptions& options, RolloutResult* result) {
+  RolloutResult& out = *result;
+  MarkerArcLengths(scene, frames, options, result);
+  const int M = static_cast<int>(frames[0].cols());
+  const HeldEndsPlan plan = PlanHeldEnds(options, out.held);
+  const int m_lo = plan.clamp_jaw ? 1 : 0, m_hi = plan.end_jaw ? M - 2 : M - 1;
+  const double s_lo = out.marker_s[m_lo];
+  Scene sc = scene;
+  const std::vector<int> marker_vertex = MarkerVertices(scene, out.marker_s, m_lo, m_hi, &sc);
   std::vector<TimeSeries> off_rod(M);
-  if (clamp_jaw) off_rod[0] = smoothed_path(0);
-  if (end_jaw) off_rod[M - 1] = smoothed_path(M - 1);
+  if (plan.clamp_jaw) off_rod[0] = SmoothedPath(frames, 0, frame_interval, options);
+  if (plan.end_jaw) off_rod[M - 1] = SmoothedPath(frames, M - 1, frame_interval, options);
 
   // The case: the clamp at marker 0 along marker 1 (with jaws: at marker 1 along 0 -> 1), pins
   // at the other held markers (the last one an end pin), each driven along its recorded path.
@@ -201,110 +353,35 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   c.clamp.normal = n0;
   DrivenPoint clamp_drive;
   clamp_drive.point = "clamp";
-  clamp_drive.path = clamp_jaw ? smoothed_path(1) : smoothed_path(0);
-  // Marker 1 held: it orients the clamp (its tangent points at marker 1) rather than pinning a
-  // second point 1 marker gap away, which noise in the two would stretch against EA.
-  const bool clamp_oriented = out.held[1] && !pinned_pairs;
+  clamp_drive.path = SmoothedPath(frames, m_lo, frame_interval, options);
   // kGrippers: a gripper's frame at t = 0 relative to its marker pair's chord frame (the chord to
   // the next marker, its normal carried by parallel transport): the rod's tangent there from the
   // first frames (EndTangent), held rigidly in the chord frame as it moves.
-  const bool offset_at_start = ends == Ends::kGrippers || ends == Ends::kFreeRoll;
   Eigen::Matrix3d clamp_offset = Eigen::Matrix3d::Identity();
-  if (offset_at_start && out.held[1]) {
+  if (plan.offset_at_start && out.held[1]) {
     const Vec3 t_fit = EndTangent(frames, out.marker_s, 0);
     clamp_offset = FrameOf(t0, n0).transpose() * FrameOf(t_fit, n0);
     const Eigen::Matrix3d F = GripperFrame(options, 0, 0.0, FrameOf(t_fit, n0));
     c.clamp.tangent = F.col(2);
     c.clamp.normal = F.col(0);
   }
-  {
-    // The clamp's frame over time: its tangent towards marker 1 (interpolated over frames where
-    // either is missing; per frame: the quadratic's through markers 0, 1, 2), its normal carried
-    // by parallel transport, the gripper's offset on top.
-    const TimeSeries p0 = clamp_jaw ? smoothed_path(0) : TimeSeries();
-    const TimeSeries p1 = out.held[1] && !clamp_jaw ? smoothed_path(1) : TimeSeries();
-    const TimeSeries p2 = per_frame ? smoothed_path(2) : TimeSeries();
-    const double s1 = out.marker_s[1] - out.marker_s[0], s2 = out.marker_s[2] - out.marker_s[0];
-    Vec3 normal = n0, tangent = t0;
-    TimeSeries& cp = clamp_drive.path;
-    for (size_t k = 0; k < cp.t.size(); ++k) {
-      const Vec3 x0 = clamp_jaw ? At(p0, cp.t[k]) : cp.a[k];
-      const Vec3 x1 = clamp_jaw ? cp.a[k] : out.held[1] ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
-      const Vec3 tn = per_frame ? QuadraticEndTangent(x0, x1, At(p2, cp.t[k]), s1, s2)
-                                : Vec3((x1 - x0).normalized());
-      normal = ParallelTransport<double, double>(tangent, tn, normal);
-      normal = (normal - normal.dot(tn) * tn).normalized();
-      tangent = tn;
-      Eigen::Matrix3d F = FrameOf(tangent, normal) * clamp_offset;
-      if (clamp_oriented) F = GripperFrame(options, 0, cp.t[k], F);
-      cp.b.push_back(F.col(2));
-      cp.c.push_back(F.col(0));
-    }
-    if (per_frame || jaws) {  // the start held as the drive's first sample
-      c.clamp.tangent = cp.b.front();
-      c.clamp.normal = cp.c.front();
-    }
+  DriveClampFrame(frames, frame_interval, options, out.marker_s, out.held[1], plan, t0, n0,
+                  clamp_offset, &clamp_drive.path);
+  if (plan.per_frame || plan.clamp_jaw) {  // the start held as the drive's first sample
+    c.clamp.tangent = clamp_drive.path.b.front();
+    c.clamp.normal = clamp_drive.path.c.front();
   }
   c.drives.push_back(clamp_drive);
-  // Markers n-2 and n-1 both held: an end clamp at n-1 along n-2 -> n-1 (with jaws: at n-2),
-  // free to turn about its tangent with kFreeRoll (the same reason as at the clamp).
-  const bool end_oriented = out.held[M - 1] && out.held[M - 2] && M - 2 > 1 && !pinned_pairs;
-  const bool end_roll_held = end_oriented && ends != Ends::kFreeRoll;
-  if (end_oriented) {
+  if (plan.end_oriented) {
     DrivenPoint d;
-    d.point = "end_clamp";
-    d.path = smoothed_path(end_jaw ? M - 2 : M - 1);
-    const TimeSeries other = smoothed_path(end_jaw ? M - 1 : M - 2);
-    const TimeSeries third = per_frame ? smoothed_path(M - 3) : TimeSeries();
-    const double s1 = out.marker_s[M - 1] - out.marker_s[M - 2],
-                 s2 = out.marker_s[M - 1] - out.marker_s[M - 3];
-    // The end's tangents over time (out of the rod), and the end gripper's normal at t = 0: the
-    // clamp's carried along the first frame's marker polyline (the rod untwisted at rest).
-    std::vector<Vec3> tangents;
-    for (size_t k = 0; k < d.path.t.size(); ++k) {
-      const double t = d.path.t[k];
-      const Vec3 last = end_jaw ? At(other, t) : d.path.a[k];
-      const Vec3 before = end_jaw ? d.path.a[k] : At(other, t);
-      tangents.push_back(per_frame ? Vec3(-QuadraticEndTangent(last, before, At(third, t), s1, s2))
-                                   : Vec3((last - before).normalized()));
-    }
-    Vec3 normal = n0, tangent = t0;
-    for (int k = 1; k < M; ++k) {
-      const Vec3 chord = (frames[0].col(k) - frames[0].col(k - 1)).normalized();
-      normal = ParallelTransport<double, double>(tangent, chord, normal);
-      tangent = chord;
-    }
-    normal = ParallelTransport<double, double>(tangent, tangents.front(), normal);
-    tangent = tangents.front();
-    Eigen::Matrix3d end_offset = Eigen::Matrix3d::Identity();
-    if (offset_at_start) {
-      const Vec3 t_fit = EndTangent(frames, out.marker_s, M - 1);
-      end_offset = FrameOf(tangent, normal).transpose() * FrameOf(t_fit, normal);
-    }
-    // Over time the frame's normal is carried by parallel transport, the gripper's offset on
-    // top; without the roll held (kFreeRoll) only the tangent is.
-    for (size_t k = 0; k < tangents.size(); ++k) {
-      const Vec3 tn = tangents[k];
-      normal = ParallelTransport<double, double>(tangent, tn, normal);
-      normal = (normal - normal.dot(tn) * tn).normalized();
-      tangent = tn;
-      const Eigen::Matrix3d F =
-          GripperFrame(options, 1, d.path.t[k], FrameOf(tangent, normal) * end_offset);
-      d.path.b.push_back(F.col(2));
-      if (end_roll_held) d.path.c.push_back(F.col(0));
-    }
-    EndClamp end;
-    end.position = d.path.a.front();
-    end.tangent = d.path.b.front();
-    if (end_roll_held) end.normal = d.path.c.front();
-    c.end_clamp = end;
+    SetUpEndClamp(frames, frame_interval, options, out.marker_s, plan, t0, n0, &d, &c);
     c.drives.push_back(d);
   }
-  for (int m = clamp_oriented ? 2 : 1; m < M; ++m) {
-    if (!out.held[m] || (end_oriented && m >= M - 2)) continue;
-    if (per_frame && (m == 2 || m == M - 3)) continue;  // read by the grippers' tangents only
+  for (int m = plan.clamp_oriented ? 2 : 1; m < M; ++m) {
+    if (!out.held[m] || (plan.end_oriented && m >= M - 2)) continue;
+    if (plan.per_frame && (m == 2 || m == M - 3)) continue;  // read by the grippers' tangents only
     DrivenPoint d;
-    d.path = smoothed_path(m);
+    d.path = SmoothedPath(frames, m, frame_interval, options);
     if (m == M - 1) {
       c.end_pin = frames[0].col(m);
       d.point = "end_pin";
@@ -336,15 +413,7 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
       (frames[1].middleCols(m_lo, m_hi - m_lo + 1) - start_points) / frame_interval;
   sc.cases = {c};
   sc.springs.clear();
-  const double dt = sc.dynamics->time_step;
-  const int steps_per_frame = static_cast<int>(std::lround(frame_interval / dt));
-  if (steps_per_frame < 1 || std::abs(steps_per_frame * dt - frame_interval) > 1e-9 * frame_interval)
-    throw std::invalid_argument("dynamics.time_step must divide the frame interval (" +
-                                std::to_string(frame_interval) + " s)");
-  sc.dynamics->output_every = steps_per_frame;
-  if (sc.dynamics->error_tolerance == 0.0) sc.dynamics->error_tolerance = options.error_tolerance;
-
-  sc.dynamics->duration = (frames.size() - 1) * frame_interval;
+  SetUpFrameSteps(frame_interval, frames.size(), options, &sc);
 
   return {sc, marker_vertex, s_lo, off_rod, frame_interval};
 }
