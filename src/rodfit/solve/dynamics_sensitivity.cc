@@ -267,12 +267,17 @@ struct StepSensitivityProblem {
   // damping matrix C(q_n), and the factor of the Newton matrix at the solution.
   BandedSymmetric K_bend_twist, C;
   BandedCholesky factor;
+  // Scratch of the central differences, kept between the directions and passes (no allocation
+  // per use).
+  mutable RodState qp, qm;
+  mutable VecX gp, gm;
+  mutable BandedSymmetric Cp, Cm;
 };
 
 // The Newton matrix at the solution, K(q_n+1) + a M + c (D + C(q_n)), assembled and factored:
 // K as its bending and twist part plus the rest (stretch, springs) — one assembly of the bending
-// stencils rather than two.
-bool FactorStepMatrix(StepSensitivityProblem* p, std::string* why) {
+// stencils rather than two. C(q_n) is assembled unless `has_damping` (p->C holds it already).
+bool FactorStepMatrix(StepSensitivityProblem* p, bool has_damping, std::string* why) {
   const int N = p->size();
   BandedSymmetric H;
   VecX g;
@@ -285,7 +290,7 @@ bool FactorStepMatrix(StepSensitivityProblem* p, std::string* why) {
   H.band() += p->K_bend_twist.band();
   for (int k = 0; k < N; ++k) H.At(k, k) += p->a * p->mass[k] + p->c * p->drag[k];
   if (p->internal_damping) {
-    DampingMatrix(p->model, p->before.q, p->held, 1.0, 1.0, 1.0, &p->C);
+    if (!has_damping) DampingMatrix(p->model, p->before.q, p->held, 1.0, 1.0, 1.0, &p->C);
     H.band() += p->c * p->C.band();
   }
   ApplyHeldRows(p->held, nullptr, &H);
@@ -310,16 +315,14 @@ bool SubtractDampingStateDerivative(const StepSensitivityProblem& p, const VecX&
   }
   if (scale == 0.0) return true;
   const double eps = 1e-6 / scale;
-  RodState qp, qm;
-  if (!Moved(p.model, p.held, p.before.q, dq, eps, &qp) ||
-      !Moved(p.model, p.held, p.before.q, dq, -eps, &qm)) {
+  if (!Moved(p.model, p.held, p.before.q, dq, eps, &p.qp) ||
+      !Moved(p.model, p.held, p.before.q, dq, -eps, &p.qm)) {
     *why = "the damping's derivative: a perturbed state folds an edge back";
     return false;
   }
-  BandedSymmetric Cp, Cm;
-  DampingMatrix(p.model, qp, p.held, 1.0, 1.0, 1.0, &Cp);
-  DampingMatrix(p.model, qm, p.held, 1.0, 1.0, 1.0, &Cm);
-  *col -= (p.c / (2.0 * eps)) * (Cp.Multiply(p.w) - Cm.Multiply(p.w));
+  DampingMatrix(p.model, p.qp, p.held, 1.0, 1.0, 1.0, &p.Cp);
+  DampingMatrix(p.model, p.qm, p.held, 1.0, 1.0, 1.0, &p.Cm);
+  *col -= (p.c / (2.0 * eps)) * (p.Cp.Multiply(p.w) - p.Cm.Multiply(p.w));
   return true;
 }
 
@@ -365,13 +368,12 @@ bool MissingHessianProduct(const StepSensitivityProblem& p, const VecX& v, VecX*
     if (!p.held[r]) scale = std::max(scale, r % 4 == 3 ? std::abs(v[r]) : std::abs(v[r]) / L);
   if (scale == 0.0) return true;
   const double eps = 1e-6 / scale;
-  RodState qp, qm;
-  if (!Moved(p.model, p.held, p.after.q, v, eps, &qp) || !Moved(p.model, p.held, p.after.q, v, -eps, &qm))
+  if (!Moved(p.model, p.held, p.after.q, v, eps, &p.qp) ||
+      !Moved(p.model, p.held, p.after.q, v, -eps, &p.qm))
     return false;
-  VecX gp, gm;
-  AssembleGradient(p.model, qp, p.bend_twist, &gp);
-  AssembleGradient(p.model, qm, p.bend_twist, &gm);
-  *out += (gp - gm) / (2.0 * eps);
+  AssembleGradient(p.model, p.qp, p.bend_twist, &p.gp);
+  AssembleGradient(p.model, p.qm, p.bend_twist, &p.gm);
+  *out += (p.gp - p.gm) / (2.0 * eps);
   for (int r = 0; r < N; ++r)
     if (p.held[r]) (*out)[r] = 0.0;
   return true;
@@ -504,7 +506,9 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   };
   Delta(before.q, after.q, &p.d);
   p.w = p.d - p.z;
-  if (!FactorStepMatrix(&p, why)) return false;
+  // C(q_n): the stepper's own when it was made at this step's start (the last substep's).
+  const bool has_damping = DampingAt(before.q, &p.C);
+  if (!FactorStepMatrix(&p, has_damping, why)) return false;
 
   const double a = p.a, c = p.c;
   VecX weights;
