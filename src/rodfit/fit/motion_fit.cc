@@ -414,14 +414,6 @@ class MotionCost : public ceres::CostFunction {
   Ctx* ctx_;
 };
 
-// The 95 % quantile of the chi-square distribution with `dof` degrees of freedom (Wilson &
-// Hilferty 1931's cube-root approximation: 5.94 for 2 against 5.99, 3.84 for 1 exactly to 1 %).
-double ChiSquare95(int dof) {
-  const double k = static_cast<double>(dof);
-  const double c = 1.0 - 2.0 / (9.0 * k) + 1.6449 * std::sqrt(2.0 / (9.0 * k));
-  return k * c * c * c;
-}
-
 // Stops the search when its rollout budget is spent, keeping its best point (Ceres returns the
 // start values after SOLVER_ABORT); the result then says it did not converge.
 class Budget : public ceres::IterationCallback {
@@ -477,7 +469,7 @@ class Budget : public ceres::IterationCallback {
     Eigen::VectorXd d(m);
     for (int k = 0; k < m; ++k) d[k] = ctx_->cached_logp[k] - a.logp[k];
     const double variance = trusted_ ? 1.0 : a.r.squaredNorm() / static_cast<double>(dof);
-    return d.squaredNorm() > 0.0 && (a.J * d).squaredNorm() <= ChiSquare95(m) * variance;
+    return d.squaredNorm() > 0.0 && fit_internal::WithinConfidenceRegion(a.J, d, variance);
   }
 
   Ctx* ctx_;
