@@ -325,9 +325,10 @@ def _recording_path(recording: Any, index: int, folder: str) -> str:
 def rollout(source: Union[PathLike, Mapping[str, Any], Experiment],
             recordings: Iterable[Any], fit: Sequence[str] = (), *,
             frame_rate: Optional[float] = None, unit: str = "m",
-            held_markers: Sequence[int] = (0, 1, -2, -1), initial: str = "equilibrium",
-            smooth_frames: int = 5, held_ends: str = "pins", method: str = "lm",
-            max_evaluations: int = 150, marker_sigma: float = 0.0,
+            held_markers: Optional[Sequence[int]] = None, initial: Optional[str] = None,
+            smooth_frames: Optional[int] = None, held_ends: Optional[str] = None,
+            method: Optional[str] = None, max_evaluations: Optional[int] = None,
+            marker_sigma: Optional[float] = None,
             output: Optional[PathLike] = None, report: Optional[PathLike] = None,
             base_dir: Optional[PathLike] = None) -> Dict[str, Any]:
     """Predicts recorded marker motions open-loop with the scene's rod (it needs a
@@ -336,7 +337,9 @@ def rollout(source: Union[PathLike, Mapping[str, Any], Experiment],
 
     ``recordings``: marker CSV paths (docs/formats.md, "marker recording") or arrays of shape
     (frames, markers, 3) [m, or mm with unit="mm"], NaN where not seen, which need
-    ``frame_rate`` [Hz]. Returns {"recordings": [{"predicted": (frames, markers, 3) [m],
+    ``frame_rate`` [Hz]. The settings (held_markers, initial, smooth_frames, held_ends, method,
+    max_evaluations, marker_sigma) are ``rodfit rollout``'s options (docs/cli.md): one left out
+    (None) keeps the library's default, the one the command line has. Returns {"recordings": [{"predicted": (frames, markers, 3) [m],
     "marker_s" [m], "held", "mae_all" [m], "mae_predicted" [m], ...}], "fit": motion_fit.json
     as Python data or None, "profile": the fit's profile.json as Python data (the rod as
     fitted, its rest shape in rod.rest_shape; a path for ``simulate(profile=...)`` and
@@ -348,14 +351,16 @@ def rollout(source: Union[PathLike, Mapping[str, Any], Experiment],
     ex = experiment(source, base_dir=base_dir)
     if unit not in ("m", "mm"):
         raise ValueError(f"unit: must be 'm' or 'mm', got {unit!r}")
-    if initial not in ("equilibrium", "markers"):
-        raise ValueError(f"initial: must be 'equilibrium' or 'markers', got {initial!r}")
+    # Only the settings given: the native side reads them through the options' declarations
+    # (their ranges and words) and keeps its defaults for the rest.
+    given = {"held_markers": held_markers, "initial": initial, "smooth_frames": smooth_frames,
+             "held_ends": held_ends, "method": method, "max_evaluations": max_evaluations,
+             "marker_sigma": marker_sigma}
+    settings = {key: value for key, value in given.items() if value is not None}
     with tempfile.TemporaryDirectory(prefix="rodfit-") as folder:
         paths = [_recording_path(r, k, folder) for k, r in enumerate(recordings)]
         run = _core.rollout(ex, paths, float(frame_rate or 0.0), unit == "mm", list(fit),
-                            list(held_markers), initial == "equilibrium", smooth_frames,
-                            held_ends, method, max_evaluations, marker_sigma,
-                            os.fspath(output) if output else "",
+                            settings, os.fspath(output) if output else "",
                             os.fspath(report) if report else "")
     if not run["ok"]:
         raise SolveError(run["error"])

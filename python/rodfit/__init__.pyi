@@ -88,9 +88,10 @@ def simulate(source: ExperimentSource, profile: Optional[ProfileSource] = ..., *
 
 def rollout(source: ExperimentSource, recordings: Iterable[Union[PathLike, npt.ArrayLike]],
             fit: Sequence[str] = ..., *, frame_rate: Optional[float] = ..., unit: str = ...,
-            held_markers: Sequence[int] = ..., initial: str = ..., smooth_frames: int = ...,
-            held_ends: str = ..., method: str = ..., max_evaluations: int = ...,
-            marker_sigma: float = ..., output: Optional[PathLike] = ...,
+            held_markers: Optional[Sequence[int]] = ..., initial: Optional[str] = ...,
+            smooth_frames: Optional[int] = ..., held_ends: Optional[str] = ...,
+            method: Optional[str] = ..., max_evaluations: Optional[int] = ...,
+            marker_sigma: Optional[float] = ..., output: Optional[PathLike] = ...,
             report: Optional[PathLike] = ..., base_dir: Optional[PathLike] = ...) -> Dict[str, Any]: ...
 
 def synth(source: ExperimentSource, *, seed: int = ..., noise_free: bool = ...,

@@ -184,30 +184,18 @@ py::dict Simulate(const rodfit::Experiment& scene, const rodfit::Profile* profil
   return out;
 }
 
+// `settings`: the keywords the caller gave (rodfit.rollout passes only those), read through
+// RolloutOptions' and MotionFitOptions' Serialize; the others keep the library's defaults.
 py::dict RunRollout(const rodfit::Experiment& scene, const std::vector<std::string>& recordings,
                     double frame_rate, bool millimetres, const std::vector<std::string>& fit,
-                    const std::vector<int>& held_markers, bool initial_equilibrium,
-                    int smooth_frames, const std::string& held_ends, const std::string& method,
-                    int max_evaluations, double marker_sigma, const std::string& output,
+                    const py::dict& settings, const std::string& output,
                     const std::string& report_dir) {
   rodfit::RolloutRunOptions options;
-  rodfit::RolloutOptions& rollout = options.rollout;
-  rollout.held_markers = held_markers;
-  rollout.initial_equilibrium = initial_equilibrium;
-  rollout.smooth_frames = smooth_frames;
-  if (held_ends == "pins") rollout.held_ends = rodfit::RolloutOptions::HeldEnds::kPinnedPairs;
-  else if (held_ends == "grippers") rollout.held_ends = rodfit::RolloutOptions::HeldEnds::kGrippers;
-  else if (held_ends == "free_roll" || held_ends == "free-roll")
-    rollout.held_ends = rodfit::RolloutOptions::HeldEnds::kFreeRoll;
-  else
-    throw std::invalid_argument("held_ends: must be 'pins', 'grippers' or 'free_roll', got '" +
-                                held_ends + "'");
+  DictSettings given(settings);
+  rodfit::Serialize(&given, &options.rollout);
+  rodfit::Serialize(&given, &options.fit_options);
+  given.CheckAllRead();
   options.fit = fit;
-  if (method == "lm") options.fit_options.method = rodfit::MotionFitMethod::kLevenbergMarquardt;
-  else if (method == "bobyqa") options.fit_options.method = rodfit::MotionFitMethod::kBobyqa;
-  else throw std::invalid_argument("method: must be 'lm' or 'bobyqa', got '" + method + "'");
-  options.fit_options.max_evaluations = max_evaluations;
-  options.fit_options.marker_sigma = marker_sigma;
   options.output_dir = output;
   options.report_dir = report_dir;
   if (!report_dir.empty())
@@ -285,13 +273,10 @@ void BindRun(py::module_& m) {
       "rodfit::SimulateScene, with the profile's material when given. Use rodfit.simulate.");
   m.def("rollout", &RunRollout, py::arg("scene"), py::arg("recordings"),
         py::arg("frame_rate") = 0.0, py::arg("millimetres") = false,
-        py::arg("fit") = std::vector<std::string>{},
-        py::arg("held_markers") = rodfit::RolloutOptions().held_markers,
-        py::arg("initial_equilibrium") = true,
-        py::arg("smooth_frames") = rodfit::RolloutOptions().smooth_frames,
-        py::arg("held_ends") = "pins", py::arg("method") = "lm",
-        py::arg("max_evaluations") = 150, py::arg("marker_sigma") = 0.0, py::arg("output") = "",
-        py::arg("report") = "", "rodfit::Rollout of recordings (CSV paths). Use rodfit.rollout.");
+        py::arg("fit") = std::vector<std::string>{}, py::arg("settings") = py::dict(),
+        py::arg("output") = "", py::arg("report") = "",
+        "rodfit::Rollout of recordings (CSV paths); `settings` by key (RolloutOptions' and "
+        "MotionFitOptions'), the others their defaults. Use rodfit.rollout.");
 }
 
 }  // namespace rodfit_python

@@ -33,18 +33,6 @@ const char* StatusName(rodfit::StepStatus status) {
   return "unknown";
 }
 
-rodfit::RuntimeMode ModeOf(const std::string& mode) {
-  if (mode == "dynamic") return rodfit::RuntimeMode::kDynamic;
-  if (mode == "quasi_static" || mode == "quasi-static") return rodfit::RuntimeMode::kQuasiStatic;
-  throw std::invalid_argument("mode: must be 'dynamic' or 'quasi_static', got '" + mode + "'");
-}
-
-rodfit::ToolKind ToolOf(const std::string& tool) {
-  if (tool == "grasp") return rodfit::ToolKind::kGrasp;
-  if (tool == "poke") return rodfit::ToolKind::kPoke;
-  throw std::invalid_argument("tool: must be 'grasp' or 'poke', got '" + tool + "'");
-}
-
 // The runtime with the last tick's report. A Runtime is not thread-safe and Step() runs without
 // the GIL, so every call takes the instance's lock: two Python threads sharing one runtime are
 // serialised instead of racing (uncontended, the lock costs tens of nanoseconds).
@@ -161,43 +149,29 @@ void BindRuntime(py::module_& m) {
       "The fitted rod at haptic rate (docs/library.md, \"Runtime\"): built from a Profile, with "
       "the tool (a grasp or a poke) at arc length tool_s [m]. Units: SI (m, N, s).")
       .def(py::init([](const rodfit::Profile& profile, const std::string& mode,
-                       std::optional<double> tool_s, const std::string& tool,
-                       double time_step, double time_budget, double gradient_tolerance,
-                       double step_tolerance, int max_iterations, int dynamic_newton_iterations,
-                       double max_tool_move, double max_strain, int mesh_ring_vertices,
-                       bool hold_orientation) {
+                       const py::kwargs& keywords) {
+             // RuntimeOptions by keyword, read through its Serialize (runtime_settings.cc): the
+             // defaults, ranges and words are the library's; None keeps a default (tool_s's is
+             // the tip).
+             py::dict given;
+             given["mode"] = mode;
+             for (const auto& item : keywords)
+               if (!item.second.is_none()) given[item.first] = item.second;
              rodfit::RuntimeOptions options;
-             options.mode = ModeOf(mode);
-             options.tool = ToolOf(tool);
-             options.tool_s = tool_s ? *tool_s : profile.scene.rod.length;
-             options.time_step = time_step;
-             options.time_budget = time_budget;
-             options.gradient_tolerance = gradient_tolerance;
-             options.step_tolerance = step_tolerance;
-             options.max_iterations = max_iterations;
-             options.dynamic_newton_iterations = dynamic_newton_iterations;
-             options.max_tool_move = max_tool_move;
-             options.max_strain = max_strain;
-             options.mesh_ring_vertices = mesh_ring_vertices;
-             options.hold_orientation = hold_orientation;
+             options.tool_s = profile.scene.rod.length;
+             DictSettings settings(given);
+             rodfit::Serialize(&settings, &options);
+             settings.CheckAllRead();
              py::gil_scoped_release release;  // the first equilibrium is a solve
              return new PyRuntime(profile, options);
            }),
-           py::arg("profile"), py::arg("mode") = "quasi_static", py::arg("tool_s") = py::none(),
-           py::arg("tool") = "grasp", py::arg("time_step") = rodfit::RuntimeOptions().time_step,
-           py::arg("time_budget") = rodfit::RuntimeOptions().time_budget,
-           py::arg("gradient_tolerance") = rodfit::RuntimeOptions().gradient_tolerance,
-           py::arg("step_tolerance") = rodfit::RuntimeOptions().step_tolerance,
-           py::arg("max_iterations") = rodfit::RuntimeOptions().max_iterations,
-           py::arg("dynamic_newton_iterations") =
-               rodfit::RuntimeOptions().dynamic_newton_iterations,
-           py::arg("max_tool_move") = rodfit::RuntimeOptions().max_tool_move,
-           py::arg("max_strain") = rodfit::RuntimeOptions().max_strain,
-           py::arg("mesh_ring_vertices") = rodfit::RuntimeOptions().mesh_ring_vertices,
-           py::arg("hold_orientation") = rodfit::RuntimeOptions().hold_orientation,
-           "RuntimeOptions by keyword (rodfit/runtime/runtime.h): tool_s [m] (default: the "
-           "tip), time_step [s], time_budget [s] (0: none), ... Raises ValueError for invalid "
-           "options, RuntimeError when the first equilibrium is not found.")
+           py::arg("profile"), py::arg("mode") = "quasi_static",
+           "RuntimeOptions by keyword (rodfit/runtime/runtime.h, their defaults and ranges): "
+           "tool_s [m] (default: the tip), tool ('grasp' or 'poke'), time_step [s], time_budget "
+           "[s] (0: none), gradient_tolerance, step_tolerance, max_iterations, "
+           "dynamic_newton_iterations, max_tool_move, max_strain, mesh_ring_vertices, "
+           "hold_orientation. Raises ValueError for invalid options, TypeError for an unknown "
+           "keyword, RuntimeError when the first equilibrium is not found.")
       .def("step", &PyRuntime::Step, py::arg("tool") = py::none(),
            py::arg("tool_rotation") = py::none(),
            "One tick: a grasp moves its point towards `tool` [m, shape (3,)] (with "

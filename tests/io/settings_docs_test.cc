@@ -9,6 +9,8 @@
 #include <limits>
 #include <set>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -38,6 +40,41 @@ TEST(SettingsDocs, EveryKeyHasItsRangeAndDefaultInTheDocs) {
   EXPECT_EQ(solver.keys(), 3);
   EXPECT_EQ(fitting.keys(), 1);
   EXPECT_EQ(moving.keys(), 6);
+}
+
+// The fit settings a profile carries (SettingsArchive::Carry in Serialize(FitOptions)): each is
+// a setting the `fit:` block declares and is shown in docs/formats.md's profile, as written.
+TEST(SettingsDocs, TheProfilesCarriedFitSettingsAreDeclaredAndDocumented) {
+  class Carried final : public SettingsArchive {
+   public:
+    std::vector<std::pair<std::string, std::string>> carried;  // key, profile key
+    std::set<std::string> visited;
+    bool reading() const override { return false; }
+    void Carry(const char* key, const char* profile_key) override {
+      carried.emplace_back(key, profile_key);
+    }
+    void Integer(const char* key, int*, int, int) override { visited.insert(key); }
+    void Count(const char* key, int*, int, int) override { visited.insert(key); }
+    void Number(const char* key, double*, double, double) override { visited.insert(key); }
+    void Positive(const char* key, double*) override { visited.insert(key); }
+    void Bool(const char* key, bool*) override { visited.insert(key); }
+    void Choice(const char* key, int*, const std::vector<std::string>&,
+                const std::string&) override {
+      visited.insert(key);
+    }
+    void Require(const char*) override {}
+    bool Has(const char*) const override { return false; }
+    void Check(bool, const char*, const std::string&) override {}
+  } archive;
+  FitOptions fit;
+  Serialize(&archive, &fit);
+  ASSERT_EQ(archive.carried.size(), 3u);  // loss, loss_scale, trusted_sigmas
+  const std::string docs = test::ReadText(test::kFormatsDoc);
+  const std::string profile = docs.substr(docs.find("## Profile JSON"));
+  for (const auto& [key, profile_key] : archive.carried) {
+    EXPECT_TRUE(archive.visited.count(key)) << key;
+    EXPECT_NE(profile.find("\"" + profile_key + "\":"), std::string::npos) << profile_key;
+  }
 }
 
 // docs/cli.md's rollout settings: a row per key of RolloutOptions and MotionFitOptions with its

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -15,6 +16,7 @@
 #include "rodfit/io/shapes_csv.h"
 #include "rodfit/pipeline/experiment.h"
 #include "rodfit/pipeline/run.h"
+#include "rodfit/runtime/profile_format.h"
 
 namespace rodfit {
 namespace {
@@ -44,6 +46,19 @@ TEST(FitExperimentTest, ReturnsTheProfileOfItsResultAndWritesOnlyWhenAsked) {
                                      CheckResiduals(run.result, run.options)));
   // The profile document's structure: parameters by name, each with its value.
   EXPECT_TRUE(run.profile.at("parameters").at("bend_stiffness").at("value").is_number());
+  // The writer writes the keys the format declares (the reader's allowed ones): every top-level
+  // key (`section` only with one), and in each parameter only declared keys.
+  std::set<std::string> top(std::begin(profile_format::kDocumentKeys),
+                            std::end(profile_format::kDocumentKeys));
+  top.erase(profile_format::kSection);  // the scene has none
+  std::set<std::string> keys;
+  for (const auto& item : run.profile.items()) keys.insert(item.key());
+  EXPECT_EQ(keys, top);
+  const std::set<std::string> entry(std::begin(profile_format::kParameterKeys),
+                                    std::end(profile_format::kParameterKeys));
+  for (const auto& parameter : run.profile.at("parameters").items())
+    for (const auto& item : parameter.value().items())
+      EXPECT_TRUE(entry.count(item.key())) << parameter.key() << "." << item.key();
 
   test::TempDir dir;
   FitRunOptions options;

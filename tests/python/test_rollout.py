@@ -91,3 +91,36 @@ def test_rollout_fit_that_does_not_converge_returns_its_best_point(tmp_path, sou
         result = rodfit.rollout(scene, [recording], fit=["bend_stiffness"], max_evaluations=3)
     assert result["fit_not_converged"]
     assert_documents_match(expected, result["fit"])
+
+
+def test_rollout_settings_given_equal_the_cli_options(tmp_path, source_dir, cli, recording):
+    # A setting given by keyword is the command line's option (the same declaration reads
+    # both); Python may spell a word with an underscore (free_roll).
+    scene = source_dir / "data" / "scenes" / "cable_drive.yaml"
+    run(cli, "rollout", scene, recording, "-o", tmp_path / "cli", "-q", "--smooth", 2,
+        "--held-ends", "free-roll")
+    expected = _rollout_csv(tmp_path / "cli" / "rollout.csv")
+    result = rodfit.rollout(scene, [recording], smooth_frames=2, held_ends="free_roll")
+    predicted = result["recordings"][0]["predicted"]
+    assert predicted.shape == expected.shape
+    assert np.abs(predicted - expected).max() <= 1e-12
+    # ... and differs from the defaults' run (the settings were applied).
+    default = rodfit.rollout(scene, [recording])["recordings"][0]["predicted"]
+    assert np.nanmax(np.abs(default - predicted)) > 0
+
+
+@pytest.mark.parametrize("settings, message", [
+    ({"smooth_frames": 5000}, "smooth_frames: must be an integer in [0, 1000], got 5000"),
+    ({"smooth_frames": 2.5}, "smooth_frames: must be an integer in [0, 1000], got 2.5"),
+    ({"held_ends": "sideways"}, "held_ends: must be 'grippers', 'free_roll' or 'pins', got 'sideways'"),
+    ({"initial": "rest"}, "initial: must be 'equilibrium' or 'markers', got 'rest'"),
+    ({"method": "newton"}, "method: must be 'lm' or 'bobyqa', got 'newton'"),
+    ({"max_evaluations": True}, "max_evaluations: must be an integer in [1, 100000], got True"),
+    ({"marker_sigma": -1.0}, "marker_sigma: must be in [0, 1000000000], got -1"),
+    ({"held_markers": [0, "one"]}, "held_markers: expected a list of integers, got 'one'"),
+])
+def test_rollout_settings_are_checked_by_their_declaration(source_dir, recording, settings, message):
+    scene = source_dir / "data" / "scenes" / "cable_drive.yaml"
+    with pytest.raises(ValueError) as error:
+        rodfit.rollout(scene, [recording], **settings)
+    assert str(error.value) == message

@@ -91,3 +91,18 @@ def test_runtime_option_errors(source_dir):
         rodfit.Runtime(path, mode="fast")
     with pytest.raises(ValueError, match="tool_s"):
         rodfit.Runtime(path, tool_s=5.0)
+
+
+def test_runtime_options_are_read_through_their_declaration(source_dir):
+    # RuntimeOptions' Serialize reads the keywords: its words (either spelling), its ranges,
+    # and no keyword it does not declare.
+    path = source_dir / "data" / "profiles" / "suture.json"
+    with pytest.raises(ValueError) as error:
+        rodfit.Runtime(path, tool="hammer")
+    assert str(error.value) == "tool: must be 'grasp' or 'poke', got 'hammer'"
+    with pytest.raises(ValueError) as error:
+        rodfit.Runtime(path, max_iterations=0)
+    assert str(error.value) == "max_iterations: must be an integer in [1, 10000], got 0"
+    with pytest.raises(TypeError, match="unexpected keyword argument 'time_stepp'"):
+        rodfit.Runtime(path, time_stepp=1e-3)
+    assert rodfit.Runtime(path, mode="quasi-static", tool_s=None).status()["ok"]

@@ -4,9 +4,9 @@
 // one short; calls in any order (a step before any tool input, getters between steps). Each call
 // is judged as a caller would: a status that is one of the codes; a failure with a message
 // (rodfit_last_error, or create's error buffer: one line); a success whose outputs are finite
-// (the shape, the force and torque, the energies) — a non-finite number returned with
-// RODFIT_OK is "silent", the worst outcome. A crash ends the test program. The tallies are
-// printed.
+// (the shape, the force and torque, the energies, the rest shape and its knots) — a non-finite
+// number returned with RODFIT_OK is "silent", the worst outcome. A crash ends the test program.
+// The tallies are printed.
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -134,7 +134,7 @@ TEST(CApiCorpus, HostileCallSequencesReturnCodesMessagesAndFiniteResults) {
     std::vector<double> shape(3 * static_cast<size_t>(n));
     for (int k = 0; k < kCallsPerSequence; ++k) {
       const double v3[3] = {pick(), pick(), pick()};
-      switch (rng() % 10) {
+      switch (rng() % 12) {
         case 0: case 1: {
           // Mostly moves near the rod, sometimes hostile.
           double p[3] = {0.1 + 0.01 * (rng() % 5), 0.005 * (rng() % 3), -0.005 * (rng() % 3)};
@@ -191,12 +191,49 @@ TEST(CApiCorpus, HostileCallSequencesReturnCodesMessagesAndFiniteResults) {
           Judge(&tally, "get_mesh counts", s, rodfit_last_error(rt), nv > 0 && nt > 0);
           break;
         }
+        case 10: {
+          // The rest shape's knots (the suture has none): the count alone, or buffers that may be
+          // null (some of them) or of a hostile capacity.
+          double knot[4][2] = {{0, 0}, {0, 0}, {0, 0}, {0, 0}};
+          double* buffer[4] = {knot[0], knot[1], knot[2], knot[3]};
+          const int pattern = static_cast<int>(rng() % 4);
+          if (pattern == 0)
+            for (double*& b : buffer) b = nullptr;       // the count only
+          else if (pattern == 1)
+            buffer[rng() % 4] = nullptr;                 // one null among the buffers
+          const size_t capacity = rng() % 2 ? 2 : static_cast<size_t>(-1) - rng() % 3;
+          int count = -1;
+          const rodfit_status s = rodfit_get_rest_knots(rt, rng() % 4 ? &count : nullptr,
+                                                        buffer[0], buffer[1], buffer[2],
+                                                        buffer[3], capacity);
+          Judge(&tally, "get_rest_knots", s, rodfit_last_error(rt),
+                count <= 2 && Finite(&knot[0][0], 8));
+          break;
+        }
+        case 11: {
+          if (rng() % 2) {
+            const size_t capacity = rng() % 3 == 0 ? shape.size() - 1 : shape.size();
+            double* buffer = rng() % 5 == 0 ? nullptr : shape.data();
+            const rodfit_status s = rodfit_get_rest_shape(rt, buffer, capacity);
+            Judge(&tally, "get_rest_shape", s, rodfit_last_error(rt),
+                  buffer && Finite(buffer, capacity));
+          } else {
+            double k[3] = {0, 0, 0};
+            const rodfit_status s = rodfit_get_rest_curvature(rt, rng() % 5 ? k : nullptr);
+            Judge(&tally, "get_rest_curvature", s, rodfit_last_error(rt), Finite(k, 3));
+          }
+          break;
+        }
       }
     }
     // Calls on a null handle: a status, never a crash.
     const double zero[3] = {0, 0, 0};
     Judge(&tally, "null step", rodfit_step(nullptr, nullptr), nullptr, true);
     Judge(&tally, "null set_tool_position", rodfit_set_tool_position(nullptr, zero), nullptr, true);
+    Judge(&tally, "null get_rest_knots",
+          rodfit_get_rest_knots(nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, 0), nullptr,
+          true);
+    Judge(&tally, "null get_rest_shape", rodfit_get_rest_shape(nullptr, nullptr, 0), nullptr, true);
     EXPECT_EQ(rodfit_num_vertices(nullptr), 0);
     rodfit_destroy(rt);
   }

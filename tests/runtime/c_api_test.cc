@@ -12,6 +12,10 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
+#include "io/temp_dir.h"
+#include "rodfit/model/rod.h"
 #include "rodfit/runtime/profile.h"
 #include "rodfit/runtime/rodfit_c.h"
 #include "rodfit/runtime/runtime.h"
@@ -51,6 +55,150 @@ TEST(CApi, CreateFailuresAreCodesWithMessages) {
                           sizeof(tiny)),
             RODFIT_PROFILE_ERROR);
   EXPECT_EQ(std::string(tiny).size(), 7u);
+}
+
+// The profile's rest shape read back through the C API (issue 35: the profile, the runtime and
+// the exports carry it): a weightless suture whose rest shape is a helix (curvature 30 1/m,
+// torsion 10 1/m over its 0.2 m, as in runtime_test.cc), its knots the intrinsic curvature of
+// 401 points of it (RestCurvatureOfCentreline). The knots come back as written; the rest
+// centre-line is the C++ model's RestState() and the helix at the vertices, to the discrete
+// rod's curvature error (measured 1.08e-3 L at 50 segments; allowed 1.5e-3 L). The suture's own
+// profile has no knots and a straight rest line; a profile's uniform rest_curvature comes back
+// too. Null handles, null or short buffers are refused with a message.
+TEST(CApi, RestShapeOfAHelixProfileIsReadBack) {
+  const double a = 0.03, b = 0.01, c = std::hypot(a, b), length = 0.2;
+  auto helix = [&](double s) {
+    const double t = s / c;
+    return rodfit::Vec3(a * std::sin(t), a * (1.0 - std::cos(t)), b * t);
+  };
+  const rodfit::Vec3 tangent0(a / c, 0.0, b / c), normal0(0.0, 1.0, 0.0);
+  const int points = 401;
+  std::vector<double> s(points);
+  rodfit::Mat3X curve(3, points);
+  for (int k = 0; k < points; ++k) {
+    s[k] = length * k / (points - 1);
+    curve.col(k) = helix(s[k]);
+  }
+  std::vector<double> knots;
+  std::vector<rodfit::Vec3> profile;
+  rodfit::RestCurvatureOfCentreline(s, curve, normal0, length, &knots, &profile);
+  nlohmann::json doc = nlohmann::json::parse(rodfit::test::ReadText(kSuture));
+  doc["gravity"] = {0.0, 0.0, 0.0};
+  doc["held"]["clamp"] = {{"position", {0.0, 0.0, 0.0}},
+                          {"tangent", {tangent0.x(), tangent0.y(), tangent0.z()}},
+                          {"normal", {normal0.x(), normal0.y(), normal0.z()}}};
+  nlohmann::json rest = {{"s_m", knots}};
+  for (const char* key : {"k1_per_m", "k2_per_m", "tau_per_m"}) rest[key] = nlohmann::json::array();
+  for (const rodfit::Vec3& k : profile) {
+    rest["k1_per_m"].push_back(k[0]);
+    rest["k2_per_m"].push_back(k[1]);
+    rest["tau_per_m"].push_back(k[2]);
+  }
+  doc["rod"]["rest_shape"] = rest;
+  const rodfit::test::TempDir dir;
+  const std::string path = dir.Write("helix.json", doc.dump());
+
+  rodfit_options options;
+  rodfit_default_options(&options);
+  options.tool_s = length;
+  char error[256];
+  rodfit_runtime* rt = nullptr;
+  ASSERT_EQ(rodfit_create(path.c_str(), &options, nullptr, nullptr, 0, &rt, error, sizeof(error)),
+            RODFIT_OK)
+      << error;
+  // The count first (no buffers), then the knots as the profile lists them.
+  int count = -1;
+  ASSERT_EQ(rodfit_get_rest_knots(rt, &count, nullptr, nullptr, nullptr, nullptr, 0), RODFIT_OK);
+  ASSERT_EQ(count, static_cast<int>(knots.size()));
+  std::vector<double> ks(count), k1(count), k2(count), tau(count);
+  ASSERT_EQ(rodfit_get_rest_knots(rt, nullptr, ks.data(), k1.data(), k2.data(), tau.data(),
+                                  ks.size()),
+            RODFIT_OK);
+  for (int j = 0; j < count; ++j) {
+    EXPECT_EQ(ks[j], knots[j]) << j;
+    EXPECT_EQ(k1[j], profile[j][0]) << j;
+    EXPECT_EQ(k2[j], profile[j][1]) << j;
+    EXPECT_EQ(tau[j], profile[j][2]) << j;
+  }
+  double uniform[3] = {1.0, 1.0, 1.0};
+  ASSERT_EQ(rodfit_get_rest_curvature(rt, uniform), RODFIT_OK);
+  EXPECT_EQ(uniform[0], 0.0);
+  EXPECT_EQ(uniform[1], 0.0);
+  EXPECT_EQ(uniform[2], 0.0);
+
+  // The rest centre-line: the C++ model's, and the helix to the discretisation's error.
+  const int n = rodfit_num_vertices(rt);
+  std::vector<double> xyz(3 * static_cast<size_t>(n));
+  ASSERT_EQ(rodfit_get_rest_shape(rt, xyz.data(), xyz.size()), RODFIT_OK);
+  rodfit::RuntimeOptions cpp_options;
+  cpp_options.tool_s = length;
+  const rodfit::Runtime cpp(rodfit::LoadProfile(path), cpp_options);
+  const rodfit::Mat3X expected = cpp.model().RestState().x;
+  ASSERT_EQ(expected.cols(), n);
+  double worst = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const rodfit::Vec3 x(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    EXPECT_EQ(x, expected.col(i)) << i;
+    worst = std::max(worst, (x - helix(length * i / (n - 1))).norm());
+  }
+  std::printf("C API rest shape of the helix, %d vertices: max |x - r(s)| = %.3e m (%.3e L)\n", n,
+              worst, worst / length);
+  EXPECT_LT(worst, 1.5e-3 * length);
+
+  // Refused with a message: a short or partly null knot buffer, a short rest-shape buffer, a
+  // null curvature; a null handle has only the status.
+  EXPECT_EQ(rodfit_get_rest_knots(rt, &count, ks.data(), k1.data(), k2.data(), tau.data(),
+                                  ks.size() - 1),
+            RODFIT_INVALID_ARGUMENT);
+  EXPECT_THAT(rodfit_last_error(rt), HasSubstr("rest knot buffers are null or too small"));
+  EXPECT_EQ(rodfit_get_rest_knots(rt, &count, ks.data(), k1.data(), nullptr, tau.data(),
+                                  ks.size()),
+            RODFIT_INVALID_ARGUMENT);
+  EXPECT_EQ(rodfit_get_rest_shape(rt, xyz.data(), xyz.size() - 1), RODFIT_INVALID_ARGUMENT);
+  EXPECT_THAT(rodfit_last_error(rt), HasSubstr("rest shape buffer is null or too small"));
+  EXPECT_EQ(rodfit_get_rest_shape(rt, nullptr, xyz.size()), RODFIT_INVALID_ARGUMENT);
+  EXPECT_EQ(rodfit_get_rest_curvature(rt, nullptr), RODFIT_INVALID_ARGUMENT);
+  EXPECT_THAT(rodfit_last_error(rt), HasSubstr("curvature is null"));
+  // A refused call leaves the outputs and the handle as they were: the next call succeeds.
+  ASSERT_EQ(rodfit_get_rest_shape(rt, xyz.data(), xyz.size()), RODFIT_OK);
+  EXPECT_STREQ(rodfit_last_error(rt), "");
+  EXPECT_EQ(rodfit_get_rest_knots(nullptr, &count, nullptr, nullptr, nullptr, nullptr, 0),
+            RODFIT_INVALID_ARGUMENT);
+  EXPECT_EQ(rodfit_get_rest_shape(nullptr, xyz.data(), xyz.size()), RODFIT_INVALID_ARGUMENT);
+  EXPECT_EQ(rodfit_get_rest_curvature(nullptr, uniform), RODFIT_INVALID_ARGUMENT);
+  rodfit_destroy(rt);
+
+  // The suture's own profile: no knots, a straight rest line of the rod's length along the
+  // clamp's tangent (+x); with a uniform rest curvature, that curvature read back.
+  nlohmann::json curved = nlohmann::json::parse(rodfit::test::ReadText(kSuture));
+  curved["rod"]["rest_curvature"] = {1.5, -2.0, 0.25};
+  for (const std::string& file : {kSuture, dir.Write("curved.json", curved.dump())}) {
+    SCOPED_TRACE(file);
+    ASSERT_EQ(rodfit_create(file.c_str(), &options, nullptr, nullptr, 0, &rt, error,
+                            sizeof(error)),
+              RODFIT_OK)
+        << error;
+    count = -1;
+    double none = 7.0;
+    EXPECT_EQ(rodfit_get_rest_knots(rt, &count, &none, &none, &none, &none, 0), RODFIT_OK);
+    EXPECT_EQ(count, 0);
+    EXPECT_EQ(none, 7.0);  // nothing written
+    ASSERT_EQ(rodfit_get_rest_curvature(rt, uniform), RODFIT_OK);
+    const bool straight = file == kSuture;
+    EXPECT_EQ(uniform[0], straight ? 0.0 : 1.5);
+    EXPECT_EQ(uniform[1], straight ? 0.0 : -2.0);
+    EXPECT_EQ(uniform[2], straight ? 0.0 : 0.25);
+    if (straight) {
+      std::vector<double> line(3 * static_cast<size_t>(rodfit_num_vertices(rt)));
+      ASSERT_EQ(rodfit_get_rest_shape(rt, line.data(), line.size()), RODFIT_OK);
+      for (size_t i = 0; i < line.size() / 3; ++i) {
+        EXPECT_NEAR(line[3 * i], length * i / (line.size() / 3 - 1), 1e-15) << i;
+        EXPECT_NEAR(line[3 * i + 1], 0.0, 1e-15) << i;
+        EXPECT_NEAR(line[3 * i + 2], 0.0, 1e-15) << i;
+      }
+    }
+    rodfit_destroy(rt);
+  }
 }
 
 TEST(CApi, LoopMatchesTheCppRuntime) {

@@ -57,6 +57,11 @@ class SettingsArchive {
   virtual void Describe(const char* key, const char* option, const std::string& help) {
     (void)key, (void)option, (void)help;
   }
+  /// The next key visited is `key`, which a fit's profile carries as `profile_key` in its `fit`
+  /// object (docs/formats.md, "Profile JSON"; the setting the fit ran with, e.g. its loss).
+  /// Declared right before the key's visit, as Describe. Archives other than the profile
+  /// writer's ignore it.
+  virtual void Carry(const char* key, const char* profile_key) { (void)key, (void)profile_key; }
 };
 
 /// A configuration's values held to their declared ranges (a library caller's options, checked

@@ -52,6 +52,11 @@ inline constexpr char kSection[] = "section";
 inline constexpr char kParameters[] = "parameters";
 inline constexpr char kDerived[] = "derived";
 inline constexpr char kFit[] = "fit";
+/// The document's keys, in the order the format lists them: the reader's allowed keys, and
+/// every key the writer writes at the top (`section` only with one).
+inline constexpr const char* kDocumentKeys[] = {kFormat,  kVersion,   kRodfitVersion, kRod,
+                                                kGravity, kHeld,      kSprings,       kSection,
+                                                kParameters, kDerived, kFit};
 
 // The keys of one entry of `parameters` (a Parameter, rodfit/model/material_parameters.h).
 inline constexpr char kValue[] = "value";

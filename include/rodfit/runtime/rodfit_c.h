@@ -101,6 +101,23 @@ rodfit_status rodfit_get_mesh(rodfit_runtime* runtime, int* num_vertices, int* n
                               double* vertices, size_t vertex_capacity, int* triangles,
                               size_t triangle_capacity);
 
+/* The rod's rest shape, as the profile gives it and the runtime builds the rod from
+ * (`rod.rest_shape` and `rod.rest_curvature`, docs/formats.md "Profile JSON"). The knots: the
+ * intrinsic curvature k1, k2 and tau [1/m] at arc lengths s [m] (increasing), linear between
+ * knots and constant beyond them, added to the uniform rest curvature. Counts first: *num_knots
+ * (0: no rest shape; num_knots may be NULL); with the four arrays NULL nothing else is written,
+ * otherwise each must hold `capacity` doubles, at least the knots. */
+rodfit_status rodfit_get_rest_knots(rodfit_runtime* runtime, int* num_knots, double* s_m,
+                                    double* k1_per_m, double* k2_per_m, double* tau_per_m,
+                                    size_t capacity);
+/* The uniform rest curvature (k1, k2, tau) [1/m] the knots add to (0 0 0 unless the profile
+ * gives `rod.rest_curvature`). */
+rodfit_status rodfit_get_rest_curvature(rodfit_runtime* runtime, double curvature[3]);
+/* The rod's centre-line at rest [m], on the runtime's vertices: the unloaded rest shape from the
+ * clamp along its tangent (no gravity, no other held point). Writes 3 * rodfit_num_vertices
+ * doubles; capacity in doubles. Computed on each call: it allocates (not for the loop). */
+rodfit_status rodfit_get_rest_shape(rodfit_runtime* runtime, double* xyz, size_t capacity);
+
 /* The message of the handle's last failed call ("" when none); valid until the next call. */
 const char* rodfit_last_error(const rodfit_runtime* runtime);
 /* A status code's name, e.g. "RODFIT_NOT_CONVERGED". */

@@ -200,6 +200,8 @@ class Runtime {
   void Mesh(TubeMesh* mesh);
 
   const RodModel& model() const;
+  /// The profile the rod was built from (its rest shape: scene.rod.rest_curvature_s / _profile).
+  const Profile& profile() const;
   const RodState& state() const;
   const RuntimeOptions& options() const;
   double time() const;  ///< [s] simulated time (dynamic mode)

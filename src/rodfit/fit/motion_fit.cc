@@ -1043,6 +1043,65 @@ bool GripperTiltDerivatives(const Scene& scene, const MotionRecordingData& recor
   return true;
 }
 
+namespace {
+
+// The material parameters among `names` (log-parameters, in their order); *rest: whether
+// "rest_curvature" (the rest shape's knots) is among them. Throws std::invalid_argument for a
+// name given twice.
+std::vector<std::string> MaterialNames(const std::vector<std::string>& names, bool* rest) {
+  std::vector<std::string> material_names;
+  for (const std::string& name : names) {
+    if (name == kRestCurvatureParameter) {
+      if (*rest) throw std::invalid_argument("rest_curvature is named twice");
+      *rest = true;
+    } else {
+      if (std::find(material_names.begin(), material_names.end(), name) != material_names.end())
+        throw std::invalid_argument("'" + name.substr(0, 60) + "' is named twice");
+      material_names.push_back(name);
+    }
+  }
+  return material_names;
+}
+
+// The derivative-free search (MotionFitMethod::kBobyqa): BOBYQA on the predicted markers' mean
+// absolute error from x, within [lo, hi]; x left at its best point.
+void SearchBobyqa(Ctx* ctx, std::vector<double>* x, const std::vector<double>& lo,
+                  const std::vector<double>& hi, const MotionFitOptions& fit_options,
+                  MotionFitResult* result) {
+  const int m = ctx->parameters;
+  result->method = "bobyqa";
+  result->error_start = MeanRolloutError(*x, ctx);
+  nlopt::opt opt(nlopt::LN_BOBYQA, m);
+  opt.set_lower_bounds(lo);
+  opt.set_upper_bounds(hi);
+  opt.set_maxeval(fit_options.max_evaluations);
+  opt.set_xtol_abs(1e-3);  // 0.1 % in each parameter
+  opt.set_initial_step(std::vector<double>(m, 0.5));
+  opt.set_min_objective(
+      [](const std::vector<double>& p, std::vector<double>&, void* data) {
+        return MeanRolloutError(p, static_cast<Ctx*>(data));
+      },
+      ctx);
+  double best = result->error_start;
+  nlopt::result status = nlopt::FAILURE;
+  try {
+    status = opt.optimize(*x, best);
+  } catch (const nlopt::roundoff_limited&) {
+    // The search stopped at round-off: x is its best point.
+    status = nlopt::ROUNDOFF_LIMITED;
+  }
+  result->error_fitted = best;
+  result->converged = status == nlopt::XTOL_REACHED || status == nlopt::FTOL_REACHED ||
+                      status == nlopt::ROUNDOFF_LIMITED;
+  result->message = status == nlopt::MAXEVAL_REACHED
+                        ? "stopped at max_evaluations (" +
+                              std::to_string(fit_options.max_evaluations) + " rollouts)"
+                        : "BOBYQA status " + std::to_string(static_cast<int>(status));
+  result->iterations = ctx->evaluations;
+}
+
+}  // namespace
+
 MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingData>& recordings,
                           const std::vector<std::string>& names, const RolloutOptions& options,
                           const StaticsOptions& statics, const MotionFitOptions& fit_options) {
@@ -1051,19 +1110,8 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
   MotionFitResult result;
   Ctx ctx;
   std::vector<double> x, lo, hi;
-  // "rest_curvature" stands for the rest shape's knots; the others are log-parameters.
-  std::vector<std::string> material_names;
   bool rest = false;
-  for (const std::string& name : names) {
-    if (name == kRestCurvatureParameter) {
-      if (rest) throw std::invalid_argument("rest_curvature is named twice");
-      rest = true;
-    } else {
-      if (std::find(material_names.begin(), material_names.end(), name) != material_names.end())
-        throw std::invalid_argument("'" + name.substr(0, 60) + "' is named twice");
-      material_names.push_back(name);
-    }
-  }
+  const std::vector<std::string> material_names = MaterialNames(names, &rest);
   // The grippers' tilts alone (a calibration of the held frames at given parameters) are a fit too.
   const bool tilts = fit_options.gripper_prior_deg > 0.0;
   if (material_names.empty() && !rest && !tilts) throw std::invalid_argument("no parameters to fit");
@@ -1111,35 +1159,7 @@ MotionFitResult FitMotion(const Scene& scene, const std::vector<MotionRecordingD
     SearchWithSlavedRest(&ctx, &x, lo, hi, fit_options, &result);
 
   if (fit_options.method == MotionFitMethod::kBobyqa) {
-    result.method = "bobyqa";
-    result.error_start = MeanRolloutError(x, &ctx);
-    nlopt::opt opt(nlopt::LN_BOBYQA, m);
-    opt.set_lower_bounds(lo);
-    opt.set_upper_bounds(hi);
-    opt.set_maxeval(fit_options.max_evaluations);
-    opt.set_xtol_abs(1e-3);  // 0.1 % in each parameter
-    opt.set_initial_step(std::vector<double>(m, 0.5));
-    opt.set_min_objective(
-        [](const std::vector<double>& p, std::vector<double>&, void* data) {
-          return MeanRolloutError(p, static_cast<Ctx*>(data));
-        },
-        &ctx);
-    double best = result.error_start;
-    nlopt::result status = nlopt::FAILURE;
-    try {
-      status = opt.optimize(x, best);
-    } catch (const nlopt::roundoff_limited&) {
-      // The search stopped at round-off: x is its best point.
-      status = nlopt::ROUNDOFF_LIMITED;
-    }
-    result.error_fitted = best;
-    result.converged = status == nlopt::XTOL_REACHED || status == nlopt::FTOL_REACHED ||
-                       status == nlopt::ROUNDOFF_LIMITED;
-    result.message = status == nlopt::MAXEVAL_REACHED
-                         ? "stopped at max_evaluations (" +
-                               std::to_string(fit_options.max_evaluations) + " rollouts)"
-                         : "BOBYQA status " + std::to_string(static_cast<int>(status));
-    result.iterations = ctx.evaluations;
+    SearchBobyqa(&ctx, &x, lo, hi, fit_options, &result);
   } else if (!SearchLeastSquares(&ctx, &x, lo, hi, fit_options, &result)) {
     SplitGripperTilts(ctx, recordings.size(), &result);
     result.seconds = std::chrono::duration<double>(Clock::now() - started).count();

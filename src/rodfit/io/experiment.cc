@@ -11,12 +11,14 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
 
 #include <Eigen/Geometry>  // cross product
 #include <yaml-cpp/yaml.h>
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/io/experiment_blocks.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/model/rod.h"
 #include "rodfit/model/rod_radius.h"
@@ -27,6 +29,7 @@ namespace rodfit {
 namespace {
 
 namespace fs = std::filesystem;
+namespace blocks = experiment_blocks;
 
 // Below this sine of the angle between clamp tangent and normal the Gram–Schmidt normal keeps
 // fewer than three significant digits; such an input is taken to be a mistake.
@@ -62,7 +65,19 @@ struct Field {
   int key_line = 0;  // line of the key; 0 for the document
 };
 
-using Entries = std::map<std::string, Field>;
+// A mapping's entries, with the keys its block declares (experiment_blocks.h, or a
+// configuration's or a kind's declaration): Reader::Find and Reader::Require refuse a key the
+// block does not declare, so that the declaration stays the one list of the block's keys.
+struct Entries : std::map<std::string, Field> {
+  std::vector<std::string> declared;
+  bool checked = false;  // built by Reader::Map (a collecting pass's empty entries are not)
+};
+
+// A key read that its block does not declare: the reader and the block's table disagree.
+void CheckDeclared(const Entries& entries, const std::string& name) {
+  if (entries.checked && !Contains(entries.declared, name))
+    throw std::logic_error("experiment reader: key '" + name + "' is not declared by its block");
+}
 
 // The checks shared by every block; all failures are InputErrors in `file`.
 class Reader {
@@ -80,6 +95,8 @@ class Reader {
   Entries Map(const Field& f, const std::vector<std::string>& allowed) const {
     if (!f.node.IsMap()) Fail(f, "expected a mapping with keys " + Join(allowed));
     Entries entries;
+    entries.declared = allowed;
+    entries.checked = true;
     for (auto it = f.node.begin(); it != f.node.end(); ++it) {
       const int key_line = LineOf(it->first, f.line);
       if (!it->first.IsScalar()) Fail(key_line, f.key, "expected a plain key");
@@ -100,6 +117,7 @@ class Reader {
   }
 
   const Field& Require(const Entries& entries, const Field& parent, const std::string& name) const {
+    CheckDeclared(entries, name);
     const auto it = entries.find(name);
     if (it == entries.end()) {
       Fail(parent.key_line, parent.key.empty() ? name : parent.key + "." + name,
@@ -109,6 +127,7 @@ class Reader {
   }
 
   static const Field* Find(const Entries& entries, const std::string& name) {
+    CheckDeclared(entries, name);
     const auto it = entries.find(name);
     return it == entries.end() ? nullptr : &it->second;
   }
@@ -231,8 +250,7 @@ class Reader {
 // material) it may be left out and is NaN until the profile's rod fills it.
 RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool density_optional,
                 const std::string& directory) {
-  const Entries m = r.Map(f, {"length", "segments", "radius", "linear_density", "rest_curvature",
-                              "vertex_s", "rest_shape"});
+  const Entries m = r.Map(f, blocks::kRod.keys);
   RodSpec rod;
   rod.length = r.Positive(r.Require(m, f, "length"));
   if (const Field* vs = Reader::Find(m, "vertex_s")) {
@@ -310,13 +328,18 @@ RodSpec ReadRod(const Reader& r, const Field& f, bool density_elsewhere, bool de
 // One entry of `parameters:`. A damping's `fit: true` needs motion (a dynamics: block), as does
 // linear_density at all (elsewhere it is rod.linear_density, a weight, not a parameter).
 Parameter ReadParameter(const Reader& r, const Field& f, const std::string& name, bool moving) {
-  if (!f.node.IsMap()) r.Fail(f, "expected a mapping {value: ..., fit: ..., min: ..., max: ...}");
+  if (!f.node.IsMap()) {
+    std::string shape;  // "{value: ..., fit: ..., min: ..., max: ...}"
+    for (const std::string& key : blocks::kParameterEntry.keys)
+      shape += (shape.empty() ? "{" : ", ") + key + ": ...";
+    r.Fail(f, "expected a mapping " + shape + "}");
+  }
   const MaterialParameterInfo* row = FindMaterialParameter(name);
   if (row && row->kind == ParameterKind::kMass && !moving)
     r.Fail(f.key_line, f.key,
            "only in a moving scene (a dynamics: block), where motion and forces determine it; "
            "elsewhere give rod." + name);
-  const Entries m = r.Map(f, {"value", "fit", "min", "max"});
+  const Entries m = r.Map(f, blocks::kParameterEntry.keys);
   Parameter p;
   p.name = name;
   p.line = f.key_line;
@@ -395,8 +418,7 @@ std::optional<double> ReadPositionPrior(const Reader& r, const Entries& m) {
 }
 
 Clamp ReadClamp(const Reader& r, const Field& f) {
-  const Entries m =
-      r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg", "position_prior"});
+  const Entries m = r.Map(f, blocks::kHeldFrame.keys);
   Clamp clamp;
   clamp.rotation_prior_deg = ReadRotationPrior(r, m);
   clamp.position_prior = ReadPositionPrior(r, m);
@@ -502,7 +524,7 @@ class YamlEntryKeys final : public EntryKeys {
   void Frame(const char* key, Eigen::Matrix3d* rotation, Vec3* translation) override {
     const Field* frame = Take(key, false);
     if (!frame) return;
-    const Entries fm = r_.Map(*frame, {"rotation", "translation"});
+    const Entries fm = r_.Map(*frame, blocks::kDeviceFrame.keys);
     if (const Field* t = Reader::Find(fm, "translation")) *translation = r_.Vector3(*t);
     if (const Field* rot = Reader::Find(fm, "rotation")) {
       const std::vector<Field> rows = r_.Sequence(*rot);
@@ -658,7 +680,7 @@ Interval ReadInterval(const Reader& r, const Field& f, double length, const Entr
 
 // Top-level `section:` (tissue paper §4): the cross-section ring used by pokes.
 SectionSpec ReadSection(const Reader& r, const Field& f) {
-  const Entries m = r.Map(f, {"radius", "nodes", "h_factor", "stop_factor"});
+  const Entries m = r.Map(f, blocks::kSection.keys);
   SectionSpec spec;
   spec.radius = r.Positive(r.Require(m, f, "radius"));
   if (const Field* n = Reader::Find(m, "nodes")) {
@@ -675,7 +697,7 @@ std::vector<std::string> ReadSprings(const Reader& r, const Field& f, Experiment
   std::vector<std::string> names;
   std::vector<std::pair<Interval, int>> seen;
   for (const Field& item : r.Sequence(f)) {
-    const Entries m = r.Map(item, {"from", "to", "parameter"});
+    const Entries m = r.Map(item, blocks::kSpringZone.keys);
     const Interval iv = ReadInterval(r, item, ex->scene.rod.length, m);
     for (const auto& [other, line] : seen) {
       if (iv.from < other.to && other.from < iv.to) {
@@ -709,8 +731,7 @@ Vec3 Direction(const Reader& r, const Field& f) {
 }
 
 EndClamp ReadEndClamp(const Reader& r, const Field& f) {
-  const Entries m =
-      r.Map(f, {"position", "tangent", "normal", "rotation_prior_deg", "position_prior"});
+  const Entries m = r.Map(f, blocks::kHeldFrame.keys);
   EndClamp ec;
   ec.rotation_prior_deg = ReadRotationPrior(r, m);
   ec.position_prior = ReadPositionPrior(r, m);
@@ -821,7 +842,7 @@ TimeSeries ReadTimeSeries(const Reader& r, const Field& f, const Experiment& ex,
 // `drive:` [{point: clamp | end_clamp | end_pin | grasp | pins[k], file: path.csv}].
 void ReadDrives(const Reader& r, const Field& f, const Experiment& ex, LoadCase* c) {
   for (const Field& item : r.Sequence(f)) {
-    const Entries dm = r.Map(item, {"point", "file"});
+    const Entries dm = r.Map(item, blocks::kDrive.keys);
     DrivenPoint d;
     const Field& point = r.Require(dm, item, "point");
     d.point = r.Text(point);
@@ -855,7 +876,7 @@ void ReadDrives(const Reader& r, const Field& f, const Experiment& ex, LoadCase*
 void ReadDriven(const Reader& r, const Field& f, const Experiment& ex, LoadCase* c) {
   const double L = ex.scene.rod.length;
   for (const Field& item : r.Sequence(f)) {
-    const Entries dm = r.Map(item, {"s", "file"});
+    const Entries dm = r.Map(item, blocks::kDriven.keys);
     const Field& s_field = r.Require(dm, item, "s");
     const double s = r.InRange(s_field, 0.0, L);
     const Field& file = r.Require(dm, item, "file");
@@ -905,7 +926,7 @@ void ReadDriven(const Reader& r, const Field& f, const Experiment& ex, LoadCase*
 // `initial:` {shape: equilibrium | start | FILE.csv, velocity: zero | path.csv (s,vx,vy,vz)}.
 // A shape file is the case's start shape (as `start:`, s,x,y,z or x,y,z), taken as it is.
 void ReadInitial(const Reader& r, const Field& f, const Experiment& ex, int index, LoadCase* c) {
-  const Entries im = r.Map(f, {"shape", "velocity", "frames", "frame_interval"});
+  const Entries im = r.Map(f, blocks::kInitial.keys);
   if (const Field* frames = Reader::Find(im, "frames")) {
     // Two consecutive frames of a recording: the shape of the first, taken as it is, and the
     // velocity (second - first) / interval at the same arc lengths.
@@ -1051,9 +1072,7 @@ void ReadHeldEnds(const Reader& r, const Field& f, const Entries& m, const Exper
                   LoadCase* c) {
   c->clamp = ReadClamp(r, r.Require(m, f, "clamp"));
   RequireStaticFrame(r, m, "clamp", c->clamp.rotation_prior_deg.has_value(), ex);
-  const std::vector<std::string> frame_keys = {"position", "tangent", "normal",
-                                               "rotation_prior_deg", "position_prior"};
-  RequireStaticPoint(r, r.Map(r.Require(m, f, "clamp"), frame_keys), ex);
+  RequireStaticPoint(r, r.Map(r.Require(m, f, "clamp"), blocks::kHeldFrame.keys), ex);
   const Field* end_clamp = Reader::Find(m, "end_clamp");
   const Field* end_pin = Reader::Find(m, "end_pin");
   if (end_clamp && end_pin)
@@ -1061,10 +1080,10 @@ void ReadHeldEnds(const Reader& r, const Field& f, const Entries& m, const Exper
   if (end_clamp) {
     c->end_clamp = ReadEndClamp(r, *end_clamp);
     RequireStaticFrame(r, m, "end_clamp", c->end_clamp->rotation_prior_deg.has_value(), ex);
-    RequireStaticPoint(r, r.Map(*end_clamp, frame_keys), ex);
+    RequireStaticPoint(r, r.Map(*end_clamp, blocks::kHeldFrame.keys), ex);
   }
   if (end_pin) {
-    const Entries pm = r.Map(*end_pin, {"position", "position_prior"});
+    const Entries pm = r.Map(*end_pin, blocks::kEndPin.keys);
     c->end_pin = r.Vector3(r.Require(pm, *end_pin, "position"));
     c->end_pin_position_prior = ReadPositionPrior(r, pm);
     RequireStaticPoint(r, pm, ex);
@@ -1093,7 +1112,7 @@ void ReadTipLoads(const Reader& r, const Entries& m, const Experiment& ex, LoadC
   }
   if (const Field* pm = Reader::Find(m, "point_moments")) {
     for (const Field& item : r.Sequence(*pm)) {
-      const Entries mm = r.Map(item, {"s", "moment"});
+      const Entries mm = r.Map(item, blocks::kPointMoment.keys);
       PointMoment p;
       p.s = r.InRange(r.Require(mm, item, "s"), 0.0, ex.scene.rod.length);
       p.moment = r.Vector3(r.Require(mm, item, "moment"));
@@ -1109,7 +1128,7 @@ void ReadPins(const Reader& r, const Entries& m, const Experiment& ex, LoadCase*
   const double L = ex.scene.rod.length;
   std::vector<std::pair<double, int>> seen;
   for (const Field& item : r.Sequence(*pins)) {
-    const Entries pm = r.Map(item, {"s", "position", "position_prior"});
+    const Entries pm = r.Map(item, blocks::kPin.keys);
     Pin p;
     p.position_prior = ReadPositionPrior(r, pm);
     RequireStaticPoint(r, pm, ex);
@@ -1139,7 +1158,7 @@ void ReadStartAndMotion(const Reader& r, const Entries& m, const Experiment& ex,
   if (const Field* d = Reader::Find(m, "drive")) ReadDrives(r, *d, ex, c);
   if (const Field* d = Reader::Find(m, "driven")) ReadDriven(r, *d, ex, c);
   if (const Field* t = Reader::Find(m, "tip_load")) {
-    const Entries tm = r.Map(*t, {"file"});
+    const Entries tm = r.Map(*t, blocks::kTipLoad.keys);
     c->tip_load = ReadTimeSeries(r, r.Require(tm, *t, "file"), ex, {"fx", "fy", "fz"},
                                  {"mx", "my", "mz"}, {});
   }
@@ -1151,7 +1170,7 @@ void ReadPointForcesAndCuts(const Reader& r, const Entries& m, const Experiment&
                             LoadCase* c) {
   if (const Field* pf = Reader::Find(m, "point_forces")) {
     for (const Field& item : r.Sequence(*pf)) {
-      const Entries pm = r.Map(item, {"s", "force"});
+      const Entries pm = r.Map(item, blocks::kPointForce.keys);
       PointForce p;
       p.s = r.InRange(r.Require(pm, item, "s"), 0.0, ex.scene.rod.length);
       p.force = r.Vector3(r.Require(pm, item, "force"));
@@ -1161,7 +1180,7 @@ void ReadPointForcesAndCuts(const Reader& r, const Entries& m, const Experiment&
   if (const Field* cut = Reader::Find(m, "cut")) {
     if (ex.scene.springs.empty()) r.Fail(*cut, "a cut needs springs to cut (top-level springs:)");
     for (const Field& item : r.Sequence(*cut)) {
-      const Entries cm = r.Map(item, {"from", "to"});
+      const Entries cm = r.Map(item, blocks::kCut.keys);
       c->cuts.push_back(ReadInterval(r, item, ex.scene.rod.length, cm));
     }
   }
@@ -1176,7 +1195,7 @@ void ReadGrasp(const Reader& r, const Entries& m, const Experiment& ex, LoadCase
   const Field* end_clamp = Reader::Find(m, "end_clamp");
   const Field* end_pin = Reader::Find(m, "end_pin");
   const char* held_end = end_clamp ? "end_clamp" : "end_pin";
-  const Entries gm = r.Map(*grasp, {"s", "position", "position_prior"});
+  const Entries gm = r.Map(*grasp, blocks::kGrasp.keys);
   Grasp g;
   g.position_prior = ReadPositionPrior(r, gm);
   RequireStaticPoint(r, gm, ex);
@@ -1196,14 +1215,14 @@ void ReadGrasp(const Reader& r, const Entries& m, const Experiment& ex, LoadCase
 void ReadPokeAndSymmetry(const Reader& r, const Entries& m, const Experiment& ex, LoadCase* c) {
   if (const Field* poke = Reader::Find(m, "poke")) {
     if (!ex.scene.section) r.Fail(*poke, "a poke needs the cross-section model (top-level section:)");
-    const Entries pm = r.Map(*poke, {"s", "force"});
+    const Entries pm = r.Map(*poke, blocks::kPoke.keys);
     Poke p;
     p.s = r.InRange(r.Require(pm, *poke, "s"), 0.0, ex.scene.rod.length);
     p.force = r.Vector3(r.Require(pm, *poke, "force"));
     c->poke = p;
   }
   if (const Field* sym = Reader::Find(m, "symmetry")) {
-    const Entries sm = r.Map(*sym, {"point", "normal"});
+    const Entries sm = r.Map(*sym, blocks::kSymmetry.keys);
     SymmetryPlane plane;
     plane.point = r.Vector3(r.Require(sm, *sym, "point"));
     plane.normal = Direction(r, r.Require(sm, *sym, "normal"));
@@ -1218,10 +1237,7 @@ void ReadPokeAndSymmetry(const Reader& r, const Entries& m, const Experiment& ex
 // its reader above, each key with its own one-line check.
 void ReadCase(const Reader& r, const Field& f, int index, Experiment* ex,
               std::map<std::string, int>* name_lines, const ObservationEntryKinds& kinds) {
-  const Entries m =
-      r.Map(f, {"name", "clamp", "tip_force", "tip_moment", "tip_moment_follower", "point_forces",
-                "point_moments", "cut", "grasp", "poke", "end_clamp", "end_pin", "pins", "start",
-                "symmetry", "observations", "drive", "driven", "tip_load", "initial"});
+  const Entries m = r.Map(f, blocks::kCase.keys);
   LoadCase c;
   c.name = ReadCaseName(r, f, m, index, name_lines);
   ReadHeldEnds(r, f, m, *ex, &c);
@@ -1397,9 +1413,7 @@ Experiment ParseExperiment(const std::string& text, const std::string& path,
   ex.path = path;
   ex.directory = fs::path(path).parent_path().string();
   const Field top{root, "", 1, 0};
-  const Entries m = r.Map(
-      top, {"rod", "parameters", "gravity", "gravity_prior_deg", "springs", "section", "cases",
-            "fit", "solver", "dynamics"});
+  const Entries m = r.Map(top, blocks::kDocument.keys);
   const Field* params = Reader::Find(m, "parameters");
   // The rod's density given as a parameter (a row of the rod's, in a moving scene).
   bool density_in_parameters = false;

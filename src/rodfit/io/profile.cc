@@ -10,6 +10,7 @@
 
 #include "rodfit/io/csv.h"
 #include "rodfit/io/errors.h"
+#include "rodfit/io/settings.h"
 #include "rodfit/model/material_parameters.h"
 #include "rodfit/runtime/profile_format.h"
 #include "rodfit/version.h"
@@ -130,6 +131,41 @@ std::string FileDigest(const std::string& path) {
 
 namespace {
 
+// The fit's settings that the profile carries (SettingsArchive::Carry), each written under its
+// profile key: a word as its word, a number as its number.
+class CarriedSettingsWriter final : public SettingsArchive {
+ public:
+  explicit CarriedSettingsWriter(nlohmann::json* object) : v_(*object) {}
+
+  bool reading() const override { return false; }
+  void Carry(const char* key, const char* profile_key) override {
+    key_ = key;
+    profile_key_ = profile_key;
+  }
+  void Integer(const char* key, int* value, int, int) override { Write(key, *value); }
+  void Count(const char* key, int* value, int, int) override { Write(key, *value); }
+  void Number(const char* key, double* value, double, double) override { Write(key, *value); }
+  void Positive(const char* key, double* value) override { Write(key, *value); }
+  void Bool(const char* key, bool* value) override { Write(key, *value); }
+  void Choice(const char* key, int* index, const std::vector<std::string>& words,
+              const std::string&) override {
+    Write(key, words[*index]);
+  }
+  void Require(const char*) override {}
+  bool Has(const char*) const override { return true; }
+  void Check(bool, const char*, const std::string&) override {}
+
+ private:
+  // Writes the visited key when the declaration right before it carried it.
+  void Write(const char* key, const nlohmann::json& value) {
+    if (key_ == key) v_[profile_key_] = value;
+    key_.clear();
+  }
+
+  nlohmann::json& v_;
+  std::string key_, profile_key_;
+};
+
 // The profile's `fit` object: the fit's summary, its correlations, per entry its rms, per case
 // its nuisances, and a digest of every input file.
 nlohmann::json FitJson(const Experiment& e, const FitOptions& options, const FitResult& r,
@@ -146,9 +182,10 @@ nlohmann::json FitJson(const Experiment& e, const FitOptions& options, const Fit
   fit["residual_variance"] = r.residual_variance;
   fit["residual_variance_band"] = {check.band.low, check.band.high};
   fit["residuals_explained"] = !check.above;
-  fit["sigmas_trusted"] = options.trusted_sigmas;
-  fit["loss"] = RobustLossName(options.loss);
-  fit["loss_scale"] = options.loss_scale;
+  // The settings the profile carries, as Serialize(FitOptions) declares them.
+  FitOptions settings = options;
+  CarriedSettingsWriter carried(&fit);
+  Serialize(&carried, &settings);
   fit["correlation"] = {{"parameters", r.fitted_names}, {"matrix", json::array()}};
   for (int i = 0; i < r.correlation.rows(); ++i) {
     json row = json::array();

@@ -38,11 +38,16 @@ void Serialize(SettingsArchive* a, FitOptions* o) {
     names.push_back(RobustLossName(losses[k]));
     if (losses[k] == o->loss) index = static_cast<int>(k);
   }
+  // The profile carries the settings that say what its std and rms mean (its spelling of
+  // trusted_sigmas is older than the YAML key's).
+  a->Carry("loss", "loss");
   a->Choice("loss", &index, names, "must be " + JoinOr(names));
   o->loss = losses[index];
+  a->Carry("loss_scale", "loss_scale");
   a->Positive("loss_scale", &o->loss_scale);
   a->Bool("global", &o->global);
   a->Integer("max_iterations", &o->max_iterations, 1, kMaxFitIterations);
+  a->Carry("trusted_sigmas", "sigmas_trusted");
   a->Bool("trusted_sigmas", &o->trusted_sigmas);
 }
 

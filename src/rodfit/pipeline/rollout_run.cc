@@ -177,14 +177,9 @@ std::string MotionFitProfile(const Experiment& experiment, const Scene& fitted,
   return FormatProfile(ProfileJson(e, options, r, CheckResiduals(r, options)));
 }
 
-// The motion fit of options.fit to the recordings, its values set in `scene`. False: a
-// least-squares fit that did not converge (run->error says so).
-bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& options,
-                     Scene* scene, RolloutRun* run) {
-  const std::vector<std::string>& names = options.fit;
-  std::vector<MotionRecordingData> data;
-  for (const MarkerRecording& rec : run->recordings)
-    data.push_back({rec.file, rec.frame_interval, rec.frames});
+// options.fit_options with, when options.progress is set, a progress line per iteration of the
+// fit (the lines refer to `options`: it outlives the fit).
+MotionFitOptions FitOptionsWithProgress(const RolloutRunOptions& options) {
   MotionFitOptions fit_options = options.fit_options;
   if (options.progress) {
     options.progress("rollout --fit: rolling out the recordings with their sensitivities", NAN);
@@ -196,20 +191,12 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
       options.progress(text, NAN);
     };
   }
-  MotionFitResult fit;
-  try {
-    fit = FitMotion(*scene, data, names, options.rollout, experiment.statics, fit_options);
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(std::string("--fit: ") + e.what());
-  }
-  // A fit that fails at its start has no values: said so, nothing written.
-  if (fit.values.size() != fit.start.size() || fit.std.size() != fit.start.size()) {
-    run->error = "--fit: " + fit.message + " (nothing written)";
-    return false;
-  }
-  // A least-squares fit that did not converge keeps its best point (Levenberg-Marquardt accepts
-  // only steps that lower the cost): written with converged false.
-  run->fit_not_converged = !fit.converged && fit_options.method == MotionFitMethod::kLevenbergMarquardt;
+  return fit_options;
+}
+
+// The fitted values set in `scene`: the log-parameters and, when the rest shape was fitted, its
+// knots. Returns the rest twist at the fitted knots (empty without them).
+std::vector<double> SetFittedValues(const MotionFitResult& fit, Scene* scene) {
   const size_t knots = fit.rest_curvature_s.size(), logs = fit.names.size() - 2 * knots;
   for (size_t k = 0; k < logs; ++k) SetMotionParameter(fit.names[k], fit.values[k], scene);
   std::vector<double> rest_tau;
@@ -225,16 +212,13 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
     scene->rod.rest_curvature_s = fit.rest_curvature_s;
     scene->rod.rest_curvature_profile = profile;
   }
-  for (size_t k = 0; k < fit.names.size(); ++k)
-    run->fit_undetermined = run->fit_undetermined || !fit.identifiable[k];
-  run->fit_text = MotionFitText(fit, fit_options, names, rest_tau, data);
-  run->fit_json = nlohmann::json::parse(run->fit_text);
-  std::string no_profile;
-  run->profile_text = MotionFitProfile(experiment, *scene, fit, &no_profile);
-  if (!no_profile.empty()) {
-    Note(options, no_profile);
-    run->warnings.push_back(no_profile);
-  }
+  return rest_tau;
+}
+
+// The fit's summary lines (options.note): the mean error before and after, each value with its
+// start and std (or why it is not identifiable), each recording's fitted gripper tilts.
+void NoteFit(const RolloutRunOptions& options, const MotionFitResult& fit,
+             const std::vector<MotionRecordingData>& data) {
   char line[320];
   std::snprintf(line, sizeof(line),
                 "fitted over %zu recording(s) in %d rollouts (%s, %.3g s): mean error %.4g m -> "
@@ -242,7 +226,6 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
                 data.size(), fit.evaluations, fit.method.c_str(), fit.seconds, fit.error_start,
                 fit.error_fitted);
   Note(options, line);
-  if (!fit.converged) run->warnings.push_back("--fit: " + fit.message);
   for (size_t k = 0; k < fit.names.size(); ++k) {
     std::snprintf(line, sizeof(line), "  %s: %.6g -> %.6g", fit.names[k].c_str(), fit.start[k],
                   fit.values[k]);
@@ -265,11 +248,14 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
                   v[1].y(), sd[1].x(), sd[1].y());
     Note(options, line);
   }
-  // The residual variance says whether the rollout's model explains the recordings to the
-  // markers' noise (stated, or estimated from the recordings): above its chi-square band
-  // (stated) or above kEstimatedNoiseVarianceLimit (estimated: the estimate has its own error),
-  // the values absorb model error (e.g. pins standing in for gripper clamps) and their std
-  // understates it.
+}
+
+// The residual variance says whether the rollout's model explains the recordings to the
+// markers' noise (stated, or estimated from the recordings): above its chi-square band
+// (stated) or above kEstimatedNoiseVarianceLimit (estimated: the estimate has its own error),
+// the values absorb model error (e.g. pins standing in for gripper clamps) and their std
+// understates it. A misfit is set in run (residual_warning, warnings, misfit).
+void CheckResidualVariance(const MotionFitResult& fit, RolloutRun* run) {
   constexpr double kEstimatedNoiseVarianceLimit = 2.0;  // the model's error as large as the noise
   const int dof = fit.noise_residuals - static_cast<int>(fit.names.size()) -
                   fit.gripper_prior_residuals;  // the nuisances, one prior row each
@@ -292,8 +278,121 @@ bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& opti
       run->misfit = true;
     }
   }
+}
+
+// The motion fit of options.fit to the recordings, its values set in `scene`. False: a
+// least-squares fit that did not converge (run->error says so).
+bool FitToRecordings(const Experiment& experiment, const RolloutRunOptions& options,
+                     Scene* scene, RolloutRun* run) {
+  const std::vector<std::string>& names = options.fit;
+  std::vector<MotionRecordingData> data;
+  for (const MarkerRecording& rec : run->recordings)
+    data.push_back({rec.file, rec.frame_interval, rec.frames});
+  const MotionFitOptions fit_options = FitOptionsWithProgress(options);
+  MotionFitResult fit;
+  try {
+    fit = FitMotion(*scene, data, names, options.rollout, experiment.statics, fit_options);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--fit: ") + e.what());
+  }
+  // A fit that fails at its start has no values: said so, nothing written.
+  if (fit.values.size() != fit.start.size() || fit.std.size() != fit.start.size()) {
+    run->error = "--fit: " + fit.message + " (nothing written)";
+    return false;
+  }
+  // A least-squares fit that did not converge keeps its best point (Levenberg-Marquardt accepts
+  // only steps that lower the cost): written with converged false.
+  run->fit_not_converged = !fit.converged && fit_options.method == MotionFitMethod::kLevenbergMarquardt;
+  const std::vector<double> rest_tau = SetFittedValues(fit, scene);
+  for (size_t k = 0; k < fit.names.size(); ++k)
+    run->fit_undetermined = run->fit_undetermined || !fit.identifiable[k];
+  run->fit_text = MotionFitText(fit, fit_options, names, rest_tau, data);
+  run->fit_json = nlohmann::json::parse(run->fit_text);
+  std::string no_profile;
+  run->profile_text = MotionFitProfile(experiment, *scene, fit, &no_profile);
+  if (!no_profile.empty()) {
+    Note(options, no_profile);
+    run->warnings.push_back(no_profile);
+  }
+  NoteFit(options, fit, data);
+  if (!fit.converged) run->warnings.push_back("--fit: " + fit.message);
+  CheckResidualVariance(fit, run);
   run->fit = std::make_shared<MotionFitResult>(fit);
   return true;
+}
+
+// A CSV field: quoted, quotes doubled, line breaks as spaces.
+std::string CsvField(const std::string& text) {
+  std::string q = "\"";
+  for (char ch : text) q += ch == '"' ? std::string("\"\"") : std::string(1, ch == '\n' ? ' ' : ch);
+  return q + "\"";
+}
+
+// Recording r rolled out, a fitted recording with its grippers' fitted tilts (the fit's
+// nuisances).
+RolloutResult RollOutRecording(const Experiment& experiment, const RolloutRunOptions& options,
+                               const Scene& scene, const RolloutRun& run, size_t r) {
+  const MarkerRecording& rec = run.recordings[r];
+  RolloutOptions rollout = options.rollout;
+  if (run.fit && r < run.fit->gripper_rotation_deg.size())
+    for (int g = 0; g < 2; ++g)
+      rollout.gripper_rotation[g] += run.fit->gripper_rotation_deg[r][g] * (M_PI / 180.0);
+  try {
+    return Rollout(scene, rec.frame_interval, rec.frames, rollout, experiment.statics);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(rec.file, 0, "", e.what());
+  }
+}
+
+// Recording r's errors: its rows of rollout_error.csv (each frame's mean and largest error,
+// the worst marker) and of recordings.csv (each predicted marker's mean |coordinate error| over
+// the frames, the worst one).
+void AppendErrorRows(size_t r, const MarkerRecording& rec, const RolloutResult& result,
+                     RolloutRun* run) {
+  const int M = static_cast<int>(result.marker_s.size());
+  std::vector<double> sum(M, 0.0);
+  std::vector<int> seen(M, 0);
+  for (size_t k = 1; k < result.predicted.size(); ++k) {
+    double frame_sum = 0.0, frame_max = 0.0;
+    int frame_n = 0, frame_worst = -1;
+    for (int m = 0; m < M; ++m) {
+      if (result.held[m] || !rec.frames[k].col(m).allFinite()) continue;
+      const Eigen::Vector3d d = result.predicted[k].col(m) - rec.frames[k].col(m);
+      sum[m] += d.cwiseAbs().sum() / 3.0, ++seen[m];
+      frame_sum += d.cwiseAbs().sum() / 3.0, ++frame_n;
+      if (d.norm() > frame_max) frame_max = d.norm(), frame_worst = m;
+    }
+    run->over_time += std::to_string(r) + "," + std::to_string(k) + "," +
+                      FormatDouble(k * rec.frame_interval) + "," +
+                      (frame_n ? FormatDouble(frame_sum / frame_n) : std::string()) + "," +
+                      (frame_n ? FormatDouble(frame_max) : std::string()) + "," +
+                      (frame_worst >= 0 ? std::to_string(frame_worst) : std::string()) + "\n";
+  }
+  int worst = -1;
+  for (int m = 0; m < M; ++m)
+    if (seen[m] && (worst < 0 || sum[m] / seen[m] > sum[worst] / seen[worst])) worst = m;
+  run->table += std::to_string(r) + "," + CsvField(rec.file) + ",ok," +
+                std::to_string(result.predicted.size()) + "," +
+                FormatDouble(result.mae_predicted) + "," + FormatDouble(result.mae_all) + "," +
+                (worst >= 0 ? std::to_string(worst) + "," + FormatDouble(sum[worst] / seen[worst])
+                            : std::string(",")) +
+                ",\n";
+}
+
+// Recording r's rows of rollout.csv: every marker at every frame, observed and predicted.
+void AppendRolloutRows(size_t r, const MarkerRecording& rec, const RolloutResult& result,
+                       std::string* csv) {
+  auto num = [](double v) { return std::isfinite(v) ? FormatDouble(v) : std::string(); };
+  for (size_t k = 0; k < result.predicted.size(); ++k) {
+    for (int m = 0; m < static_cast<int>(result.marker_s.size()); ++m) {
+      const Eigen::Vector3d o = rec.frames[k].col(m), p = result.predicted[k].col(m);
+      *csv += std::to_string(r) + "," + std::to_string(k) + "," +
+              FormatDouble(k * rec.frame_interval) + "," + std::to_string(m) + "," +
+              FormatDouble(result.marker_s[m]) + "," + (result.held[m] ? "1," : "0,") +
+              num(o[0]) + "," + num(o[1]) + "," + num(o[2]) + "," + num(p[0]) + "," +
+              num(p[1]) + "," + num(p[2]) + "\n";
+    }
+  }
 }
 
 // Every recording predicted; rollout.csv and the errors. False: a rollout failed (run->error).
@@ -309,77 +408,22 @@ bool RollOut(const Experiment& experiment, const RolloutRunOptions& options, con
   int ran = 0;
   for (size_t r = 0; r < count; ++r) {
     const MarkerRecording& rec = run->recordings[r];
-    RolloutResult result;
     if (options.progress)
       options.progress("rollout: recording " + std::to_string(r + 1) + " of " +
                            std::to_string(count),
                        static_cast<double>(r) / count);
-    // A fitted recording is rolled out with its grippers' fitted tilts (the fit's nuisances).
-    RolloutOptions rollout = options.rollout;
-    if (run->fit && r < run->fit->gripper_rotation_deg.size())
-      for (int g = 0; g < 2; ++g)
-        rollout.gripper_rotation[g] += run->fit->gripper_rotation_deg[r][g] * (M_PI / 180.0);
-    try {
-      result = Rollout(scene, rec.frame_interval, rec.frames, rollout, experiment.statics);
-    } catch (const std::invalid_argument& e) {
-      throw InputError(rec.file, 0, "", e.what());
-    }
-    auto field = [](const std::string& text) {  // a CSV field: quoted, quotes doubled
-      std::string q = "\"";
-      for (char ch : text) q += ch == '"' ? std::string("\"\"") : std::string(1, ch == '\n' ? ' ' : ch);
-      return q + "\"";
-    };
+    RolloutResult result = RollOutRecording(experiment, options, scene, *run, r);
     if (!result.ok) {
       // The others still run and are written; the run names the failure.
       run->failures.push_back(rec.file + ": " + result.reason);
-      run->table += std::to_string(r) + "," + field(rec.file) + ",failed,,,,,," +
-                    field(result.reason) + "\n";
+      run->table += std::to_string(r) + "," + CsvField(rec.file) + ",failed,,,,,," +
+                    CsvField(result.reason) + "\n";
       run->results.push_back(std::move(result));
       continue;
     }
-    {
-      // Each predicted marker's error over the frames (mean |coordinate error|), the worst one.
-      const int M = static_cast<int>(result.marker_s.size());
-      std::vector<double> sum(M, 0.0);
-      std::vector<int> seen(M, 0);
-      for (size_t k = 1; k < result.predicted.size(); ++k) {
-        double frame_sum = 0.0, frame_max = 0.0;
-        int frame_n = 0, frame_worst = -1;
-        for (int m = 0; m < M; ++m) {
-          if (result.held[m] || !rec.frames[k].col(m).allFinite()) continue;
-          const Eigen::Vector3d d = result.predicted[k].col(m) - rec.frames[k].col(m);
-          sum[m] += d.cwiseAbs().sum() / 3.0, ++seen[m];
-          frame_sum += d.cwiseAbs().sum() / 3.0, ++frame_n;
-          if (d.norm() > frame_max) frame_max = d.norm(), frame_worst = m;
-        }
-        run->over_time += std::to_string(r) + "," + std::to_string(k) + "," +
-                          FormatDouble(k * rec.frame_interval) + "," +
-                          (frame_n ? FormatDouble(frame_sum / frame_n) : std::string()) + "," +
-                          (frame_n ? FormatDouble(frame_max) : std::string()) + "," +
-                          (frame_worst >= 0 ? std::to_string(frame_worst) : std::string()) + "\n";
-      }
-      int worst = -1;
-      for (int m = 0; m < M; ++m)
-        if (seen[m] && (worst < 0 || sum[m] / seen[m] > sum[worst] / seen[worst])) worst = m;
-      run->table += std::to_string(r) + "," + field(rec.file) + ",ok," +
-                    std::to_string(result.predicted.size()) + "," +
-                    FormatDouble(result.mae_predicted) + "," + FormatDouble(result.mae_all) + "," +
-                    (worst >= 0 ? std::to_string(worst) + "," + FormatDouble(sum[worst] / seen[worst])
-                                : std::string(",")) +
-                    ",\n";
-    }
+    AppendErrorRows(r, rec, result, run);
     ++ran;
-    auto num = [](double v) { return std::isfinite(v) ? FormatDouble(v) : std::string(); };
-    for (size_t k = 0; k < result.predicted.size(); ++k) {
-      for (int m = 0; m < static_cast<int>(result.marker_s.size()); ++m) {
-        const Eigen::Vector3d o = rec.frames[k].col(m), p = result.predicted[k].col(m);
-        csv += std::to_string(r) + "," + std::to_string(k) + "," +
-               FormatDouble(k * rec.frame_interval) + "," + std::to_string(m) + "," +
-               FormatDouble(result.marker_s[m]) + "," + (result.held[m] ? "1," : "0,") +
-               num(o[0]) + "," + num(o[1]) + "," + num(o[2]) + "," + num(p[0]) + "," +
-               num(p[1]) + "," + num(p[2]) + "\n";
-      }
-    }
+    AppendRolloutRows(r, rec, result, &csv);
     sum_all += result.mae_all;
     sum_predicted += result.mae_predicted;
     run->samples += result.samples;

@@ -543,39 +543,41 @@ struct Shooter {
   }
 };
 
-}  // namespace detail
-
-inline ShootingResult SolveKirchhoff(const RodProperties& props, const ClampSpec& clamp,
-                                     const EndCondition& end, const ShootingOptions& opts = {},
-                                     const Eigen::Matrix<double, 6, 1>* initial_guess = nullptr) {
-  detail::Shooter S;
-  S.p = props;
-  S.end = end;
-  S.o = opts;
-  S.clamp0 = ClampState(clamp);
-  S.K = std::max(1, opts.segments);
-  S.L = props.length;
+// The shooter of `props` from `clamp` to `end`: opts.segments segments of equal length, the
+// scales of the residual's forces and moments, the end's target frame.
+inline void SetUpShooter(const RodProperties& props, const ClampSpec& clamp,
+                         const EndCondition& end, const ShootingOptions& opts, Shooter* S) {
+  S->p = props;
+  S->end = end;
+  S->o = opts;
+  S->clamp0 = ClampState(clamp);
+  S->K = std::max(1, opts.segments);
+  S->L = props.length;
   const double Bref = std::max(props.B1, props.B2);
-  S.Fs = Bref / (S.L * S.L);
-  S.Ms = Bref / S.L;
-  S.N = 6 + 12 * (S.K - 1);
-  const int steps_per_seg = std::max(1, (opts.steps + S.K - 1) / S.K);
-  for (int k = 0; k <= S.K; ++k) S.sb.push_back(S.L * k / S.K);
-  S.sb.back() = S.L;
-  S.nst.assign(S.K, steps_per_seg);
+  S->Fs = Bref / (S->L * S->L);
+  S->Ms = Bref / S->L;
+  S->N = 6 + 12 * (S->K - 1);
+  const int steps_per_seg = std::max(1, (opts.steps + S->K - 1) / S->K);
+  for (int k = 0; k <= S->K; ++k) S->sb.push_back(S->L * k / S->K);
+  S->sb.back() = S->L;
+  S->nst.assign(S->K, steps_per_seg);
   if (end.kind == EndCondition::kClamp) {
-    S.q_end = Eigen::Quaterniond(FrameFromTangentNormal(end.tangent, end.normal)).normalized();
+    S->q_end = Eigen::Quaterniond(FrameFromTangentNormal(end.tangent, end.normal)).normalized();
   }
   if (end.kind == EndCondition::kClampFreeTwist) {
-    S.t_end = end.tangent.normalized();
+    S->t_end = end.tangent.normalized();
     // Any orthonormal pair perpendicular to the target tangent.
-    S.e1 = S.t_end.unitOrthogonal();
-    S.e2 = S.t_end.cross(S.e1);
+    S->e1 = S->t_end.unitOrthogonal();
+    S->e2 = S->t_end.cross(S->e1);
   }
-  const int cont = std::max(1, opts.continuation_steps);
-  const double ls0 = S.LoadScale(cont > 1 ? 0.0 : 1.0);
+}
 
-  // Initial guess for (n0, m0) and, by one forward shot, for the segment start states.
+// The initial guess for (n0, m0) and, by one forward shot at load scale ls0, for the segment
+// start states. `cont`: the homotopy's steps (1: none).
+inline std::vector<RodState> FirstStarts(const Shooter& S, const RodProperties& props,
+                                         const EndCondition& end,
+                                         const Eigen::Matrix<double, 6, 1>* initial_guess,
+                                         int cont, double ls0) {
   Eigen::Vector3d n0 = Eigen::Vector3d::Zero(), m0 = Eigen::Vector3d::Zero();
   if (initial_guess) {
     n0 = initial_guess->head<3>();
@@ -589,20 +591,24 @@ inline ShootingResult SolveKirchhoff(const RodProperties& props, const ClampSpec
   starts[0].n = n0;
   starts[0].m = m0;
   for (int k = 1; k < S.K; ++k) starts[k] = S.IntegrateSeg(starts[k - 1], k - 1, ls0);
+  return starts;
+}
 
-  ShootingResult res;
-  res.props = props;
-  Eigen::VectorXd F0 = Eigen::VectorXd::Zero(S.N);
-  if (cont > 1) F0 = S.Assemble(starts, S.IntegrateAll(starts, S.LoadScale(0.0)), S.LoadScale(0.0));
-
+// Newton at lambda = 1 (cont == 1), or the homotopy from F0 in `cont` steps of lambda, a failed
+// step halved (at most opts.max_halvings times in a row). Counts the Newton iterations and steps
+// in res; *lambda, *norm: the lambda reached and its residual. True: converged at lambda = 1.
+inline bool Continue(const Shooter& S, const ShootingOptions& opts, int cont,
+                     const Eigen::VectorXd& F0, std::vector<RodState>* starts_io,
+                     ShootingResult* res, double* lambda_out, double* norm_out) {
+  std::vector<RodState>& starts = *starts_io;
   double lambda = (cont > 1) ? 0.0 : 1.0;
   double dlambda = 1.0 / cont;
   int halvings = 0;
   double norm = kInfinity;
   bool ok = false;
   if (cont == 1) {
-    ok = S.Newton(starts, 1.0, F0, opts.tolerance, &res.newton_iterations, &norm);
-    res.continuation_steps_taken = 1;
+    ok = S.Newton(starts, 1.0, F0, opts.tolerance, &res->newton_iterations, &norm);
+    res->continuation_steps_taken = 1;
   } else {
     while (lambda < 1.0) {
       const double lt = std::min(1.0, lambda + dlambda);
@@ -611,12 +617,12 @@ inline ShootingResult SolveKirchhoff(const RodProperties& props, const ClampSpec
       double nt = kInfinity;
       const bool step_ok = S.Newton(trial, lt, F0,
                                     last ? opts.tolerance : opts.continuation_tolerance,
-                                    &res.newton_iterations, &nt);
+                                    &res->newton_iterations, &nt);
       if (step_ok) {
         starts = std::move(trial);
         lambda = lt;
         norm = nt;
-        ++res.continuation_steps_taken;
+        ++res->continuation_steps_taken;
         halvings = 0;
         ok = last;
         dlambda = std::min(2.0 * dlambda, 1.0 / cont);  // recover the nominal increment
@@ -625,7 +631,7 @@ inline ShootingResult SolveKirchhoff(const RodProperties& props, const ClampSpec
         starts = std::move(trial);
         lambda = lt;
         norm = nt;
-        ++res.continuation_steps_taken;
+        ++res->continuation_steps_taken;
         break;
       } else {
         norm = nt;
@@ -634,35 +640,63 @@ inline ShootingResult SolveKirchhoff(const RodProperties& props, const ClampSpec
       }
     }
   }
-  res.lambda = lambda;
-  res.residual = norm;
+  *lambda_out = lambda;
+  *norm_out = norm;
+  return ok;
+}
 
-  // Samples at the reached lambda.
+// The samples of the solution from `starts` at the reached lambda, its end forces and moments,
+// and whether (and why not) it converged.
+inline void FillShootingResult(const Shooter& S, const RodProperties& props,
+                               const EndCondition& end, const std::vector<RodState>& starts,
+                               double lambda, double norm, bool ok, ShootingResult* res) {
+  res->lambda = lambda;
+  res->residual = norm;
   const double ls = S.LoadScale(lambda);
-  res.distributed_force = ls * props.DistributedForce();
+  res->distributed_force = ls * props.DistributedForce();
   std::vector<double> s;
   std::vector<StateVector> ys;
   StateVector yL = StateVector::Zero();
   for (int k = 0; k < S.K; ++k) {
-    yL = IntegrateSegment(props, res.distributed_force, Pack(starts[k]), S.sb[k], S.sb[k + 1],
+    yL = IntegrateSegment(props, res->distributed_force, Pack(starts[k]), S.sb[k], S.sb[k + 1],
                           S.nst[k], &s, &ys, k == S.K - 1);
   }
-  FillSamples(res, s, ys);
-  res.n0 = starts[0].n;
-  res.m0 = starts[0].m;
-  res.nL = yL.segment<3>(7);
-  res.mL = yL.segment<3>(10);
-  res.converged = ok && lambda >= 1.0;
-  if (res.converged && end.kind == EndCondition::kClampFreeTwist &&
-      res.frames.back().col(2).dot(S.t_end) <= 0.0) {
-    res.converged = false;  // spurious root d3(L) = -tangent
-    res.message = "converged to d3(L) = -tangent";
+  FillSamples(*res, s, ys);
+  res->n0 = starts[0].n;
+  res->m0 = starts[0].m;
+  res->nL = yL.segment<3>(7);
+  res->mL = yL.segment<3>(10);
+  res->converged = ok && lambda >= 1.0;
+  if (res->converged && end.kind == EndCondition::kClampFreeTwist &&
+      res->frames.back().col(2).dot(S.t_end) <= 0.0) {
+    res->converged = false;  // spurious root d3(L) = -tangent
+    res->message = "converged to d3(L) = -tangent";
   }
-  if (res.message.empty()) {
-    res.message = res.converged ? "converged"
-                                : "not converged (lambda " + std::to_string(lambda) +
-                                      ", residual " + std::to_string(norm) + ")";
+  if (res->message.empty()) {
+    res->message = res->converged ? "converged"
+                                  : "not converged (lambda " + std::to_string(lambda) +
+                                        ", residual " + std::to_string(norm) + ")";
   }
+}
+
+}  // namespace detail
+
+inline ShootingResult SolveKirchhoff(const RodProperties& props, const ClampSpec& clamp,
+                                     const EndCondition& end, const ShootingOptions& opts = {},
+                                     const Eigen::Matrix<double, 6, 1>* initial_guess = nullptr) {
+  detail::Shooter S;
+  detail::SetUpShooter(props, clamp, end, opts, &S);
+  const int cont = std::max(1, opts.continuation_steps);
+  const double ls0 = S.LoadScale(cont > 1 ? 0.0 : 1.0);
+  std::vector<RodState> starts = detail::FirstStarts(S, props, end, initial_guess, cont, ls0);
+
+  ShootingResult res;
+  res.props = props;
+  Eigen::VectorXd F0 = Eigen::VectorXd::Zero(S.N);
+  if (cont > 1) F0 = S.Assemble(starts, S.IntegrateAll(starts, S.LoadScale(0.0)), S.LoadScale(0.0));
+  double lambda = 0.0, norm = kInfinity;
+  const bool ok = detail::Continue(S, opts, cont, F0, &starts, &res, &lambda, &norm);
+  detail::FillShootingResult(S, props, end, starts, lambda, norm, ok, &res);
   return res;
 }
 

@@ -536,6 +536,177 @@ inline ClampedStability StabilityOfClampedEquilibrium(const RodProperties& props
   return detail::Linearize(P, starts).stab;
 }
 
+namespace detail {
+
+// The roll problem between clamp A (rolled) and clamp B (fixed) on opts' segments and steps.
+inline void SetUpRollProblem(const RodProperties& props, const ClampSpec& clamp_a,
+                             const ClampSpec& clamp_b, const CriticalRollOptions& opts,
+                             RollProblem* P) {
+  P->Init(props, opts.segments, opts.steps, opts.fd_step);
+  P->rA = clamp_a.position;
+  P->qA0 = Eigen::Quaterniond(FrameFromTangentNormal(clamp_a.tangent, clamp_a.normal)).normalized();
+  P->d3A = clamp_a.tangent.normalized();
+  P->rB = clamp_b.position;
+  P->qB = Eigen::Quaterniond(FrameFromTangentNormal(clamp_b.tangent, clamp_b.normal)).normalized();
+}
+
+// The path's first point: the untwisted equilibrium at roll 0, its tangent towards `direction`
+// (+1 or -1). Sets P->roll_weight.
+inline CurvePoint RollStart(RollProblem* P, const ShootingResult& untwisted, double direction) {
+  CurvePoint a;
+  a.starts = SegmentStarts(*P, untwisted);
+  a.roll = 0.0;
+  P->SetRoll(a.starts, 0.0);
+  a.residual = P->Residual(a.starts).norm();
+  a.lin = Linearize(*P, a.starts);
+  Eigen::VectorXd seed = Eigen::VectorXd::Zero(P->N + 1);
+  seed(P->N) = direction;
+  a.tangent = CurveTangent(*P, a.lin, seed);
+  // Weight the roll so that the first tangent moves it and the unknowns equally.
+  P->roll_weight = std::clamp(a.tangent.head(P->N).norm() / std::abs(a.tangent(P->N)), 1.0, 1e3);
+  a.tangent = CurveTangent(*P, a.lin, seed);
+  return a;
+}
+
+// A point of the path recorded in res (its path and largest Hessian asymmetry).
+inline void RecordPathPoint(const RollProblem& P, const CurvePoint& c, CriticalRollResult* res) {
+  RollPathPoint pp;
+  pp.roll_rad = c.roll;
+  pp.arclength = c.arclength / P.roll_weight;
+  pp.lambda_min = c.lin.stab.lambda_min;
+  pp.index = c.lin.stab.index;
+  pp.tangent_roll = c.tangent(P.N) / P.roll_weight;
+  pp.jacobian_det_sign = c.lin.stab.jacobian_det_sign;
+  pp.twist_moment = c.starts[0].m.dot(P.d3A);
+  res->path.push_back(pp);
+  res->max_hessian_asymmetry = std::max(res->max_hessian_asymmetry, c.lin.stab.asymmetry);
+}
+
+// 2. Pseudo-arclength continuation from *a until lambda_min changes sign or the range is passed.
+// Steps and the locate tolerance are given in radians of roll along the initial tangent.
+// True: *b is the first point with lambda_min <= 0, *a the last before it and *chord its chord
+// matrix. False: res is final (stable through the range, or the continuation stopped: why).
+inline bool FollowRoll(const RollProblem& P, const CriticalRollOptions& opts, CurvePoint* a,
+                       Eigen::PartialPivLU<Eigen::MatrixXd>* chord, CurvePoint* b,
+                       CriticalRollResult* res) {
+  const double direction = opts.max_roll_rad > 0 ? 1.0 : -1.0;
+  const double range = std::abs(opts.max_roll_rad);
+  const double unit = P.roll_weight;
+  double ds = opts.initial_step * unit;
+  for (;;) {
+    if (res->continuation_steps >= opts.max_continuation_steps) {
+      res->message = "continuation step cap reached at roll " + std::to_string(a->roll);
+      res->shape = ShapeOf(P, a->starts, a->residual);
+      return false;
+    }
+    CurvePoint c;
+    if (!Correct(P, *a, *chord, ds, opts.tolerance, &c, &res->corrector_evaluations)) {
+      ds *= 0.5;
+      if (ds < opts.min_step * unit) {
+        res->message = "continuation stalled at roll " + std::to_string(a->roll) +
+                       " rad (step below min_step)";
+        res->shape = ShapeOf(P, a->starts, a->residual);
+        return false;
+      }
+      continue;
+    }
+    ++res->continuation_steps;
+    c.lin = Linearize(P, c.starts);
+    c.tangent = CurveTangent(P, c.lin, a->tangent);
+    RecordPathPoint(P, c, res);
+    if (c.lin.stab.lambda_min <= 0.0) {
+      *b = std::move(c);
+      return true;
+    }
+    if (direction * c.roll > range) {
+      res->ok = true;
+      res->kind = RollInstability::kNoneInRange;
+      res->critical_roll_rad = c.roll;
+      res->lambda_min = c.lin.stab.lambda_min;
+      res->tangent_roll = c.tangent(P.N) / P.roll_weight;
+      res->twist_moment = c.starts[0].m.dot(P.d3A);
+      res->shape = ShapeOf(P, c.starts, c.residual);
+      res->critical_mode = c.lin.stab.mode;
+      res->message = "stable up to roll " + std::to_string(c.roll) + " rad (lambda_min " +
+                     std::to_string(c.lin.stab.lambda_min) + ")";
+      return false;
+    }
+    *a = std::move(c);
+    *chord = ChordMatrix(P, *a);
+    ds = std::min(opts.max_step * unit, ds * 1.5);
+  }
+}
+
+// 3. Locate the crossing on the arclength from a (lambda > 0) to b (lambda <= 0): Illinois.
+// Fills res with the point found (or why it was not located to tolerance).
+inline void LocateCrossing(const RollProblem& P, const CriticalRollOptions& opts,
+                           const CurvePoint& a, const Eigen::PartialPivLU<Eigen::MatrixXd>& chord,
+                           const CurvePoint& b, CriticalRollResult* res) {
+  const double direction = opts.max_roll_rad > 0 ? 1.0 : -1.0;
+  const double range = std::abs(opts.max_roll_rad);
+  const double unit = P.roll_weight;
+  const bool fold = a.tangent(P.N) * b.tangent(P.N) < 0.0;
+  double s_lo = 0.0, f_lo = a.lin.stab.lambda_min;
+  double s_hi = b.arclength - a.arclength, f_hi = b.lin.stab.lambda_min;
+  CurvePoint best = b;
+  int side = 0;
+  const double s_tol = opts.locate_tolerance_rad * unit;  // |d roll| <= |d s| / unit
+  while (s_hi - s_lo > s_tol && f_hi != 0.0 &&
+         res->locate_iterations < opts.max_locate_iterations) {
+    ++res->locate_iterations;
+    double s = (s_lo * f_hi - s_hi * f_lo) / (f_hi - f_lo);
+    const double w = s_hi - s_lo;
+    if (!(s > s_lo + 1e-3 * w && s < s_hi - 1e-3 * w)) s = 0.5 * (s_lo + s_hi);
+    CurvePoint c;
+    if (!Correct(P, a, chord, s, opts.tolerance, &c, &res->corrector_evaluations)) {
+      res->message = "corrector failed while locating the crossing near roll " +
+                     std::to_string(a.roll);
+      res->shape = ShapeOf(P, a.starts, a.residual);
+      return;
+    }
+    c.lin = Linearize(P, c.starts);
+    c.tangent = CurveTangent(P, c.lin, a.tangent);
+    const double fc = c.lin.stab.lambda_min;
+    if (fc > 0.0) {
+      s_lo = s;
+      f_lo = fc;
+      if (side == -1) f_hi *= 0.5;  // Illinois: the retained end's value halved
+      side = -1;
+    } else {
+      s_hi = s;
+      f_hi = fc;
+      if (side == 1) f_lo *= 0.5;
+      side = 1;
+    }
+    if (std::abs(fc) <= std::abs(best.lin.stab.lambda_min)) best = std::move(c);
+  }
+  if (s_hi - s_lo > s_tol && f_hi != 0.0) {
+    res->message = "crossing not located to tolerance (bracket " +
+                   std::to_string((s_hi - s_lo) / unit) + " rad)";
+  }
+  res->ok = res->message.empty();
+  res->kind = fold ? RollInstability::kFold : RollInstability::kBifurcation;
+  res->bracket_rad = (s_hi - s_lo) / unit;
+  res->critical_roll_rad = best.roll;
+  res->lambda_min = best.lin.stab.lambda_min;
+  res->tangent_roll = best.tangent(P.N) / P.roll_weight;
+  res->twist_moment = best.starts[0].m.dot(P.d3A);
+  res->critical_mode = best.lin.stab.mode;
+  res->shape = ShapeOf(P, best.starts, best.residual);
+  res->max_hessian_asymmetry = std::max(res->max_hessian_asymmetry, best.lin.stab.asymmetry);
+  if (direction * best.roll > range) {
+    res->kind = RollInstability::kNoneInRange;
+    res->message = "first loss of stability at roll " + std::to_string(best.roll) +
+                   " rad, beyond the range";
+    res->ok = true;
+  } else if (res->ok) {
+    res->message = std::string(RollInstabilityName(res->kind)) + " at roll " +
+                   std::to_string(best.roll) + " rad";
+  }
+}
+
+}  // namespace detail
+
 // The critical roll of clamp A (see the top comment). clamp_b is the fixed end clamp
 // (position, tangent, normal as EndCondition::Clamp). initial_guess = (n(0), m(0)) for the
 // untwisted solve, which SolveKirchhoff does with `start_continuation_steps` homotopy steps
@@ -564,40 +735,10 @@ inline CriticalRollResult CriticalRoll(const RodProperties& props, const ClampSp
     return res;
   }
   detail::RollProblem P;
-  P.Init(props, opts.segments, opts.steps, opts.fd_step);
-  P.rA = clamp_a.position;
-  P.qA0 = Eigen::Quaterniond(FrameFromTangentNormal(clamp_a.tangent, clamp_a.normal)).normalized();
-  P.d3A = clamp_a.tangent.normalized();
-  P.rB = clamp_b.position;
-  P.qB = Eigen::Quaterniond(FrameFromTangentNormal(clamp_b.tangent, clamp_b.normal)).normalized();
-
+  detail::SetUpRollProblem(props, clamp_a, clamp_b, opts, &P);
   const double direction = opts.max_roll_rad > 0 ? 1.0 : -1.0;
-  const double range = std::abs(opts.max_roll_rad);
-  detail::CurvePoint a;
-  a.starts = detail::SegmentStarts(P, res.untwisted);
-  a.roll = 0.0;
-  P.SetRoll(a.starts, 0.0);
-  a.residual = P.Residual(a.starts).norm();
-  a.lin = detail::Linearize(P, a.starts);
-  Eigen::VectorXd seed = Eigen::VectorXd::Zero(P.N + 1);
-  seed(P.N) = direction;
-  a.tangent = detail::CurveTangent(P, a.lin, seed);
-  // Weight the roll so that the first tangent moves it and the unknowns equally.
-  P.roll_weight = std::clamp(a.tangent.head(P.N).norm() / std::abs(a.tangent(P.N)), 1.0, 1e3);
-  a.tangent = detail::CurveTangent(P, a.lin, seed);
-  auto record = [&](const detail::CurvePoint& c) {
-    RollPathPoint pp;
-    pp.roll_rad = c.roll;
-    pp.arclength = c.arclength / P.roll_weight;
-    pp.lambda_min = c.lin.stab.lambda_min;
-    pp.index = c.lin.stab.index;
-    pp.tangent_roll = c.tangent(P.N) / P.roll_weight;
-    pp.jacobian_det_sign = c.lin.stab.jacobian_det_sign;
-    pp.twist_moment = c.starts[0].m.dot(P.d3A);
-    res.path.push_back(pp);
-    res.max_hessian_asymmetry = std::max(res.max_hessian_asymmetry, c.lin.stab.asymmetry);
-  };
-  record(a);
+  detail::CurvePoint a = detail::RollStart(&P, res.untwisted, direction);
+  detail::RecordPathPoint(P, a, &res);
   // Strictly stable start: lambda_min above the rounding of H's spectrum (a neutral mode, e.g.
   // a weightless loop turning about coaxial clamps, is not a start the roll can follow).
   const double spectrum = a.lin.stab.eigenvalues.cwiseAbs().maxCoeff();
@@ -608,115 +749,10 @@ inline CriticalRollResult CriticalRoll(const RodProperties& props, const ClampSp
     res.shape = res.untwisted;
     return res;
   }
-
-  // 2. Pseudo-arclength continuation until lambda_min changes sign or the range is passed.
-  // Steps and the locate tolerance are given in radians of roll along the initial tangent.
-  const double unit = P.roll_weight;
-  double ds = opts.initial_step * unit;
   Eigen::PartialPivLU<Eigen::MatrixXd> chord = detail::ChordMatrix(P, a);
   detail::CurvePoint b;
-  for (;;) {
-    if (res.continuation_steps >= opts.max_continuation_steps) {
-      res.message = "continuation step cap reached at roll " + std::to_string(a.roll);
-      res.shape = detail::ShapeOf(P, a.starts, a.residual);
-      return res;
-    }
-    detail::CurvePoint c;
-    if (!detail::Correct(P, a, chord, ds, opts.tolerance, &c, &res.corrector_evaluations)) {
-      ds *= 0.5;
-      if (ds < opts.min_step * unit) {
-        res.message = "continuation stalled at roll " + std::to_string(a.roll) +
-                      " rad (step below min_step)";
-        res.shape = detail::ShapeOf(P, a.starts, a.residual);
-        return res;
-      }
-      continue;
-    }
-    ++res.continuation_steps;
-    c.lin = detail::Linearize(P, c.starts);
-    c.tangent = detail::CurveTangent(P, c.lin, a.tangent);
-    record(c);
-    if (c.lin.stab.lambda_min <= 0.0) {
-      b = std::move(c);
-      break;
-    }
-    if (direction * c.roll > range) {
-      res.ok = true;
-      res.kind = RollInstability::kNoneInRange;
-      res.critical_roll_rad = c.roll;
-      res.lambda_min = c.lin.stab.lambda_min;
-      res.tangent_roll = c.tangent(P.N) / P.roll_weight;
-      res.twist_moment = c.starts[0].m.dot(P.d3A);
-      res.shape = detail::ShapeOf(P, c.starts, c.residual);
-      res.critical_mode = c.lin.stab.mode;
-      res.message = "stable up to roll " + std::to_string(c.roll) + " rad (lambda_min " +
-                    std::to_string(c.lin.stab.lambda_min) + ")";
-      return res;
-    }
-    a = std::move(c);
-    chord = detail::ChordMatrix(P, a);
-    ds = std::min(opts.max_step * unit, ds * 1.5);
-  }
-
-  // 3. Locate the crossing on the arclength from a (lambda > 0) to b (lambda <= 0): Illinois.
-  const bool fold = a.tangent(P.N) * b.tangent(P.N) < 0.0;
-  double s_lo = 0.0, f_lo = a.lin.stab.lambda_min;
-  double s_hi = b.arclength - a.arclength, f_hi = b.lin.stab.lambda_min;
-  detail::CurvePoint best = b;
-  int side = 0;
-  const double s_tol = opts.locate_tolerance_rad * unit;  // |d roll| <= |d s| / unit
-  while (s_hi - s_lo > s_tol && f_hi != 0.0 &&
-         res.locate_iterations < opts.max_locate_iterations) {
-    ++res.locate_iterations;
-    double s = (s_lo * f_hi - s_hi * f_lo) / (f_hi - f_lo);
-    const double w = s_hi - s_lo;
-    if (!(s > s_lo + 1e-3 * w && s < s_hi - 1e-3 * w)) s = 0.5 * (s_lo + s_hi);
-    detail::CurvePoint c;
-    if (!detail::Correct(P, a, chord, s, opts.tolerance, &c, &res.corrector_evaluations)) {
-      res.message = "corrector failed while locating the crossing near roll " +
-                    std::to_string(a.roll);
-      res.shape = detail::ShapeOf(P, a.starts, a.residual);
-      return res;
-    }
-    c.lin = detail::Linearize(P, c.starts);
-    c.tangent = detail::CurveTangent(P, c.lin, a.tangent);
-    const double fc = c.lin.stab.lambda_min;
-    if (fc > 0.0) {
-      s_lo = s;
-      f_lo = fc;
-      if (side == -1) f_hi *= 0.5;  // Illinois: the retained end's value halved
-      side = -1;
-    } else {
-      s_hi = s;
-      f_hi = fc;
-      if (side == 1) f_lo *= 0.5;
-      side = 1;
-    }
-    if (std::abs(fc) <= std::abs(best.lin.stab.lambda_min)) best = std::move(c);
-  }
-  if (s_hi - s_lo > s_tol && f_hi != 0.0) {
-    res.message = "crossing not located to tolerance (bracket " +
-                  std::to_string((s_hi - s_lo) / unit) + " rad)";
-  }
-  res.ok = res.message.empty();
-  res.kind = fold ? RollInstability::kFold : RollInstability::kBifurcation;
-  res.bracket_rad = (s_hi - s_lo) / unit;
-  res.critical_roll_rad = best.roll;
-  res.lambda_min = best.lin.stab.lambda_min;
-  res.tangent_roll = best.tangent(P.N) / P.roll_weight;
-  res.twist_moment = best.starts[0].m.dot(P.d3A);
-  res.critical_mode = best.lin.stab.mode;
-  res.shape = detail::ShapeOf(P, best.starts, best.residual);
-  res.max_hessian_asymmetry = std::max(res.max_hessian_asymmetry, best.lin.stab.asymmetry);
-  if (direction * best.roll > range) {
-    res.kind = RollInstability::kNoneInRange;
-    res.message = "first loss of stability at roll " + std::to_string(best.roll) +
-                  " rad, beyond the range";
-    res.ok = true;
-  } else if (res.ok) {
-    res.message = std::string(RollInstabilityName(res.kind)) + " at roll " +
-                  std::to_string(best.roll) + " rad";
-  }
+  if (!detail::FollowRoll(P, opts, &a, &chord, &b, &res)) return res;
+  detail::LocateCrossing(P, opts, a, chord, b, &res);
   return res;
 }
 

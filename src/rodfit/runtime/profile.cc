@@ -291,59 +291,31 @@ Parameter ReadParameter(const Reader& r, const json& v, const std::string& name,
   return p;
 }
 
-}  // namespace
-
-ProfileError::ProfileError(const std::string& file_in, const std::string& key_in,
-                           const std::string& message_in)
-    : std::runtime_error([&] {
-        std::string out = file_in + ": " + (key_in.empty() ? "" : key_in + ": ") + message_in;
-        for (char& c : out)
-          if (c == '\n' || c == '\r') c = ' ';
-        return out;
-      }()),
-      file(file_in),
-      key(key_in),
-      message(message_in) {}
-
-const Parameter* Profile::Find(const std::string& name) const {
-  for (const Parameter& p : parameters)
-    if (p.name == name) return &p;
-  return nullptr;
-}
-
-Profile ParseProfile(const std::string& text, const std::string& path,
-                     const ProfileReadOptions& options) {
-  const Reader r(path);
-  json doc;
-  try {
-    doc = json::parse(text);
-  } catch (const json::parse_error& e) {
-    r.Fail("", std::string("not a JSON document: ") + e.what());
-  }
-  r.Object(doc, "", {pf::kFormat, pf::kVersion, pf::kRodfitVersion, pf::kRod, pf::kGravity,
-                     pf::kHeld, pf::kSprings, pf::kSection, pf::kParameters, pf::kDerived,
-                     pf::kFit});
+// `format`, `version`, `rodfit_version`: a rodfit profile of a version this reader reads.
+void ReadHeader(const Reader& r, const json& doc, Profile* out) {
   const json& format = r.Require(doc, "", pf::kFormat);
   if (!format.is_string() || format.get<std::string>() != pf::kFormatName)
     r.Fail(pf::kFormat, std::string("must be \"") + pf::kFormatName + "\" (not a rodfit profile)");
-  Profile out;
-  out.path = path;
   const json& version = r.Require(doc, "", pf::kVersion);
   if (!version.is_number_integer() || version.get<long long>() < kProfileMinVersion ||
       version.get<long long>() > kProfileMaxVersion)
     r.Fail(pf::kVersion, version.dump() + " is not supported (this reader reads " +
                              std::to_string(kProfileMinVersion) + " to " +
                              std::to_string(kProfileMaxVersion) + ")");
-  out.version = version.get<int>();
+  out->version = version.get<int>();
   if (const json* v = r.Find(doc, pf::kRodfitVersion))
-    out.rodfit_version = r.String(*v, pf::kRodfitVersion);
-  Scene& scene = out.scene;
+    out->rodfit_version = r.String(*v, pf::kRodfitVersion);
+}
+
+// `rod`, `gravity` and `held` (a version 1 profile has no held ends: LoadCase's clamp).
+void ReadRodAndHeld(const Reader& r, const json& doc, Profile* out) {
+  Scene& scene = out->scene;
   ProfileReader(r, r.Require(doc, "", pf::kRod), pf::kRod).Visit([&](ProfileReader& a) {
     pf::VisitRod(a, scene.rod);
   });
   const double length = scene.rod.length;
   if (const json* g = r.Find(doc, pf::kGravity)) scene.gravity = r.Vector3(*g, pf::kGravity);
-  if (out.version >= 2) {
+  if (out->version >= 2) {
     LoadCase held;
     held.name = "profile";
     ProfileReader(r, r.Require(doc, "", pf::kHeld), pf::kHeld).Visit([&](ProfileReader& a) {
@@ -357,6 +329,13 @@ Profile ParseProfile(const std::string& text, const std::string& path,
     for (const char* key : {pf::kHeld, pf::kSprings, pf::kSection})
       if (r.Find(doc, key)) r.Fail(key, "is a version 2 key (the profile says version 1)");
   }
+}
+
+// `springs` and `section`. Returns the zones' own parameters (each must be listed in
+// `parameters`).
+std::set<std::string> ReadSpringsAndSection(const Reader& r, const json& doc, Profile* out) {
+  Scene& scene = out->scene;
+  const double length = scene.rod.length;
   std::set<std::string> zone_parameters;
   ProfileReader(r, doc, "").List(pf::kSprings, &scene.springs,
                                  [&](ProfileReader& a, SpringZone& zone) {
@@ -378,7 +357,15 @@ Profile ParseProfile(const std::string& text, const std::string& path,
     std::string why;
     if (!scene.section->Check(&why)) r.Fail(pf::kSection, why);
   }
+  return zone_parameters;
+}
 
+// `parameters`: every row the model reads (the ring's only with a section) and every zone's
+// own, each read by ReadParameter (with the overrides), then set in the material — the rod's
+// rows agreeing with `rod`.
+void ReadParameters(const Reader& r, const json& doc, const std::set<std::string>& zone_parameters,
+                    const ProfileReadOptions& options, Profile* out) {
+  Scene& scene = out->scene;
   const json& params = r.Require(doc, "", pf::kParameters);
   if (!params.is_object()) r.Fail(pf::kParameters, "must be an object");
   std::set<std::string> seen;
@@ -386,11 +373,11 @@ Profile ParseProfile(const std::string& text, const std::string& path,
     const std::string& name = item.key();
     const MaterialParameterInfo* row = FindMaterialParameter(name);
     // Version 1 wrote zone parameters without their zones: read them as spring stiffnesses.
-    if (!row && !zone_parameters.count(name) && out.version >= 2)
+    if (!row && !zone_parameters.count(name) && out->version >= 2)
       r.Fail(Reader::Join(pf::kParameters, name),
              "unknown parameter (neither in the parameter table nor a spring zone's parameter)");
     if (row && row->needs_section && !scene.section) continue;  // no ring without a section
-    out.parameters.push_back(ReadParameter(r, item.value(), name, out.version, options));
+    out->parameters.push_back(ReadParameter(r, item.value(), name, out->version, options));
     seen.insert(name);
   }
   for (const auto& [name, value] : options.overrides) {
@@ -406,7 +393,7 @@ Profile ParseProfile(const std::string& text, const std::string& path,
   for (const std::string& name : zone_parameters)
     if (!seen.count(name))
       r.Fail(Reader::Join(pf::kParameters, name), "missing (a spring zone's stiffness)");
-  for (const Parameter& p : out.parameters) {
+  for (const Parameter& p : out->parameters) {
     // An isotropic B2 stays tied, so that the rod model sees exactly what the fit's did.
     if (!p.tied_to.empty()) continue;
     const MaterialParameterInfo* row = FindMaterialParameter(p.name);
@@ -419,7 +406,48 @@ Profile ParseProfile(const std::string& text, const std::string& path,
     }
     AssignMaterialParameter(p.name, p.value, &scene.material, &scene.rod);
   }
-  if (scene.section && !(scene.rod.radius > 0.0))
+}
+
+}  // namespace
+
+ProfileError::ProfileError(const std::string& file_in, const std::string& key_in,
+                           const std::string& message_in)
+    : std::runtime_error([&] {
+        std::string out = file_in + ": " + (key_in.empty() ? "" : key_in + ": ") + message_in;
+        for (char& c : out)
+          if (c == '\n' || c == '\r') c = ' ';
+        return out;
+      }()),
+      file(file_in),
+      key(key_in),
+      message(message_in) {}
+
+const Parameter* Profile::Find(const std::string& name) const {
+  for (const Parameter& p : parameters)
+    if (p.name == name) return &p;
+  return nullptr;
+}
+
+// The document's blocks in the order the format lists them (docs/formats.md, "Profile JSON"),
+// each read by its function above; an unknown top-level key is named before any value is read.
+Profile ParseProfile(const std::string& text, const std::string& path,
+                     const ProfileReadOptions& options) {
+  const Reader r(path);
+  json doc;
+  try {
+    doc = json::parse(text);
+  } catch (const json::parse_error& e) {
+    r.Fail("", std::string("not a JSON document: ") + e.what());
+  }
+  r.Object(doc, "", std::vector<std::string>(std::begin(pf::kDocumentKeys),
+                                             std::end(pf::kDocumentKeys)));
+  Profile out;
+  out.path = path;
+  ReadHeader(r, doc, &out);
+  ReadRodAndHeld(r, doc, &out);
+  const std::set<std::string> zone_parameters = ReadSpringsAndSection(r, doc, &out);
+  ReadParameters(r, doc, zone_parameters, options, &out);
+  if (out.scene.section && !(out.scene.rod.radius > 0.0))
     r.Fail("rod.radius", "must be > 0 with a section");
   return out;
 }

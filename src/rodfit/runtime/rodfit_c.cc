@@ -267,6 +267,52 @@ rodfit_status rodfit_get_mesh(rodfit_runtime* h, int* num_vertices, int* num_tri
   });
 }
 
+rodfit_status rodfit_get_rest_knots(rodfit_runtime* h, int* num_knots, double* s_m,
+                                    double* k1_per_m, double* k2_per_m, double* tau_per_m,
+                                    size_t capacity) {
+  return Guard(h, [&] {
+    const rodfit::RodSpec& rod = h->runtime->profile().scene.rod;
+    const size_t n = rod.rest_curvature_s.size();
+    // The profile reader keeps one value per knot in each list (ParseProfile refuses others),
+    // and a file's knots are far fewer than an int counts.
+    if (rod.rest_curvature_profile.size() != n ||
+        n > static_cast<size_t>(std::numeric_limits<int>::max()))
+      return Fail(h, RODFIT_INTERNAL_ERROR,
+                  "the rest shape's knots and values differ in count, or exceed an int");
+    if (num_knots) *num_knots = static_cast<int>(n);
+    if (!s_m && !k1_per_m && !k2_per_m && !tau_per_m) return RODFIT_OK;  // the count only
+    if (!s_m || !k1_per_m || !k2_per_m || !tau_per_m || capacity < n)
+      return Fail(h, RODFIT_INVALID_ARGUMENT, "rest knot buffers are null or too small");
+    for (size_t j = 0; j < n; ++j) {
+      s_m[j] = rod.rest_curvature_s[j];
+      k1_per_m[j] = rod.rest_curvature_profile[j][0];
+      k2_per_m[j] = rod.rest_curvature_profile[j][1];
+      tau_per_m[j] = rod.rest_curvature_profile[j][2];
+    }
+    return RODFIT_OK;
+  });
+}
+
+rodfit_status rodfit_get_rest_curvature(rodfit_runtime* h, double curvature[3]) {
+  return Guard(h, [&] {
+    if (!curvature) return Fail(h, RODFIT_INVALID_ARGUMENT, "curvature is null");
+    const rodfit::Vec3& k = h->runtime->profile().scene.rod.rest_curvature;
+    for (int c = 0; c < 3; ++c) curvature[c] = k[c];
+    return RODFIT_OK;
+  });
+}
+
+rodfit_status rodfit_get_rest_shape(rodfit_runtime* h, double* xyz, size_t capacity) {
+  return Guard(h, [&] {
+    const size_t needed = 3 * static_cast<size_t>(h->runtime->model().num_vertices());
+    if (!xyz || capacity < needed)
+      return Fail(h, RODFIT_INVALID_ARGUMENT, "rest shape buffer is null or too small");
+    const rodfit::Mat3X x = h->runtime->model().RestState().x;
+    std::memcpy(xyz, x.data(), needed * sizeof(double));  // column-major: xyz per vertex
+    return RODFIT_OK;
+  });
+}
+
 const char* rodfit_last_error(const rodfit_runtime* h) {
   if (!h) return "null handle";
   return h->step_error ? h->step_error : h->last_error.c_str();

@@ -1374,6 +1374,7 @@ TubeMesh Runtime::Mesh() const {
 void Runtime::Mesh(TubeMesh* mesh) { impl_->BuildMesh(&impl_->mesh_scratch, mesh); }
 
 const RodModel& Runtime::model() const { return *impl_->model; }
+const Profile& Runtime::profile() const { return impl_->profile; }
 const RodState& Runtime::state() const {
   return impl_->options.mode == RuntimeMode::kDynamic ? impl_->dynamic.q : impl_->state;
 }

@@ -111,17 +111,11 @@ Eigen::Matrix3d GripperFrame(const RolloutOptions& options, int g, double t,
   return F * RotationOf(options.gripper_rotation[g]);
 }
 
-// The rollout's scene (its one case: the clamp, pins and end driven along the held markers'
-// paths, the start) and the vertex of each marker; fills out->held and out->marker_s. Shared by
-// Rollout and RolloutWithSensitivities, so both integrate the same problem.
-struct RolloutProblem {
-  Scene scene;
-  std::vector<int> marker_vertex;
-};
-
-RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
-                            const std::vector<Eigen::Matrix3Xd>& frames,
-                            const RolloutOptions& options, RolloutResult* result) {
+// The recording's checks (a dynamics, at least 2 frames and 3 markers, every marker seen in
+// frames 0 and 1), the held markers and the markers' arc lengths (frame 0's polyline scaled to
+// the rod's length): result->held and result->marker_s.
+void MarkerArcLengths(const Scene& scene, const std::vector<Eigen::Matrix3Xd>& frames,
+                      const RolloutOptions& options, RolloutResult* result) {
   RolloutResult& out = *result;
   RODFIT_CHECK_ARG(scene.dynamics, "rollout needs a dynamics: block");
   RODFIT_CHECK_ARG(frames.size() >= 2, "a recording needs at least 2 frames");
@@ -145,20 +139,133 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     if (!(out.marker_s[m] > out.marker_s[m - 1]))
       throw std::invalid_argument("markers " + std::to_string(m - 1) + " and " + std::to_string(m) +
                                   " coincide in frame 0");
+}
 
-  // Vertices at every marker, the gaps between them subdivided in proportion to their length.
-  Scene sc = scene;
+// Vertices at every marker, the gaps between them subdivided in proportion to their length (as
+// many as scene.rod.segments over the rod): sc->rod's vertex_s and segments. Returns each
+// marker's vertex.
+std::vector<int> MarkerVertices(const Scene& scene, const std::vector<double>& marker_s, Scene* sc) {
+  const double L = scene.rod.length;
+  const int M = static_cast<int>(marker_s.size());
   std::vector<int> marker_vertex(M, 0);
-  sc.rod.vertex_s = {0.0};
+  sc->rod.vertex_s = {0.0};
   for (int m = 1; m < M; ++m) {
-    const double gap = out.marker_s[m] - out.marker_s[m - 1];
+    const double gap = marker_s[m] - marker_s[m - 1];
     const int pieces = std::max(1, static_cast<int>(std::lround(scene.rod.segments * gap / L)));
-    for (int p = 1; p <= pieces; ++p) sc.rod.vertex_s.push_back(out.marker_s[m - 1] + gap * p / pieces);
-    sc.rod.vertex_s.back() = out.marker_s[m];
-    marker_vertex[m] = static_cast<int>(sc.rod.vertex_s.size()) - 1;
+    for (int p = 1; p <= pieces; ++p) sc->rod.vertex_s.push_back(marker_s[m - 1] + gap * p / pieces);
+    sc->rod.vertex_s.back() = marker_s[m];
+    marker_vertex[m] = static_cast<int>(sc->rod.vertex_s.size()) - 1;
   }
-  sc.rod.vertex_s.back() = L;
-  sc.rod.segments = static_cast<int>(sc.rod.vertex_s.size()) - 1;
+  sc->rod.vertex_s.back() = L;
+  sc->rod.segments = static_cast<int>(sc->rod.vertex_s.size()) - 1;
+  return marker_vertex;
+}
+
+// The clamp's frame over time along its path: its tangent towards marker 1 (`held1`: marker 1's
+// recorded path, interpolated over frames where either is missing; else the first tangent t0),
+// its normal carried by parallel transport from n0, the gripper's offset on top (`grippers`, with
+// marker 1 held). Appends d3 to clamp_path->b and d1 to clamp_path->c.
+void DriveClampFrame(const std::vector<Eigen::Matrix3Xd>& frames, double frame_interval,
+                     const RolloutOptions& options, bool held1, bool grippers, const Vec3& t0,
+                     const Vec3& n0, const Eigen::Matrix3d& clamp_offset, TimeSeries* clamp_path) {
+  TimeSeries p1 = MarkerPath(frames, 1, frame_interval);
+  Smooth(&p1, frame_interval, options.smooth_frames);
+  Vec3 normal = n0, tangent = t0;
+  TimeSeries& cp = *clamp_path;
+  for (size_t k = 0; k < cp.t.size(); ++k) {
+    const Vec3 m1 = held1 ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
+    const Vec3 tn = (m1 - cp.a[k]).normalized();
+    normal = ParallelTransport<double, double>(tangent, tn, normal);
+    normal = (normal - normal.dot(tn) * tn).normalized();
+    tangent = tn;
+    Eigen::Matrix3d F = FrameOf(tangent, normal) * clamp_offset;
+    if (grippers && held1) F = GripperFrame(options, 0, cp.t[k], F);
+    cp.b.push_back(F.col(2));
+    cp.c.push_back(F.col(0));
+  }
+}
+
+// The end clamp at marker n-1 along n-2 -> n-1, driven along d's path (marker n-1's): its tangent
+// over time (with end_roll_held its normal too) in d's path, c->end_clamp at its start, d->point.
+// t0, n0: the clamp's tangent and normal at t = 0.
+void SetUpEndClamp(const std::vector<Eigen::Matrix3Xd>& frames, double frame_interval,
+                   const RolloutOptions& options, const std::vector<double>& marker_s,
+                   const Vec3& t0, const Vec3& n0, bool end_roll_held, DrivenPoint* driven,
+                   LoadCase* c) {
+  DrivenPoint& d = *driven;
+  const int M = static_cast<int>(frames[0].cols());
+  TimeSeries before = MarkerPath(frames, M - 2, frame_interval);
+  Smooth(&before, frame_interval, options.smooth_frames);
+  // The chords n-2 -> n-1 over time, and the end gripper's normal at t = 0: the clamp's
+  // carried along the first frame's marker polyline (the rod untwisted at rest).
+  std::vector<Vec3> chords;
+  for (size_t k = 0; k < d.path.t.size(); ++k)
+    chords.push_back((d.path.a[k] - At(before, d.path.t[k])).normalized());
+  Vec3 normal = n0, tangent = t0;
+  for (int k = 1; k < M; ++k) {
+    const Vec3 chord = (frames[0].col(k) - frames[0].col(k - 1)).normalized();
+    normal = ParallelTransport<double, double>(tangent, chord, normal);
+    tangent = chord;
+  }
+  normal = ParallelTransport<double, double>(tangent, chords.front(), normal);
+  tangent = chords.front();
+  Eigen::Matrix3d end_offset = Eigen::Matrix3d::Identity();
+  if (M >= 3) {
+    const Vec3 t_fit = EndTangent(frames, marker_s, M - 1);
+    end_offset = FrameOf(tangent, normal).transpose() * FrameOf(t_fit, normal);
+  }
+  // Over time the chord frame's normal is carried by parallel transport, the gripper's offset
+  // on top; without the roll held (kFreeRoll) only the tangent is.
+  for (size_t k = 0; k < chords.size(); ++k) {
+    const Vec3 tn = chords[k];
+    normal = ParallelTransport<double, double>(tangent, tn, normal);
+    normal = (normal - normal.dot(tn) * tn).normalized();
+    tangent = tn;
+    const Eigen::Matrix3d F =
+        GripperFrame(options, 1, d.path.t[k], FrameOf(tangent, normal) * end_offset);
+    d.path.b.push_back(F.col(2));
+    if (end_roll_held) d.path.c.push_back(F.col(0));
+  }
+  EndClamp end;
+  end.position = d.path.a.front();
+  end.tangent = d.path.b.front();
+  if (end_roll_held) end.normal = d.path.c.front();
+  c->end_clamp = end;
+  d.point = "end_clamp";
+}
+
+// The rollout's time stepping: a frame every per_frame steps (dynamics.time_step must divide
+// the frame interval), the options' error tolerance unless the scene sets one, and the
+// recording's duration.
+void SetUpFrameSteps(double frame_interval, size_t num_frames, const RolloutOptions& options,
+                     Scene* sc) {
+  const double dt = sc->dynamics->time_step;
+  const int per_frame = static_cast<int>(std::lround(frame_interval / dt));
+  if (per_frame < 1 || std::abs(per_frame * dt - frame_interval) > 1e-9 * frame_interval)
+    throw std::invalid_argument("dynamics.time_step must divide the frame interval (" +
+                                std::to_string(frame_interval) + " s)");
+  sc->dynamics->output_every = per_frame;
+  if (sc->dynamics->error_tolerance == 0.0) sc->dynamics->error_tolerance = options.error_tolerance;
+
+  sc->dynamics->duration = (num_frames - 1) * frame_interval;
+}
+
+// The rollout's scene (its one case: the clamp, pins and end driven along the held markers'
+// paths, the start) and the vertex of each marker; fills out->held and out->marker_s. Shared by
+// Rollout and RolloutWithSensitivities, so both integrate the same problem.
+struct RolloutProblem {
+  Scene scene;
+  std::vector<int> marker_vertex;
+};
+
+RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
+                            const std::vector<Eigen::Matrix3Xd>& frames,
+                            const RolloutOptions& options, RolloutResult* result) {
+  RolloutResult& out = *result;
+  MarkerArcLengths(scene, frames, options, result);
+  const int M = static_cast<int>(frames[0].cols());
+  Scene sc = scene;
+  const std::vector<int> marker_vertex = MarkerVertices(scene, out.marker_s, &sc);
 
   // The case: the clamp at marker 0 along marker 1, pins at the other held markers (the last one
   // an end pin), each driven along its recorded path.
@@ -190,25 +297,8 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     c.clamp.tangent = F.col(2);
     c.clamp.normal = F.col(0);
   }
-  {
-    // The clamp's frame over time: its tangent towards marker 1 (interpolated over frames where
-    // either is missing), its normal carried by parallel transport, the gripper's offset on top.
-    TimeSeries p1 = MarkerPath(frames, 1, frame_interval);
-    Smooth(&p1, frame_interval, options.smooth_frames);
-    Vec3 normal = n0, tangent = t0;
-    TimeSeries& cp = clamp_drive.path;
-    for (size_t k = 0; k < cp.t.size(); ++k) {
-      const Vec3 m1 = out.held[1] ? At(p1, cp.t[k]) : Vec3(cp.a[k] + t0);
-      const Vec3 tn = (m1 - cp.a[k]).normalized();
-      normal = ParallelTransport<double, double>(tangent, tn, normal);
-      normal = (normal - normal.dot(tn) * tn).normalized();
-      tangent = tn;
-      Eigen::Matrix3d F = FrameOf(tangent, normal) * clamp_offset;
-      if (grippers && out.held[1]) F = GripperFrame(options, 0, cp.t[k], F);
-      cp.b.push_back(F.col(2));
-      cp.c.push_back(F.col(0));
-    }
-  }
+  DriveClampFrame(frames, frame_interval, options, out.held[1], grippers, t0, n0, clamp_offset,
+                  &clamp_drive.path);
   c.drives.push_back(clamp_drive);
   // Markers n-2 and n-1 both held: an end clamp at n-1 along n-2 -> n-1, free to turn about its
   // tangent (the same reason as at the clamp).
@@ -220,44 +310,7 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
     d.path = MarkerPath(frames, m, frame_interval);
     Smooth(&d.path, frame_interval, options.smooth_frames);
     if (m == M - 1 && end_oriented) {
-      TimeSeries before = MarkerPath(frames, M - 2, frame_interval);
-      Smooth(&before, frame_interval, options.smooth_frames);
-      // The chords n-2 -> n-1 over time, and the end gripper's normal at t = 0: the clamp's
-      // carried along the first frame's marker polyline (the rod untwisted at rest).
-      std::vector<Vec3> chords;
-      for (size_t k = 0; k < d.path.t.size(); ++k)
-        chords.push_back((d.path.a[k] - At(before, d.path.t[k])).normalized());
-      Vec3 normal = n0, tangent = t0;
-      for (int k = 1; k < M; ++k) {
-        const Vec3 chord = (frames[0].col(k) - frames[0].col(k - 1)).normalized();
-        normal = ParallelTransport<double, double>(tangent, chord, normal);
-        tangent = chord;
-      }
-      normal = ParallelTransport<double, double>(tangent, chords.front(), normal);
-      tangent = chords.front();
-      Eigen::Matrix3d end_offset = Eigen::Matrix3d::Identity();
-      if (M >= 3) {
-        const Vec3 t_fit = EndTangent(frames, out.marker_s, M - 1);
-        end_offset = FrameOf(tangent, normal).transpose() * FrameOf(t_fit, normal);
-      }
-      // Over time the chord frame's normal is carried by parallel transport, the gripper's offset
-      // on top; without the roll held (kFreeRoll) only the tangent is.
-      for (size_t k = 0; k < chords.size(); ++k) {
-        const Vec3 tn = chords[k];
-        normal = ParallelTransport<double, double>(tangent, tn, normal);
-        normal = (normal - normal.dot(tn) * tn).normalized();
-        tangent = tn;
-        const Eigen::Matrix3d F =
-            GripperFrame(options, 1, d.path.t[k], FrameOf(tangent, normal) * end_offset);
-        d.path.b.push_back(F.col(2));
-        if (end_roll_held) d.path.c.push_back(F.col(0));
-      }
-      EndClamp end;
-      end.position = d.path.a.front();
-      end.tangent = d.path.b.front();
-      if (end_roll_held) end.normal = d.path.c.front();
-      c.end_clamp = end;
-      d.point = "end_clamp";
+      SetUpEndClamp(frames, frame_interval, options, out.marker_s, t0, n0, end_roll_held, &d, &c);
     } else if (m == M - 1) {
       c.end_pin = frames[0].col(m);
       d.point = "end_pin";
@@ -281,15 +334,7 @@ RolloutProblem SetUpRollout(const Scene& scene, double frame_interval,
   c.initial.velocity = (frames[1] - frames[0]) / frame_interval;
   sc.cases = {c};
   sc.springs.clear();
-  const double dt = sc.dynamics->time_step;
-  const int per_frame = static_cast<int>(std::lround(frame_interval / dt));
-  if (per_frame < 1 || std::abs(per_frame * dt - frame_interval) > 1e-9 * frame_interval)
-    throw std::invalid_argument("dynamics.time_step must divide the frame interval (" +
-                                std::to_string(frame_interval) + " s)");
-  sc.dynamics->output_every = per_frame;
-  if (sc.dynamics->error_tolerance == 0.0) sc.dynamics->error_tolerance = options.error_tolerance;
-
-  sc.dynamics->duration = (frames.size() - 1) * frame_interval;
+  SetUpFrameSteps(frame_interval, frames.size(), options, &sc);
 
   return {sc, marker_vertex};
 }
