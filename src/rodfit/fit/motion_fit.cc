@@ -280,6 +280,58 @@ int LayOutRecordings(Ctx* c) {
   return rows;
 }
 
+// Calls run_one(ri) for every recording ri, in parallel threads (as many as cores, at most one
+// per recording). Longest first (by their last rollouts, `seconds`; the first time in order):
+// the recordings differ ~3x in cost (a whip's adaptive substeps), and one started last leaves
+// the other threads idle at the end (longest-processing-time order, Graham 1969).
+template <typename RunOne>
+void RunLongestFirst(const std::vector<double>& seconds, const RunOne& run_one) {
+  const size_t count = seconds.size();
+  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
+                                                           static_cast<unsigned>(count)));
+  if (threads <= 1) {
+    for (size_t ri = 0; ri < count; ++ri) run_one(ri);
+    return;
+  }
+  std::vector<size_t> order(count);
+  for (size_t ri = 0; ri < count; ++ri) order[ri] = ri;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return seconds[a] > seconds[b]; });
+  std::atomic<size_t> next{0};
+  std::vector<std::thread> pool;
+  for (unsigned t = 0; t < threads; ++t)
+    pool.emplace_back([&]() {
+      for (size_t k = next++; k < count; k = next++) run_one(order[k]);
+    });
+  for (std::thread& t : pool) t.join();
+}
+
+// The priors' rows after the recordings' (from `row` on): the rest shape's smoothness and the
+// held-frame nuisances'.
+void AppendPriorRows(Ctx* c, int row) {
+  // The rest shape's smoothness prior: (y_j-1 - 2 y_j + y_j+1) / (L sigma) per interior knot
+  // and component (y = kappa° L, the unknowns).
+  if (c->prior_rows > 0) {
+    const int first = static_cast<int>(c->names->size());
+    const double w = 1.0 / (c->knots.length * c->prior_sigma);
+    const std::vector<double>& y = c->cached_logp;
+    for (size_t j = 1; j + 1 < c->knots.s.size(); ++j)
+      for (int a = 0; a < 2; ++a, ++row) {
+        const int km = first + 2 * static_cast<int>(j - 1) + a, k0 = km + 2, kp = km + 4;
+        c->cached_r[row] = w * (y[km] - 2.0 * y[k0] + y[kp]);
+        c->cached_J(row, km) = w;
+        c->cached_J(row, k0) = -2.0 * w;
+        c->cached_J(row, kp) = w;
+      }
+  }
+  // The held-frame nuisances' prior: each tilt over its std.
+  if (c->nuisances())
+    for (int k = c->nuisance_first; k < c->parameters; ++k, ++row) {
+      c->cached_r[row] = c->cached_logp[k] / c->nuisance_sigma;
+      c->cached_J(row, k) = 1.0 / c->nuisance_sigma;
+    }
+}
+
 // The recordings' residuals and Jacobian at scene `s` (rollouts with sensitivities), the
 // recordings run in parallel threads (each its own rollout, schedule and rows).
 bool RecordingsForward(const Scene& s, Ctx* c) {
@@ -321,27 +373,7 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
       run.failure = c->Named(ri) + e.what();
     }
   };
-  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
-                                                           static_cast<unsigned>(count)));
-  if (threads <= 1) {
-    for (size_t ri = 0; ri < count; ++ri) run_one(ri);
-  } else {
-    // Longest first (by their last rollouts; the first time in order): the recordings differ
-    // ~3x in cost (a whip's adaptive substeps), and one started last leaves the other
-    // threads idle at the end (longest-processing-time order, Graham 1969).
-    std::vector<size_t> order(count);
-    for (size_t ri = 0; ri < count; ++ri) order[ri] = ri;
-    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-      return c->recording_seconds[a] > c->recording_seconds[b];
-    });
-    std::atomic<size_t> next{0};
-    std::vector<std::thread> pool;
-    for (unsigned t = 0; t < threads; ++t)
-      pool.emplace_back([&]() {
-        for (size_t k = next++; k < count; k = next++) run_one(order[k]);
-      });
-    for (std::thread& t : pool) t.join();
-  }
+  RunLongestFirst(c->recording_seconds, run_one);
   int row = 0;
   double mae = 0.0;
   for (size_t ri = 0; ri < count; ++ri) {
@@ -365,27 +397,7 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
         }
       }
   }
-  // The rest shape's smoothness prior: (y_j-1 - 2 y_j + y_j+1) / (L sigma) per interior knot
-  // and component (y = kappa° L, the unknowns).
-  if (c->prior_rows > 0) {
-    const int first = static_cast<int>(c->names->size());
-    const double w = 1.0 / (c->knots.length * c->prior_sigma);
-    const std::vector<double>& y = c->cached_logp;
-    for (size_t j = 1; j + 1 < c->knots.s.size(); ++j)
-      for (int a = 0; a < 2; ++a, ++row) {
-        const int km = first + 2 * static_cast<int>(j - 1) + a, k0 = km + 2, kp = km + 4;
-        c->cached_r[row] = w * (y[km] - 2.0 * y[k0] + y[kp]);
-        c->cached_J(row, km) = w;
-        c->cached_J(row, k0) = -2.0 * w;
-        c->cached_J(row, kp) = w;
-      }
-  }
-  // The held-frame nuisances' prior: each tilt over its std.
-  if (c->nuisances())
-    for (int k = c->nuisance_first; k < c->parameters; ++k, ++row) {
-      c->cached_r[row] = c->cached_logp[k] / c->nuisance_sigma;
-      c->cached_J(row, k) = 1.0 / c->nuisance_sigma;
-    }
+  AppendPriorRows(c, row);
   c->cached_mae = mae / static_cast<double>(count);
   return true;
 }

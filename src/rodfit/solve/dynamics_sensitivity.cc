@@ -440,6 +440,26 @@ bool SolveWithMissingTerms(const StepSensitivityProblem& p, const Eigen::MatrixX
   return true;
 }
 
+// The sensitivities after a step, from the solved dq_n+1 (`next`): the rates and BDF2's history
+// follow the step's increment d (dynamics.cc: v = c (d - z)), the increment's derivative the
+// change of dq plus the twist its transport gains from the start's and the end's tangents; held
+// rows are zero.
+void AdvanceSensitivities(const std::vector<char>& held, bool keeps_history, double c,
+                          const Eigen::MatrixXd& next, const Eigen::MatrixXd& twist_from_start,
+                          const Eigen::MatrixXd& twist_from_end, const Eigen::MatrixXd& dz_all,
+                          DynamicSensitivity* ds) {
+  Eigen::MatrixXd dd = next - ds->dq + twist_from_start + twist_from_end;
+  Eigen::MatrixXd dv_new = c * (dd - dz_all);
+  for (int r = 0; r < dd.rows(); ++r)
+    if (held[r]) dd.row(r).setZero(), dv_new.row(r).setZero();
+  if (keeps_history) {
+    ds->dlast_v = ds->dv;
+    ds->dlast_step = dd;
+  }
+  ds->dv = dv_new;
+  ds->dq = next;
+}
+
 }  // namespace
 
 // The stages: the step's weights and targets (as StepImplicit took them), its Newton matrix at
@@ -540,17 +560,8 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
   if (!SolveWithMissingTerms(p, rhs, &next, why)) return false;
   Eigen::MatrixXd twist_from_end;
   TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
-  // The rates and BDF2's history follow the step's increment d (dynamics.cc: v = c (d - z)).
-  Eigen::MatrixXd dd = next - ds->dq + twist_from_start + twist_from_end;
-  Eigen::MatrixXd dv_new = c * (dd - dz_all);
-  for (int r = 0; r < N; ++r)
-    if (held_[r]) dd.row(r).setZero(), dv_new.row(r).setZero();
-  if (scheme_->keeps_history()) {
-    ds->dlast_v = ds->dv;
-    ds->dlast_step = dd;
-  }
-  ds->dv = dv_new;
-  ds->dq = next;
+  AdvanceSensitivities(held_, scheme_->keeps_history(), c, next, twist_from_start,
+                       twist_from_end, dz_all, ds);
   return true;
 }
 
