@@ -261,12 +261,14 @@ BENCHMARK(BM_FitRecording500Frames)->Unit(benchmark::kSecond)->UseRealTime()->It
 // drag fitted from 3x off, the noise estimated (not given), the recordings in parallel threads.
 // Target: <= 10 s on 2 cores.
 // Where the time goes (one evaluation: the 6 rollouts with sensitivities, 1038-1672 adaptive
-// substeps each, 2.1-3.3 per frame): ~4.2-4.7 s of CPU, about half the implicit steps (5.2
-// Newton iterations per substep, half of them chord steps) and half their sensitivities. The
-// number of rollouts is not stable: where a trial's replayed substep fails, the rest of that
-// recording adapts anew (the whip's at t ~ 3 s from the third trial on) and the objective jumps
-// by ~5 % between points 1e-5 apart, so Jacobians that differ by 1e-10 lead the search through
-// 6 or 13 rollouts (measured: 6 at 24 s CPU, and 13 at 41 s CPU with 20 % cheaper ones).
+// substeps each, 2.1-3.3 per frame): ~3.2 s of CPU, about half the implicit steps (5.2 Newton
+// iterations per substep, half of them chord steps) and half their sensitivities; the whip's
+// rollout costs ~2x the others (the threads take it first). The objective is not smooth below
+// its noise: where a trial's replayed substep fails, the rest of that recording adapts anew (the
+// whip's at t ~ 3 s from the third trial on), and the cost jumps by ~1e4 (0.2 %) between points
+// 1e-9 apart where one sigma of the parameters moves it by ~1e2. The search stops at the first
+// trial within the parameters' 95 % confidence region that raises the cost (docs/performance.md,
+// "Motion fit of six recordings"): 7 rollouts, the values those 13 rollouts ended at before.
 void BM_FitSixRecordings500Frames(benchmark::State& st) {
   std::vector<MotionRecordingData> recordings;
   for (unsigned seed : {1u, 2u})

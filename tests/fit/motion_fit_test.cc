@@ -12,11 +12,46 @@
 
 #include <gtest/gtest.h>
 
+#include "rodfit/fit/covariance.h"
 #include "rodfit/fit/motion_fit.h"
 #include "solve/mocap_fixture.h"
 
 namespace rodfit {
 namespace {
+
+// The motion fit's stop at the objective's resolution (docs/solvers.md, "The motion fit"): the
+// quantile against the published table (NIST/SEMATECH e-Handbook of Statistical Methods,
+// 1.3.6.7.4, "Critical values of the chi-square distribution", upper tail 0.05: 3.841, 5.991,
+// 7.815, 9.488, 18.307 for 1, 2, 3, 4, 10 degrees of freedom), within the approximation's 1 %.
+TEST(MotionFitResolution, ChiSquareQuantileMatchesTheTable) {
+  const std::vector<std::pair<int, double>> table = {
+      {1, 3.841}, {2, 5.991}, {3, 7.815}, {4, 9.488}, {10, 18.307}};
+  for (const auto& [dof, quantile] : table)
+    EXPECT_NEAR(fit_internal::ChiSquare95(dof), quantile, 0.01 * quantile) << dof;
+  // 1 and 2 are exact.
+  EXPECT_NEAR(fit_internal::ChiSquare95(1), 3.841, 1e-3);
+  EXPECT_NEAR(fit_internal::ChiSquare95(2), 5.991, 1e-3);
+}
+
+// The region is the covariance's ellipsoid (J^T J)^-1 s^2 scaled by the quantile: along a
+// parameter's own axis of an uncorrelated J, 2.4 of its sigmas lie inside for 2 unknowns
+// (2.4^2 = 5.76 < 5.99), 2.5 outside; with correlated columns the narrow direction counts.
+TEST(MotionFitResolution, ConfidenceRegionIsTheCovariancesEllipsoid) {
+  const double variance = 4.0;              // s^2: the residual variance scales the region
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(3, 2);
+  J(0, 0) = 10.0;                            // sigma_0 = s / 10 = 0.2
+  J(1, 1) = 0.5;                             // sigma_1 = s / 0.5 = 4
+  EXPECT_TRUE(fit_internal::WithinConfidenceRegion(J, Eigen::Vector2d(2.4 * 0.2, 0.0), variance));
+  EXPECT_FALSE(fit_internal::WithinConfidenceRegion(J, Eigen::Vector2d(2.5 * 0.2, 0.0), variance));
+  EXPECT_TRUE(fit_internal::WithinConfidenceRegion(J, Eigen::Vector2d(0.0, -2.4 * 4.0), variance));
+  EXPECT_FALSE(fit_internal::WithinConfidenceRegion(J, Eigen::Vector2d(0.0, -2.5 * 4.0), variance));
+  // Two columns that nearly cancel: a step along their difference moves the residuals little
+  // (inside), the same length along their sum a lot (outside).
+  Eigen::MatrixXd K(2, 2);
+  K << 1.0, 1.0, 1.0, 1.01;
+  EXPECT_TRUE(fit_internal::WithinConfidenceRegion(K, Eigen::Vector2d(100.0, -100.0), 1.0));
+  EXPECT_FALSE(fit_internal::WithinConfidenceRegion(K, Eigen::Vector2d(100.0, 100.0), 1.0));
+}
 
 TEST(MotionFit, RecoversBendingStiffnessAndDragFromARecording) {
   Material truth = testing::Cable().material;

@@ -252,6 +252,7 @@ bool EquilibriumSensitivity(const RodModel& model, const RodState& q,
 
 class TimeIntegrator;  // a scheme of the registry (src/rodfit/solve/integrator.h)
 struct RodFrames;      // an assembly's frames (src/rodfit/solve/rod_energy.h)
+class BandedSymmetric;  // a band matrix (src/rodfit/solve/banded.h)
 
 /// Integrates a RodModel in time. The stepper owns its scratch (band matrices, factor, states),
 /// kept between steps. The held points' reactions at a step's end are those of
@@ -338,6 +339,10 @@ class DynamicsStepper {
   void Forces(const RodState& q, const HeldPose& pose, VecX* g);
   /// The damping matrix C (external drag and internal viscosities) at q into the scratch band `damping`.
   void AssembleDamping(const RodState& q);
+  /// The internal damping matrix the last AssembleDamping made, when it was made at a state
+  /// equal to q (the last substep's start): a sensitivity step's C(q_n) without a second
+  /// assembly. False otherwise.
+  bool DampingAt(const RodState& q, BandedSymmetric* C) const;
   /// Free-dof difference b - a (held dofs 0).
   void Delta(const RodState& a, const RodState& b, VecX* d) const;
   /// *out = q with free vertices moved by `dx` (dof vector), the boundary at `pose`.

@@ -29,5 +29,15 @@ Identifiability Identify(const Eigen::MatrixXd& J, const std::vector<std::string
                          ceres::Problem* problem, double* logp, double covariance_scale,
                          double max_log_std);
 
+/// The 95 % quantile of the chi-square distribution with `dof` >= 1 degrees of freedom: exact
+/// for 1 and 2, Wilson & Hilferty 1931's cube-root approximation beyond (within 0.5 % of the
+/// tables).
+double ChiSquare95(int dof);
+
+/// Whether a step d of the parameters lies within the 95 % confidence region of a point whose
+/// weighted Jacobian is J (residuals x parameters): d^T J^T J d <= ChiSquare95(m) * variance, with
+/// `variance` the residual variance (1 for trusted sigmas) and m the parameters.
+bool WithinConfidenceRegion(const Eigen::MatrixXd& J, const Eigen::VectorXd& d, double variance);
+
 }  // namespace fit_internal
 }  // namespace rodfit

@@ -116,11 +116,21 @@ struct Ctx {
   // The evaluated point of least cost so far (where the search ends: its covariance is then
   // read without a further set of rollouts).
   Evaluation best;
+  // The search's current (last accepted) point, kept by Budget: where Ceres ends after rejected
+  // trials, whose covariance would otherwise cost one more set of rollouts when it has left the
+  // recent ones and is not the best (a cost that jumps a little between nearby points can
+  // make a trial's cost lower than the point Ceres keeps).
+  Evaluation accepted;
+  // Set when Budget ends the search at the objective's resolution (its rule): the search
+  // converged.
+  bool resolved = false;
   double run_seconds = 0.0;  // wall time in `forward`
   // Per recording, the adaptive steps of its first rollout, replayed by every later one: the
   // objective and its Jacobian stay smooth in the parameters (a step sequence that changed with
   // them would make the cost jump between a trial and its Jacobian).
   std::vector<StepSchedule> schedules;
+  // Per recording, the wall time of its last rollout [s]: the threads take the longest first.
+  std::vector<double> recording_seconds;
   StepSchedule* ScheduleOf(size_t recording) {
     if (schedules.size() != recordings->size()) schedules.assign(recordings->size(), StepSchedule());
     StepSchedule& s = schedules[recording];
@@ -200,12 +210,16 @@ bool EvaluateWithSensitivities(const double* logp, Ctx* c) {
     c->cached_mae = again->mae;
     c->last_failure = again->failure;
     c->recent.erase(again);
-  } else if (c->best.ok && c->best.logp == point) {
-    c->cached_logp = c->best.logp;
-    c->cached_ok = true;
-    c->cached_r = c->best.r;
-    c->cached_J = c->best.J;
-    c->cached_mae = c->best.mae;
+  } else {
+    for (const Ctx::Evaluation* kept : {&c->best, &c->accepted})
+      if (kept->ok && kept->logp == point) {
+        c->cached_logp = kept->logp;
+        c->cached_ok = true;
+        c->cached_r = kept->r;
+        c->cached_J = kept->J;
+        c->cached_mae = kept->mae;
+        break;
+      }
   }
   if (!current.logp.empty()) {
     if (c->recent.size() >= Ctx::kRecentEvaluations) c->recent.erase(c->recent.begin());
@@ -266,6 +280,58 @@ int LayOutRecordings(Ctx* c) {
   return rows;
 }
 
+// Calls run_one(ri) for every recording ri, in parallel threads (as many as cores, at most one
+// per recording). Longest first (by their last rollouts, `seconds`; the first time in order):
+// the recordings differ ~3x in cost (a whip's adaptive substeps), and one started last leaves
+// the other threads idle at the end (longest-processing-time order, Graham 1969).
+template <typename RunOne>
+void RunLongestFirst(const std::vector<double>& seconds, const RunOne& run_one) {
+  const size_t count = seconds.size();
+  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
+                                                           static_cast<unsigned>(count)));
+  if (threads <= 1) {
+    for (size_t ri = 0; ri < count; ++ri) run_one(ri);
+    return;
+  }
+  std::vector<size_t> order(count);
+  for (size_t ri = 0; ri < count; ++ri) order[ri] = ri;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return seconds[a] > seconds[b]; });
+  std::atomic<size_t> next{0};
+  std::vector<std::thread> pool;
+  for (unsigned t = 0; t < threads; ++t)
+    pool.emplace_back([&]() {
+      for (size_t k = next++; k < count; k = next++) run_one(order[k]);
+    });
+  for (std::thread& t : pool) t.join();
+}
+
+// The priors' rows after the recordings' (from `row` on): the rest shape's smoothness and the
+// held-frame nuisances'.
+void AppendPriorRows(Ctx* c, int row) {
+  // The rest shape's smoothness prior: (y_j-1 - 2 y_j + y_j+1) / (L sigma) per interior knot
+  // and component (y = kappa° L, the unknowns).
+  if (c->prior_rows > 0) {
+    const int first = static_cast<int>(c->names->size());
+    const double w = 1.0 / (c->knots.length * c->prior_sigma);
+    const std::vector<double>& y = c->cached_logp;
+    for (size_t j = 1; j + 1 < c->knots.s.size(); ++j)
+      for (int a = 0; a < 2; ++a, ++row) {
+        const int km = first + 2 * static_cast<int>(j - 1) + a, k0 = km + 2, kp = km + 4;
+        c->cached_r[row] = w * (y[km] - 2.0 * y[k0] + y[kp]);
+        c->cached_J(row, km) = w;
+        c->cached_J(row, k0) = -2.0 * w;
+        c->cached_J(row, kp) = w;
+      }
+  }
+  // The held-frame nuisances' prior: each tilt over its std.
+  if (c->nuisances())
+    for (int k = c->nuisance_first; k < c->parameters; ++k, ++row) {
+      c->cached_r[row] = c->cached_logp[k] / c->nuisance_sigma;
+      c->cached_J(row, k) = 1.0 / c->nuisance_sigma;
+    }
+}
+
 // The recordings' residuals and Jacobian at scene `s` (rollouts with sensitivities), the
 // recordings run in parallel threads (each its own rollout, schedule and rows).
 bool RecordingsForward(const Scene& s, Ctx* c) {
@@ -280,9 +346,16 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
   // Schedules are chosen (recorded or replayed) before the threads start.
   std::vector<StepSchedule*> schedules(count);
   for (size_t ri = 0; ri < count; ++ri) schedules[ri] = c->ScheduleOf(ri);
+  if (c->recording_seconds.size() != count) c->recording_seconds.assign(count, 0.0);
   auto run_one = [&](size_t ri) {
     const MotionRecordingData& rec = (*c->recordings)[ri];
     Run& run = runs[ri];
+    const auto started = Clock::now();
+    struct Timed {  // the run's wall time, however it ends
+      double* seconds;
+      Clock::time_point started;
+      ~Timed() { *seconds = std::chrono::duration<double>(Clock::now() - started).count(); }
+    } timed{&c->recording_seconds[ri], started};
     try {
       const RolloutOptions options = OptionsFor(*c, ri, c->cached_logp.data());
       run.out = RolloutWithSensitivities(s, rec.frame_interval, rec.frames, options,
@@ -300,19 +373,7 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
       run.failure = c->Named(ri) + e.what();
     }
   };
-  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
-                                                           static_cast<unsigned>(count)));
-  if (threads <= 1) {
-    for (size_t ri = 0; ri < count; ++ri) run_one(ri);
-  } else {
-    std::atomic<size_t> next{0};
-    std::vector<std::thread> pool;
-    for (unsigned t = 0; t < threads; ++t)
-      pool.emplace_back([&]() {
-        for (size_t ri = next++; ri < count; ri = next++) run_one(ri);
-      });
-    for (std::thread& t : pool) t.join();
-  }
+  RunLongestFirst(c->recording_seconds, run_one);
   int row = 0;
   double mae = 0.0;
   for (size_t ri = 0; ri < count; ++ri) {
@@ -336,27 +397,7 @@ bool RecordingsForward(const Scene& s, Ctx* c) {
         }
       }
   }
-  // The rest shape's smoothness prior: (y_j-1 - 2 y_j + y_j+1) / (L sigma) per interior knot
-  // and component (y = kappa° L, the unknowns).
-  if (c->prior_rows > 0) {
-    const int first = static_cast<int>(c->names->size());
-    const double w = 1.0 / (c->knots.length * c->prior_sigma);
-    const std::vector<double>& y = c->cached_logp;
-    for (size_t j = 1; j + 1 < c->knots.s.size(); ++j)
-      for (int a = 0; a < 2; ++a, ++row) {
-        const int km = first + 2 * static_cast<int>(j - 1) + a, k0 = km + 2, kp = km + 4;
-        c->cached_r[row] = w * (y[km] - 2.0 * y[k0] + y[kp]);
-        c->cached_J(row, km) = w;
-        c->cached_J(row, k0) = -2.0 * w;
-        c->cached_J(row, kp) = w;
-      }
-  }
-  // The held-frame nuisances' prior: each tilt over its std.
-  if (c->nuisances())
-    for (int k = c->nuisance_first; k < c->parameters; ++k, ++row) {
-      c->cached_r[row] = c->cached_logp[k] / c->nuisance_sigma;
-      c->cached_J(row, k) = 1.0 / c->nuisance_sigma;
-    }
+  AppendPriorRows(c, row);
   c->cached_mae = mae / static_cast<double>(count);
   return true;
 }
@@ -389,9 +430,9 @@ class MotionCost : public ceres::CostFunction {
 // start values after SOLVER_ABORT); the result then says it did not converge.
 class Budget : public ceres::IterationCallback {
  public:
-  Budget(const Ctx* ctx, int max_evaluations,
+  Budget(Ctx* ctx, int max_evaluations, bool trusted_sigmas,
          const std::function<void(const FitIterationInfo&)>& progress)
-      : ctx_(ctx), max_(max_evaluations), progress_(progress) {}
+      : ctx_(ctx), max_(max_evaluations), trusted_(trusted_sigmas), progress_(progress) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
     if (progress_) {
       FitIterationInfo info;
@@ -402,12 +443,50 @@ class Budget : public ceres::IterationCallback {
       info.budget = max_;
       progress_(info);
     }
+    if (it.iteration == 0 || it.step_is_successful) {
+      // Ceres has just evaluated its new point again for the Jacobian: the cached one.
+      KeepAccepted();
+    } else if (WithinConfidenceRegion()) {
+      ctx_->resolved = true;
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
     return ctx_->evaluations >= max_ ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_CONTINUE;
   }
 
  private:
-  const Ctx* ctx_;
+  void KeepAccepted() {
+    Ctx::Evaluation& a = ctx_->accepted;
+    a.ok = ctx_->cached_ok;
+    a.logp = ctx_->cached_logp;
+    a.r = ctx_->cached_r;
+    a.J = ctx_->cached_J;
+    a.mae = ctx_->cached_mae;
+  }
+  // The objective's resolution: a rejected trial (the last point evaluated) within the current
+  // point's 95 % confidence region, d^T J^T J d <= chi2_m(0.95) s^2 with J the current point's
+  // Jacobian, s^2 the residual variance (1 with trusted sigmas) and m the unknowns. The data
+  // cannot tell such points apart, yet the cost went up: what it measures at that scale is its
+  // own noise (a whip amplifies each step's Newton tolerance, and a trial's replayed substep
+  // that fails re-adapts the rest of its recording: the cost jumps by ~1e4 between points 1e-9
+  // apart where one sigma moves it by ~1e2), not the data. Shrinking the trust region further
+  // spends a set of rollouts per trial on that noise: on the six-recording benchmark 6 of 13,
+  // which ended at the point the first rejection left. A smooth objective does not reject
+  // such a trial (the suture swing's fits run as before).
+  bool WithinConfidenceRegion() const {
+    const Ctx::Evaluation& a = ctx_->accepted;
+    const int m = static_cast<int>(a.logp.size());
+    if (!a.ok || m == 0 || ctx_->cached_logp.size() != a.logp.size() || a.J.cols() != m) return false;
+    const int dof = ctx_->noise_residuals - m;
+    if (dof <= 0) return false;
+    Eigen::VectorXd d(m);
+    for (int k = 0; k < m; ++k) d[k] = ctx_->cached_logp[k] - a.logp[k];
+    const double variance = trusted_ ? 1.0 : a.r.squaredNorm() / static_cast<double>(dof);
+    return d.squaredNorm() > 0.0 && fit_internal::WithinConfidenceRegion(a.J, d, variance);
+  }
+
+  Ctx* ctx_;
   int max_;
+  bool trusted_;
   const std::function<void(const FitIterationInfo&)>& progress_;
 };
 
@@ -668,7 +747,9 @@ bool SearchLeastSquares(Ctx* ctx, std::vector<double>* x_io, const std::vector<d
   so.parameter_tolerance = 1e-8;
   so.num_threads = 1;
   so.logging_type = ceres::SILENT;
-  Budget budget(ctx, fit_options.max_evaluations, fit_options.progress);
+  ctx->accepted = Ctx::Evaluation();
+  ctx->resolved = false;
+  Budget budget(ctx, fit_options.max_evaluations, fit_options.trusted_sigmas, fit_options.progress);
   so.callbacks.push_back(&budget);
   ceres::Solver::Summary summary;
   // Ceres' times count from its own start; the fit's began with the first run, just above.
@@ -679,8 +760,12 @@ bool SearchLeastSquares(Ctx* ctx, std::vector<double>* x_io, const std::vector<d
     result->cost_per_iteration.push_back(it.cost);
     result->seconds_per_iteration.push_back(before + it.cumulative_time_in_seconds);
   }
-  result->converged = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
-  if (summary.termination_type == ceres::USER_SUCCESS)
+  result->converged = summary.IsSolutionUsable() && (summary.termination_type == ceres::CONVERGENCE ||
+                                                      ctx->resolved);
+  if (ctx->resolved)
+    result->message = "converged: a trial step within the parameters' 95 % confidence region raised "
+                       "the cost (the objective's resolution)";
+  else if (summary.termination_type == ceres::USER_SUCCESS)
     result->message = "stopped at max_evaluations (" + std::to_string(fit_options.max_evaluations) +
                       " rollouts) before converging";
   else

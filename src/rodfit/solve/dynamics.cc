@@ -118,6 +118,8 @@ Vec3 Perpendicular(const Vec3& d1, const Vec3& t) {
 struct DynamicsStepper::Scratch {
   RodFrames frames;  // the explicit steps' and the damping's
   BandedSymmetric hessian, damping;
+  RodState damping_state;  // the state `damping` was assembled at (the sensitivities reuse it)
+  bool has_damping_state = false;
   BandedCholesky factor;
   std::vector<int> held_rows;  // the held dofs (held_), listed: the Newton loop zeroes their rows
   StepTargets targets;
@@ -473,6 +475,21 @@ void DynamicsStepper::AssembleDamping(const RodState& q) {
   // Held rows carry no damping (their dofs do not move freely).
   for (int k = 0; k < scratch_->damping.size(); ++k)
     if (held_[k]) scratch_->damping.At(k, k) = 0.0;
+  scratch_->damping_state = q;
+  scratch_->has_damping_state = true;
+}
+
+bool DynamicsStepper::DampingAt(const RodState& q, BandedSymmetric* C) const {
+  if (!internal_damping_ || !scratch_->has_damping_state) return false;
+  const RodState& a = scratch_->damping_state;
+  // Every field the assembly reads, compared exactly (a copy of the state is equal).
+  const bool same = a.x == q.x && a.e == q.e && a.theta == q.theta && a.ref_u == q.ref_u &&
+                    a.ref_t == q.ref_t && a.ref_twist == q.ref_twist && a.clamp_t == q.clamp_t &&
+                    a.clamp_d1 == q.clamp_d1 && a.end_t == q.end_t && a.end_u == q.end_u &&
+                    a.end_theta == q.end_theta && a.plane_point == q.plane_point;
+  if (!same) return false;
+  *C = scratch_->damping;
+  return true;
 }
 
 double DynamicsStepper::StableTimeStep(const RodState& q) {

@@ -230,6 +230,242 @@ bool DynamicsStepper::StepSensitivity(const Drive& drive, const DynamicState& be
   return OneStepSensitivity(drive, options_.time_step, before, after, directions, ds, why);
 }
 
+namespace {
+
+// One implicit step's sensitivity problem, shared by the stages of
+// DynamicsStepper::OneStepSensitivity: what the step was (its states, weights and targets), the
+// stepper's per-dof constants, and the matrices assembled once for all the directions.
+struct StepSensitivityProblem {
+  StepSensitivityProblem(const RodModel& m, const std::vector<char>& h, const VecX& mass_per_dof,
+                         const VecX& drag_per_dof, bool internal, const DynamicState& from,
+                         const DynamicState& to)
+      : model(m), held(h), mass(mass_per_dof), drag(drag_per_dof), internal_damping(internal),
+        before(from), after(to) {
+    bend_twist.bend1 = bend_twist.bend2 = bend_twist.twist = 1.0;
+  }
+  int size() const { return model.num_free_dofs(); }
+  // A v = (a M + c (D + C)) v: how the step's residual weighs its increment d.
+  VecX ApplyA(const VecX& v) const {
+    VecX out = a * mass.cwiseProduct(v) + c * drag.cwiseProduct(v);
+    if (internal_damping) out += c * C.Multiply(v);
+    return out;
+  }
+
+  const RodModel& model;
+  const std::vector<char>& held;
+  const VecX& mass;  // [kg] lumped, per free dof
+  const VecX& drag;  // [N s/m] external drag coefficient, per free dof
+  bool internal_damping;
+  const DynamicState& before;
+  const DynamicState& after;
+  double a = 0.0, c = 0.0;  // the step's inertia [1/s^2] and damping [1/s] weights
+  VecX y, z;                // its inertia and damping targets
+  VecX d;                   // its increment q_n+1 - q_n
+  VecX w;                   // the damping's displacement d - z
+  EnergyTerms bend_twist = EnergyTerms::Only(-1);  // the bending and twist terms alone
+  // K's bending and twist part at q_n+1 (the passes need it on its own), the lagged internal
+  // damping matrix C(q_n), and the factor of the Newton matrix at the solution.
+  BandedSymmetric K_bend_twist, C;
+  BandedCholesky factor;
+  // Scratch of the central differences, kept between the directions and passes (no allocation
+  // per use).
+  mutable RodState qp, qm;
+  mutable VecX gp, gm;
+  mutable BandedSymmetric Cp, Cm;
+};
+
+// The Newton matrix at the solution, K(q_n+1) + a M + c (D + C(q_n)), assembled and factored:
+// K as its bending and twist part plus the rest (stretch, springs) — one assembly of the bending
+// stencils rather than two. C(q_n) is assembled unless `has_damping` (p->C holds it already).
+bool FactorStepMatrix(StepSensitivityProblem* p, bool has_damping, std::string* why) {
+  const int N = p->size();
+  BandedSymmetric H;
+  VecX g;
+  EnergyTerms others;  // everything else in the step's energy
+  others.bend1 = others.bend2 = others.twist = 0.0;
+  RodFrames after_frames;
+  ComputeRodFrames(p->model, p->after.q, &after_frames);
+  AssembleHessian(p->model, p->after.q, p->bend_twist, &g, &p->K_bend_twist, &after_frames);
+  AssembleHessian(p->model, p->after.q, others, &g, &H, &after_frames);
+  H.band() += p->K_bend_twist.band();
+  for (int k = 0; k < N; ++k) H.At(k, k) += p->a * p->mass[k] + p->c * p->drag[k];
+  if (p->internal_damping) {
+    if (!has_damping) DampingMatrix(p->model, p->before.q, p->held, 1.0, 1.0, 1.0, &p->C);
+    H.band() += p->c * p->C.band();
+  }
+  ApplyHeldRows(p->held, nullptr, &H);
+  if (!p->factor.Factor(H)) {
+    *why = "the step's Newton matrix is not positive definite at its solution";
+    return false;
+  }
+  return true;
+}
+
+// *col -= c dC[dq] w, the lagged damping matrix moved with the state along dq: a central
+// difference of its assembly, the state moved by ~1e-6 L (truncation ~1e-12, round-off ~1e-10,
+// relative). False when a moved state folds an edge back.
+bool SubtractDampingStateDerivative(const StepSensitivityProblem& p, const VecX& dq, VecX* col,
+                                    std::string* why) {
+  const int N = p.size();
+  const double L = p.model.length();
+  double scale = 0.0;
+  for (int r = 0; r < N; ++r) {
+    if (p.held[r]) continue;
+    scale = std::max(scale, r % 4 == 3 ? std::abs(dq[r]) : std::abs(dq[r]) / L);
+  }
+  if (scale == 0.0) return true;
+  const double eps = 1e-6 / scale;
+  if (!Moved(p.model, p.held, p.before.q, dq, eps, &p.qp) ||
+      !Moved(p.model, p.held, p.before.q, dq, -eps, &p.qm)) {
+    *why = "the damping's derivative: a perturbed state folds an edge back";
+    return false;
+  }
+  DampingMatrix(p.model, p.qp, p.held, 1.0, 1.0, 1.0, &p.Cp);
+  DampingMatrix(p.model, p.qm, p.held, 1.0, 1.0, 1.0, &p.Cm);
+  *col -= (p.c / (2.0 * eps)) * (p.Cp.Multiply(p.w) - p.Cm.Multiply(p.w));
+  return true;
+}
+
+// *col -= dg/dp along `dir` (the file's header): its stiffnesses' and rest curvature's gradient,
+// the drag's and viscosities' damping forces, the density's inertia and weights.
+void SubtractParameterPart(const StepSensitivityProblem& p, const ParameterDirection& dir,
+                           const VecX& weights, VecX* col) {
+  VecX tmp;
+  StiffnessGradient(p.model, p.after.q, dir, &tmp);
+  *col -= tmp;
+  if (dir.drag != 0.0) *col -= dir.drag * p.c * p.drag.cwiseProduct(p.w);
+  BandedSymmetric Cp, Cm;
+  if (p.internal_damping &&
+      (dir.bend_damping != 0.0 || dir.twist_damping != 0.0 || dir.stretch_damping != 0.0)) {
+    DampingMatrix(p.model, p.before.q, p.held, dir.bend_damping, dir.twist_damping,
+                  dir.stretch_damping, &Cp);
+    *col -= p.c * Cp.Multiply(p.w);
+  }
+  // The internal damping's matrix is a Hessian of the energy (DampingMatrix): affine in the
+  // rest curvature, its derivative the difference of the matrices with the direction's and none.
+  std::vector<Vec3> rest_delta;
+  if (p.internal_damping && RestCurvatureOnVertices(p.model, dir, &rest_delta)) {
+    const std::vector<Vec3> rest_zero(rest_delta.size(), Vec3::Zero());
+    DampingMatrix(p.model, p.before.q, p.held, 1.0, 1.0, 1.0, &Cp, &rest_delta);
+    DampingMatrix(p.model, p.before.q, p.held, 1.0, 1.0, 1.0, &Cm, &rest_zero);
+    *col -= p.c * (Cp.Multiply(p.w) - Cm.Multiply(p.w));
+  }
+  if (dir.density != 0.0) {
+    *col -= dir.density * (p.a * p.mass.cwiseProduct(p.d - p.y) + weights);
+  }
+}
+
+// The bending and twist Hessians of the assembly are exact at zero twist moment but drop the
+// second derivative of the reference twist (relative error ~1e-3 in a rod that twists as it
+// moves): their exact product with v less the assembled one, a central difference of their
+// gradient with the state moved by 1e-6 L. False when a moved state folds an edge back.
+bool MissingHessianProduct(const StepSensitivityProblem& p, const VecX& v, VecX* out) {
+  const int N = p.size();
+  const double L = p.model.length();
+  *out = -p.K_bend_twist.Multiply(v);
+  double scale = 0.0;
+  for (int r = 0; r < N; ++r)
+    if (!p.held[r]) scale = std::max(scale, r % 4 == 3 ? std::abs(v[r]) : std::abs(v[r]) / L);
+  if (scale == 0.0) return true;
+  const double eps = 1e-6 / scale;
+  if (!Moved(p.model, p.held, p.after.q, v, eps, &p.qp) ||
+      !Moved(p.model, p.held, p.after.q, v, -eps, &p.qm))
+    return false;
+  AssembleGradient(p.model, p.qp, p.bend_twist, &p.gp);
+  AssembleGradient(p.model, p.qm, p.bend_twist, &p.gm);
+  *out += (p.gp - p.gm) / (2.0 * eps);
+  for (int r = 0; r < N; ++r)
+    if (p.held[r]) (*out)[r] = 0.0;
+  return true;
+}
+
+// H dq_n+1 = rhs - E dq_n+1, solved by iterating from E = 0: two parts of the step's Jacobian
+// are not in H, both small against it, so each pass gains a factor ~1e-3 or better:
+//  - the end state's tangents move the transport too (TransportTwist): A P dq_n+1;
+//  - the assembled bending and twist Hessians' missing part (MissingHessianProduct).
+// *next: the solution, one column per direction.
+bool SolveWithMissingTerms(const StepSensitivityProblem& p, const Eigen::MatrixXd& rhs,
+                           Eigen::MatrixXd* next_out, std::string* why) {
+  const int N = p.size();
+  const int m = static_cast<int>(rhs.cols());
+  Eigen::MatrixXd& next = *next_out;
+  next = rhs;
+  p.factor.SolveInPlace(next);
+  std::vector<double> last_change(m, 0.0);  // per column, the previous pass's relative change
+  std::vector<char> settled(m, 0);          // per column: no further pass changes it
+  int open = m;
+  VecX extra;
+  Eigen::MatrixXd twist_from_end;
+  for (int pass = 0; pass < 30 && open > 0; ++pass) {
+    TransportTwist(p.model, p.held, p.before.q, p.after.q, p.after.q, next, &twist_from_end);
+    Eigen::MatrixXd again = rhs;
+    for (int k = 0; k < m; ++k) {
+      if (settled[k]) continue;
+      if (!MissingHessianProduct(p, next.col(k), &extra)) {
+        *why = "the step's sensitivities: a perturbed state folds an edge back";
+        return false;
+      }
+      again.col(k) -= p.ApplyA(twist_from_end.col(k)) + extra;
+    }
+    for (int r = 0; r < N; ++r)
+      if (p.held[r]) again.row(r).setZero();
+    p.factor.SolveInPlace(again);
+    // A column has settled when the error left in it is below 1e-9 of it: by its change in this
+    // pass when that is below 1e-9, or by the change times theta / (1 - theta), theta the
+    // passes' contraction measured as this change over the last (the stopping rule of the
+    // simplified Newton iteration, Hairer & Wanner II, IV.8): the passes contract by 1e-3 or
+    // better, so a column usually settles in two passes rather than three. The central
+    // differences' round-off (~1e-10 relative; ~1e-9 in a rod curved at rest, which twists as
+    // it bends) bounds how far they settle: a change below 1e-7 of it that no longer shrinks
+    // is that floor. A settled column is passed on as it is.
+    for (int k = 0; k < m; ++k) {
+      if (settled[k]) {
+        again.col(k) = next.col(k);
+        continue;
+      }
+      const double change = (again.col(k) - next.col(k)).cwiseAbs().maxCoeff() /
+                            std::max(next.col(k).cwiseAbs().maxCoeff(), 1e-300);
+      const double theta = pass > 0 && last_change[k] > 0.0 ? change / last_change[k] : 1.0;
+      const bool estimated = theta < 0.5 && theta / (1.0 - theta) * change <= 1e-9;
+      const bool floor = pass > 0 && change <= 1e-7 && change >= 0.1 * last_change[k];
+      if (change <= 1e-9 || estimated || floor) settled[k] = 1, --open;
+      last_change[k] = change;
+    }
+    next = again;
+  }
+  if (open > 0 || !next.allFinite()) {
+    *why = "the step's sensitivities did not settle (the rod turns or twists too far in one step)";
+    return false;
+  }
+  return true;
+}
+
+// The sensitivities after a step, from the solved dq_n+1 (`next`): the rates and BDF2's history
+// follow the step's increment d (dynamics.cc: v = c (d - z)), the increment's derivative the
+// change of dq plus the twist its transport gains from the start's and the end's tangents; held
+// rows are zero.
+void AdvanceSensitivities(const std::vector<char>& held, bool keeps_history, double c,
+                          const Eigen::MatrixXd& next, const Eigen::MatrixXd& twist_from_start,
+                          const Eigen::MatrixXd& twist_from_end, const Eigen::MatrixXd& dz_all,
+                          DynamicSensitivity* ds) {
+  Eigen::MatrixXd dd = next - ds->dq + twist_from_start + twist_from_end;
+  Eigen::MatrixXd dv_new = c * (dd - dz_all);
+  for (int r = 0; r < dd.rows(); ++r)
+    if (held[r]) dd.row(r).setZero(), dv_new.row(r).setZero();
+  if (keeps_history) {
+    ds->dlast_v = ds->dv;
+    ds->dlast_step = dd;
+  }
+  ds->dv = dv_new;
+  ds->dq = next;
+}
+
+}  // namespace
+
+// The stages: the step's weights and targets (as StepImplicit took them), its Newton matrix at
+// the solution (FactorStepMatrix), per direction the right-hand side (what the state before
+// carries, the lagged damping's derivative, the parameter's own part), the solve with the
+// Jacobian's missing terms (SolveWithMissingTerms), and the rates and history that follow.
 bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const DynamicState& before,
                                          const DynamicState& after,
                                          const std::vector<ParameterDirection>& directions,
@@ -261,16 +497,16 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
     *why = "the sensitivities lack the BDF2 history the state has (follow every step)";
     return false;
   }
-  const double a = sw.a;
-  const double c = sw.c;
+  StepSensitivityProblem p(model_, held_, mass_, drag_, internal_damping_, before, after);
+  p.a = sw.a;
+  p.c = sw.c;
   StepTargets targets;
   for (VecX* v : {&targets.y, &targets.z, &targets.predictor, &targets.y_ab}) v->setZero(N);
   DynamicsOptions plain = options_;
   plain.extrapolate_corrections = false;
   scheme_->Targets(before, dt, sw, plain, &targets);
-  const VecX& y = targets.y;
-  const VecX& z = targets.z;
-  (void)y;
+  p.y = targets.y;
+  p.z = targets.z;
   // The targets of a column of derivatives (rates, last step, last rates).
   DynamicState derivative;
   derivative.has_history = before.has_history;
@@ -288,193 +524,44 @@ bool DynamicsStepper::OneStepSensitivity(const Drive& drive, double dt, const Dy
     *dy = d_targets.y;
     *dz = d_targets.z;
   };
-  VecX d;
-  Delta(before.q, after.q, &d);
-  const VecX w = d - z;  // the damping's displacement
+  Delta(before.q, after.q, &p.d);
+  p.w = p.d - p.z;
+  // C(q_n): the stepper's own when it was made at this step's start (the last substep's).
+  const bool has_damping = DampingAt(before.q, &p.C);
+  if (!FactorStepMatrix(&p, has_damping, why)) return false;
 
-  // The Newton matrix at the solution, K + a M + c (D + C): K as its bending and twist part,
-  // which the passes below need on its own, plus the rest (stretch, springs) — one assembly of
-  // the bending stencils rather than two.
-  BandedSymmetric H, C, Cp, Cm, K_bend_twist;
-  VecX g;
-  EnergyTerms bend_twist = EnergyTerms::Only(-1);
-  bend_twist.bend1 = bend_twist.bend2 = bend_twist.twist = 1.0;
-  EnergyTerms others;  // everything else in the step's energy
-  others.bend1 = others.bend2 = others.twist = 0.0;
-  RodFrames after_frames;
-  ComputeRodFrames(model_, after.q, &after_frames);
-  AssembleHessian(model_, after.q, bend_twist, &g, &K_bend_twist, &after_frames);
-  AssembleHessian(model_, after.q, others, &g, &H, &after_frames);
-  H.band() += K_bend_twist.band();
-  for (int k = 0; k < N; ++k) H.At(k, k) += a * mass_[k] + c * drag_[k];
-  if (internal_damping_) {
-    DampingMatrix(model_, before.q, held_, 1.0, 1.0, 1.0, &C);
-    H.band() += c * C.band();
-  }
-  ApplyHeldRows(held_, nullptr, &H);
-  BandedCholesky factor;
-  if (!factor.Factor(H)) {
-    *why = "the step's Newton matrix is not positive definite at its solution";
-    return false;
-  }
-
+  const double a = p.a, c = p.c;
   VecX weights;
   WeightGradient(model_, held_, &weights);
-  const double L = model_.length();
-  // A v = (a M + c (D + C)) v: how the step's residual weighs its increment d.
-  auto apply_a = [&](const VecX& v) {
-    VecX out = a * mass_.cwiseProduct(v) + c * drag_.cwiseProduct(v);
-    if (internal_damping_) out += c * C.Multiply(v);
-    return out;
-  };
   // The increment's twist rows gained from moving the start's tangents.
-  Eigen::MatrixXd twist_from_start, twist_from_end;
+  Eigen::MatrixXd twist_from_start;
   TransportTwist(model_, held_, before.q, after.q, before.q, ds->dq, &twist_from_start);
   Eigen::MatrixXd rhs(N, m);
   Eigen::MatrixXd dz_all = Eigen::MatrixXd::Zero(N, m);  // the damping targets' derivatives
-  VecX dy, dz, col, tmp;
-  std::vector<Vec3> rest_delta, rest_zero;
+  VecX dy, dz, col;
   for (int k = 0; k < m; ++k) {
-    const ParameterDirection& dir = directions[k];
     const VecX dq = ds->dq.col(k);
     const VecX dv = ds->dv.col(k);
     DerivativeTargets(dv, k, &dy, &dz);
     dz_all.col(k) = dz;
     // Inertia and damping carried from the state before.
     col = a * mass_.cwiseProduct(dq + dy) + c * drag_.cwiseProduct(dq + dz) -
-          apply_a(twist_from_start.col(k));
+          p.ApplyA(twist_from_start.col(k));
     if (internal_damping_) {
-      col += c * C.Multiply(dq + dz);
-      // dC[dq] w, the lagged damping matrix moved with the state: a central difference of its
-      // assembly, the state moved by ~1e-6 L (truncation ~1e-12, round-off ~1e-10, relative).
-      double scale = 0.0;
-      for (int r = 0; r < N; ++r) {
-        if (held_[r]) continue;
-        scale = std::max(scale, r % 4 == 3 ? std::abs(dq[r]) : std::abs(dq[r]) / L);
-      }
-      if (scale > 0.0) {
-        const double eps = 1e-6 / scale;
-        RodState qp, qm;
-        if (!Moved(model_, held_, before.q, dq, eps, &qp) ||
-            !Moved(model_, held_, before.q, dq, -eps, &qm)) {
-          *why = "the damping's derivative: a perturbed state folds an edge back";
-          return false;
-        }
-        DampingMatrix(model_, qp, held_, 1.0, 1.0, 1.0, &Cp);
-        DampingMatrix(model_, qm, held_, 1.0, 1.0, 1.0, &Cm);
-        col -= (c / (2.0 * eps)) * (Cp.Multiply(w) - Cm.Multiply(w));
-      }
+      col += c * p.C.Multiply(dq + dz);
+      if (!SubtractDampingStateDerivative(p, dq, &col, why)) return false;
     }
-    // The parameter's own derivative of g.
-    StiffnessGradient(model_, after.q, dir, &tmp);
-    col -= tmp;
-    if (dir.drag != 0.0) col -= dir.drag * c * drag_.cwiseProduct(w);
-    if (internal_damping_ &&
-        (dir.bend_damping != 0.0 || dir.twist_damping != 0.0 || dir.stretch_damping != 0.0)) {
-      DampingMatrix(model_, before.q, held_, dir.bend_damping, dir.twist_damping,
-                    dir.stretch_damping, &Cp);
-      col -= c * Cp.Multiply(w);
-    }
-    // The internal damping's matrix is a Hessian of the energy (DampingMatrix): affine in the
-    // rest curvature, its derivative the difference of the matrices with the direction's and none.
-    if (internal_damping_ && RestCurvatureOnVertices(model_, dir, &rest_delta)) {
-      rest_zero.assign(rest_delta.size(), Vec3::Zero());
-      DampingMatrix(model_, before.q, held_, 1.0, 1.0, 1.0, &Cp, &rest_delta);
-      DampingMatrix(model_, before.q, held_, 1.0, 1.0, 1.0, &Cm, &rest_zero);
-      col -= c * (Cp.Multiply(w) - Cm.Multiply(w));
-    }
-    if (dir.density != 0.0) {
-      col -= dir.density * (a * mass_.cwiseProduct(d - y) + weights);
-    }
+    SubtractParameterPart(p, directions[k], weights, &col);
     for (int r = 0; r < N; ++r)
       if (held_[r]) col[r] = 0.0;
     rhs.col(k) = col;
   }
-  // Two parts of the step's Jacobian are not in H, and are added by iterating
-  // H dq_n+1 = rhs - E dq_n+1 from E = 0. Both are small against H, so each pass gains a factor
-  // ~1e-3 or better:
-  //  - the end state's tangents move the transport too (TransportTwist): A P dq_n+1;
-  //  - the bending and twist Hessians of the assembly are exact at zero twist moment but drop
-  //    the second derivative of the reference twist (relative error ~1e-3 in a rod that twists
-  //    as it moves): the exact product is a central difference of their gradient, the state
-  //    moved by 1e-6 L, less the assembled one.
-  VecX gp, gm;
-  RodState qp, qm;
-  auto missing = [&](const VecX& v, VecX* out) {
-    *out = -K_bend_twist.Multiply(v);
-    double scale = 0.0;
-    for (int r = 0; r < N; ++r)
-      if (!held_[r]) scale = std::max(scale, r % 4 == 3 ? std::abs(v[r]) : std::abs(v[r]) / L);
-    if (scale == 0.0) return true;
-    const double eps = 1e-6 / scale;
-    if (!Moved(model_, held_, after.q, v, eps, &qp) || !Moved(model_, held_, after.q, v, -eps, &qm))
-      return false;
-    AssembleGradient(model_, qp, bend_twist, &gp);
-    AssembleGradient(model_, qm, bend_twist, &gm);
-    *out += (gp - gm) / (2.0 * eps);
-    for (int r = 0; r < N; ++r)
-      if (held_[r]) (*out)[r] = 0.0;
-    return true;
-  };
-  Eigen::MatrixXd next = rhs;
-  factor.SolveInPlace(next);
-  std::vector<double> last_change(m, 0.0);  // per column, the previous pass's relative change
-  std::vector<char> settled(m, 0);          // per column: no further pass changes it
-  int open = m;
-  VecX extra;
-  for (int pass = 0; pass < 30 && open > 0; ++pass) {
-    TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
-    Eigen::MatrixXd again = rhs;
-    for (int k = 0; k < m; ++k) {
-      if (settled[k]) continue;
-      if (!missing(next.col(k), &extra)) {
-        *why = "the step's sensitivities: a perturbed state folds an edge back";
-        return false;
-      }
-      again.col(k) -= apply_a(twist_from_end.col(k)) + extra;
-    }
-    for (int r = 0; r < N; ++r)
-      if (held_[r]) again.row(r).setZero();
-    factor.SolveInPlace(again);
-    // A column has settled when the error left in it is below 1e-9 of it: by its change in this
-    // pass when that is below 1e-9, or by the change times theta / (1 - theta), theta the
-    // passes' contraction measured as this change over the last (the stopping rule of the
-    // simplified Newton iteration, Hairer & Wanner II, IV.8): the passes contract by 1e-3 or
-    // better, so a column usually settles in two passes rather than three. The central
-    // differences' round-off (~1e-10 relative; ~1e-9 in a rod curved at rest, which twists as
-    // it bends) bounds how far they settle: a change below 1e-7 of it that no longer shrinks
-    // is that floor. A settled column is passed on as it is.
-    for (int k = 0; k < m; ++k) {
-      if (settled[k]) {
-        again.col(k) = next.col(k);
-        continue;
-      }
-      const double change = (again.col(k) - next.col(k)).cwiseAbs().maxCoeff() /
-                            std::max(next.col(k).cwiseAbs().maxCoeff(), 1e-300);
-      const double theta = pass > 0 && last_change[k] > 0.0 ? change / last_change[k] : 1.0;
-      const bool estimated = theta < 0.5 && theta / (1.0 - theta) * change <= 1e-9;
-      const bool floor = pass > 0 && change <= 1e-7 && change >= 0.1 * last_change[k];
-      if (change <= 1e-9 || estimated || floor) settled[k] = 1, --open;
-      last_change[k] = change;
-    }
-    next = again;
-  }
-  if (open > 0 || !next.allFinite()) {
-    *why = "the step's sensitivities did not settle (the rod turns or twists too far in one step)";
-    return false;
-  }
+  Eigen::MatrixXd next;
+  if (!SolveWithMissingTerms(p, rhs, &next, why)) return false;
+  Eigen::MatrixXd twist_from_end;
   TransportTwist(model_, held_, before.q, after.q, after.q, next, &twist_from_end);
-  // The rates and BDF2's history follow the step's increment d (dynamics.cc: v = c (d - z)).
-  Eigen::MatrixXd dd = next - ds->dq + twist_from_start + twist_from_end;
-  Eigen::MatrixXd dv_new = c * (dd - dz_all);
-  for (int r = 0; r < N; ++r)
-    if (held_[r]) dd.row(r).setZero(), dv_new.row(r).setZero();
-  if (scheme_->keeps_history()) {
-    ds->dlast_v = ds->dv;
-    ds->dlast_step = dd;
-  }
-  ds->dv = dv_new;
-  ds->dq = next;
+  AdvanceSensitivities(held_, scheme_->keeps_history(), c, next, twist_from_start,
+                       twist_from_end, dz_all, ds);
   return true;
 }
 
