@@ -652,7 +652,7 @@ void AddGripperTilts(const std::vector<MotionRecordingData>& recordings,
                                 "least squares only");
   if (options.held_ends == RolloutOptions::HeldEnds::kPinnedPairs)
     throw std::invalid_argument("gripper_prior_deg: the held frames' nuisances need grippers "
-                                "(held ends grippers or free-roll), not pins");
+                                "(held ends jaws, grippers or free-roll), not pins");
   for (const MotionRecordingData& r : recordings) {
     const int M = r.frames.empty() ? 0 : static_cast<int>(r.frames[0].cols());
     const std::vector<char> held = HeldMarkers(options, M);

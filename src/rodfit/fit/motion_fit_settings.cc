@@ -65,7 +65,7 @@ void Serialize(SettingsArchive* a, MotionFitOptions* o) {
   a->Positive("max_rest_curvature", &o->max_rest_curvature);  // [1/m]
 
   a->Describe("gripper_prior_deg", "--gripper-prior-deg",
-              "[deg] with --fit and --held-ends grippers or free-roll: each recording's grippers "
+              "[deg] with --fit and held ends other than pins: each recording's grippers "
               "carry a fitted tilt (about d1 and d2) with a Gaussian prior of this std, reported "
               "per recording, never a parameter of the rod (default " +
                   Shortest(o->gripper_prior_deg) + ": none)");
