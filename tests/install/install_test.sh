@@ -82,7 +82,10 @@ if [ "$exported" != "$api" ]; then
 fi
 echo "== runtime_c_shared (librodfit.so.0)"
 "$work/examples/runtime_c_shared" >/dev/null
-ldd "$work/examples/runtime_c_shared" | grep -q "librodfit.so.0 => $prefix" ||
+# ldd's output taken whole before it is searched: `ldd | grep -q` under pipefail fails at
+# random when grep exits at its match before ldd has written everything (ldd killed by SIGPIPE).
+loaded=$(ldd "$work/examples/runtime_c_shared")
+grep -q "librodfit.so.0 => $prefix" <<<"$loaded" ||
   { echo "runtime_c_shared does not load the installed librodfit.so.0" >&2; exit 1; }
 echo "== ctypes"
 python3 - "$lib" <<'PY'
