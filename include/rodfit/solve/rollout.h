@@ -121,6 +121,16 @@ bool DefaultTwistDamping(Material* material);
 /// O(h^2) (an endpoint derivative amplifies noise sigma to ~2.5 sigma / h per axis).
 Vec3 QuadraticEndTangent(const Vec3& x0, const Vec3& x1, const Vec3& x2, double s1, double s2);
 
+/// A held marker's path (samples at multiples of frame_interval [s], some frames possibly
+/// dropped) resampled every frame_interval / 10 by the C1 piecewise cubic (Hermite) through its
+/// samples, each sample's velocity the derivative of the quadratic through it and its two
+/// neighbours (one-sided at the ends): the rollout drives the rod along it. The engine reads a
+/// drive linearly between samples; between 10 ms frames that velocity jumps at every frame and
+/// jerks a rod moved fast, the cubic's is continuous. The samples keep their times and values
+/// exactly; a quadratic motion is reproduced exactly, a smooth one to third order in the frame
+/// interval. Fewer than 3 samples: linear.
+void ResampleHeldPath(TimeSeries* path, double frame_interval);
+
 /// Per marker of a recording with `markers` markers: whether the rollout drives it
 /// (options.held_markers, negative counting from the last). Throws std::invalid_argument for a
 /// held marker that does not exist or marker 0 not held.

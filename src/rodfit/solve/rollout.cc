@@ -26,11 +26,13 @@ TimeSeries MarkerPath(const std::vector<Eigen::Matrix3Xd>& frames, int m, double
   return p;
 }
 
-// Marker path `of` interpolated at time t (held at its ends).
+// Marker path `of` interpolated linearly at time t (held at its ends), as the engine reads a
+// drive. A binary search: the resampled held paths have ten samples a frame.
 Vec3 At(const TimeSeries& of, double t) {
-  size_t j = 0;
-  while (j + 1 < of.t.size() && of.t[j + 1] <= t) ++j;
-  if (j + 1 < of.t.size() && t > of.t[j]) {
+  const size_t n = of.t.size();
+  size_t j = static_cast<size_t>(std::upper_bound(of.t.begin(), of.t.end(), t) - of.t.begin());
+  j = j == 0 ? 0 : j - 1;  // the last sample at or before t (the first when t precedes it)
+  if (j + 1 < n && t > of.t[j]) {
     const double w = (t - of.t[j]) / (of.t[j + 1] - of.t[j]);
     return (1 - w) * of.a[j] + w * of.a[j + 1];
   }
@@ -106,11 +108,14 @@ Eigen::Matrix3d GripperFrame(const RolloutOptions& options, int g, double t,
   return F * RotationOf(options.gripper_rotation[g]);
 }
 
-// Marker m's recorded path, smoothed (RolloutOptions::smooth_frames).
+// Marker m's recorded path, smoothed (RolloutOptions::smooth_frames), then resampled between
+// its frames by its C1 cubic (ResampleHeldPath): every held quantity derived from it (the clamps'
+// positions and frames, the pins, the markers in the jaws) follows the cubic.
 TimeSeries SmoothedPath(const std::vector<Eigen::Matrix3Xd>& frames, int m, double frame_interval,
                         const RolloutOptions& options) {
   TimeSeries p = MarkerPath(frames, m, frame_interval);
   Smooth(&p, frame_interval, options.smooth_frames);
+  ResampleHeldPath(&p, frame_interval);
   return p;
 }
 
@@ -451,6 +456,54 @@ void Score(const std::vector<Eigen::Matrix3Xd>& frames, RolloutResult* result) {
 }
 
 }  // namespace
+
+// Samples per frame interval of a held path resampled by its cubic (ResampleHeldPath): the engine
+// reads a drive linearly between samples, so the samples must be fine for its velocity to be
+// nearly continuous; a tenth of a 10 ms frame is the 1 ms with which the diagnosis drove the
+// rod exactly (docs/performance.md, BM_JawsFloorDiagnosis).
+constexpr int kHeldPathSamplesPerFrame = 10;
+
+void ResampleHeldPath(TimeSeries* path, double frame_interval) {
+  const size_t n = path->t.size();
+  if (n < 2) return;
+  const std::vector<double>& t = path->t;
+  const std::vector<Vec3>& x = path->a;
+  std::vector<Vec3> v(n);
+  if (n == 2) {
+    v[0] = v[1] = (x[1] - x[0]) / (t[1] - t[0]);
+  } else {
+    for (size_t k = 0; k < n; ++k) {
+      // The quadratic through samples i-1, i, i+1 (i clamped inside), differentiated at t[k].
+      const size_t i = std::clamp<size_t>(k, 1, n - 2);
+      const double h0 = t[i] - t[i - 1], h1 = t[i + 1] - t[i];
+      const double d = t[k] - t[i];  // -h0, 0 or h1
+      // The Lagrange basis's derivatives on (t[i] - h0, t[i], t[i] + h1) at t[i] + d.
+      const double l0 = (2 * d - h1) / (h0 * (h0 + h1));
+      const double l1 = -(2 * d + h0 - h1) / (h0 * h1);
+      const double l2 = (2 * d + h0) / (h1 * (h0 + h1));
+      v[k] = l0 * x[i - 1] + l1 * x[i] + l2 * x[i + 1];
+    }
+  }
+  const double fine = frame_interval / kHeldPathSamplesPerFrame;
+  TimeSeries out;
+  out.file = path->file;
+  for (size_t k = 0; k + 1 < n; ++k) {
+    const double h = t[k + 1] - t[k];
+    const int pieces = std::max(1, static_cast<int>(std::lround(h / fine)));
+    out.t.push_back(t[k]);
+    out.a.push_back(x[k]);
+    for (int j = 1; j < pieces; ++j) {
+      const double s = static_cast<double>(j) / pieces, s2 = s * s, s3 = s2 * s;
+      out.t.push_back(t[k] + s * h);
+      out.a.push_back((2 * s3 - 3 * s2 + 1) * x[k] + (s3 - 2 * s2 + s) * h * v[k] +
+                      (-2 * s3 + 3 * s2) * x[k + 1] + (s3 - s2) * h * v[k + 1]);
+    }
+  }
+  out.t.push_back(t.back());
+  out.a.push_back(x.back());
+  *path = std::move(out);
+}
+
 
 Vec3 QuadraticEndTangent(const Vec3& x0, const Vec3& x1, const Vec3& x2, double s1, double s2) {
   // Derivatives at s = 0 of the Lagrange basis on (0, s1, s2).
