@@ -504,7 +504,6 @@ void ResampleHeldPath(TimeSeries* path, double frame_interval) {
   *path = std::move(out);
 }
 
-
 Vec3 QuadraticEndTangent(const Vec3& x0, const Vec3& x1, const Vec3& x2, double s1, double s2) {
   // Derivatives at s = 0 of the Lagrange basis on (0, s1, s2).
   const double l0 = -(s1 + s2) / (s1 * s2), l1 = s2 / (s1 * (s2 - s1)),
