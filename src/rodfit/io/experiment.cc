@@ -907,7 +907,7 @@ void ReadDriven(const Reader& r, const Field& f, const Experiment& ex, LoadCase*
     } else {
       size_t k = 0;
       while (k < c->pins.size() && c->pins[k].s != s) ++k;
-      if (k == c->pins.size()) c->pins.push_back(Pin{s, d.path.a.front()});
+      if (k == c->pins.size()) c->pins.push_back(Pin{s, d.path.a.front(), std::nullopt});
       d.point = "pins[" + std::to_string(k) + "]";
     }
     if (has_frame && d.point != "clamp" && d.point != "end_clamp")
